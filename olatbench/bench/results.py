@@ -1,0 +1,76 @@
+"""The ``results.json`` schema of one finished job: written by the runner, read by reports.
+
+Schema version 1 (every key present; unknown values are ``null``)::
+
+    {
+      "schema_version": 1,
+      "status": "done" | "failed",
+      "job": {"id": str, "method": str, "variant": str, "suite": str, "scene": str, "seed": int,
+              "config": {...resolved method config...}},
+      "protocol": {"id": "olatbench-v1", "version": 1},
+      "metrics": {"<split>": {"mean": {"psnr": float, "ssim": float, "lpips": float | null, ...},
+                               "per_image": {"<frame_id>": {"psnr": ..., ...}}}},
+      "timing": {"train_seconds": float, "render_fps": float | null},
+      "resources": {"device": str, "peak_rss_mb": float, "cuda_peak_mb": float | null},
+      "model": {"iterations": int, "num_gaussians": int | null},
+      "versions": {"olatbench": str, "python": str, "numpy": str, "torch": str | null, ...},
+      "hashes": {"data_manifest": str, "config": str, "code": str},
+      "error": null | {"type": str, "message": str}
+    }
+
+Metric keys: ``psnr`` (dB), ``ssim``, ``lpips`` (the protocol's primary network), and optionally
+``lpips_alex`` / ``lpips_vgg``. Splits are ``train`` and ``test`` (and ``val`` when present).
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+from olatbench.atomic import write_json
+
+SCHEMA_VERSION = 1
+REQUIRED_KEYS = ("schema_version", "status", "job", "protocol", "metrics")
+JOB_KEYS = ("id", "method", "variant", "suite", "scene", "seed")
+
+
+class ResultsError(ValueError):
+    """A results.json that cannot be read: names the file and what is wrong."""
+
+
+def validate_results(data: Any, source: str = "results") -> dict[str, Any]:
+    """Check the structure of a results dict; return it unchanged or raise `ResultsError`."""
+    if not isinstance(data, dict):
+        raise ResultsError(f"{source}: expected a JSON object, found {type(data).__name__}")
+    version = data.get("schema_version")
+    if version != SCHEMA_VERSION:
+        raise ResultsError(f"{source}: schema_version {version!r} is not supported by this olatbench "
+                           f"(it reads version {SCHEMA_VERSION}); upgrade olatbench or re-run the job")
+    missing = [key for key in REQUIRED_KEYS if key not in data]
+    missing += [f"job.{key}" for key in JOB_KEYS if key not in data.get("job", {})]
+    if missing:
+        raise ResultsError(f"{source}: missing keys {', '.join(missing)}")
+    if data["status"] not in ("done", "failed"):
+        raise ResultsError(f"{source}: status must be 'done' or 'failed', found {data['status']!r}")
+    for split, block in data["metrics"].items():
+        if not isinstance(block, dict) or "mean" not in block:
+            raise ResultsError(f"{source}: metrics.{split} has no 'mean'")
+    return data
+
+
+def read_results(path: str | Path) -> dict[str, Any]:
+    """Read and validate one results.json."""
+    path = Path(path)
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise ResultsError(f"{path}: file not found") from None
+    except json.JSONDecodeError as error:
+        raise ResultsError(f"{path}: malformed JSON ({error})") from None
+    return validate_results(data, str(path))
+
+
+def write_results(path: str | Path, data: dict[str, Any]) -> Path:
+    """Validate and write one results.json atomically."""
+    return write_json(path, validate_results(data, str(path)))

@@ -1,0 +1,78 @@
+"""The ``olatbench`` command: a thin, lazily loaded front over the library layers.
+
+Each verb lives in its own module and is imported only when it is invoked, so
+``olatbench --help`` and the dataset verbs never import torch.
+"""
+
+from __future__ import annotations
+
+import importlib
+
+import click
+
+from olatbench import __version__
+
+# verb -> "module:attribute" of a click command or group
+COMMANDS: dict[str, str] = {
+    "datasets": "olatbench.cli.datasets:datasets",
+    "methods": "olatbench.cli.methods:methods",
+    "run": "olatbench.cli.run:run",
+    "status": "olatbench.cli.run:status",
+    "evaluate": "olatbench.cli.metrics:evaluate",
+    "metrics": "olatbench.cli.metrics:metrics",
+    "weights": "olatbench.cli.metrics:weights",
+    "report": "olatbench.cli.report:report",
+    "render": "olatbench.cli.report:render",
+}
+
+HELP_LINES: dict[str, str] = {
+    "datasets": "Inspect, validate, convert and generate OLAT datasets.",
+    "methods": "List methods and show their presets.",
+    "run": "Train and evaluate methods on a suite (resumable).",
+    "status": "Show the state of the jobs in a run folder.",
+    "evaluate": "Score a folder of renders against a scene's ground truth.",
+    "metrics": "Explain the metric protocols.",
+    "weights": "Install and locate the LPIPS weights.",
+    "report": "Build the paper's tables and figures from results.json files.",
+    "render": "Render relighting sweeps (videos) from a finished run.",
+}
+
+
+class LazyGroup(click.Group):
+    """A click group whose sub-commands are imported on first use."""
+
+    def list_commands(self, ctx: click.Context) -> list[str]:
+        return sorted(COMMANDS)
+
+    def get_command(self, ctx: click.Context, name: str) -> click.Command | None:
+        target = COMMANDS.get(name)
+        if target is None:
+            return None
+        module_name, attribute = target.split(":")
+        try:
+            module = importlib.import_module(module_name)
+        except ModuleNotFoundError as error:
+            if error.name and error.name.startswith("olatbench"):
+                raise click.ClickException(f"'{name}' is not available in this build ({error}).") from error
+            raise click.ClickException(
+                f"'olatbench {name}' needs the package '{error.name}'. Install it, e.g. "
+                f"pip install torch==2.13.0 && pip install 'olatbench[all]'"
+            ) from error
+        return getattr(module, attribute)
+
+    def format_commands(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:
+        rows = [(name, HELP_LINES.get(name, "")) for name in self.list_commands(ctx)]
+        with formatter.section("Commands"):
+            formatter.write_dl(rows)
+
+
+@click.group(cls=LazyGroup, context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(__version__, prog_name="olatbench")
+def main() -> None:
+    """Benchmark relightable 3D reconstruction on OLAT data.
+
+    \b
+    Typical session:
+      olatbench run --method ssdgs --suite mini     # generate data, train, evaluate
+      olatbench report runs/                        # the paper-style tables
+    """

@@ -1,0 +1,132 @@
+"""Image files through OpenImageIO (EXR, HDR, PNG, JPEG, TIFF), and resizing.
+
+Reads return float32 (H, W, C): 8-bit and 16-bit integers are normalised to
+[0, 1], half and float data are returned as stored. OpenImageIO is imported on
+first use so that ``import olatbench.datasets`` needs numpy alone.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+
+from olatbench.atomic import atomic_path
+from olatbench.datasets.errors import DatasetError
+
+BitDepth = Literal["uint8", "uint16", "half", "float"]
+
+
+def _oiio():
+    try:
+        import OpenImageIO as oiio
+    except ImportError as error:  # pragma: no cover - exercised only without the dependency
+        raise ImportError("reading images needs OpenImageIO: pip install OpenImageIO") from error
+    return oiio
+
+
+def _read_config(oiio):
+    """Read alpha as stored: OpenImageIO would otherwise premultiply PNG/TIFF colour on read."""
+    config = oiio.ImageSpec()
+    config.attribute("oiio:UnassociatedAlpha", 1)
+    return config
+
+
+def read_image(path: str | Path) -> np.ndarray:
+    """Decode an image file to float32 (H, W, C); raise `DatasetError` naming the file on failure."""
+    path = Path(path)
+    if not path.is_file():
+        raise DatasetError("image file not found", path=path)
+    oiio = _oiio()
+    image_input = oiio.ImageInput.open(str(path), _read_config(oiio))
+    if image_input is None:
+        raise DatasetError(f"cannot open image ({oiio.geterror() or 'unknown format'})", path=path)
+    try:
+        spec = image_input.spec()
+        pixels = image_input.read_image(0, 0, 0, spec.nchannels, "float")
+        error = image_input.geterror()
+    finally:
+        image_input.close()
+    if pixels is None or error:
+        raise DatasetError(f"corrupt or truncated image ({error or 'decode failed'})", path=path)
+    pixels = np.asarray(pixels, dtype=np.float32)
+    if pixels.ndim == 2:
+        pixels = pixels[..., None]
+    if pixels.shape[:2] != (spec.height, spec.width):
+        raise DatasetError(f"decoded size {pixels.shape[:2]} differs from header "
+                           f"{(spec.height, spec.width)}", path=path)
+    return pixels
+
+
+def image_size(path: str | Path) -> tuple[int, int]:
+    """(width, height) from the file header, without decoding the pixels."""
+    path = Path(path)
+    oiio = _oiio()
+    image_input = oiio.ImageInput.open(str(path))
+    if image_input is None:
+        raise DatasetError(f"cannot open image ({oiio.geterror() or 'missing or unknown format'})", path=path)
+    try:
+        spec = image_input.spec()
+        return int(spec.width), int(spec.height)
+    finally:
+        image_input.close()
+
+
+_OIIO_TYPES = {"uint8": "uint8", "uint16": "uint16", "half": "half", "float": "float"}
+
+
+def write_image(path: str | Path, pixels: np.ndarray, bit_depth: BitDepth | None = None) -> Path:
+    """Write float (H, W, C) or (H, W) pixels atomically, as given; integer formats expect [0, 1] and round.
+
+    The default bit depth is ``half`` for ``.exr``/``.hdr`` and ``uint8`` otherwise.
+    """
+    path = Path(path)
+    pixels = np.asarray(pixels, dtype=np.float32)
+    if pixels.ndim == 2:
+        pixels = pixels[..., None]
+    if not np.all(np.isfinite(pixels)):
+        raise ValueError(f"{path}: refusing to write non-finite pixel values")
+    suffix = path.suffix.lower()
+    if bit_depth is None:
+        bit_depth = "half" if suffix in (".exr", ".hdr") else "uint8"
+    if bit_depth in ("uint8", "uint16"):
+        peak = 255.0 if bit_depth == "uint8" else 65535.0
+        pixels = np.rint(np.clip(pixels, 0.0, 1.0) * peak) / peak
+    oiio = _oiio()
+    height, width, channels = pixels.shape
+    spec = oiio.ImageSpec(width, height, channels, _OIIO_TYPES[bit_depth])
+    if suffix == ".exr":
+        spec.attribute("compression", "zip")
+    else:
+        spec.attribute("oiio:UnassociatedAlpha", 1)  # pixels are written as given, never un-premultiplied
+    with atomic_path(path) as temporary:
+        output = oiio.ImageOutput.create(str(temporary))
+        if output is None or not output.open(str(temporary), spec):
+            raise OSError(f"{path}: cannot write image ({oiio.geterror()})")
+        ok = output.write_image(np.ascontiguousarray(pixels))
+        output.close()
+        if not ok:
+            raise OSError(f"{path}: cannot write image ({output.geterror()})")
+    return path
+
+
+def resize_image(pixels: np.ndarray, width: int, height: int) -> np.ndarray:
+    """Resize float (H, W, C) pixels to (height, width, C) with area averaging (``cv2.INTER_AREA``).
+
+    Area averaging is what the official pipelines use for downscaling; for upscaling it
+    behaves like bilinear interpolation. Channels beyond 4 are resized in groups.
+    """
+    import cv2
+
+    pixels = np.asarray(pixels, dtype=np.float32)
+    if pixels.shape[1] == width and pixels.shape[0] == height:
+        return pixels
+    squeeze = pixels.ndim == 2
+    if squeeze:
+        pixels = pixels[..., None]
+    parts = [cv2.resize(pixels[..., i:i + 4], (width, height), interpolation=cv2.INTER_AREA)
+             for i in range(0, pixels.shape[2], 4)]
+    parts = [p[..., None] if p.ndim == 2 else p for p in parts]
+    resized = np.concatenate(parts, axis=2)
+    return resized[..., 0] if squeeze else resized

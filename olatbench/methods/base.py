@@ -1,0 +1,97 @@
+"""The method interface: what the runner needs from any relightable reconstruction method.
+
+The runner owns the training loop (progress, checkpoints, evaluation, timing), so a
+method only has to answer these calls. Images handed to a method are float32 in
+[0, 1], composited on the suite's background, in the suite's training colour space;
+renders must be returned in the same space.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any, ClassVar
+
+import numpy as np
+
+if TYPE_CHECKING:
+    import torch
+
+    from olatbench.datasets.records import Camera, PointLight
+
+
+@dataclass
+class Views:
+    """Training (or evaluation) views: one camera, light and image per entry.
+
+    ``images`` is (N, H, W, 3) float32 in [0, 1] in ``colourspace``, composited on ``background`` (3,).
+    """
+
+    cameras: list[Camera]
+    lights: list[PointLight]
+    images: np.ndarray
+    frame_ids: list[str]
+    colourspace: str = "srgb"
+    background: np.ndarray = field(default_factory=lambda: np.zeros(3, dtype=np.float32))
+    scene_name: str = ""
+
+    def __len__(self) -> int:
+        return len(self.cameras)
+
+
+class Method(ABC):
+    """A trainable method. Subclasses set ``name``, ``config_class`` and ``presets``.
+
+    ``presets`` maps a preset name (e.g. ``"nrhints"``, ``"mini"``, ``"ablation-A"``) to a dict of
+    config overrides; ``resolve_config`` applies them over the dataclass defaults.
+    """
+
+    name: ClassVar[str]
+    config_class: ClassVar[type]
+    presets: ClassVar[dict[str, dict[str, Any]]] = {}
+    description: ClassVar[str] = ""
+
+    def __init__(self, config: Any) -> None:
+        self.config = config
+
+    @classmethod
+    def resolve_config(cls, preset: str | None = None, **overrides: Any) -> Any:
+        """The config dataclass with a preset's values, then explicit overrides, applied."""
+        values: dict[str, Any] = {}
+        if preset is not None:
+            if preset not in cls.presets:
+                known = ", ".join(sorted(cls.presets)) or "none"
+                raise KeyError(f"method '{cls.name}' has no preset '{preset}'; known presets: {known}")
+            values.update(cls.presets[preset])
+        values.update(overrides)
+        return cls.config_class(**values)
+
+    @abstractmethod
+    def setup(self, train: Views, device: str | torch.device, seed: int) -> None:
+        """Initialise parameters and optimisers for the training views."""
+
+    @abstractmethod
+    def train_step(self, step: int) -> dict[str, float]:
+        """One optimisation step (``step`` counts from 0); returns scalars such as ``loss``."""
+
+    @abstractmethod
+    def render(self, camera: Camera, light: PointLight) -> dict[str, torch.Tensor]:
+        """Render one view: ``rgb`` (H, W, 3) plus named components (``diffuse``, ``shadow``, ...)."""
+
+    @abstractmethod
+    def state_dict(self) -> dict[str, Any]:
+        """Everything needed to resume training: tensors and plain Python values only."""
+
+    @abstractmethod
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        """Restore what `state_dict` returned (loaded with ``torch.load(weights_only=True)``)."""
+
+    @property
+    def num_iterations(self) -> int:
+        """Total training iterations of the resolved config."""
+        return int(self.config.iterations)
+
+    @property
+    def num_gaussians(self) -> int | None:
+        """Current primitive count, when the method has one."""
+        return None
