@@ -39,13 +39,25 @@ HELP_LINES: dict[str, str] = {
 
 
 class LazyGroup(click.Group):
-    """A click group whose sub-commands are imported on first use."""
+    """A click group whose sub-commands are imported on first use.
+
+    ``commands`` maps a verb to ``"module:attribute"``; ``help_lines`` gives the one-line
+    summaries shown by ``--help`` without importing the modules.
+    """
+
+    def __init__(self, *args, commands: dict[str, str] | None = None, help_lines: dict[str, str] | None = None,
+                 **kwargs) -> None:
+        super().__init__(*args, **kwargs)
+        self.lazy_commands = COMMANDS if commands is None else commands
+        self.help_lines = HELP_LINES if help_lines is None else help_lines
 
     def list_commands(self, ctx: click.Context) -> list[str]:
-        return sorted(COMMANDS)
+        return sorted(set(self.lazy_commands) | set(self.commands))
 
     def get_command(self, ctx: click.Context, name: str) -> click.Command | None:
-        target = COMMANDS.get(name)
+        if name in self.commands:
+            return self.commands[name]
+        target = self.lazy_commands.get(name)
         if target is None:
             return None
         module_name, attribute = target.split(":")
@@ -61,7 +73,7 @@ class LazyGroup(click.Group):
         return getattr(module, attribute)
 
     def format_commands(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:
-        rows = [(name, HELP_LINES.get(name, "")) for name in self.list_commands(ctx)]
+        rows = [(name, self.help_lines.get(name, "")) for name in self.list_commands(ctx)]
         with formatter.section("Commands"):
             formatter.write_dl(rows)
 
