@@ -1,0 +1,214 @@
+"""Reader and writer of the NeRF-style ``transforms_<split>.json`` layout shared by NRHints and GS³.
+
+One JSON file per split holds ``frames`` with ``file_path`` (no extension; ``file_ext`` per frame
+or the format default), ``transform_matrix`` (camera-to-world, OpenGL/Blender axes), ``pl_pos`` and
+optionally ``pl_intensity``. Intrinsics are ``camera_intrinsics`` = **[cx, cy, fx, fy]** (top level
+or per frame) or ``camera_angle_x`` (square pixels, centred principal point). ``transforms_valid.json``
+(the GS³ re-pack) is a camera path without images: split ``path``, frames with ``image_path=None``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from olatbench.atomic import write_json
+from olatbench.datasets import colour
+from olatbench.datasets.cameras import fov_from_focal, intrinsics_from_fov, intrinsics_matrix, opencv_to_opengl
+from olatbench.datasets.errors import DatasetError
+from olatbench.datasets.formats import _common as c
+from olatbench.datasets.records import Camera, Frame, PointLight, Scene
+
+SPLIT_FILES: dict[str, str] = {
+    "train": "transforms_train.json",
+    "val": "transforms_val.json",
+    "test": "transforms_test.json",
+    "path": "transforms_valid.json",
+}
+IMAGE_SPLITS = ("train", "val", "test")
+
+
+@dataclass(frozen=True)
+class NerfFlavour:
+    """What distinguishes NRHints from GS³ files: default extension, colour, alpha and background."""
+
+    format_name: str
+    default_ext: str
+    colourspace: colour.ColourSpace
+    alpha_mode: colour.AlphaMode
+    background: tuple[float, float, float]
+
+
+def _intrinsics(source: Mapping[str, Any], width: int, height: int, *, path: Path,
+                frame: str | int | None) -> np.ndarray | None:
+    """K from ``camera_intrinsics`` [cx, cy, fx, fy] or ``camera_angle_x``; None when neither is in ``source``."""
+    if source.get("camera_intrinsics") is not None:
+        cx, cy, fx, fy = c.as_array(source["camera_intrinsics"], (4,), path=path, frame=frame, key="camera_intrinsics")
+        if fx <= 0 or fy <= 0:
+            raise DatasetError(f"focal lengths must be > 0, found fx={fx}, fy={fy}", path=path, frame=frame,
+                               key="camera_intrinsics")
+        return intrinsics_matrix(fx, fy, cx, cy)
+    if source.get("camera_angle_x") is not None:
+        fov = c.as_positive(source["camera_angle_x"], path=path, frame=frame, key="camera_angle_x")
+        if fov >= np.pi:
+            raise DatasetError(f"must be < π radians, found {fov}", path=path, frame=frame, key="camera_angle_x")
+        return intrinsics_from_fov(fov, width, height)
+    return None
+
+
+def _image_size(root: Path, metas: dict[str, tuple[Path, dict]], flavour: NerfFlavour) -> tuple[int, int]:
+    """(width, height): top-level ``w``/``h`` or the header of the first image of the first image split."""
+    from olatbench.datasets.images import image_size
+
+    for split in (*IMAGE_SPLITS, "path"):
+        if split not in metas:
+            continue
+        path, meta = metas[split]
+        if meta.get("w") is not None and meta.get("h") is not None:
+            return (int(c.as_positive(meta["w"], path=path, frame=None, key="w")),
+                    int(c.as_positive(meta["h"], path=path, frame=None, key="h")))
+    for split in IMAGE_SPLITS:
+        if split not in metas:
+            continue
+        path, meta = metas[split]
+        frames = c.frames_of(meta, path)
+        if frames:
+            first = frames[0]
+            image = c.image_file(root, c.require(first, "file_path", path=path, frame=0), first.get("file_ext"),
+                                 flavour.default_ext, path=path, frame=0)
+            if not image.is_file():
+                raise DatasetError("image file not found (needed for the image size)", path=image, frame=0)
+            return image_size(image)
+    raise DatasetError("cannot determine the image size: no image split and no 'w'/'h' keys", path=root)
+
+
+def read_nerf_scene(root: Path, flavour: NerfFlavour, name: str,
+                    errors: list[DatasetError] | None = None) -> Scene:
+    """Read every ``transforms_<split>.json`` of ``root``.
+
+    With ``errors`` given, a bad frame is recorded there and skipped instead of raising.
+    """
+    root = Path(root)
+    metas = {split: (root / file, c.read_json(root / file)) for split, file in SPLIT_FILES.items()
+             if (root / file).is_file()}
+    if not any(split in metas for split in IMAGE_SPLITS):
+        raise DatasetError(f"no {', '.join(SPLIT_FILES[s] for s in IMAGE_SPLITS)}", path=root)
+    width, height = _image_size(root, metas, flavour)
+    background = np.asarray(flavour.background, dtype=np.float64)
+    frames: dict[str, list[Frame]] = {}
+    for split, (path, meta) in metas.items():
+        raw_frames = c.frames_of(meta, path)
+        near = c.as_positive(meta["camera_near"], path=path, frame=None, key="camera_near") \
+            if meta.get("camera_near") is not None else None
+        far = c.as_positive(meta["camera_far"], path=path, frame=None, key="camera_far") \
+            if meta.get("camera_far") is not None else None
+        split_K = _intrinsics(meta, width, height, path=path, frame=None)
+        stems = [Path(str(raw.get("file_path", f"{split}_{i:04d}"))).stem if split != "path" else f"path_{i:04d}"
+                 for i, raw in enumerate(raw_frames)]
+        parsed = []
+        for index, (raw, frame_id) in enumerate(zip(raw_frames, c.unique_ids(stems), strict=True)):
+            try:
+                parsed.append(_read_frame(root, path, split, index, frame_id, raw, split_K, width, height,
+                                          near, far, name, flavour, background))
+            except DatasetError as error:
+                if errors is None:
+                    raise
+                errors.append(error)
+        frames[split] = parsed
+    metadata = {"folder": root.name, "files": {s: p.name for s, (p, _) in metas.items()}}
+    return Scene(name=name, format=flavour.format_name, root=root, frames=frames, background=background,
+                 metadata=metadata)
+
+
+def _read_frame(root: Path, path: Path, split: str, index: int, frame_id: str, raw: Mapping[str, Any],
+                split_K: np.ndarray | None, width: int, height: int, near: float | None, far: float | None,
+                name: str, flavour: NerfFlavour, background: np.ndarray) -> Frame:
+    where = {"path": path, "frame": frame_id}
+    c2w = c.opencv_c2w(c.require(raw, "transform_matrix", **where), **where)
+    K = _intrinsics(raw, width, height, **where)
+    if K is None:
+        K = split_K
+    if K is None:
+        raise DatasetError("no intrinsics: expected 'camera_intrinsics' or 'camera_angle_x'", **where)
+    position = c.as_array(c.require(raw, "pl_pos", **where), (3,), key="pl_pos", **where)
+    intensity_known = raw.get("pl_intensity") is not None
+    intensity = c.as_rgb(raw["pl_intensity"], key="pl_intensity", **where) if intensity_known else np.ones(3)
+    image_path = None
+    if split != "path":
+        image_path = c.image_file(root, c.require(raw, "file_path", **where), raw.get("file_ext"),
+                                  flavour.default_ext, **where)
+    extras: dict[str, Any] = {}
+    if raw.get("R_opt") is not None or raw.get("T_opt") is not None:
+        extras["R_opt"] = c.as_array(c.require(raw, "R_opt", **where), (3, 3), key="R_opt", **where)
+        extras["T_opt"] = c.as_array(c.require(raw, "T_opt", **where), (3,), key="T_opt", **where)
+    if split == "path" and raw.get("file_path") is not None:
+        extras["file_path"] = str(raw["file_path"])
+    camera = Camera(K=K, c2w=c2w, width=width, height=height, near=near, far=far)
+    return Frame(scene=name, split=split, frame_id=frame_id, image_path=image_path, camera=camera,
+                 light=PointLight(position=position, intensity=intensity, intensity_known=intensity_known),
+                 colourspace=flavour.colourspace, alpha_mode=flavour.alpha_mode, background=background.copy(),
+                 extras=extras)
+
+
+def _shared_intrinsics(frames: list[Frame]) -> np.ndarray | None:
+    """The K every frame shares, else None."""
+    if frames and all(np.allclose(f.camera.K, frames[0].camera.K) for f in frames):
+        return frames[0].camera.K
+    return None
+
+
+def _intrinsics_json(K: np.ndarray, width: int, height: int) -> dict[str, Any]:
+    """``camera_angle_x`` for square pixels and a centred principal point, else ``camera_intrinsics``."""
+    fx, fy, cx, cy = float(K[0, 0]), float(K[1, 1]), float(K[0, 2]), float(K[1, 2])
+    if np.isclose(fx, fy) and np.isclose(cx, width / 2) and np.isclose(cy, height / 2):
+        return {"camera_angle_x": fov_from_focal(fx, width)}
+    return {"camera_intrinsics": [cx, cy, fx, fy]}
+
+
+def write_nerf_scene(scene: Scene, out_dir: Path, flavour: NerfFlavour,
+                     encode: Callable[[np.ndarray], np.ndarray], pixels: Callable[[Frame], np.ndarray],
+                     bit_depth: str) -> Path:
+    """Write ``scene`` as ``transforms_<split>.json`` + ``<split>/<frame_id><ext>``.
+
+    ``encode`` turns linear straight RGBA (H, W, 4) into what the files hold.
+    """
+    from olatbench.datasets.images import write_image
+
+    out_dir = Path(out_dir)
+    for split, frames in scene.frames.items():
+        if not frames:
+            continue
+        file = SPLIT_FILES.get(split)
+        if file is None:
+            raise DatasetError(f"split '{split}' has no {flavour.format_name} file name; "
+                               f"expected one of {', '.join(SPLIT_FILES)}", path=scene.root)
+        first = frames[0].camera
+        K = _shared_intrinsics(frames)
+        meta: dict[str, Any] = _intrinsics_json(K, first.width, first.height) if K is not None else {}
+        if first.near is not None:
+            meta["camera_near"] = first.near
+        if first.far is not None:
+            meta["camera_far"] = first.far
+        meta["frames"] = []
+        for frame in frames:
+            stem = c.safe_file_stem(frame.frame_id)
+            entry: dict[str, Any] = {"file_path": f"./{split}/{stem}"}
+            if split != "path":
+                write_image(out_dir / split / f"{stem}{flavour.default_ext}", encode(pixels(frame)), bit_depth)
+                entry["file_ext"] = flavour.default_ext
+            entry["transform_matrix"] = opencv_to_opengl(frame.camera.c2w).tolist()
+            if K is None:
+                entry["camera_intrinsics"] = [frame.camera.cx, frame.camera.cy, frame.camera.fx, frame.camera.fy]
+            entry["pl_pos"] = np.asarray(frame.light.position, dtype=float).tolist()
+            if frame.light.intensity_known:
+                entry["pl_intensity"] = np.asarray(frame.light.intensity, dtype=float).tolist()
+            for key in ("R_opt", "T_opt"):
+                if key in frame.extras:
+                    entry[key] = np.asarray(frame.extras[key], dtype=float).tolist()
+            meta["frames"].append(entry)
+        write_json(out_dir / file, meta)
+    return out_dir

@@ -1,0 +1,53 @@
+"""GS³ (Bi et al. 2024) synthetic OLAT scenes.
+
+Files: ``transforms_{train,test}.json`` with ``camera_angle_x``, ``camera_near``/``camera_far``, per frame
+``file_path`` + ``file_ext`` (".exr"), ``pl_pos``, ``pl_intensity``, optional per-frame
+``camera_intrinsics`` and refined poses ``R_opt``/``T_opt`` (kept in ``Frame.extras``, never mixed into
+the calibration). Images: float RGBA EXR, linear light, premultiplied alpha; official background white.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+from olatbench.datasets import colour
+from olatbench.datasets.errors import DatasetError
+from olatbench.datasets.formats import _common as c
+from olatbench.datasets.formats._nerf import SPLIT_FILES, NerfFlavour, read_nerf_scene, write_nerf_scene
+from olatbench.datasets.formats.nrhints import _is_exr
+from olatbench.datasets.records import Frame, Scene
+from olatbench.datasets.suites import canonical_scene_name
+
+FORMAT_NAME = "gs3"
+FLAVOUR = NerfFlavour(format_name=FORMAT_NAME, default_ext=".exr", colourspace="linear",
+                      alpha_mode="premultiplied", background=(1.0, 1.0, 1.0))
+
+
+def detect(root: Path) -> bool:
+    """A NeRF-style tree whose first frame is an EXR (``file_ext`` ".exr" or a ``file_path`` ending in it)."""
+    found = c.first_frame(Path(root), (SPLIT_FILES["train"], SPLIT_FILES["test"], SPLIT_FILES["val"]))
+    if found is None:
+        return False
+    _, _, frame = found
+    return "file_paths" not in frame and _is_exr(frame.get("file_path"), frame.get("file_ext"))
+
+
+def read_scene(root: Path, errors: list[DatasetError] | None = None) -> Scene:
+    """Read a GS³ scene folder."""
+    root = Path(root)
+    return read_nerf_scene(root, FLAVOUR, canonical_scene_name(root.name, FORMAT_NAME), errors)
+
+
+def _encode(rgba_linear: np.ndarray) -> np.ndarray:
+    """Linear straight RGBA -> linear premultiplied RGBA (the EXR content)."""
+    alpha = np.clip(rgba_linear[..., 3], 0.0, 1.0)
+    return np.concatenate([colour.premultiply(np.clip(rgba_linear[..., :3], 0.0, None), alpha), alpha[..., None]],
+                          axis=2)
+
+
+def write_scene(scene: Scene, out_dir: Path, pixels: Callable[[Frame], np.ndarray]) -> Path:
+    """Write GS³ files: half-float linear premultiplied RGBA EXRs and ``transforms_<split>.json``."""
+    return write_nerf_scene(scene, out_dir, FLAVOUR, _encode, pixels, "half")

@@ -1,0 +1,57 @@
+"""NRHints (Zeng et al. 2023) real OLAT captures, and the GS³ re-pack of them.
+
+Files: ``transforms_{train,val,test}.json`` (+ ``transforms_valid.json``: a camera path without
+images, exposed as split ``path``). Intrinsics ``camera_intrinsics`` = [cx, cy, fx, fy] with a
+``camera_angle_x`` fallback. Images: RGBA PNG, sRGB, straight alpha; official background black.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+from olatbench.datasets import colour
+from olatbench.datasets.errors import DatasetError
+from olatbench.datasets.formats import _common as c
+from olatbench.datasets.formats._nerf import SPLIT_FILES, NerfFlavour, read_nerf_scene, write_nerf_scene
+from olatbench.datasets.records import Frame, Scene
+from olatbench.datasets.suites import canonical_scene_name
+
+FORMAT_NAME = "nrhints"
+FLAVOUR = NerfFlavour(format_name=FORMAT_NAME, default_ext=".png", colourspace="srgb", alpha_mode="straight",
+                      background=(0.0, 0.0, 0.0))
+
+
+def detect(root: Path) -> bool:
+    """A NeRF-style tree whose frames have one ``file_path`` and PNG (not EXR) images."""
+    found = c.first_frame(Path(root), (SPLIT_FILES["train"], SPLIT_FILES["test"], SPLIT_FILES["val"]))
+    if found is None:
+        return False
+    _, _, frame = found
+    ext = frame.get("file_ext")
+    return "file_path" in frame and "file_paths" not in frame and not _is_exr(frame.get("file_path"), ext)
+
+
+def _is_exr(file_path: object, ext: object) -> bool:
+    if isinstance(ext, str):
+        return ext.lower().lstrip(".") == "exr"
+    return isinstance(file_path, str) and file_path.lower().endswith(".exr")
+
+
+def read_scene(root: Path, errors: list[DatasetError] | None = None) -> Scene:
+    """Read an NRHints scene folder (aliases such as ``Cat_on_Decor`` become the paper's ``CatSmall``)."""
+    root = Path(root)
+    return read_nerf_scene(root, FLAVOUR, canonical_scene_name(root.name, FORMAT_NAME), errors)
+
+
+def _encode(rgba_linear: np.ndarray) -> np.ndarray:
+    """Linear straight RGBA -> sRGB straight RGBA (the PNG content)."""
+    rgb = colour.linear_to_srgb(rgba_linear[..., :3])
+    return np.concatenate([np.clip(rgb, 0.0, 1.0), np.clip(rgba_linear[..., 3:4], 0.0, 1.0)], axis=2)
+
+
+def write_scene(scene: Scene, out_dir: Path, pixels: Callable[[Frame], np.ndarray]) -> Path:
+    """Write NRHints files: 8-bit sRGB straight RGBA PNGs and ``transforms_<split>.json``."""
+    return write_nerf_scene(scene, out_dir, FLAVOUR, _encode, pixels, "uint8")
