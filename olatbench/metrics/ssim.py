@@ -1,0 +1,125 @@
+"""SSIM (Wang et al. 2004) with an 11-tap Gaussian window (σ = 1.5), in vectorised torch.
+
+Two variants, both with K1 = 0.01, K2 = 0.03, data range 1 and population (biased) covariances:
+
+- ``"wang"``: the mean of the SSIM map over the *valid* region only (pixels whose whole window lies
+  inside the image), averaged over channels. Equal to scikit-image's
+  ``structural_similarity(gaussian_weights=True, sigma=1.5, use_sample_covariance=False, data_range=1,
+  channel_axis=-1)`` and to torchmetrics ≥ 1.0 ``structural_similarity_index_measure(data_range=1.0)``
+  (reflect padding followed by cropping the padded border is the valid region).
+- ``"3dgs"``: the ``ssim`` of 3D Gaussian Splatting's ``utils/loss_utils.py`` (used by SSD-GS): the same
+  window applied with *zero padding* of 5 pixels, mean over the full map (borders included).
+
+``ssim_torch`` is differentiable and accepts channel-first or channel-last tensors; ``ssim_loss`` is the
+``1 - SSIM`` training loss of 3DGS-style methods.
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+import numpy as np
+import torch
+import torch.nn.functional as F
+
+from olatbench.metrics._inputs import ArrayLike, check_same_shape, mask_to_n1hw, to_nchw, to_output
+
+SSIMVariant = Literal["wang", "3dgs"]
+SSIM_VARIANTS: tuple[str, ...] = ("wang", "3dgs")
+WINDOW_SIZE = 11
+SIGMA = 1.5
+K1, K2 = 0.01, 0.03
+
+
+def gaussian_taps(size: int = WINDOW_SIZE, sigma: float = SIGMA, dtype: torch.dtype = torch.float32,
+                  device: torch.device | str | None = None) -> torch.Tensor:
+    """Normalised 1D Gaussian (size,) centred on the middle tap: ``exp(-(i - size//2)² / 2σ²)``."""
+    offsets = torch.arange(size, dtype=torch.float64) - size // 2
+    taps = torch.exp(-(offsets**2) / (2 * sigma**2))
+    return (taps / taps.sum()).to(dtype=dtype, device=device)
+
+
+def _blur(stack: torch.Tensor, taps: torch.Tensor, padding: int) -> torch.Tensor:
+    """Separable Gaussian blur of every channel of (B, K, H, W); zero padding of ``padding`` pixels."""
+    channels = stack.shape[1]
+    horizontal = taps.view(1, 1, 1, -1).expand(channels, 1, 1, taps.numel())
+    vertical = taps.view(1, 1, -1, 1).expand(channels, 1, taps.numel(), 1)
+    out = F.conv2d(stack, horizontal, padding=(0, padding), groups=channels)
+    return F.conv2d(out, vertical, padding=(padding, 0), groups=channels)
+
+
+def ssim_map_torch(pred: torch.Tensor, gt: torch.Tensor, variant: SSIMVariant = "wang",
+                   data_range: float = 1.0) -> torch.Tensor:
+    """SSIM map of (B, C, H, W) tensors: (B, C, H-10, W-10) for ``wang`` (valid), (B, C, H, W) for ``3dgs``."""
+    if variant not in SSIM_VARIANTS:
+        raise ValueError(f"unknown SSIM variant {variant!r}; expected one of {SSIM_VARIANTS}")
+    if min(pred.shape[-2:]) < WINDOW_SIZE:
+        raise ValueError(f"SSIM needs images of at least {WINDOW_SIZE}×{WINDOW_SIZE} pixels, found "
+                         f"{tuple(pred.shape[-2:])}")
+    channels = pred.shape[1]
+    taps = gaussian_taps(dtype=pred.dtype, device=pred.device)
+    stack = torch.cat([pred, gt, pred * pred, gt * gt, pred * gt], dim=1)
+    blurred = _blur(stack, taps, padding=WINDOW_SIZE // 2 if variant == "3dgs" else 0)
+    mu_p, mu_g, e_pp, e_gg, e_pg = blurred.split(channels, dim=1)
+    var_p, var_g, cov = e_pp - mu_p * mu_p, e_gg - mu_g * mu_g, e_pg - mu_p * mu_g
+    c1, c2 = (K1 * data_range) ** 2, (K2 * data_range) ** 2
+    numerator = (2 * mu_p * mu_g + c1) * (2 * cov + c2)
+    denominator = (mu_p * mu_p + mu_g * mu_g + c1) * (var_p + var_g + c2)
+    return numerator / denominator
+
+
+def _valid_mask(mask: torch.Tensor, variant: SSIMVariant) -> torch.Tensor:
+    """Crop a (B, 1, H, W) mask to the SSIM map's region."""
+    if variant == "3dgs":
+        return mask
+    half = WINDOW_SIZE // 2
+    return mask[..., half:-half, half:-half]
+
+
+def ssim_nchw(pred: torch.Tensor, gt: torch.Tensor, variant: SSIMVariant = "wang",
+              mask: torch.Tensor | None = None) -> torch.Tensor:
+    """Per-image SSIM of (B, C, H, W) tensors -> (B,); ``mask`` (B, 1, H, W) weights the map's pixels."""
+    ssim_map = ssim_map_torch(pred, gt, variant)
+    if mask is None:
+        return ssim_map.flatten(1).mean(1)
+    m = _valid_mask(mask, variant)
+    weight = m.flatten(1).sum(1) * ssim_map.shape[1]
+    if bool((weight <= 0).any()):
+        raise ValueError("mask: no masked pixel lies inside the SSIM valid region")
+    return (ssim_map * m).flatten(1).sum(1) / weight
+
+
+def ssim_torch(pred: torch.Tensor, gt: torch.Tensor, variant: SSIMVariant = "3dgs", channels_last: bool = False,
+               mask: torch.Tensor | None = None) -> torch.Tensor:
+    """Differentiable SSIM of torch images -> (B,) (or a 0-dim tensor for an unbatched input).
+
+    Layout: (C, H, W) / (B, C, H, W), or (H, W, C) / (B, H, W, C) with ``channels_last=True``.
+    Default variant ``3dgs`` (zero padding) as used in 3DGS-style training losses.
+    """
+    batched = pred.ndim == 4
+    if channels_last:
+        pred, gt = pred.movedim(-1, -3), gt.movedim(-1, -3)
+    if not batched:
+        pred, gt = pred.unsqueeze(0), gt.unsqueeze(0)
+    check_same_shape(pred, gt)
+    values = ssim_nchw(pred, gt, variant, mask)
+    return values if batched else values[0]
+
+
+def ssim_loss(pred: torch.Tensor, gt: torch.Tensor, variant: SSIMVariant = "3dgs",
+              channels_last: bool = False) -> torch.Tensor:
+    """``1 - SSIM`` averaged over the batch: a differentiable scalar training loss (3DGS D-SSIM term)."""
+    return 1.0 - ssim_torch(pred, gt, variant, channels_last).mean()
+
+
+def ssim(pred: ArrayLike, gt: ArrayLike, variant: SSIMVariant = "wang",
+         mask: ArrayLike | None = None) -> float | np.ndarray:
+    """SSIM of channel-last images (H, W, C) / (B, H, W, C) in [0, 1] (numpy or torch), no gradient.
+
+    Returns a float for one image, a (B,) array for a batch. ``mask`` (H, W) weights the SSIM map.
+    """
+    p, batched = to_nchw(pred, "pred")
+    g, _ = to_nchw(gt, "gt", dtype=p.dtype, device=p.device)
+    check_same_shape(p, g)
+    with torch.no_grad():
+        return to_output(ssim_nchw(p, g, variant, mask_to_n1hw(mask, p)), batched)
