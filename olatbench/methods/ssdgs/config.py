@@ -1,0 +1,120 @@
+"""The SSD-GS configuration: one flat dataclass, every field JSON-serialisable.
+
+Iteration-valued fields (schedule thresholds, learning-rate decay, densification windows, opacity reset)
+are given for ``reference_iterations`` total steps and scale proportionally when ``iterations`` differs
+(`SSDGSConfig.steps`). The densification *interval* is a cadence and does not scale.
+Defaults are the paper's full model (Composition D, Schedule I) with the official code's values where the
+paper is silent; `olatbench.methods.ssdgs.presets` adapts them per suite.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+from typing import Any
+
+from olatbench.methods.ssdgs.schedule import SCHEDULES, Schedule, get_schedule
+
+_CHOICES = {
+    "diffuse_cosine": ("smooth", "clamped"),
+    "shading_frame": ("min_scale", "learned"),
+    "asg_form": ("xu", "official"),
+    "dipole_virtual_factor": ("jensen", "official"),
+}
+
+
+@dataclass
+class SSDGSConfig:
+    """All knobs of SSD-GS (see docs/ssdgs.md for each one's origin in the paper or the official code)."""
+
+    iterations: int = 100_000
+    reference_iterations: int = 100_000
+    schedule: str = "I"
+    # Composition (ablations A-F) and the shadow-on-SSS variant.
+    use_shadow: bool = True
+    use_sss: bool = True
+    use_specular: bool = True
+    shadow_on_sss: bool = False
+    # Shading.
+    diffuse_cosine: str = "smooth"
+    shading_frame: str = "min_scale"
+    orient_normals: bool = True
+    num_asg: int = 8
+    asg_form: str = "xu"
+    fresnel_f0: float = 0.04
+    dipole_eta: float = 1.3
+    dipole_virtual_factor: str = "jensen"
+    material_dim: int = 6
+    sss_hidden: int = 256
+    sss_layers: int = 6
+    sss_freqs: int = 4
+    shadow_hidden: int = 32
+    shadow_layers: int = 3
+    shadow_freqs: int = 3
+    shadow_resolution: int = 256
+    clamp_output: bool = True
+    # Initialisation and size.
+    num_init_gaussians: int = 10_000
+    init_radius: float | None = 1.0  # None: 0.5 × the mean camera distance to the cameras' look-at centre
+    init_opacity: float = 0.1
+    max_gaussians: int | None = 550_000
+    background: tuple[float, float, float] | None = None  # None: the training views' background
+    # Loss.
+    lambda_dssim: float = 0.2
+    # Learning rates (Adam, eps 1e-15). Decays are exponential (3DGS) from `*_decay_from` over `*_max_steps`.
+    position_lr_init: float = 1.6e-4  # × scene extent
+    position_lr_final: float = 1.6e-6
+    position_lr_delay_mult: float = 0.01
+    position_lr_max_steps: int = 70_000
+    scaling_lr: float = 5e-3
+    rotation_lr: float = 1e-3
+    opacity_lr: float = 0.05
+    colour_lr: float = 0.01
+    asg_lr_init: float = 0.01
+    asg_lr_final: float = 1e-4
+    asg_lr_decay_from: int = 40_000
+    asg_lr_max_steps: int = 50_000
+    mlp_lr_init: float = 1e-3
+    mlp_lr_final: float = 1e-5
+    mlp_lr_decay_from: int = 50_000
+    mlp_lr_max_steps: int = 50_000
+    # Densification (3DGS).
+    densify_from: int = 500
+    densify_until: int = 90_000
+    densify_interval: int = 100
+    densify_grad_threshold: float = 2e-4
+    opacity_reset_interval: int = 3_000
+    percent_dense: float = 0.01
+    # Camera-pose and light-position refinement (real data).
+    refine_camera: bool = False
+    refine_light: bool = False
+    camera_lr_init: float = 1e-3
+    camera_lr_final: float = 1e-5
+    light_lr_init: float = 1e-3
+    light_lr_final: float = 5e-5
+    refinement_lr_max_steps: int = 80_000
+    test_time_refinement: bool = False
+
+    def __post_init__(self) -> None:
+        for name, allowed in _CHOICES.items():
+            if getattr(self, name) not in allowed:
+                raise ValueError(f"SSD-GS config: {name} must be one of {allowed}, not {getattr(self, name)!r}")
+        if self.schedule not in SCHEDULES:
+            raise ValueError(f"SSD-GS config: schedule must be one of {sorted(SCHEDULES)}, not {self.schedule!r}")
+        if self.iterations <= 0 or self.reference_iterations <= 0:
+            raise ValueError("SSD-GS config: iterations and reference_iterations must be positive")
+        if self.background is not None:
+            self.background = tuple(float(v) for v in self.background)  # type: ignore[assignment]
+        if self.test_time_refinement:
+            raise NotImplementedError("SSD-GS: test-time refinement of test poses/lights is not implemented")
+
+    def steps(self, value: int) -> int:
+        """An iteration count given at ``reference_iterations``, scaled to ``iterations``."""
+        return round(value * self.iterations / self.reference_iterations)
+
+    def resolved_schedule(self) -> Schedule:
+        """The schedule with its thresholds scaled to this run's length."""
+        return get_schedule(self.schedule, self.reference_iterations, self.iterations)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain JSON-friendly values."""
+        return asdict(self)
