@@ -1,0 +1,107 @@
+"""Build-on-first-use of the C++ rasterizer (``csrc/rasterize.cpp``) into a per-user cache, loaded with ctypes.
+
+The shared library lives in ``$XDG_CACHE_HOME/olatbench/ext/<hash>/`` (default ``~/.cache``), where
+``<hash>`` covers the source bytes, the compiler command and the flags, so an edited source or another
+compiler gets a fresh build. The compiler is ``$OLATBENCH_CXX``, else ``$CXX``, else ``g++``. Builds are
+atomic: compile to a unique temporary name in the same folder, then ``os.replace`` it into place, so several
+processes may build concurrently and none ever loads a half-written file.
+
+Flags: ``-O3 -fopenmp -shared -fPIC -std=c++17 -ffp-contract=off``. Deliberately no ``-march=native`` (the
+cache may be shared between machines) and no ``-ffast-math`` (the backward must reproduce the forward's
+floating-point decisions exactly).
+"""
+
+from __future__ import annotations
+
+import ctypes
+import hashlib
+import os
+import shlex
+import subprocess
+import tempfile
+import threading
+from pathlib import Path
+
+SOURCE = Path(__file__).with_name("csrc") / "rasterize.cpp"
+FLAGS = ("-O3", "-fopenmp", "-shared", "-fPIC", "-std=c++17", "-ffp-contract=off")
+LIBRARY_NAME = "olatbench_rasterize.so"
+ABI_VERSION = 1
+
+
+class BuildError(RuntimeError):
+    """The C++ rasterizer could not be compiled or loaded (message says why and what to do)."""
+
+
+def compiler() -> list[str]:
+    """The compiler command: ``$OLATBENCH_CXX``, else ``$CXX``, else ``g++`` (may contain arguments)."""
+    return shlex.split(os.environ.get("OLATBENCH_CXX") or os.environ.get("CXX") or "g++")
+
+
+def cache_root() -> Path:
+    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return Path(base) / "olatbench" / "ext"
+
+
+def build_hash() -> str:
+    digest = hashlib.sha256(SOURCE.read_bytes())
+    digest.update("\0".join([*compiler(), *FLAGS]).encode())
+    return digest.hexdigest()[:16]
+
+
+def library_path() -> Path:
+    return cache_root() / build_hash() / LIBRARY_NAME
+
+
+def build() -> Path:
+    """Compile the library if its cached copy is missing; return its path. Raises BuildError."""
+    target = library_path()
+    if target.exists():
+        return target
+    target.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp_name = tempfile.mkstemp(prefix=".build-", suffix=".so", dir=target.parent)
+    os.close(fd)
+    command = [*compiler(), *FLAGS, str(SOURCE), "-o", tmp_name]
+    try:
+        result = subprocess.run(command, capture_output=True, text=True, timeout=300)
+    except (OSError, subprocess.SubprocessError) as error:
+        Path(tmp_name).unlink(missing_ok=True)
+        raise BuildError(f"could not run the C++ compiler {shlex.join(command[:1])!r}: {error}") from error
+    if result.returncode != 0:
+        Path(tmp_name).unlink(missing_ok=True)
+        raise BuildError(f"`{shlex.join(command)}` failed (exit {result.returncode}):\n{result.stderr.strip()}")
+    os.replace(tmp_name, target)
+    return target
+
+
+_lock = threading.Lock()
+_library: ctypes.CDLL | None = None
+_error: BuildError | None = None
+
+
+def load() -> ctypes.CDLL:
+    """The loaded library (built on first use; the outcome is cached for the process). Raises BuildError."""
+    global _library, _error
+    with _lock:
+        if _library is None and _error is None:
+            try:
+                lib = ctypes.CDLL(str(build()))
+                if lib.olatbench_abi_version() != ABI_VERSION:
+                    raise BuildError(f"{library_path()} has an unexpected ABI version")
+                _library = lib
+            except BuildError as error:
+                _error = error
+            except OSError as error:
+                _error = BuildError(f"could not load {library_path()}: {error}")
+        if _error is not None:
+            raise _error
+        return _library
+
+
+def reset() -> None:
+    """Forget the cached load outcome (tests use this after changing the compiler environment)."""
+    global _library, _error
+    with _lock:
+        _library, _error = None, None
+
+
+__all__ = ["BuildError", "build", "build_hash", "cache_root", "compiler", "library_path", "load", "reset"]

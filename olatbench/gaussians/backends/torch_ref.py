@@ -1,0 +1,125 @@
+"""Reference rasterizer in plain torch: the test oracle, on any device and dtype.
+
+Tile-based and vectorised: the non-empty tiles are grouped into chunks (longest lists first, so padding stays
+small) and each chunk evaluates every (pixel, Gaussian-of-its-tile) pair at once. Front-to-back compositing
+follows 3DGS exactly: ``alpha = min(0.99, o·exp(power))`` with ``power = -½ dᵀ conic d`` (d = mean - pixel
+centre), pairs with ``power > 0`` or ``alpha < 1/255`` are skipped, and a pixel stops *before* the Gaussian
+that would bring its transmittance below 1e-4. Gradients come from autograd (the true gradient: zero where
+the 0.99 clamp is active). With autograd on, each chunk is wrapped in activation checkpointing so the
+memory held for backward is one chunk's worth, not the whole image's.
+"""
+
+from __future__ import annotations
+
+import torch
+from torch.utils.checkpoint import checkpoint
+
+from ..tiles import TileBins
+
+ALPHA_MAX = 0.99
+ALPHA_MIN = 1.0 / 255.0
+T_MIN = 1e-4
+# Elements (pixels × padded list length) evaluated per chunk; bounds peak memory (~10 tensors of this size).
+CHUNK_ELEMENTS = 1 << 22
+
+
+def _composite_chunk(
+    means2d: torch.Tensor,
+    conics: torch.Tensor,
+    opacities: torch.Tensor,
+    features: torch.Tensor,
+    ids: torch.Tensor,
+    valid: torch.Tensor,
+    pixels: torch.Tensor,
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """Composite B tiles: ``ids``/``valid`` (B, L) padded lists, ``pixels`` (B, P, 2) pixel centres.
+
+    Returns colour without background (B, P, C) and final transmittance (B, P)."""
+    mean = means2d[ids]  # (B, L, 2)
+    con = conics[ids]
+    d = mean[:, None, :, :] - pixels[:, :, None, :]  # (B, P, L, 2)
+    dx, dy = d[..., 0], d[..., 1]
+    a, b, c = (con[:, None, :, k] for k in range(3))
+    power = -0.5 * (a * dx * dx + c * dy * dy) - b * dx * dy
+    alpha = (opacities[ids][:, None, :] * torch.exp(power)).clamp(max=ALPHA_MAX)
+    keep = valid[:, None, :] & (power <= 0) & (alpha >= ALPHA_MIN)
+    alpha = torch.where(keep, alpha, torch.zeros_like(alpha))
+    one_minus = 1.0 - alpha
+    t_after = torch.cumprod(one_minus, dim=-1)
+    t_before = torch.cat([torch.ones_like(t_after[..., :1]), t_after[..., :-1]], dim=-1)
+    include = (t_after >= T_MIN).detach()
+    weights = torch.where(include, t_before * alpha, torch.zeros_like(alpha))
+    colour = torch.einsum("bpl,blc->bpc", weights, features[ids])
+    t_final = torch.where(include, one_minus, torch.ones_like(one_minus)).prod(dim=-1)
+    return colour, t_final
+
+
+def _chunks(counts: torch.Tensor, pixels_per_tile: int) -> list[torch.Tensor]:
+    """Group non-empty tiles (longest list first) into chunks of at most CHUNK_ELEMENTS padded elements."""
+    order = torch.argsort(counts, descending=True, stable=True)
+    order = order[counts[order] > 0].tolist()
+    counts_list = counts.tolist()
+    chunks, current, longest = [], [], 0
+    for tile in order:
+        longest_if_added = max(longest, counts_list[tile])
+        if current and (len(current) + 1) * longest_if_added * pixels_per_tile > CHUNK_ELEMENTS:
+            chunks.append(torch.tensor(current, dtype=torch.int64))
+            current, longest_if_added = [], counts_list[tile]
+        current.append(tile)
+        longest = longest_if_added
+    if current:
+        chunks.append(torch.tensor(current, dtype=torch.int64))
+    return chunks
+
+
+def rasterize_torch(
+    means2d: torch.Tensor,
+    conics: torch.Tensor,
+    opacities: torch.Tensor,
+    features: torch.Tensor,
+    bins: TileBins,
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """Composite binned Gaussians: colour without background (H, W, C) and final transmittance (H, W).
+
+    Inputs: means2d (N, 2) px, conics (N, 3), opacities (N,), features (N, C), all one dtype and device."""
+    device, dtype = means2d.device, means2d.dtype
+    ts, n_tiles, channels = bins.tile_size, bins.num_tiles, features.shape[1]
+    offsets = bins.offsets.to(device)
+    ids_all = bins.gaussian_ids.to(device)
+    counts = (offsets[1:] - offsets[:-1]).cpu()
+    local = torch.arange(ts * ts, device=device)
+    tile_pixel = torch.stack([local % ts, local // ts], dim=-1).to(dtype) + 0.5  # (P, 2) offsets within a tile
+    use_checkpoint = torch.is_grad_enabled() and any(
+        t.requires_grad for t in (means2d, conics, opacities, features)
+    )
+
+    colour_tiles = torch.zeros(n_tiles, ts * ts, channels, device=device, dtype=dtype)
+    t_tiles = torch.ones(n_tiles, ts * ts, device=device, dtype=dtype)
+    for chunk in _chunks(counts, ts * ts):
+        chunk_dev = chunk.to(device)
+        starts = offsets[chunk_dev]
+        lengths = counts[chunk].to(device)
+        width = int(lengths.max())
+        slot = torch.arange(width, device=device)
+        valid = slot[None, :] < lengths[:, None]
+        ids = ids_all[(starts[:, None] + slot[None, :]).clamp(max=max(ids_all.numel() - 1, 0))]
+        ids = torch.where(valid, ids, torch.zeros_like(ids))
+        origin = torch.stack([chunk_dev % bins.tiles_x, chunk_dev // bins.tiles_x], dim=-1).to(dtype) * ts
+        pixels = origin[:, None, :] + tile_pixel[None, :, :]
+        args = (means2d, conics, opacities, features, ids, valid, pixels)
+        if use_checkpoint:
+            colour, t_final = checkpoint(_composite_chunk, *args, use_reentrant=False)
+        else:
+            colour, t_final = _composite_chunk(*args)
+        colour_tiles = colour_tiles.index_copy(0, chunk_dev, colour)
+        t_tiles = t_tiles.index_copy(0, chunk_dev, t_final)
+
+    def untile(x: torch.Tensor) -> torch.Tensor:
+        x = x.reshape(bins.tiles_y, bins.tiles_x, ts, ts, *x.shape[2:]).transpose(1, 2)
+        x = x.reshape(bins.tiles_y * ts, bins.tiles_x * ts, *x.shape[4:])
+        return x[: bins.height, : bins.width]
+
+    return untile(colour_tiles), untile(t_tiles)
+
+
+__all__ = ["ALPHA_MAX", "ALPHA_MIN", "CHUNK_ELEMENTS", "T_MIN", "rasterize_torch"]

@@ -1,0 +1,114 @@
+"""16×16 tile binning of screen-space Gaussians (the 3DGS duplicate-and-sort step), in torch.
+
+Each Gaussian is duplicated once per tile its screen-space box touches. Every (tile, Gaussian) pair gets the
+64-bit key ``tile_id << 32 | order(depth)`` where ``order`` maps a float32 to a 32-bit integer with the same
+order; one stable sort of the keys groups pairs by tile and orders each tile's list front to back (ties keep
+Gaussian index order, so the binning is deterministic). ``offsets[t]:offsets[t+1]`` then indexes tile ``t``'s
+slice of ``gaussian_ids``. Both the torch reference and the C++ backend consume these bins.
+
+A Gaussian with 2D mean m and radius r covers the pixels whose centres (x + 0.5) lie in [m - r, m + r].
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import torch
+
+TILE_SIZE = 16
+
+
+@dataclass
+class TileBins:
+    """Per-tile, depth-sorted Gaussian lists.
+
+    ``offsets`` (tiles_y·tiles_x + 1,) int64 and ``gaussian_ids`` (M,) int64: tile ``t = ty·tiles_x + tx``
+    holds ``gaussian_ids[offsets[t]:offsets[t+1]]``, nearest first. Tiles are ``tile_size`` px squares from the
+    top-left corner; the last row/column may extend beyond the image.
+    """
+
+    offsets: torch.Tensor
+    gaussian_ids: torch.Tensor
+    tile_size: int
+    tiles_x: int
+    tiles_y: int
+    width: int
+    height: int
+
+    @property
+    def num_tiles(self) -> int:
+        return self.tiles_x * self.tiles_y
+
+    @property
+    def num_pairs(self) -> int:
+        return int(self.gaussian_ids.numel())
+
+
+def pixel_ranges(
+    means2d: torch.Tensor, radii: torch.Tensor, width: int, height: int
+) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
+    """Inclusive pixel box (x0, x1, y0, y1) clipped to the image, and a (N,) bool "non-empty" mask."""
+    m = means2d.detach()
+    r = radii.to(m.dtype)
+    x0 = torch.ceil(m[:, 0] - r - 0.5)
+    x1 = torch.floor(m[:, 0] + r - 0.5)
+    y0 = torch.ceil(m[:, 1] - r - 0.5)
+    y1 = torch.floor(m[:, 1] + r - 0.5)
+    inside = (radii > 0) & (x0 <= x1) & (y0 <= y1) & (x1 >= 0) & (x0 <= width - 1) & (y1 >= 0) & (y0 <= height - 1)
+    inside &= torch.isfinite(m).all(dim=-1)
+    x0, x1 = (t.clamp(0, width - 1).to(torch.int64) for t in (x0, x1))
+    y0, y1 = (t.clamp(0, height - 1).to(torch.int64) for t in (y0, y1))
+    return x0, x1, y0, y1, inside
+
+
+def float_order_key(values: torch.Tensor) -> torch.Tensor:
+    """Map values (as float32) to int64 in [0, 2³²) with the same order (for packing into sort keys)."""
+    bits = values.detach().to(torch.float32).contiguous().view(torch.int32).to(torch.int64)
+    # Negative floats: flip the magnitude bits so that larger magnitude sorts first; then shift to unsigned.
+    flipped = torch.where(bits < 0, bits ^ 0x7FFFFFFF, bits)
+    return flipped + (1 << 31)
+
+
+def bin_gaussians(
+    means2d: torch.Tensor,
+    radii: torch.Tensor,
+    sort_keys: torch.Tensor,
+    width: int,
+    height: int,
+    tile_size: int = TILE_SIZE,
+) -> TileBins:
+    """Bin Gaussians (means2d (N, 2) px, radii (N,) px, 0 = culled) into tiles, each list sorted by
+    ``sort_keys`` (N,) ascending (camera depth for rendering, squared distance for the light pass)."""
+    device = means2d.device
+    tiles_x = (width + tile_size - 1) // tile_size
+    tiles_y = (height + tile_size - 1) // tile_size
+    x0, x1, y0, y1, inside = pixel_ranges(means2d, radii, width, height)
+    tx0, tx1 = x0 // tile_size, x1 // tile_size + 1
+    ty0, ty1 = y0 // tile_size, y1 // tile_size + 1
+    span_x = tx1 - tx0
+    counts = torch.where(inside, span_x * (ty1 - ty0), torch.zeros_like(span_x))
+    total = int(counts.sum())
+    gauss = torch.repeat_interleave(torch.arange(means2d.shape[0], device=device), counts)
+    first = torch.cumsum(counts, 0) - counts
+    local = torch.arange(total, device=device) - first[gauss]
+    tile_x = tx0[gauss] + local % span_x[gauss]
+    tile_y = ty0[gauss] + torch.div(local, span_x[gauss], rounding_mode="floor")
+    tile_ids = tile_y * tiles_x + tile_x
+    keys = (tile_ids << 32) | float_order_key(sort_keys)[gauss]
+    order = torch.sort(keys, stable=True).indices
+    gaussian_ids = gauss[order]
+    per_tile = torch.bincount(tile_ids, minlength=tiles_x * tiles_y)
+    offsets = torch.zeros(tiles_x * tiles_y + 1, dtype=torch.int64, device=device)
+    offsets[1:] = torch.cumsum(per_tile, 0)
+    return TileBins(
+        offsets=offsets,
+        gaussian_ids=gaussian_ids,
+        tile_size=tile_size,
+        tiles_x=tiles_x,
+        tiles_y=tiles_y,
+        width=int(width),
+        height=int(height),
+    )
+
+
+__all__ = ["TILE_SIZE", "TileBins", "bin_gaussians", "float_order_key", "pixel_ranges"]
