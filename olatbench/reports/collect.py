@@ -1,0 +1,88 @@
+"""Read every ``results.json`` below a folder into one long pandas DataFrame.
+
+Only ``results.json`` files are read (through `olatbench.bench.results.read_results`, which
+refuses unknown schema versions), so a laptop, CI and a cluster build the same tables.
+
+Columns: ``method, variant, suite, scene, seed, split, metric, value, status, protocol`` plus
+``device, job_id, error, path``. A finished job gives one row per (split, metric) of its
+``metrics.<split>.mean`` (``value`` NaN when the run stored null, e.g. LPIPS without weights) and
+per-job rows with split "-" for ``fps`` (render FPS), ``train_time`` (seconds) and
+``num_gaussians``. A failed job gives one row with status "failed", empty split and metric, and
+its error in ``error``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+
+from olatbench.bench.results import read_results
+
+COLUMNS = ("method", "variant", "suite", "scene", "seed", "split", "metric", "value", "status", "protocol",
+           "device", "job_id", "error", "path")
+JOB_FACTS = (("fps", ("timing", "render_fps")), ("train_time", ("timing", "train_seconds")),
+             ("num_gaussians", ("model", "num_gaussians")))
+
+
+def find_results_files(runs: str | Path | Iterable[str | Path]) -> list[Path]:
+    """Every results.json below each folder given (a results.json path is taken as is), sorted."""
+    roots = [runs] if isinstance(runs, (str, Path)) else list(runs)
+    found: set[Path] = set()
+    for root in map(Path, roots):
+        if root.is_file():
+            found.add(root)
+        elif root.is_dir():
+            found.update(root.rglob("results.json"))
+        else:
+            raise FileNotFoundError(f"{root}: no such file or folder")
+    return sorted(found)
+
+
+def _number(value: Any) -> float:
+    if isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value):
+        return float(value)
+    return math.nan
+
+
+def _nested(data: dict[str, Any], keys: tuple[str, ...]) -> Any:
+    for key in keys:
+        if not isinstance(data, dict):
+            return None
+        data = data.get(key)
+    return data
+
+
+def result_rows(data: dict[str, Any], path: Path) -> list[dict[str, Any]]:
+    """The long-form rows of one validated results dict."""
+    job = data["job"]
+    protocol = data.get("protocol") or {}
+    base = {"method": job["method"], "variant": job["variant"], "suite": job["suite"], "scene": job["scene"],
+            "seed": int(job["seed"]), "status": data["status"],
+            "protocol": f"{protocol.get('id', '?')} v{protocol.get('version', '?')}",
+            "device": _nested(data, ("resources", "device")) or "", "job_id": job["id"], "path": str(path)}
+    if data["status"] == "failed":
+        error = data.get("error") or {}
+        text = f"{error.get('type', 'error')}: {error.get('message', '')}".strip()
+        return [{**base, "split": "", "metric": "", "value": math.nan, "error": text}]
+    rows = []
+    for split, block in data["metrics"].items():
+        for metric, value in block["mean"].items():
+            rows.append({**base, "split": split, "metric": metric, "value": _number(value), "error": ""})
+    for metric, keys in JOB_FACTS:
+        rows.append({**base, "split": "-", "metric": metric, "value": _number(_nested(data, keys)), "error": ""})
+    return rows
+
+
+def collect(runs: str | Path | Iterable[str | Path]) -> pd.DataFrame:
+    """Long-form results of every results.json below ``runs`` (a folder, a file, or several)."""
+    rows: list[dict[str, Any]] = []
+    for path in find_results_files(runs):
+        rows += result_rows(read_results(path), path)
+    frame = pd.DataFrame(rows, columns=list(COLUMNS))
+    frame["seed"] = frame["seed"].astype("int64")
+    frame["value"] = frame["value"].astype(float)
+    return frame

@@ -1,0 +1,76 @@
+"""A self-contained HTML report: tables with the paper's cell colours, figures embedded as base64 PNG."""
+
+from __future__ import annotations
+
+import base64
+import html
+from collections.abc import Sequence
+
+from olatbench.reports.latex import PAPER_COLOURS
+from olatbench.reports.model import Cell, Table
+
+STYLE = """
+body { font-family: system-ui, sans-serif; margin: 2em; color: #222; }
+table { border-collapse: collapse; margin: 0.5em 0 0.3em 0; font-size: 0.85em; }
+th, td { border: 1px solid #bbb; padding: 2px 6px; text-align: center; }
+td.label { text-align: left; white-space: nowrap; }
+tr.block th { background: #f3f3f3; }
+p.note { font-size: 0.8em; color: #555; margin: 0.1em 0; }
+figure { margin: 1em 0; } figcaption { font-size: 0.85em; color: #444; }
+img { max-width: 100%; }
+"""
+
+
+def _css_colour(rgb: str) -> str:
+    red, green, blue = (round(float(part) * 255) for part in rgb.split(","))
+    return f"rgb({red},{green},{blue})"
+
+
+def _cell(cell: Cell, colours: Sequence[str]) -> str:
+    text = html.escape(cell.text()) + "".join(f"<sup>{html.escape(m)}</sup>" for m in cell.marks)
+    if cell.rank is not None and cell.rank <= len(colours):
+        return f'<td style="background:{_css_colour(colours[cell.rank - 1])}">{text}</td>'
+    return f"<td>{text}</td>"
+
+
+def table_html(table: Table, colours: Sequence[str] = PAPER_COLOURS) -> str:
+    """One table as an HTML fragment (caption, table, protocol, footnotes)."""
+    labels = len(table.label_names)
+    width = labels + len(table.columns)
+    parts = [f"<h2>{html.escape(table.caption)}</h2>", f'<p class="note">{html.escape(table.name)}</p>', "<table>"]
+    for level, header_row in enumerate(table.header):
+        corner = "" if level else (f'<th colspan="{labels}" rowspan="{len(table.header)}">'
+                                   f'{html.escape(" / ".join(table.corner))}</th>')
+        cells = "".join(f'<th colspan="{span}">{html.escape(title)}</th>' for title, span in header_row)
+        parts.append(f"<tr>{corner}{cells}</tr>")
+    for block in table.blocks:
+        if block.title is not None:
+            parts.append(f'<tr class="block"><th colspan="{width}">{html.escape(block.title)}</th></tr>')
+        for row in block.rows:
+            label_cells = "".join(f'<td class="label">{html.escape(label)}</td>' for label in row.labels)
+            parts.append(f"<tr>{label_cells}{''.join(_cell(c, colours) for c in row.cells)}</tr>")
+    parts.append("</table>")
+    parts.append(f'<p class="note">Protocol: {html.escape(table.protocol)}</p>')
+    parts += [f'<p class="note">{html.escape(note)}</p>' for note in table.footnotes]
+    return "\n".join(parts)
+
+
+def figure_html(title: str, png: bytes) -> str:
+    """A PNG embedded as a base64 data URI with its caption."""
+    data = base64.b64encode(png).decode("ascii")
+    return (f'<figure><img alt="{html.escape(title)}" src="data:image/png;base64,{data}">'
+            f"<figcaption>{html.escape(title)}</figcaption></figure>")
+
+
+def to_html(tables: Sequence[Table], figures: Sequence[tuple[str, bytes]] = (), title: str = "olatbench report",
+            colours: Sequence[str] = PAPER_COLOURS) -> str:
+    """A complete page: every table, then every figure; nothing is loaded from outside the file."""
+    legend = (f'<p class="note">Best cells <span style="background:{_css_colour(colours[0])}">like this</span>'
+              + (f', second best <span style="background:{_css_colour(colours[1])}">like this</span>'
+                 if len(colours) > 1 else "") + ".</p>")
+    body = [f"<h1>{html.escape(title)}</h1>", legend]
+    body += [table_html(table, colours) for table in tables]
+    body += [figure_html(name, png) for name, png in figures]
+    return ("<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n"
+            f"<title>{html.escape(title)}</title>\n<style>{STYLE}</style>\n</head>\n<body>\n"
+            + "\n".join(body) + "\n</body>\n</html>\n")

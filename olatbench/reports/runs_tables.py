@@ -1,0 +1,316 @@
+"""The paper's tables from a user's runs (the long frame of `olatbench.reports.collect.collect`).
+
+* `scene_table`: methods × scenes × {Train, Test}, one block per metric, optional Average column.
+* `overview_table`: per-split averages over scenes (mean ± std), render FPS, training time, device.
+* `ablation_table`: SSD-GS compositions A–F and schedules H–K (variants ``ablation-A`` …,
+  ``schedule-H`` …) as rows; one scene gives the paper's Table 2 layout, several scenes the
+  appendix layout with an Average column.
+
+Missing or failed runs never silently change a number: a cell without a finished run prints "—"
+with a footnote mark, a mean over fewer seeds than expected is marked, and an average over scenes
+is only computed when every scene has a value. With ``published=True`` each run row that the
+paper also reports gets a "(paper)" row and a "Δ" row (run − paper) beneath it; those rows are
+never ranked.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import pandas as pd
+
+from olatbench.reports.layouts import (
+    CellLookup,
+    metric_columns_layout,
+    overview_layout,
+    scenes_layout,
+    split_rows_layout,
+)
+from olatbench.reports.model import Cell, Table
+from olatbench.reports.published import VARIANT_LABELS, lookup, normalise_name, paper_method
+
+NOTE_TEXTS = {
+    "a": "the run failed (see the failures listed below and the job's error.txt)",
+    "b": "no run found for this cell",
+    "c": "mean over the finished seeds only (others failed or are missing)",
+    "d": "average not computed: at least one scene has no value",
+    "e": "the run did not compute this metric (null in results.json, e.g. LPIPS weights missing)",
+}
+ABLATION_PREFIXES = ("ablation-", "schedule-")
+
+
+class ReportError(ValueError):
+    """The runs cannot make the requested table (nothing selected, several suites, ...)."""
+
+
+@dataclass
+class Notes:
+    """Footnote marks used in one table, in order of first use."""
+
+    used: dict[str, str] = field(default_factory=dict)
+    failures: list[str] = field(default_factory=list)
+
+    def mark(self, letter: str) -> tuple[str, ...]:
+        self.used.setdefault(letter, NOTE_TEXTS[letter])
+        return (letter,)
+
+    def lines(self) -> list[str]:
+        lines = [f"{letter}: {text}." for letter, text in sorted(self.used.items())]
+        shown = self.failures[:10]
+        lines += [f"Failed: {failure}" for failure in shown]
+        if len(self.failures) > len(shown):
+            lines.append(f"… and {len(self.failures) - len(shown)} more failed jobs.")
+        return lines
+
+
+def select_runs(frame: pd.DataFrame, suite: str | None = None, methods: Sequence[str] | None = None) -> pd.DataFrame:
+    """Rows of one suite and of the named methods ("ssdgs" or "ssdgs/variant"); a `ReportError` if none."""
+    selected = frame
+    if suite is not None:
+        selected = selected[selected["suite"] == suite]
+    if methods:
+        keys = selected["method"] + "/" + selected["variant"]
+        selected = selected[selected["method"].isin(methods) | keys.isin(methods)]
+    if selected.empty:
+        found = sorted(set(frame["suite"])) if suite else sorted(set(frame["method"]))
+        raise ReportError(f"no results match suite={suite!r} methods={list(methods or [])}; the runs hold "
+                          f"{'suites' if suite else 'methods'} {', '.join(found) or 'none'}")
+    return selected
+
+
+def single_suite(frame: pd.DataFrame) -> str:
+    suites = sorted(set(frame["suite"]))
+    if len(suites) != 1:
+        raise ReportError(f"the selected runs span several suites ({', '.join(suites)}); choose one with --suite")
+    return suites[0]
+
+
+def expected_scenes(suite: str, found: Sequence[str]) -> tuple[list[str], str | None]:
+    """The suite's scenes (canonical order) and a footnote when they had to be taken from the runs."""
+    try:
+        from olatbench.datasets.suites import get_suite
+
+        scenes = list(get_suite(suite).scenes)
+    except (ImportError, KeyError, ValueError) as error:
+        return sorted(set(found), key=list(found).index), f"scene list taken from the runs ({error})"
+    known = {normalise_name(scene) for scene in scenes}
+    extra = [scene for scene in dict.fromkeys(found) if normalise_name(scene) not in known]
+    return scenes + extra, None
+
+
+def row_label(method: str, variant: str, variants_of_method: int) -> str:
+    """The printed row name of a run: the paper's label for ablation presets, else method[/variant]."""
+    if variant in VARIANT_LABELS and variant.startswith((*ABLATION_PREFIXES, "shadow-on-sss")):
+        return VARIANT_LABELS[variant]
+    return method if variants_of_method == 1 else f"{method}/{variant}"
+
+
+class RunCells:
+    """Per-cell means over seeds (and over scenes for averages) with their footnote marks."""
+
+    def __init__(self, frame: pd.DataFrame, seeds: str = "mean") -> None:
+        if seeds not in ("mean", "all"):
+            raise ReportError(f"seeds must be 'mean' or 'all', not {seeds!r}")
+        self.notes = Notes()
+        frame = frame.copy()
+        counts = frame.groupby("method")["variant"].nunique()
+        frame["row"] = [row_label(m, v, int(counts[m])) for m, v in zip(frame["method"], frame["variant"],
+                                                                           strict=True)]
+        if seeds == "all":
+            frame["row"] = frame["row"] + " seed" + frame["seed"].astype(str)
+        self.frame = frame
+        self.rows = list(dict.fromkeys(frame["row"]))
+        self.source = {row: (group["method"].iloc[0], group["variant"].iloc[0]) for row, group in frame.groupby("row")}
+        self.seeds = {row: sorted(set(group["seed"])) for row, group in frame.groupby("row")}
+        for _, failed in frame[frame["status"] == "failed"].iterrows():
+            self.notes.failures.append(f"{failed['method']}/{failed['variant']}/{failed['scene']} "
+                                       f"seed{failed['seed']} — {failed['error']}")
+
+    def jobs(self, row: str, scene: str) -> pd.DataFrame:
+        frame = self.frame
+        return frame[(frame["row"] == row) & (frame["scene"].map(normalise_name) == normalise_name(scene))]
+
+    def cell(self, row: str, scene: str, split: str, metric: str, *, with_std: bool = False,
+             note: bool = True) -> Cell:
+        """Mean over seeds of one (row, scene, split, metric), marked when anything is missing.
+
+        ``with_std`` adds the population std over seeds; ``note=False`` leaves no footnote mark (for cells
+        only used inside an average).
+        """
+        mark = self.notes.mark if note else (lambda letter: ())
+        jobs = self.jobs(row, scene)
+        done = jobs[jobs["status"] == "done"]
+        values = done[(done["split"] == split) & (done["metric"] == metric)]
+        numbers = values["value"].dropna()
+        if numbers.empty:
+            if jobs.empty:
+                return Cell(None, marks=mark("b"))
+            if done.empty:
+                return Cell(None, marks=mark("a"))
+            return Cell(None, marks=mark("e" if not values.empty else "b"))
+        complete = set(values.loc[numbers.index, "seed"]) >= set(self.seeds[row])
+        std = float(numbers.std(ddof=0)) if with_std and len(numbers) > 1 else None
+        return Cell(float(numbers.mean()), std=std, marks=() if complete else mark("c"))
+
+    def average(self, row: str, scenes: Sequence[str], split: str, metric: str, with_std: bool = False) -> Cell:
+        """Mean (± population std) over scenes of the per-scene means; "—" unless every scene has a value."""
+        numbers = []
+        for scene in scenes:
+            cell = self.cell(row, scene, split, metric, note=False)
+            if cell.number is None:
+                return Cell(None, marks=self.notes.mark("d"))
+            numbers.append(cell.number)
+        mean = sum(numbers) / len(numbers)
+        std = math.sqrt(sum((n - mean) ** 2 for n in numbers) / len(numbers)) if with_std else None
+        return Cell(mean, std=std)
+
+
+def _protocol_line(frame: pd.DataFrame, suite: str, seeds: str) -> str:
+    protocols = sorted(set(frame["protocol"]))
+    seed_count = frame.groupby(["method", "variant", "scene"])["seed"].nunique().max()
+    seed_text = "every seed as its own row" if seeds == "all" else f"mean over up to {seed_count} seed(s)"
+    text = f"{', '.join(protocols)}; suite {suite}; {seed_text}"
+    if len(protocols) > 1:
+        text += " — WARNING: mixed metric protocols, numbers are not comparable"
+    return text
+
+
+def _add_published(cells: dict, rows: list[str], run_cells: RunCells, suite: str, keys: Sequence[tuple[str, str]],
+                   metrics: Sequence[str], ranks: dict[str, str | None]) -> list[str]:
+    """Insert "(paper)" and "Δ" rows after each run row the paper reports; returns the new row order."""
+    ordered = []
+    for row in rows:
+        ordered.append(row)
+        method, variant = run_cells.source[row]
+        label = paper_method(method, variant)
+        if label is None:
+            continue
+        paper_row, delta_row = f"{label} (paper)", f"Δ {row} − paper"
+        found = False
+        for scene, split in keys:
+            for metric in metrics:
+                number = None if scene == "Average" else lookup(label, suite, scene, split, metric)
+                if scene == "Average":
+                    numbers = [cells[(paper_row, s, split, metric)].number for s, sp in keys
+                               if sp == split and s != "Average" and (paper_row, s, split, metric) in cells]
+                    expected = len({s for s, _ in keys if s != "Average"})
+                    number = sum(numbers) / len(numbers) if numbers and None not in numbers \
+                        and len(numbers) == expected else None
+                found |= number is not None
+                cells[(paper_row, scene, split, metric)] = Cell(number)
+                ours = cells.get((row, scene, split, metric), Cell(None)).number
+                cells[(delta_row, scene, split, metric)] = Cell(
+                    None if ours is None or number is None else ours - number, signed=True)
+        if found:
+            ordered += [paper_row, delta_row]
+            ranks[paper_row] = ranks[delta_row] = None
+    return ordered
+
+
+def scene_table(frame: pd.DataFrame, *, suite: str | None = None, methods: Sequence[str] | None = None,
+                metrics: Sequence[str] = ("psnr", "ssim", "lpips"), splits: Sequence[str] = ("train", "test"),
+                seeds: str = "mean", average: bool = False, published: bool = False) -> Table:
+    """Methods × scenes × splits with one block per metric (the paper's Table 1 layout)."""
+    selected = select_runs(frame, suite, methods)
+    suite = suite or single_suite(selected)
+    run_cells = RunCells(selected, seeds)
+    scenes, scene_note = expected_scenes(suite, list(selected["scene"]))
+    cells, rows = {}, list(run_cells.rows)
+    for row in rows:
+        for scene in scenes:
+            for split in splits:
+                for metric in metrics:
+                    cells[(row, scene, split, metric)] = run_cells.cell(row, scene, split, metric)
+        if average:
+            for split in splits:
+                for metric in metrics:
+                    cells[(row, "Average", split, metric)] = run_cells.average(row, scenes, split, metric)
+    columns = scenes + (["Average"] if average else [])
+    ranks: dict[str, str | None] = {row: "all" for row in rows}
+    if published:
+        rows = _add_published(cells, rows, run_cells, suite, [(s, sp) for s in columns for sp in splits],
+                              metrics, ranks)
+    table = scenes_layout(CellLookup(cells), rows, columns, splits, metrics, name=f"tab:{suite}",
+                          caption=f"Per-scene results on the {suite} suite.",
+                          protocol=_protocol_line(selected, suite, seeds), rank_sets=ranks)
+    table.footnotes += ([scene_note] if scene_note else []) + run_cells.notes.lines()
+    return table
+
+
+def _hours(seconds: float) -> str:
+    return f"{seconds / 3600:.2f} h" if seconds >= 3600 else f"{seconds / 60:.1f} min"
+
+
+def overview_table(frame: pd.DataFrame, *, suite: str | None = None, methods: Sequence[str] | None = None,
+                   metrics: Sequence[str] = ("psnr", "ssim", "lpips"), splits: Sequence[str] = ("train", "test"),
+                   seeds: str = "mean") -> Table:
+    """Per-split averages over the suite's scenes (mean ± std over scenes), FPS, training time, device."""
+    selected = select_runs(frame, suite, methods)
+    suite = suite or single_suite(selected)
+    run_cells = RunCells(selected, seeds)
+    scenes, scene_note = expected_scenes(suite, list(selected["scene"]))
+    cells = {}
+    for row in run_cells.rows:
+        for split in splits:
+            for metric in metrics:
+                cells[(row, "Average", split, metric)] = run_cells.average(row, scenes, split, metric, with_std=True)
+        fps = run_cells.average(row, scenes, "-", "fps", with_std=True)
+        fps.decimals = 1
+        cells[(row, "Average", "-", "fps")] = fps
+        time = run_cells.average(row, scenes, "-", "train_time")
+        cells[(row, "Average", "-", "train_time")] = Cell(_hours(time.number)) if time.number is not None else time
+        devices = sorted(set(run_cells.frame[run_cells.frame["row"] == row]["device"]) - {""})
+        cells[(row, "Average", "-", "gpu")] = Cell(", ".join(devices) or None)
+    table = overview_layout(CellLookup(cells), run_cells.rows, splits, metrics, name=f"tab:{suite}-overview",
+                            caption=f"Averages over the {len(scenes)} scenes of the {suite} suite "
+                                    f"(mean ± std over scenes; training time is the mean per scene).",
+                            protocol=_protocol_line(selected, suite, seeds),
+                            extras=(("fps", "FPS", "-"), ("train_time", "Train T.", "-"), ("gpu", "Device", "-")))
+    table.footnotes += ([scene_note] if scene_note else []) + run_cells.notes.lines()
+    return table
+
+
+def ablation_table(frame: pd.DataFrame, *, suite: str | None = None, method: str = "ssdgs",
+                   metrics: Sequence[str] = ("psnr", "ssim", "lpips"), splits: Sequence[str] = ("train", "test"),
+                   seeds: str = "mean", published: bool = False) -> Table:
+    """Compositions A–F and schedules H–K as rows: Table 2 for one scene, the appendix layout for several."""
+    selected = frame[(frame["method"] == method) & frame["variant"].str.startswith(ABLATION_PREFIXES)]
+    if suite is not None:
+        selected = selected[selected["suite"] == suite]
+    if selected.empty:
+        raise ReportError(f"no ablation runs of '{method}' (variants ablation-A…F, schedule-H…K) found; run "
+                          f"e.g. olatbench run --method {method} --variant ablation-A --suite nrhints")
+    selected = selected.assign(_order=selected["variant"].map(lambda v: (v.startswith("schedule-"), v)))
+    selected = selected.sort_values("_order", kind="stable").drop(columns="_order")
+    run_cells = RunCells(selected, seeds)
+    rows = list(run_cells.rows)
+    sets = {row: ("schedule" if run_cells.source[row][1].startswith("schedule-") else "composition") for row in rows}
+    scenes = list(dict.fromkeys(selected["scene"]))
+    suites = sorted(set(selected["suite"]))
+    protocol = _protocol_line(selected, ", ".join(suites), seeds)
+    first_schedule = [row for row in rows if sets[row] == "schedule"][:1]
+    cells = {}
+    for row in rows:
+        for scene in scenes:
+            for split in splits:
+                for metric in metrics:
+                    cells[(row, scene, split, metric)] = run_cells.cell(row, scene, split, metric)
+    if len(scenes) == 1:
+        scene = scenes[0]
+        if published:
+            rows = _add_published(cells, rows, run_cells, suites[0], [(scene, sp) for sp in splits], metrics, sets)
+        table = metric_columns_layout(CellLookup(cells), rows, scene, splits, metrics, name="tab:ablation",
+                                      caption=f"Ablation study on {scene}.", protocol=protocol, rank_sets=sets,
+                                      rule_before=[rows.index(r) for r in first_schedule])
+    else:
+        for row in rows:
+            for split in splits:
+                for metric in metrics:
+                    cells[(row, "Average", split, metric)] = run_cells.average(row, scenes, split, metric)
+        table = split_rows_layout(CellLookup(cells), rows, [*scenes, "Average"], splits, metrics,
+                                  name="tab:ablation-scenes", caption="Ablation study over scenes.",
+                                  protocol=protocol, rank_sets=sets, rule_before_rows=first_schedule)
+    table.footnotes += run_cells.notes.lines()
+    return table
