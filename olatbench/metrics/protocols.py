@@ -1,0 +1,290 @@
+"""Named, versioned metric protocols: the exact recipe that turns (prediction, ground truth) into numbers.
+
+Numbers from different papers differ mostly through the recipe, not the method: 8-bit quantisation
+(rounding vs truncation), the SSIM window border (valid region vs zero padding), the LPIPS backbone
+(AlexNet vs VGG) and its input range ([-1, 1] vs the [0, 1] mistake of the 3DGS evaluation script).
+Every result stores the protocol ``id`` and ``version``; a change of recipe is a new version.
+
+>>> from olatbench.metrics.protocols import get_protocol
+>>> protocol = get_protocol("olatbench-v1")
+>>> values = protocol.evaluate(pred, gt)          # float32 (H, W, 3) sRGB in [0, 1]
+>>> values["psnr"], values["ssim"], values["lpips"]
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from collections.abc import Iterable, Sequence
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+import torch
+from tqdm import tqdm
+
+from olatbench.datasets.colour import dequantize_8bit, quantize_8bit
+from olatbench.metrics.lpips import get_network, lpips_nchw
+from olatbench.metrics.psnr import mse_torch
+from olatbench.metrics.ssim import ssim_nchw
+from olatbench.metrics.weights import INSTALL_HINT, WeightsError
+
+PSNR_MSE_FLOOR = 1e-10  # identical images score 100 dB instead of +inf (JSON has no infinity)
+_WARNED: set[str] = set()
+
+
+@dataclass(frozen=True)
+class Protocol:
+    """One metric recipe. ``evaluate`` takes float (H, W, 3) images in ``colourspace`` with values in [0, 1]."""
+
+    id: str
+    version: int
+    description: str
+    reproduces: str
+    colourspace: str = "srgb"
+    quantize: str | None = "round"          # "round" | "truncate" | None (float images)
+    ssim_variant: str = "wang"               # see olatbench.metrics.ssim
+    lpips_nets: tuple[str, ...] = ("alex", "vgg")
+    lpips_primary: str = "alex"
+    lpips_unit_range_compat: bool = False    # True: feed [0, 1] to the [-1, 1] network (3DGS mistake)
+    masked: bool = False
+    steps: tuple[str, ...] = field(default=())
+
+    @property
+    def metrics(self) -> tuple[str, ...]:
+        """Keys of ``evaluate``'s result: psnr, ssim, lpips (primary) and lpips_<net> when several nets."""
+        extra = tuple(f"lpips_{net}" for net in self.lpips_nets) if len(self.lpips_nets) > 1 else ()
+        return ("psnr", "ssim", "lpips", *extra)
+
+    def definition(self) -> dict:
+        """JSON-able exact definition (stored in results and printed by ``olatbench metrics explain``)."""
+        data = asdict(self)
+        data["metrics"] = list(self.metrics)
+        data["steps"] = list(self.steps)
+        data["lpips_nets"] = list(self.lpips_nets)
+        data["psnr_mse_floor"] = PSNR_MSE_FLOOR
+        return data
+
+    # --- preprocessing -------------------------------------------------------------------------------------------
+    def prepare(self, image: np.ndarray | torch.Tensor, name: str) -> np.ndarray:
+        """Check (H, W, 3) float finite, clip to [0, 1], quantise to 8 bit as the protocol says -> float32."""
+        array = image.detach().cpu().numpy() if isinstance(image, torch.Tensor) else np.asarray(image)
+        if array.ndim != 3 or array.shape[-1] != 3:
+            raise ValueError(f"{name}: expected an (H, W, 3) image, found shape {array.shape}")
+        if not np.issubdtype(array.dtype, np.floating):
+            raise TypeError(f"{name}: expected float values in [0, 1], found dtype {array.dtype}")
+        if not np.isfinite(array).all():
+            raise ValueError(f"{name}: contains NaN or Inf values")
+        array = np.clip(array.astype(np.float32), 0.0, 1.0)
+        if self.quantize is not None:
+            array = dequantize_8bit(quantize_8bit(array, mode=self.quantize))
+        return array
+
+    # --- evaluation ----------------------------------------------------------------------------------------------
+    def lpips_available(self) -> bool:
+        """True when the weights of every LPIPS network of this protocol are installed."""
+        try:
+            for net in self.lpips_nets:
+                get_network(net)
+        except WeightsError:
+            return False
+        return True
+
+    def require_lpips(self) -> None:
+        """Raise ``WeightsError`` (with install instructions) unless LPIPS can be computed."""
+        for net in self.lpips_nets:
+            get_network(net)
+
+    def _lpips_batch(self, pred: torch.Tensor, gt: torch.Tensor, mask: torch.Tensor | None,
+                     device: str) -> dict[str, list[float | None]]:
+        out: dict[str, list[float | None]] = {}
+        for net in self.lpips_nets:
+            try:
+                model = get_network(net, None, device)
+            except WeightsError:
+                if net not in _WARNED:
+                    _WARNED.add(net)
+                    warnings.warn(f"LPIPS-{net} is reported as None: {INSTALL_HINT}", stacklevel=3)
+                out[net] = [None] * pred.shape[0]
+                continue
+            with torch.no_grad():
+                values = lpips_nchw(model, pred, gt, mask, self.lpips_unit_range_compat)
+            out[net] = [float(v) for v in values]
+        return out
+
+    def _evaluate_batch(self, preds: list[np.ndarray], gts: list[np.ndarray], masks: list[np.ndarray | None],
+                        device: str) -> list[dict[str, float | None]]:
+        pred = torch.from_numpy(np.stack(preds)).permute(0, 3, 1, 2).to(device)
+        gt = torch.from_numpy(np.stack(gts)).permute(0, 3, 1, 2).to(device)
+        mask = None
+        if self.masked:
+            mask = torch.from_numpy(np.stack(masks).astype(np.float32))[:, None].to(device)
+        with torch.no_grad():
+            mse = mse_torch(pred.double(), gt.double(), None if mask is None else mask.double())
+            mse = mse.clamp_min(PSNR_MSE_FLOOR)
+            psnr = (10.0 * torch.log10(1.0 / mse)).tolist()
+            ssim = ssim_nchw(pred, gt, self.ssim_variant, mask).tolist()
+        lpips = self._lpips_batch(pred, gt, mask, device)
+        results = []
+        for i in range(len(preds)):
+            row: dict[str, float | None] = {"psnr": psnr[i], "ssim": ssim[i], "lpips": lpips[self.lpips_primary][i]}
+            if len(self.lpips_nets) > 1:
+                row.update({f"lpips_{net}": lpips[net][i] for net in self.lpips_nets})
+            results.append(row)
+        return results
+
+    def _mask(self, mask: np.ndarray | torch.Tensor | None, shape: tuple[int, ...], index: int) -> np.ndarray | None:
+        if not self.masked:
+            return None
+        if mask is None:
+            raise ValueError(f"protocol {self.id} needs a mask for every image (image {index} has none)")
+        m = mask.detach().cpu().numpy() if isinstance(mask, torch.Tensor) else np.asarray(mask, dtype=np.float32)
+        m = m[..., 0] if m.ndim == 3 else m
+        if m.shape != shape[:2]:
+            raise ValueError(f"mask of image {index}: shape {m.shape} does not match the image's {shape[:2]}")
+        if not (m > 0).any():
+            raise ValueError(f"mask of image {index} is empty")
+        return np.clip(m, 0.0, 1.0).astype(np.float32)
+
+    def evaluate(self, pred: np.ndarray, gt: np.ndarray, mask: np.ndarray | None = None,
+                 device: str = "cpu") -> dict[str, float | None]:
+        """Metrics of one image pair: float32 (H, W, 3) in [0, 1] in ``colourspace``; mask (H, W) if masked."""
+        return self.evaluate_many([(pred, gt, mask)], device=device)[0]
+
+    def evaluate_many(self, pairs: Iterable[Sequence], progress: bool = False, batch_size: int = 4,
+                      device: str = "cpu", total: int | None = None) -> list[dict[str, float | None]]:
+        """Metrics of many ``(pred, gt)`` or ``(pred, gt, mask)`` pairs, batched by equal image size."""
+        results: list[dict[str, float | None]] = []
+        pending: tuple[list, list, list] = ([], [], [])
+
+        def flush() -> None:
+            if pending[0]:
+                results.extend(self._evaluate_batch(*pending, device=device))
+                for items in pending:
+                    items.clear()
+
+        if total is None and hasattr(pairs, "__len__"):
+            total = len(pairs)  # type: ignore[arg-type]
+        for index, pair in enumerate(tqdm(pairs, total=total, disable=not progress, desc=f"metrics {self.id}",
+                                          unit="img")):
+            if len(pair) not in (2, 3):
+                raise ValueError(f"pair {index}: expected (pred, gt) or (pred, gt, mask)")
+            pred, gt = self.prepare(pair[0], f"pred {index}"), self.prepare(pair[1], f"gt {index}")
+            if pred.shape != gt.shape:
+                raise ValueError(f"pair {index}: pred shape {pred.shape} != gt shape {gt.shape}")
+            mask = self._mask(pair[2] if len(pair) == 3 else None, pred.shape, index)
+            if pending[0] and (pending[0][0].shape != pred.shape or len(pending[0]) >= batch_size):
+                flush()
+            pending[0].append(pred)
+            pending[1].append(gt)
+            pending[2].append(mask)
+        flush()
+        return results
+
+    def mean(self, per_image: list[dict[str, float | None]]) -> dict[str, float | None]:
+        """Mean over images per metric; a metric that is None for any image is None in the mean."""
+        if not per_image:
+            raise ValueError("no per-image results to average")
+        out: dict[str, float | None] = {}
+        for key in self.metrics:
+            values = [row.get(key) for row in per_image]
+            out[key] = None if any(v is None for v in values) else math.fsum(values) / len(values)  # type: ignore
+        return out
+
+
+_PROTOCOLS: dict[str, Protocol] = {}
+
+
+def register_protocol(protocol: Protocol) -> Protocol:
+    """Add a protocol to the registry (ids are unique)."""
+    if protocol.id in _PROTOCOLS:
+        raise ValueError(f"protocol {protocol.id!r} is already registered")
+    _PROTOCOLS[protocol.id] = protocol
+    return protocol
+
+
+def get_protocol(name: str) -> Protocol:
+    """The protocol called ``name``; ``ValueError`` listing the known names otherwise."""
+    try:
+        return _PROTOCOLS[name]
+    except KeyError:
+        raise ValueError(f"unknown metric protocol {name!r}; known: {', '.join(protocol_names())} "
+                         "(see `olatbench metrics list`)") from None
+
+
+def protocol_names() -> list[str]:
+    """Registered protocol ids, sorted."""
+    return sorted(_PROTOCOLS)
+
+
+_V1_STEPS = (
+    "inputs: float (H, W, 3) sRGB-encoded images (the benchmark's evaluation space), composited on the "
+    "scene's official background",
+    "clip both images to [0, 1]",
+    "quantise both to 8 bit by rounding to nearest (numpy rint: ties to even) and divide by 255",
+    "PSNR = 10 log10(1 / MSE), MSE over all pixels and channels of the image (peak fixed at 1; "
+    "MSE floored at 1e-10, i.e. at most 100 dB)",
+    "SSIM: Wang et al. 2004, 11×11 Gaussian window σ = 1.5, K1 = 0.01, K2 = 0.03, data range 1, population "
+    "covariance, mean over the valid region (no padding) and the channels = scikit-image "
+    "structural_similarity(gaussian_weights=True, sigma=1.5, use_sample_covariance=False, data_range=1)",
+    "LPIPS v0.1 (linear heads) on inputs mapped to [-1, 1] (2x - 1), AlexNet (lpips = lpips_alex) and VGG16 "
+    "(lpips_vgg), spatial average; = lpips.LPIPS(net=..., version='0.1')(x, y, normalize=True)",
+    "split score: arithmetic mean of the per-image values",
+)
+
+register_protocol(Protocol(
+    id="olatbench-v1", version=1,
+    description="olatbench's default: 8-bit rounded sRGB, PSNR, Wang SSIM (valid region), LPIPS alex+vgg on [-1, 1].",
+    reproduces="the standard definitions (scikit-image SSIM, the lpips package)",
+    steps=_V1_STEPS,
+))
+
+register_protocol(Protocol(
+    id="olatbench-v1-masked", version=1,
+    description="olatbench-v1 restricted to a foreground mask (object pixels only).",
+    reproduces="olatbench-v1 with the metrics weighted by the mask",
+    masked=True,
+    steps=(*_V1_STEPS[:3],
+           "mask (H, W) in [0, 1] (the ground truth's alpha): PSNR's MSE is the mask-weighted mean over pixels",
+           "SSIM: the Wang SSIM map (valid region) averaged with the mask (cropped to the valid region) as weight",
+           "LPIPS: both images multiplied by the mask (composited on black) before the network",
+           _V1_STEPS[-1]),
+))
+
+register_protocol(Protocol(
+    id="ssdgs", version=1,
+    description="As SSD-GS's official render.py + metrics.py (3DGS scripts): 8-bit PNGs, 3DGS SSIM, "
+                "LPIPS-vgg on [0, 1].",
+    reproduces="SSD-GS / 3DGS metrics.py: torchvision.utils.save_image PNGs, utils/loss_utils.ssim, "
+               "lpipsPyTorch.lpips(net_type='vgg')",
+    quantize="round", ssim_variant="3dgs", lpips_nets=("vgg",), lpips_primary="vgg",
+    lpips_unit_range_compat=True,
+    steps=(
+        "inputs: float (H, W, 3) images in the space the official scripts display (sRGB for NRHints data; "
+        "for GS³/SSS-GS EXR data the scripts apply gamma 1/2.2 first: pass gamma22-encoded images)",
+        "clip to [0, 1] and quantise to 8 bit: torchvision save_image computes floor(255x + 0.5) (ties up), "
+        "olatbench rounds ties to even: identical except at exact .5 ties; no truncation in these scripts",
+        "PSNR = 20 log10(1 / sqrt(MSE)) per image, MSE over pixels and channels",
+        "SSIM: the 3DGS ssim(): 11×11 Gaussian window σ = 1.5, ZERO padding of 5 pixels, mean over the "
+        "full map including the borders (higher than Wang SSIM on images with dark borders)",
+        "LPIPS: lpipsPyTorch VGG16 v0.1 heads fed the [0, 1] images directly (no 2x - 1): the 3DGS mistake, "
+        "kept here only to reproduce published SSD-GS/3DGS numbers",
+        "split score: mean of the per-image values",
+    ),
+))
+
+register_protocol(Protocol(
+    id="nrhints", version=1,
+    description="As NRHints' utils/metrics.py: float renders, torchmetrics SSIM (data_range=1), LPIPS-alex.",
+    reproduces="NRHints utils/metrics.py: torchmetrics 1.0 peak_signal_noise_ratio / "
+               "structural_similarity_index_measure (data_range=1.0), lpips.LPIPS(net='alex')(normalize=True)",
+    quantize=None, ssim_variant="wang", lpips_nets=("alex",), lpips_primary="alex",
+    steps=(
+        "inputs: float (H, W, 3) sRGB images, NOT quantised (NRHints scores its float renders)",
+        "clip to [0, 1]",
+        "PSNR = 10 log10(1 / MSE) over pixels and channels",
+        "SSIM: torchmetrics ≥ 1.0 with data_range=1: 11×11 Gaussian σ = 1.5, reflect padding then the "
+        "padded border cropped = Wang SSIM on the valid region",
+        "LPIPS-alex v0.1 on inputs mapped to [-1, 1] (normalize=True)",
+        "split score: mean of the per-image values",
+    ),
+))
