@@ -125,7 +125,10 @@ class Frame:
         if self.image_path is None:
             raise DatasetError("this frame has no image (a camera path)", frame=self.frame_id)
         target = colourspace or self.colourspace
-        pixels = read_image(self.image_path)
+        try:
+            pixels = read_image(self.image_path)
+        except DatasetError as error:  # name the frame too
+            raise DatasetError(error.message, path=error.path, frame=self.frame_id, key=error.key) from None
         channels = pixels.shape[2]
         if channels not in (1, 3, 4):
             raise DatasetError(f"expected 1, 3 or 4 channels, found {channels}", path=self.image_path,

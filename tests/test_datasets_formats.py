@@ -1,0 +1,276 @@
+"""Readers: one test per format quirk listed in docs/datasets.md."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from datasets_trees import gl_look_at, write_gs3_tree, write_nrhints_tree, write_sssgs_tree
+
+from olatbench.datasets import DatasetError, load_scene
+from olatbench.datasets.cameras import project_points
+from olatbench.datasets.formats import detect_format
+from olatbench.datasets.images import write_image
+
+
+def _edit(path: Path, change) -> None:
+    meta = json.loads(path.read_text())
+    change(meta)
+    path.write_text(json.dumps(meta))
+
+
+# --- detection -------------------------------------------------------------------------------------------
+
+def test_each_format_is_detected(tmp_path):
+    write_nrhints_tree(tmp_path / "a")
+    write_gs3_tree(tmp_path / "b")
+    write_sssgs_tree(tmp_path / "c")
+    assert [detect_format(tmp_path / n) for n in "abc"] == ["nrhints", "gs3", "sssgs"]
+    assert [load_scene(tmp_path / n).format for n in "abc"] == ["nrhints", "gs3", "sssgs"]
+
+
+def test_unknown_folder_is_a_clear_error(tmp_path):
+    with pytest.raises(DatasetError, match="no known dataset format"):
+        load_scene(tmp_path)
+
+
+def test_explicit_format_overrides_detection(tmp_path):
+    write_nrhints_tree(tmp_path / "a")
+    assert load_scene(tmp_path / "a", format="nrhints").format == "nrhints"
+    with pytest.raises(DatasetError, match=r"000\.exr.*not found"):  # forced GS³: default extension .exr
+        load_scene(tmp_path / "a", format="gs3")
+    with pytest.raises(DatasetError, match="unknown format"):
+        load_scene(tmp_path / "a", format="colmap")
+
+
+# --- NRHints ---------------------------------------------------------------------------------------------
+
+def test_nrhints_intrinsics_order_is_cx_cy_fx_fy(tmp_path):
+    tree = write_nrhints_tree(tmp_path / "s", size=(16, 12))
+    frame = load_scene(tmp_path / "s").split("train")[0]
+    np.testing.assert_allclose(frame.camera.K, tree.frames["train"][0]["K"])
+    assert (frame.camera.cx, frame.camera.cy, frame.camera.fx, frame.camera.fy) == (8.75, 5.5, 19.2, 17.6)
+
+
+def test_nrhints_camera_angle_x_fallback(tmp_path):
+    tree = write_nrhints_tree(tmp_path / "s", size=(16, 12), intrinsics=False)
+    camera = load_scene(tmp_path / "s").split("train")[0].camera
+    np.testing.assert_allclose(camera.K, tree.frames["train"][0]["K"])
+    assert camera.fx == camera.fy and (camera.cx, camera.cy) == (8.0, 6.0)
+
+
+def test_transform_matrix_is_converted_once_to_opencv(tmp_path):
+    """Cameras look at the origin: it must project onto the principal point, in front of the camera."""
+    tree = write_nrhints_tree(tmp_path / "s")
+    for frame, record in zip(load_scene(tmp_path / "s").split("train"), tree.frames["train"], strict=True):
+        uv, depth = project_points(np.zeros((1, 3)), frame.camera.K, frame.camera.c2w)
+        np.testing.assert_allclose(uv[0], [frame.camera.cx, frame.camera.cy], atol=1e-9)
+        assert depth[0] == pytest.approx(4.0)
+        np.testing.assert_allclose(frame.camera.position, record["c2w_gl"][:3, 3])
+        # world up (+z) appears upwards in the image: smaller pixel y
+        uv_up, _ = project_points(np.array([[0.0, 0.0, 0.3]]), frame.camera.K, frame.camera.c2w)
+        assert uv_up[0, 1] < frame.camera.cy
+
+
+def test_file_path_without_extension_and_default_png(tmp_path):
+    write_nrhints_tree(tmp_path / "s")
+    meta = json.loads((tmp_path / "s/transforms_train.json").read_text())
+    assert not meta["frames"][0]["file_path"].endswith(".png") and "file_ext" not in meta["frames"][0]
+    assert load_scene(tmp_path / "s").split("train")[0].image_path.suffix == ".png"
+
+
+def test_per_frame_file_ext_is_honoured(tmp_path):
+    tree = write_nrhints_tree(tmp_path / "s")
+    write_image(tmp_path / "s/train/000.tif", tree.frames["train"][0]["stored"], "uint8")
+    _edit(tmp_path / "s/transforms_train.json", lambda m: m["frames"][0].update(file_ext=".tif"))
+    frame = load_scene(tmp_path / "s").split("train")[0]
+    assert frame.image_path.name == "000.tif"
+    np.testing.assert_allclose(frame.load(background=None).rgb, tree.frames["train"][0]["stored"][..., :3], atol=1e-6)
+
+
+def test_file_path_that_already_has_an_extension(tmp_path):
+    write_nrhints_tree(tmp_path / "s")
+    _edit(tmp_path / "s/transforms_train.json", lambda m: m["frames"][0].update(file_path="./train/000.png"))
+    assert load_scene(tmp_path / "s").split("train")[0].image_path.name == "000.png"
+
+
+def test_transforms_valid_is_a_camera_path_without_images(tmp_path):
+    write_nrhints_tree(tmp_path / "s", n_path=3)
+    scene = load_scene(tmp_path / "s")
+    path = scene.split("path")
+    assert len(path) == 3 and all(f.image_path is None for f in path)
+    assert [f.frame_id for f in path] == ["path_0000", "path_0001", "path_0002"]
+    with pytest.raises(DatasetError, match="no image"):
+        path[0].load()
+
+
+def test_val_split_is_read(tmp_path):
+    write_nrhints_tree(tmp_path / "s", n_val=2)
+    assert len(load_scene(tmp_path / "s").split("val")) == 2
+
+
+def test_per_frame_lights(tmp_path):
+    tree = write_nrhints_tree(tmp_path / "s")
+    for frame, record in zip(load_scene(tmp_path / "s").split("train"), tree.frames["train"], strict=True):
+        np.testing.assert_array_equal(frame.light.position, record["pl_pos"])
+        np.testing.assert_array_equal(frame.light.intensity, record["pl_intensity"])
+        assert frame.light.intensity_known
+
+
+def test_scalar_pl_intensity_is_broadcast_and_missing_is_unknown(tmp_path):
+    write_nrhints_tree(tmp_path / "s", intensity=False)
+    _edit(tmp_path / "s/transforms_train.json", lambda m: m["frames"][0].update(pl_intensity=7.5))
+    frames = load_scene(tmp_path / "s").split("train")
+    np.testing.assert_array_equal(frames[0].light.intensity, [7.5, 7.5, 7.5])
+    assert frames[0].light.intensity_known
+    np.testing.assert_array_equal(frames[1].light.intensity, [1, 1, 1])
+    assert not frames[1].light.intensity_known
+
+
+@pytest.mark.parametrize(("folder", "name"), [("Cat_on_Decor", "CatSmall"), ("Cluttered", "FurScene"),
+                                              ("Cup-Fabric", "CupFabric"), ("Pixiu", "Pixiu")])
+def test_nrhints_folder_aliases(tmp_path, folder, name):
+    write_nrhints_tree(tmp_path / folder, n_train=1, n_test=0)
+    scene = load_scene(tmp_path / folder)
+    assert scene.name == name and scene.metadata["folder"] == folder
+
+
+def test_nrhints_png_is_srgb_straight_alpha_on_black(tmp_path):
+    tree = write_nrhints_tree(tmp_path / "s")
+    frame = load_scene(tmp_path / "s").split("train")[0]
+    stored = tree.frames["train"][0]["stored"]
+    assert frame.colourspace == "srgb" and frame.alpha_mode == "straight"
+    np.testing.assert_allclose(frame.load().rgb, stored[..., :3] * stored[..., 3:], atol=1e-6)
+    straight = frame.load(background=None)
+    np.testing.assert_allclose(straight.rgb, stored[..., :3], atol=1e-6)
+    np.testing.assert_allclose(straight.alpha, stored[..., 3], atol=1e-6)
+
+
+def test_missing_pl_pos_is_an_error_not_the_origin(tmp_path):
+    write_nrhints_tree(tmp_path / "s")
+    _edit(tmp_path / "s/transforms_train.json", lambda m: m["frames"][1].pop("pl_pos"))
+    with pytest.raises(DatasetError, match="pl_pos") as error:
+        load_scene(tmp_path / "s")
+    assert error.value.frame == "001" and error.value.path.name == "transforms_train.json"
+
+
+# --- GS³ -------------------------------------------------------------------------------------------------
+
+def test_gs3_exr_is_linear_premultiplied_on_white(tmp_path):
+    tree = write_gs3_tree(tmp_path / "s")
+    frame = load_scene(tmp_path / "s").split("train")[1]
+    stored = tree.frames["train"][1]["stored"]
+    rgb, alpha = stored[..., :3], stored[..., 3:]
+    assert frame.colourspace == "linear" and frame.alpha_mode == "premultiplied"
+    np.testing.assert_allclose(frame.load().rgb, rgb + (1 - alpha), atol=1e-6)
+    straight = frame.load(background=None)
+    inside = alpha[..., 0] > 0
+    np.testing.assert_allclose(straight.rgb[inside], (rgb / np.maximum(alpha, 1e-8))[inside], rtol=1e-5)
+    assert np.all(straight.rgb[~inside] == 0)
+
+
+def test_gs3_near_far_and_fov(tmp_path):
+    tree = write_gs3_tree(tmp_path / "s", size=(20, 10))
+    camera = load_scene(tmp_path / "s").split("test")[0].camera
+    assert (camera.near, camera.far, camera.width, camera.height) == (0.5, 20.0, 20, 10)
+    np.testing.assert_allclose(camera.K, tree.frames["test"][0]["K"])
+
+
+def test_gs3_per_frame_intrinsics_override(tmp_path):
+    write_gs3_tree(tmp_path / "s")
+    _edit(tmp_path / "s/transforms_train.json", lambda m: m["frames"][2].update(camera_intrinsics=[7, 5, 30, 31]))
+    frames = load_scene(tmp_path / "s").split("train")
+    assert (frames[2].camera.cx, frames[2].camera.cy, frames[2].camera.fx, frames[2].camera.fy) == (7, 5, 30, 31)
+    assert frames[1].camera.cx == 8.0
+
+
+def test_gs3_refined_poses_stay_separate(tmp_path):
+    tree = write_gs3_tree(tmp_path / "s")
+    frame = load_scene(tmp_path / "s").split("train")[0]
+    np.testing.assert_array_equal(frame.extras["T_opt"], [0.1, 0.2, 0.3])
+    np.testing.assert_array_equal(frame.extras["R_opt"], np.eye(3))
+    np.testing.assert_allclose(frame.camera.position, tree.frames["train"][0]["c2w_gl"][:3, 3])
+
+
+def test_gs3_r_opt_without_t_opt_is_an_error(tmp_path):
+    write_gs3_tree(tmp_path / "s")
+    _edit(tmp_path / "s/transforms_train.json", lambda m: m["frames"][0].pop("T_opt"))
+    with pytest.raises(DatasetError, match="T_opt"):
+        load_scene(tmp_path / "s")
+
+
+def test_gs3_path_split(tmp_path):
+    write_gs3_tree(tmp_path / "s", n_path=2)
+    assert [f.image_path for f in load_scene(tmp_path / "s").split("path")] == [None, None]
+
+
+# --- SSS-GS ----------------------------------------------------------------------------------------------
+
+def test_sssgs_lists_expand_to_one_record_per_light(tmp_path):
+    tree = write_sssgs_tree(tmp_path / "s", n_train_cameras=2, lights_per_camera=3)
+    frames = load_scene(tmp_path / "s").split("train")
+    assert len(frames) == 6
+    for frame, record in zip(frames, tree.frames["train"], strict=True):
+        assert frame.image_path == record["file"].resolve()
+        np.testing.assert_allclose(frame.camera.position, record["c2w_gl"][:3, 3])
+
+
+def test_sssgs_light_positions_are_used_as_stored(tmp_path):
+    tree = write_sssgs_tree(tmp_path / "s")
+    for frame, record in zip(load_scene(tmp_path / "s").split("train"), tree.frames["train"], strict=True):
+        np.testing.assert_array_equal(frame.light.position, record["pl_pos"])
+
+
+def test_sssgs_per_frame_intrinsics_and_size(tmp_path):
+    tree = write_sssgs_tree(tmp_path / "s", size=(16, 16))
+    camera = load_scene(tmp_path / "s").split("test")[0].camera
+    np.testing.assert_allclose(camera.K, tree.frames["test"][0]["K"])
+    assert (camera.width, camera.height) == (16, 16)
+
+
+def test_sssgs_camera_angle_x_alternative(tmp_path):
+    write_sssgs_tree(tmp_path / "s", size=(16, 16))
+    _edit(tmp_path / "s/transforms_train.json", lambda m: m.update(camera_angle_x=0.5))
+    camera = load_scene(tmp_path / "s").split("train")[0].camera
+    assert camera.fx == camera.fy == pytest.approx(8 / np.tan(0.25))
+
+
+def test_sssgs_intensity_unknown_unless_given(tmp_path):
+    write_sssgs_tree(tmp_path / "s", lights_per_camera=2)
+    frame = load_scene(tmp_path / "s").split("train")[0]
+    assert not frame.light.intensity_known and np.all(frame.light.intensity == 1)
+    _edit(tmp_path / "s/transforms_train.json", lambda m: m["frames"][0].update(light_intensities=[2, [1, 2, 3]]))
+    frames = load_scene(tmp_path / "s").split("train")
+    np.testing.assert_array_equal(frames[1].light.intensity, [1, 2, 3])
+    assert frames[0].light.intensity_known
+
+
+def test_sssgs_exclude_list(tmp_path):
+    write_sssgs_tree(tmp_path / "s", n_train_cameras=2, lights_per_camera=3, excluded=("r_1_l_2.png", "r_0_l_0"))
+    scene = load_scene(tmp_path / "s")
+    ids = [f.frame_id for f in scene.split("train")]
+    assert "r_1_l_2" not in ids and "r_0_l_0" not in ids and len(ids) == 4
+    assert scene.metadata["excluded_images"] == 3  # r_0_l_0 is in train and in test
+    assert len(scene.split("test")) == 2
+
+
+def test_sssgs_shared_pngs_are_counted_and_ids_stay_unique(tmp_path):
+    write_sssgs_tree(tmp_path / "s", share_first=True)
+    scene = load_scene(tmp_path / "s")
+    assert scene.metadata["shared_images"] == 1 and scene.metadata["shared_records"] == 2
+    ids = [f.frame_id for f in scene.split("train")]
+    assert len(set(ids)) == len(ids) and ids[:2] == ["r_0_l_0-1", "r_0_l_0-2"]
+
+
+def test_sssgs_is_black_straight_srgb(tmp_path):
+    tree = write_sssgs_tree(tmp_path / "s")
+    frame = load_scene(tmp_path / "s").split("train")[0]
+    stored = tree.frames["train"][0]["stored"]
+    np.testing.assert_allclose(frame.load().rgb, stored[..., :3] * stored[..., 3:], atol=1e-6)
+
+
+def test_gl_look_at_helper_is_a_rotation():
+    c2w = gl_look_at([1.0, 2.0, 0.5])
+    np.testing.assert_allclose(c2w[:3, :3].T @ c2w[:3, :3], np.eye(3), atol=1e-12)
