@@ -1,0 +1,123 @@
+"""The ``mini`` suite: three small rendered OLAT scenes, generated on first use and cached.
+
+``ensure_mini_suite()`` returns a folder holding ``diffuse_shadow/``, ``aniso_metal/`` and
+``translucent/`` in NRHints format (80×80, 100 train + 20 test frames, test lights novel). Each scene
+folder carries a ``manifest.json`` with the recipe and the sha256 of every file; a scene is reused only
+when its recipe is today's and every hash matches, otherwise it is rendered again. Scenes are rendered
+into a temporary sibling folder and renamed into place, so an interruption never leaves half a scene;
+a lock file serialises concurrent callers (several runner processes may start at once).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import json
+import logging
+import os
+import shutil
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+from olatbench.atomic import write_json
+from olatbench.datasets.synth.generate import GENERATOR_VERSION, generate
+from olatbench.datasets.synth.recipe import RECIPES, Recipe
+
+MINI_SCENES = ("diffuse_shadow", "aniso_metal", "translucent")
+MANIFEST = "manifest.json"
+log = logging.getLogger(__name__)
+
+
+def mini_recipes() -> dict[str, Recipe]:
+    """The recipes of the mini suite (the built-in recipes of the same names, at their defaults)."""
+    return {name: RECIPES[name] for name in MINI_SCENES}
+
+
+def default_root() -> Path:
+    """``$XDG_CACHE_HOME/olatbench/mini`` (default ``~/.cache/olatbench/mini``)."""
+    cache = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return Path(cache) / "olatbench" / "mini"
+
+
+def file_hashes(folder: Path) -> dict[str, str]:
+    """sha256 of every file below ``folder`` except the manifest, keyed by POSIX relative path."""
+    hashes = {}
+    for path in sorted(folder.rglob("*")):
+        if path.is_file() and path.name != MANIFEST:
+            hashes[path.relative_to(folder).as_posix()] = hashlib.sha256(path.read_bytes()).hexdigest()
+    return hashes
+
+
+def _expected_header(recipe: Recipe) -> dict[str, Any]:
+    return {"generator_version": GENERATOR_VERSION, "recipe": json.loads(json.dumps(recipe.to_dict()))}
+
+
+def scene_is_valid(folder: Path, recipe: Recipe) -> tuple[bool, str]:
+    """(valid, reason): the manifest exists, names this recipe and generator, and every hash matches."""
+    manifest_path = folder / MANIFEST
+    if not manifest_path.is_file():
+        return False, "no manifest"
+    try:
+        manifest = json.loads(manifest_path.read_text(encoding="utf-8"))
+    except (OSError, json.JSONDecodeError) as error:
+        return False, f"unreadable manifest ({error})"
+    expected = _expected_header(recipe)
+    if any(manifest.get(key) != value for key, value in expected.items()):
+        return False, "made by another recipe or generator version"
+    if manifest.get("files") != file_hashes(folder):
+        return False, "files differ from the manifest (missing, extra or modified)"
+    return True, "ok"
+
+
+@contextlib.contextmanager
+def _locked(root: Path) -> Iterator[None]:
+    """An exclusive lock on ``root/.lock`` where the platform has ``fcntl`` (no-op elsewhere)."""
+    root.mkdir(parents=True, exist_ok=True)
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover - Windows
+        yield
+        return
+    with open(root / ".lock", "w") as handle:
+        fcntl.flock(handle, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(handle, fcntl.LOCK_UN)
+
+
+def render_mini_scene(root: Path, name: str, recipe: Recipe, progress: bool = True) -> Path:
+    """Render one scene into ``root/.<name>.partial`` with its manifest, then rename it to ``root/name``."""
+    final = root / name
+    partial = root / f".{name}.partial"
+    shutil.rmtree(partial, ignore_errors=True)
+    generate(recipe, partial, "nrhints", progress=progress)
+    write_json(partial / MANIFEST, {**_expected_header(recipe), "files": file_hashes(partial)})
+    if final.exists():
+        stale = root / f".{name}.stale"
+        shutil.rmtree(stale, ignore_errors=True)
+        os.replace(final, stale)
+        shutil.rmtree(stale, ignore_errors=True)
+    os.replace(partial, final)
+    return final
+
+
+def ensure_mini_suite(root: Path | None = None, progress: bool = True,
+                      recipes: dict[str, Recipe] | None = None) -> Path:
+    """Make sure the mini suite exists and is intact below ``root`` (default `default_root`); return ``root``.
+
+    ``recipes`` replaces the suite's recipes (tests use tiny ones); scenes are re-rendered when missing,
+    changed or corrupt.
+    """
+    root = Path(root) if root is not None else default_root()
+    recipes = mini_recipes() if recipes is None else recipes
+    with _locked(root):
+        for name, recipe in recipes.items():
+            valid, reason = scene_is_valid(root / name, recipe)
+            if valid:
+                continue
+            if (root / name).exists():
+                log.warning("mini suite: re-rendering %s (%s)", root / name, reason)
+            render_mini_scene(root, name, recipe, progress=progress)
+    return root
