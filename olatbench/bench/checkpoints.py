@@ -1,0 +1,105 @@
+"""Training checkpoints: method state + step + RNG states, written atomically, loaded with weights_only.
+
+A checkpoint ``checkpoints/step_<step:08d>.pt`` holds ``step`` = the number of completed training
+steps (the next step to run), the method's `state_dict`, the python/numpy/torch(/CUDA) RNG states,
+the accumulated training seconds and the job id. Restoring all of them makes a resumed run take
+exactly the path an uninterrupted run would have taken (for methods that keep all their
+randomness in these generators or in their own state dict).
+"""
+
+from __future__ import annotations
+
+import random
+import re
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+
+from olatbench.atomic import atomic_path
+
+CHECKPOINT_FORMAT = 1
+_NAME = re.compile(r"^step_(\d+)\.pt$")
+
+
+def checkpoint_dir(folder: str | Path) -> Path:
+    return Path(folder) / "checkpoints"
+
+
+def list_checkpoints(folder: str | Path) -> list[tuple[int, Path]]:
+    """(step, path) of every checkpoint of a job folder, oldest first."""
+    directory = checkpoint_dir(folder)
+    if not directory.is_dir():
+        return []
+    found = [(int(match.group(1)), path) for path in directory.iterdir() if (match := _NAME.match(path.name))]
+    return sorted(found)
+
+
+def seed_everything(seed: int) -> None:
+    """Seed python's `random`, numpy's global generator and torch (all devices)."""
+    random.seed(seed)
+    np.random.seed(seed % 2**32)
+    torch.manual_seed(seed)
+
+
+def rng_states() -> dict[str, Any]:
+    """The global RNG states as tensors and plain values (loadable with ``weights_only=True``)."""
+    version, internal, gauss = random.getstate()
+    numpy_state = np.random.get_state(legacy=False)
+    states: dict[str, Any] = {
+        "python": {"version": version, "state": list(internal), "gauss": gauss},
+        "numpy": {"key": torch.from_numpy(numpy_state["state"]["key"].astype(np.int64)),
+                  "pos": int(numpy_state["state"]["pos"]), "has_gauss": int(numpy_state["has_gauss"]),
+                  "gauss": float(numpy_state["gauss"])},
+        "torch": torch.get_rng_state(),
+    }
+    if torch.cuda.is_available() and torch.cuda.is_initialized():
+        states["cuda"] = torch.cuda.get_rng_state_all()
+    return states
+
+
+def restore_rng_states(states: dict[str, Any]) -> None:
+    """Inverse of `rng_states`."""
+    python = states["python"]
+    random.setstate((python["version"], tuple(python["state"]), python["gauss"]))
+    numpy = states["numpy"]
+    np.random.set_state({"bit_generator": "MT19937",
+                         "state": {"key": numpy["key"].numpy().astype(np.uint32), "pos": numpy["pos"]},
+                         "has_gauss": numpy["has_gauss"], "gauss": numpy["gauss"]})
+    torch.set_rng_state(states["torch"])
+    if "cuda" in states and torch.cuda.is_available():
+        torch.cuda.set_rng_state_all(states["cuda"])
+
+
+def save_checkpoint(folder: str | Path, step: int, method_state: dict[str, Any], job_id: str,
+                    train_seconds: float, keep: int = 2) -> Path:
+    """Write ``checkpoints/step_<step>.pt`` atomically, then delete all but the newest ``keep``."""
+    path = checkpoint_dir(folder) / f"step_{step:08d}.pt"
+    payload = {"format": CHECKPOINT_FORMAT, "job_id": job_id, "step": int(step), "method": method_state,
+               "rng": rng_states(), "train_seconds": float(train_seconds)}
+    with atomic_path(path) as temporary:
+        torch.save(payload, temporary)
+    prune_checkpoints(folder, keep)
+    return path
+
+
+def prune_checkpoints(folder: str | Path, keep: int) -> None:
+    """Delete all but the newest ``keep`` (≥ 1) checkpoints."""
+    for _, path in list_checkpoints(folder)[:-max(1, keep)]:
+        path.unlink(missing_ok=True)
+
+
+def load_checkpoint(path: str | Path, job_id: str) -> dict[str, Any]:
+    """Load a checkpoint (``weights_only=True``) and check that it belongs to ``job_id``."""
+    path = Path(path)
+    try:
+        payload = torch.load(path, map_location="cpu", weights_only=True)
+    except Exception as error:
+        raise RuntimeError(f"{path}: cannot read checkpoint ({error}); delete it or rerun with --force") from error
+    if payload.get("format") != CHECKPOINT_FORMAT:
+        raise RuntimeError(f"{path}: checkpoint format {payload.get('format')!r} is not {CHECKPOINT_FORMAT}")
+    if payload.get("job_id") != job_id:
+        raise RuntimeError(f"{path}: checkpoint of job {payload.get('job_id')} cannot resume job {job_id}; "
+                           "rerun with --force to start over")
+    return payload

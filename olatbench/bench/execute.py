@@ -1,0 +1,358 @@
+"""Run one job: load the views, train (resuming from the last checkpoint), evaluate, write results.
+
+The order inside the job folder makes every state recoverable: ``job.json`` and ``config.json``
+first, checkpoints during training (the last one at the final step), renders and ``results.json``
+after evaluation, ``DONE`` last. A job killed at any point resumes from its newest checkpoint with
+the RNG states restored, so it reaches the result of an uninterrupted run.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import platform
+import resource
+import sys
+import time
+import traceback
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+from tqdm.auto import tqdm
+
+from olatbench import __version__
+from olatbench.atomic import write_json, write_text
+from olatbench.bench.checkpoints import (
+    list_checkpoints,
+    load_checkpoint,
+    prune_checkpoints,
+    restore_rng_states,
+    save_checkpoint,
+    seed_everything,
+)
+from olatbench.bench.jobs import Job, hash_json
+from olatbench.bench.plan import load_method_class
+from olatbench.bench.results import SCHEMA_VERSION, write_results
+from olatbench.bench.store import DONE_FILE, ERROR_FILE, JOB_FILE, RESULTS_FILE
+from olatbench.datasets import colour, load_scene
+from olatbench.datasets.formats._common import safe_file_stem
+from olatbench.datasets.images import write_image
+from olatbench.datasets.records import Frame
+from olatbench.methods.base import Method, Views
+
+LOG_FILE = "log.txt"
+TRAIN_LOG_FILE = "train_log.jsonl"
+WARMUP_RENDERS = 1
+
+
+@dataclass
+class JobOutcome:
+    """What an executor reports back for one job (picklable)."""
+
+    job_id: str
+    label: str
+    folder: str
+    status: str  # "done" | "failed" | "skipped"
+    test_metrics: dict[str, Any] = field(default_factory=dict)
+    train_seconds: float | None = None
+    render_fps: float | None = None
+    error: str | None = None
+
+
+class JobLog:
+    """Timestamped human-readable lines appended to the job's ``log.txt``."""
+
+    def __init__(self, folder: Path) -> None:
+        self.path = folder / LOG_FILE
+
+    def __call__(self, message: str) -> None:
+        stamp = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M:%S")
+        with open(self.path, "a", encoding="utf-8") as handle:
+            handle.write(f"{stamp} {message}\n")
+
+
+def run_job(job: Job, progress: bool = True, position: int = 1) -> JobOutcome:
+    """Run ``job`` to completion; a failure is recorded in the folder and returned, never raised.
+
+    ``KeyboardInterrupt`` is not a failure: the job stays partial and resumes on the next run.
+    """
+    folder = Path(job.folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    log = JobLog(folder)
+    try:
+        return _run(job, folder, log, progress, position)
+    except Exception as error:
+        text = traceback.format_exc()
+        write_text(folder / ERROR_FILE, text)
+        log(f"FAILED: {type(error).__name__}: {error}")
+        write_results(folder / RESULTS_FILE, _failed_results(job, error))
+        return JobOutcome(job.id, job.label, str(folder), "failed", error=f"{type(error).__name__}: {error}")
+
+
+def _run(job: Job, folder: Path, log: JobLog, progress: bool, position: int) -> JobOutcome:
+    for stale in (ERROR_FILE, RESULTS_FILE, DONE_FILE):
+        (folder / stale).unlink(missing_ok=True)
+    write_json(folder / JOB_FILE, job.to_json())
+    write_json(folder / "config.json", job.config)
+    log(f"job {job.id}: {job.method} on {job.suite}/{job.label}, {job.iterations} iterations, device {job.device}")
+
+    if torch.device(job.device).type == "cuda":
+        torch.cuda.reset_peak_memory_stats(job.device)
+    seed_everything(job.seed)
+    scene = load_scene(job.scene_path, format=job.scene_format)
+    started = time.perf_counter()
+    train_views = load_views(scene.split(job.train_split), job, progress, position)
+    log(f"loaded {len(train_views)} training views in {time.perf_counter() - started:.1f} s")
+
+    method_class = load_method_class(job)
+    method = method_class(method_class.resolve_config(None, **job.config))
+    train_seconds = _train(method, train_views, job, folder, log, progress, position)
+
+    metrics: dict[str, Any] = {}
+    render_fps = None
+    for split, frames in ((job.train_split, scene.split(job.train_split)),
+                          (job.test_split, scene.split(job.test_split))):
+        gt_images = train_views.images if split == job.train_split else None
+        metrics[split], fps = evaluate_split(method, frames, job, folder, split, gt_images, progress, position)
+        if split == job.test_split:
+            render_fps = fps
+        log(f"{split}: " + ", ".join(f"{k} {v:.4f}" for k, v in metrics[split]["mean"].items() if v is not None))
+
+    results = _done_results(job, metrics, train_seconds, render_fps, method)
+    write_results(folder / RESULTS_FILE, results)
+    prune_checkpoints(folder, keep=1)
+    write_text(folder / DONE_FILE, job.id + "\n")
+    log("done")
+    return JobOutcome(job.id, job.label, str(folder), "done", metrics[job.test_split]["mean"], train_seconds,
+                      render_fps)
+
+
+def load_views(frames: list[Frame], job: Job, progress: bool = False, position: int = 1) -> Views:
+    """The frames' cameras, lights and images (composited on the official background, in the suite's
+    colour space, resized to ``job.resolution``), loaded with a few threads."""
+    if not frames:
+        raise ValueError(f"{job.scene_path}: split '{job.train_split}' has no frames")
+    resolution = tuple(job.resolution) if job.resolution else None
+
+    def load(frame: Frame) -> np.ndarray:
+        return frame.load(colourspace=job.colourspace, background="official", resolution=resolution).rgb
+
+    with ThreadPoolExecutor(max_workers=4) as pool:
+        images = list(tqdm(pool.map(load, frames), total=len(frames), desc=f"{job.scene}: loading views",
+                           position=position, leave=False, disable=not progress))
+    first = frames[0]
+    background = colour.convert_colourspace(np.asarray(first.background, np.float32), first.colourspace,
+                                            job.colourspace)
+    return Views(cameras=[_camera(frame, job) for frame in frames], lights=[frame.light for frame in frames],
+                 images=np.stack(images).astype(np.float32), frame_ids=[frame.frame_id for frame in frames],
+                 colourspace=job.colourspace, background=background, scene_name=job.scene)
+
+
+def _camera(frame: Frame, job: Job):
+    return frame.camera.resized(*job.resolution) if job.resolution else frame.camera
+
+
+def _train(method: Method, views: Views, job: Job, folder: Path, log: JobLog, progress: bool, position: int
+           ) -> float:
+    """Set the method up, resume from the newest checkpoint, train to the end; returns train seconds.
+
+    Train seconds: ``setup`` plus the optimisation steps (checkpoint writes excluded), accumulated
+    over resumed sessions.
+    """
+    clock = time.perf_counter()
+    method.setup(views, job.device, job.seed)
+    setup_seconds = time.perf_counter() - clock
+    start, train_seconds = 0, setup_seconds
+    checkpoints = list_checkpoints(folder)
+    if checkpoints:
+        step, path = checkpoints[-1]
+        payload = load_checkpoint(path, job.id)
+        method.load_state_dict(payload["method"])
+        restore_rng_states(payload["rng"])
+        start, train_seconds = payload["step"], payload["train_seconds"]
+        log(f"resumed from {path.name} (step {start} of {job.iterations})")
+    iterations = job.iterations
+    train_log = _TrainLog(folder / TRAIN_LOG_FILE, start)
+    every = job.checkpoint_every or max(1, iterations // 10)
+    log_every = max(1, iterations // 2000)
+    last_save = time.monotonic()
+    bar = tqdm(total=iterations, initial=start, desc=job.label, position=position, leave=False,
+               disable=not progress, dynamic_ncols=True, mininterval=0.5 if sys.stderr.isatty() else 30)
+    try:
+        postfix_time = 0.0
+        for step in range(start, iterations):
+            clock = time.perf_counter()
+            scalars = {key: float(value) for key, value in method.train_step(step).items()}
+            train_seconds += time.perf_counter() - clock
+            bar.update(1)
+            done = step + 1
+            if done % log_every == 0 or done == iterations:
+                train_log.write({"step": done, "seconds": round(train_seconds, 4), **scalars})
+            if time.monotonic() - postfix_time > 0.5:
+                bar.set_postfix({k: f"{scalars[k]:.4g}" for k in ("loss", "psnr") if k in scalars}, refresh=False)
+                postfix_time = time.monotonic()
+            due = done % every == 0 or time.monotonic() - last_save > 60 * job.checkpoint_minutes
+            if due or done == iterations:
+                train_log.flush()
+                save_checkpoint(folder, done, method.state_dict(), job.id, train_seconds, job.keep_checkpoints)
+                last_save = time.monotonic()
+                log(f"checkpoint at step {done}: " + ", ".join(f"{k} {v:.5g}" for k, v in scalars.items()))
+    finally:
+        bar.close()
+        train_log.close()
+    if start >= iterations:
+        log("training already complete; evaluating")
+    return train_seconds
+
+
+class _TrainLog:
+    """``train_log.jsonl``: one JSON object per logged step; on resume, lines past the checkpoint go."""
+
+    def __init__(self, path: Path, start: int) -> None:
+        kept = []
+        if path.is_file():
+            for line in path.read_text(encoding="utf-8").splitlines():
+                try:
+                    entry = json.loads(line)
+                except json.JSONDecodeError:
+                    continue  # a line cut short by a kill
+                if isinstance(entry, dict) and entry.get("step", math.inf) <= start:
+                    kept.append(line)
+        write_text(path, "".join(line + "\n" for line in kept))
+        self.handle = open(path, "a", encoding="utf-8")  # noqa: SIM115 - closed by close()
+
+    def write(self, entry: dict[str, Any]) -> None:
+        self.handle.write(json.dumps({k: _finite(v) for k, v in entry.items()}) + "\n")
+
+    def flush(self) -> None:
+        self.handle.flush()
+
+    def close(self) -> None:
+        self.handle.close()
+
+
+def _finite(value: Any) -> Any:
+    return None if isinstance(value, float) and not math.isfinite(value) else value
+
+
+def _to_numpy(image: torch.Tensor) -> np.ndarray:
+    return image.detach().to(torch.float32).cpu().numpy()
+
+
+def evaluate_split(method: Method, frames: list[Frame], job: Job, folder: Path, split: str,
+                   gt_images: np.ndarray | None, progress: bool, position: int) -> tuple[dict[str, Any], float]:
+    """Render every frame of a split, save ``renders/<split>/<frame_id>.png`` (8-bit sRGB) and score it.
+
+    Scores are computed in the suite's evaluation space (``job.colourspace``: sRGB for PNG data,
+    gamma 2.2 for GS³ EXRs, as the official scripts display them). ``gt_images`` reuses already
+    loaded views. Masked protocols get the ground truth's alpha as mask. Returns the metrics block
+    ``{"mean": ..., "per_image": {frame_id: ...}}`` and the render FPS (renders only, after
+    `WARMUP_RENDERS` warm-up renders; CUDA synchronised).
+    """
+    from olatbench.metrics.protocols import get_protocol
+
+    protocol = get_protocol(job.protocol)
+    renders = folder / "renders" / split
+    cuda = torch.device(job.device).type == "cuda"
+    resolution = tuple(job.resolution) if job.resolution else None
+    with torch.no_grad():
+        for frame in frames[:WARMUP_RENDERS]:
+            method.render(_camera(frame, job), frame.light)
+        render_seconds, per_image = 0.0, {}
+        for index, frame in enumerate(tqdm(frames, desc=f"{job.label}: {split}", position=position, leave=False,
+                                           disable=not progress)):
+            if cuda:
+                torch.cuda.synchronize(job.device)
+            clock = time.perf_counter()
+            output = method.render(_camera(frame, job), frame.light)
+            if cuda:
+                torch.cuda.synchronize(job.device)
+            render_seconds += time.perf_counter() - clock
+            pred = np.clip(_to_numpy(output["rgb"]), 0.0, 1.0)
+            mask = None
+            if gt_images is not None and not protocol.masked:
+                gt = gt_images[index]
+            else:
+                loaded = frame.load(colourspace=job.colourspace, background="official", resolution=resolution)
+                gt, mask = loaded.rgb, (loaded.alpha if protocol.masked else None)
+            scores = protocol.evaluate(pred, np.clip(gt, 0.0, 1.0), mask, device=str(job.device))
+            per_image[frame.frame_id] = {key: _finite(value) for key, value in scores.items()}
+            stem = safe_file_stem(frame.frame_id)
+            write_image(renders / f"{stem}.png", colour.convert_colourspace(pred, job.colourspace, "srgb"))
+            if job.save_components and split == job.test_split:
+                _save_components(output, folder / "components" / split, stem, job.colourspace)
+    mean = {key: _finite(value) for key, value in protocol.mean(list(per_image.values())).items()}
+    return {"mean": mean, "per_image": per_image}, len(frames) / render_seconds if render_seconds > 0 else None
+
+
+def _save_components(output: dict[str, torch.Tensor], directory: Path, stem: str, colourspace: str) -> None:
+    """Save each non-``rgb`` component: 3-channel ones encoded like ``rgb`` (sRGB 8-bit), scalar maps as is."""
+    for name, tensor in output.items():
+        if name == "rgb" or not isinstance(tensor, torch.Tensor) or tensor.dim() not in (2, 3):
+            continue
+        image = _to_numpy(tensor)
+        if image.ndim == 3 and image.shape[2] == 3:
+            image = colour.convert_colourspace(image, colourspace, "srgb")
+        elif image.ndim == 3 and image.shape[2] != 1:
+            continue
+        write_image(directory / name / f"{stem}.png", np.clip(image, 0.0, 1.0))
+
+
+def peak_rss_mb() -> float:
+    """Peak resident memory of this process in MiB (``ru_maxrss`` is KiB on Linux, bytes on macOS)."""
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    return peak / (2**20 if sys.platform == "darwin" else 2**10)
+
+
+def library_versions() -> dict[str, str | None]:
+    """Versions of the libraries that can change a result."""
+    versions: dict[str, str | None] = {"olatbench": __version__, "python": platform.python_version(),
+                                       "numpy": np.__version__, "torch": torch.__version__,
+                                       "cuda": torch.version.cuda}
+    for name, module in (("opencv", "cv2"), ("openimageio", "OpenImageIO")):
+        try:
+            versions[name] = __import__(module).__version__
+        except Exception:
+            versions[name] = None
+    versions["platform"] = platform.platform()
+    return versions
+
+
+def _base_results(job: Job, status: str) -> dict[str, Any]:
+    return {
+        "schema_version": SCHEMA_VERSION,
+        "status": status,
+        "job": {"id": job.id, "method": job.method, "variant": job.variant, "suite": job.suite, "scene": job.scene,
+                "seed": job.seed, "config": job.config},
+        "protocol": {"id": job.protocol, "version": job.protocol_version},
+        "metrics": {},
+        "timing": {"train_seconds": None, "render_fps": None},
+        "resources": {"device": job.device, "peak_rss_mb": round(peak_rss_mb(), 1), "cuda_peak_mb": None},
+        "model": {"iterations": job.iterations, "num_gaussians": None},
+        "versions": library_versions(),
+        "hashes": {"data_manifest": job.data_manifest, "config": hash_json(job.config), "code": job.code},
+        "error": None,
+    }
+
+
+def _done_results(job: Job, metrics: dict[str, Any], train_seconds: float, render_fps: float | None,
+                  method: Method) -> dict[str, Any]:
+    results = _base_results(job, "done")
+    results["metrics"] = metrics
+    results["timing"] = {"train_seconds": round(train_seconds, 3),
+                         "render_fps": round(render_fps, 3) if render_fps else None}
+    if torch.device(job.device).type == "cuda":
+        results["resources"]["cuda_peak_mb"] = round(torch.cuda.max_memory_allocated(job.device) / 2**20, 1)
+    results["model"]["num_gaussians"] = method.num_gaussians
+    return results
+
+
+def _failed_results(job: Job, error: BaseException) -> dict[str, Any]:
+    results = _base_results(job, "failed")
+    results["error"] = {"type": type(error).__name__, "message": str(error)}
+    return results

@@ -1,0 +1,195 @@
+"""Jobs: one training-and-evaluation run of (method, suite, scene, variant, seed), and its id.
+
+A job's id is a content hash of everything that decides its result:
+
+* the method name and its fully resolved config (after suite preset, variant preset and overrides),
+* the suite, scene, seed, training colour space, image resolution and the train/test split names,
+* the scene's data manifest (`data_manifest_hash`: every file's relative path and content hash),
+* the evaluation protocol id and version,
+* the code version (`code_hash`: olatbench's version, the method's source files and the
+  Gaussian core's sources).
+
+Settings that do not change the result (device, output folder, checkpoint cadence, executor)
+are kept out of the id, so a job moved to another machine or resumed elsewhere keeps its id.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import hashlib
+import inspect
+import json
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from olatbench.atomic import write_json
+
+JOB_SCHEMA = "olatbench-job-v1"
+ID_LENGTH = 16
+_CHUNK = 1 << 20
+
+
+@dataclass(frozen=True)
+class Job:
+    """Everything a worker needs to run one job; plain data only, so it pickles to any executor.
+
+    ``config`` is the resolved method config as a JSON-able dict; ``resolution`` is (width, height)
+    or None for the images' own size; ``folder`` is the job's run folder.
+    """
+
+    method: str
+    method_ref: str
+    suite: str
+    scene: str
+    variant: str
+    seed: int
+    config: dict[str, Any]
+    scene_path: str
+    scene_format: str
+    colourspace: str
+    resolution: tuple[int, int] | None
+    train_split: str
+    test_split: str
+    protocol: str
+    protocol_version: int
+    data_manifest: str | None
+    code: str
+    folder: str
+    device: str = "cpu"
+    checkpoint_every: int | None = None
+    checkpoint_minutes: float = 10.0
+    keep_checkpoints: int = 2
+    save_components: bool = False
+    id: str = field(default="")
+
+    @property
+    def iterations(self) -> int:
+        return int(self.config["iterations"])
+
+    @property
+    def label(self) -> str:
+        """Short human label: ``scene/variant/seedK``."""
+        return f"{self.scene}/{self.variant}/seed{self.seed}"
+
+    def identity(self) -> dict[str, Any]:
+        """The inputs hashed into the id (see the module docstring)."""
+        return {
+            "schema": JOB_SCHEMA,
+            "method": self.method,
+            "config": self.config,
+            "suite": self.suite,
+            "scene": self.scene,
+            "variant": self.variant,
+            "seed": self.seed,
+            "colourspace": self.colourspace,
+            "resolution": list(self.resolution) if self.resolution else None,
+            "splits": [self.train_split, self.test_split],
+            "data_manifest": self.data_manifest,
+            "protocol": {"id": self.protocol, "version": self.protocol_version},
+            "code": self.code,
+        }
+
+    def with_id(self) -> Job:
+        """This job with ``id`` computed from `identity`."""
+        return dataclasses.replace(self, id=hash_json(self.identity())[:ID_LENGTH])
+
+    def to_json(self) -> dict[str, Any]:
+        """The job.json content: id, identity and the settings that do not enter the id."""
+        return {"id": self.id, "identity": self.identity(), **dataclasses.asdict(self)}
+
+
+def hash_json(data: Any) -> str:
+    """SHA-256 hex digest of canonical JSON (sorted keys, no whitespace; non-JSON values via ``str``)."""
+    text = json.dumps(data, sort_keys=True, separators=(",", ":"), default=str, allow_nan=True)
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()
+
+
+def config_to_dict(config: Any) -> dict[str, Any]:
+    """A config dataclass as a JSON round-trippable dict (tuples become lists, paths strings)."""
+    return json.loads(json.dumps(dataclasses.asdict(config), default=str))
+
+
+def file_digest(path: Path) -> str:
+    """BLAKE2b-128 hex digest of a file's bytes."""
+    digest = hashlib.blake2b(digest_size=16)
+    with open(path, "rb") as handle:
+        while chunk := handle.read(_CHUNK):
+            digest.update(chunk)
+    return digest.hexdigest()
+
+
+def _hash_cache_path(root: Path) -> Path:
+    cache = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "olatbench" / "file-hashes"
+    return cache / (hashlib.sha256(str(root.resolve()).encode()).hexdigest()[:24] + ".json")
+
+
+def data_manifest_hash(root: str | Path, use_cache: bool = True) -> str:
+    """Hash of a scene folder: every non-hidden file's relative path and content digest.
+
+    Content digests are cached per file under ``$XDG_CACHE_HOME/olatbench/file-hashes`` keyed by
+    (size, mtime in ns), as git's index does: a re-plan reads only files that changed, and a copy
+    of the data (new mtimes, same bytes) still gets the same hash after one re-read.
+    """
+    root = Path(root)
+    if not root.is_dir():
+        raise FileNotFoundError(f"{root}: scene folder not found")
+    files = sorted(p for p in root.rglob("*")
+                   if p.is_file() and not any(part.startswith(".") for part in p.relative_to(root).parts))
+    cache_file = _hash_cache_path(root)
+    cache: dict[str, list] = {}
+    if use_cache and cache_file.is_file():
+        try:
+            cache = json.loads(cache_file.read_text())
+        except (OSError, json.JSONDecodeError):
+            cache = {}
+    entries, fresh = [], {}
+    for path in files:
+        relative = path.relative_to(root).as_posix()
+        stat = path.stat()
+        cached = cache.get(relative)
+        if cached and cached[0] == stat.st_size and cached[1] == stat.st_mtime_ns:
+            digest = cached[2]
+        else:
+            digest = file_digest(path)
+        fresh[relative] = [stat.st_size, stat.st_mtime_ns, digest]
+        entries.append([relative, digest])
+    if use_cache and fresh != cache:
+        with contextlib.suppress(OSError):  # the cache is an optimisation; the hash is complete without it
+            write_json(cache_file, fresh, indent=0)
+    return hash_json(entries)
+
+
+def _method_source_files(method_class: type) -> list[Path]:
+    """The method's source: its whole folder for ``olatbench.methods.<name>`` packages and for
+    classes defined in a package ``__init__``; its module file otherwise."""
+    source = inspect.getsourcefile(method_class)
+    if source is None:
+        raise ValueError(f"cannot locate the source of {method_class!r}")
+    path = Path(source).resolve()
+    parts = method_class.__module__.split(".")
+    if path.name == "__init__.py" or (parts[:2] == ["olatbench", "methods"] and len(parts) >= 4):
+        return sorted(path.parent.rglob("*.py"))
+    return [path]
+
+
+def _core_source_files() -> list[Path]:
+    core = Path(__file__).resolve().parent.parent / "gaussians"
+    return sorted(p for p in core.rglob("*") if p.suffix in (".py", ".cpp", ".h", ".cu"))
+
+
+def code_hash(method_class: type) -> str:
+    """Hash of the code that decides a method's result: olatbench version, method and core sources."""
+    from olatbench import __version__
+
+    digest = hashlib.sha256(__version__.encode())
+    package_root = Path(__file__).resolve().parent.parent.parent
+    for path in _method_source_files(method_class) + _core_source_files():
+        try:
+            name = path.relative_to(package_root).as_posix()
+        except ValueError:
+            name = path.name
+        digest.update(name.encode() + b"\0" + file_digest(path).encode() + b"\0")
+    return digest.hexdigest()

@@ -1,0 +1,194 @@
+"""Plans: method × suite × scene × variant × seed -> a list of `Job`.
+
+Config resolution order for one job (later wins): the method config's defaults, the suite's
+``iterations``, the method's preset named after the suite (when it has one), the variant's preset,
+then explicit overrides (``--iterations``). The variant ``default`` applies no variant preset.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, fields
+from pathlib import Path
+from typing import Any
+
+from olatbench.bench.jobs import Job, code_hash, config_to_dict, data_manifest_hash
+from olatbench.bench.store import job_folder
+from olatbench.datasets.errors import DatasetError
+from olatbench.datasets.suites import Suite, get_suite
+from olatbench.methods.base import Method
+from olatbench.methods.registry import get_method
+
+DEFAULT_VARIANT = "default"
+DATA_ENV = "OLATBENCH_DATA"
+
+ABLATIONS: dict[str, tuple[str, ...]] = {
+    "components": tuple(f"ablation-{letter}" for letter in "ABCDEF"),
+    "schedule": tuple(f"schedule-{letter}" for letter in "HIJK"),
+    "shadow-on-sss": (DEFAULT_VARIANT, "shadow-on-sss"),
+}
+
+
+class PlanError(ValueError):
+    """A plan that cannot be made (unknown method, preset, scene; missing data): one clear message."""
+
+
+@dataclass(frozen=True)
+class PlanOptions:
+    """Run settings that do not enter job ids (device, checkpoint cadence, components)."""
+
+    device: str = "cpu"
+    checkpoint_every: int | None = None
+    checkpoint_minutes: float = 10.0
+    keep_checkpoints: int = 2
+    save_components: bool = False
+
+
+def expand_variants(method_class: type[Method], variants: Sequence[str] = (), ablation: str | None = None
+                    ) -> list[str]:
+    """The variant names of a plan: ``variants`` then the ablation grid, deduplicated, checked.
+
+    No variant and no ablation gives ``["default"]``.
+    """
+    names = list(variants)
+    if ablation is not None:
+        if ablation not in ABLATIONS:
+            raise PlanError(f"unknown ablation '{ablation}'; choose one of {', '.join(ABLATIONS)}")
+        names += ABLATIONS[ablation]
+    names = list(dict.fromkeys(names or [DEFAULT_VARIANT]))
+    missing = [name for name in names if name != DEFAULT_VARIANT and name not in method_class.presets]
+    if missing:
+        known = ", ".join(sorted(method_class.presets)) or "none"
+        raise PlanError(f"method '{method_class.name}' has no preset {', '.join(missing)}; its presets: {known}. "
+                        f"See: olatbench methods show {method_class.name}")
+    return names
+
+
+def resolve_config(method_class: type[Method], suite: Suite, variant: str = DEFAULT_VARIANT,
+                   iterations: int | None = None) -> Any:
+    """The method's config for one suite and variant (resolution order in the module docstring)."""
+    field_names = {f.name for f in fields(method_class.config_class)}
+    values: dict[str, Any] = {}
+    if "iterations" in field_names:
+        values["iterations"] = suite.iterations
+    if suite.name in method_class.presets:
+        values.update(method_class.presets[suite.name])
+    if variant != DEFAULT_VARIANT:
+        values.update(method_class.presets[variant])
+    if iterations is not None:
+        values["iterations"] = int(iterations)
+    return method_class.resolve_config(None, **values)
+
+
+def resolve_scenes(suite: Suite, scenes: Sequence[str] = ()) -> list[str]:
+    """Canonical names of the requested scenes (all of the suite's when empty); aliases accepted."""
+    if not scenes:
+        return list(suite.scenes)
+    resolved = []
+    for name in scenes:
+        canonical = suite.canonical(name)
+        if canonical is None:
+            raise PlanError(f"suite '{suite.name}' has no scene '{name}'; scenes: {', '.join(suite.scenes)}")
+        resolved.append(canonical)
+    return list(dict.fromkeys(resolved))
+
+
+def resolve_data_root(suite: Suite, data_root: str | Path | None, scenes: Sequence[str],
+                      generate: bool = True, progress: bool = True) -> Path | None:
+    """The folder holding the suite's scene folders.
+
+    ``data_root`` (or ``$OLATBENCH_DATA``) is used as given for suites without a generator. A suite
+    with a ``generator`` (``mini``) creates its data there on first use, or in its default cache when
+    no root is given. Returns None when the data is missing and ``generate`` is False (dry runs).
+    """
+    root = data_root if data_root is not None else os.environ.get(DATA_ENV)
+    if suite.generator is None:
+        if root is None:
+            raise PlanError(f"suite '{suite.name}' needs its data: pass --data-root or set {DATA_ENV}. "
+                            f"Try: olatbench datasets download --suite {suite.name}")
+        return Path(root)
+    if root is not None and _all_present(suite, Path(root), scenes):
+        return Path(root)
+    if not generate:
+        return None
+    return Path(_import_callable(suite.generator)(None if root is None else Path(root), progress=progress))
+
+
+def _all_present(suite: Suite, root: Path, scenes: Sequence[str]) -> bool:
+    try:
+        for scene in scenes:
+            suite.scene_path(root, scene)
+    except DatasetError:
+        return False
+    return True
+
+
+def _import_callable(reference: str) -> Callable[..., Any]:
+    import importlib
+
+    module_name, _, attribute = reference.partition(":")
+    return getattr(importlib.import_module(module_name), attribute)
+
+
+def method_reference(method_class: type[Method]) -> str:
+    """``"module:QualName"`` of a method class, so worker processes can import it."""
+    return f"{method_class.__module__}:{method_class.__qualname__}"
+
+
+def load_method_class(job: Job) -> type[Method]:
+    """The class a job runs: from its import reference (works in fresh worker processes)."""
+    module_name, _, qualname = job.method_ref.partition(":")
+    import importlib
+
+    target: Any = importlib.import_module(module_name)
+    for part in qualname.split("."):
+        target = getattr(target, part)
+    return target
+
+
+def make_plan(method: str, suite: str | Suite, out: str | Path, scenes: Sequence[str] = (),
+              variants: Sequence[str] = (), ablation: str | None = None, seeds: int = 1,
+              iterations: int | None = None, resolution: tuple[int, int] | None = None,
+              data_root: str | Path | None = None, options: PlanOptions | None = None,
+              hash_data: bool = True, progress: bool = True) -> list[Job]:
+    """Expand one method on one suite into jobs (scene-major, then variant, then seed).
+
+    ``resolution`` (width, height) overrides the suite's. ``hash_data=False`` (dry runs) plans without
+    touching or generating data: such jobs have ``data_manifest=None`` and no id.
+    """
+    options = options or PlanOptions()
+    suite = get_suite(suite) if isinstance(suite, str) else suite
+    try:
+        method_class = get_method(method)
+    except KeyError as error:
+        raise PlanError(f"{error.args[0]}. See: olatbench methods list") from None
+    if seeds < 1:
+        raise PlanError(f"--seeds must be at least 1, not {seeds}")
+    from olatbench.metrics.protocols import get_protocol
+
+    protocol = get_protocol(suite.protocol)
+    variant_names = expand_variants(method_class, variants, ablation)
+    scene_names = resolve_scenes(suite, scenes)
+    root = resolve_data_root(suite, data_root, scene_names, generate=hash_data, progress=progress)
+    code = code_hash(method_class)
+    configs = {variant: config_to_dict(resolve_config(method_class, suite, variant, iterations))
+               for variant in variant_names}
+    jobs = []
+    for scene in scene_names:
+        scene_path = suite.scene_path(root, scene) if root is not None else None
+        manifest = data_manifest_hash(scene_path) if (hash_data and scene_path is not None) else None
+        for variant in variant_names:
+            for seed in range(seeds):
+                job = Job(method=method, method_ref=method_reference(method_class), suite=suite.name, scene=scene,
+                          variant=variant, seed=seed, config=configs[variant],
+                          scene_path=str(scene_path) if scene_path else "", scene_format=suite.format,
+                          colourspace=suite.colourspace, resolution=resolution or suite.resolution,
+                          train_split=suite.train_split, test_split=suite.test_split,
+                          protocol=protocol.id, protocol_version=int(protocol.version), data_manifest=manifest,
+                          code=code, folder=str(job_folder(out, suite.name, method, variant, scene, seed)),
+                          device=options.device, checkpoint_every=options.checkpoint_every,
+                          checkpoint_minutes=options.checkpoint_minutes, keep_checkpoints=options.keep_checkpoints,
+                          save_components=options.save_components)
+                jobs.append(job.with_id() if manifest is not None else job)
+    return jobs

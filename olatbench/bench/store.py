@@ -1,0 +1,91 @@
+"""The run store: where job folders live and what state each one is in.
+
+Layout: ``<out>/<suite>/<method>/<variant>/<scene>/seed<k>/`` holding ``job.json`` (written when the
+job is planned), ``config.json``, ``checkpoints/``, ``renders/<split>/<frame_id>.png``, ``log.txt``,
+``train_log.jsonl``, ``results.json`` and, last, ``DONE`` (the job id). A failed job has ``error.txt``
+and a ``results.json`` with ``status: "failed"``.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from olatbench.bench.checkpoints import list_checkpoints
+
+JOB_FILE = "job.json"
+DONE_FILE = "DONE"
+RESULTS_FILE = "results.json"
+ERROR_FILE = "error.txt"
+
+
+def job_folder(out: str | Path, suite: str, method: str, variant: str, scene: str, seed: int) -> Path:
+    """The folder of one job below the output root."""
+    return Path(out) / suite / method / variant / scene / f"seed{seed}"
+
+
+def find_results(runs_root: str | Path) -> list[Path]:
+    """Every results.json below ``runs_root`` (sorted)."""
+    return sorted(Path(runs_root).rglob(RESULTS_FILE))
+
+
+@dataclass(frozen=True)
+class JobState:
+    """State of one job folder.
+
+    ``state``: ``done`` (DONE matches the job id), ``failed``, ``partial`` (checkpoint at ``step`` of
+    ``iterations``), ``pending`` (planned, nothing trained yet), ``stale`` (the folder holds another
+    job id than the one asked for) or ``absent`` (no folder).
+    """
+
+    folder: Path
+    state: str
+    job_id: str | None = None
+    step: int | None = None
+    iterations: int | None = None
+    message: str = ""
+
+
+def read_job_file(folder: str | Path) -> dict[str, Any] | None:
+    """The job.json of a folder, or None when there is none (or it is unreadable)."""
+    path = Path(folder) / JOB_FILE
+    try:
+        return json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, json.JSONDecodeError):
+        return None
+
+
+def job_state(folder: str | Path, expected_id: str | None = None) -> JobState:
+    """The state of the job folder; ``expected_id`` (from a new plan) turns a mismatch into ``stale``."""
+    folder = Path(folder)
+    if not folder.is_dir():
+        return JobState(folder, "absent")
+    job = read_job_file(folder)
+    job_id = job.get("id") if job else None
+    iterations = job.get("config", {}).get("iterations") if job else None
+    if expected_id is not None and job_id is not None and job_id != expected_id:
+        return JobState(folder, "stale", job_id, iterations=iterations,
+                        message=f"holds job {job_id}, the plan asks for {expected_id}")
+    done = folder / DONE_FILE
+    if done.is_file() and job_id is not None and done.read_text().strip() == job_id:
+        return JobState(folder, "done", job_id, step=iterations, iterations=iterations)
+    checkpoints = list_checkpoints(folder)
+    step = checkpoints[-1][0] if checkpoints else None
+    if (folder / ERROR_FILE).is_file():
+        first_line = _last_line(folder / ERROR_FILE)
+        return JobState(folder, "failed", job_id, step=step, iterations=iterations, message=first_line)
+    if step is not None:
+        return JobState(folder, "partial", job_id, step=step, iterations=iterations)
+    return JobState(folder, "pending", job_id, iterations=iterations)
+
+
+def _last_line(path: Path) -> str:
+    lines = [line for line in path.read_text(encoding="utf-8", errors="replace").splitlines() if line.strip()]
+    return lines[-1].strip() if lines else ""
+
+
+def scan_runs(runs_root: str | Path) -> list[JobState]:
+    """The state of every job folder (a folder with job.json) below ``runs_root``."""
+    return [job_state(path.parent) for path in sorted(Path(runs_root).rglob(JOB_FILE))]

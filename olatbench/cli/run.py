@@ -1,0 +1,271 @@
+"""``olatbench run`` and ``olatbench status``: plan, execute and inspect benchmark jobs."""
+
+from __future__ import annotations
+
+import shutil
+import sys
+from pathlib import Path
+
+import click
+
+from olatbench.bench.executors import EXECUTORS
+from olatbench.bench.plan import ABLATIONS, PlanError
+
+
+def _parse_resolution(value: str | None) -> tuple[int, int] | None:
+    if value is None:
+        return None
+    try:
+        width, height = (int(part) for part in value.lower().split("x"))
+    except ValueError:
+        raise click.BadParameter(f"expected WIDTHxHEIGHT such as 256x256, not {value!r}") from None
+    if width < 1 or height < 1:
+        raise click.BadParameter(f"resolution must be positive, not {value!r}")
+    return width, height
+
+
+def _parse_minutes(value: str) -> int:
+    """Minutes from ``90``, ``1:30:00`` (H:MM:SS) or ``2-00:00:00`` (D-HH:MM:SS)."""
+    days, _, clock = value.rpartition("-") if "-" in value else ("0", "", value)
+    parts = [int(part) for part in clock.split(":")]
+    if len(parts) == 1:
+        return int(days) * 1440 + parts[0]
+    while len(parts) < 3:
+        parts.append(0)
+    hours, minutes, seconds = parts[:3]
+    return int(days) * 1440 + hours * 60 + minutes + (1 if seconds else 0)
+
+
+def _split_names(values: tuple[str, ...]) -> list[str]:
+    return [name.strip() for value in values for name in value.split(",") if name.strip()]
+
+
+def _device(name: str) -> str:
+    if name != "auto":
+        return name
+    import torch
+
+    return "cuda" if torch.cuda.is_available() else "cpu"
+
+
+def _format_seconds(seconds: float | None) -> str:
+    if seconds is None:
+        return "—"
+    minutes, secs = divmod(round(seconds), 60)
+    hours, minutes = divmod(minutes, 60)
+    return f"{hours}:{minutes:02d}:{secs:02d}" if hours else f"{minutes}:{secs:02d}"
+
+
+def _table(rows: list[list[str]], header: list[str]) -> str:
+    widths = [max(len(str(row[i])) for row in [header, *rows]) for i in range(len(header))]
+    lines = ["  ".join(str(cell).ljust(width) for cell, width in zip(row, widths, strict=True)).rstrip()
+             for row in [header, *rows]]
+    lines.insert(1, "  ".join("-" * width for width in widths))
+    return "\n".join(lines)
+
+
+def _metric(metrics: dict, key: str) -> str:
+    value = metrics.get(key)
+    return "—" if value is None else f"{value:.4f}" if key != "psnr" else f"{value:.2f}"
+
+
+@click.command(context_settings={"help_option_names": ["-h", "--help"]})
+@click.option("--method", "-m", required=True, help="Method name (see: olatbench methods list).")
+@click.option("--suite", "-s", required=True, help="Suite: nrhints, gs3, sssgs or mini.")
+@click.option("--scenes", multiple=True, help="Scenes to run (comma-separated or repeated; default: all).")
+@click.option("--variant", "variants", multiple=True,
+              help="Method preset applied on top of the suite preset, e.g. ablation-A (repeatable).")
+@click.option("--ablation", type=click.Choice(sorted(ABLATIONS)),
+              help="Expand a paper grid: components = ablation-A…F, schedule = schedule-H…K, "
+                   "shadow-on-sss = default + shadow-on-sss.")
+@click.option("--seeds", default=1, show_default=True, help="Seeds 0…N-1 per scene and variant.")
+@click.option("--iterations", type=int, help="Training iterations (the method scales its schedule).")
+@click.option("--resolution", help="Image size WIDTHxHEIGHT (default: the suite's, else native).")
+@click.option("--data-root", type=click.Path(file_okay=False, path_type=Path), envvar="OLATBENCH_DATA",
+              help="Folder holding the suite's scene folders [env OLATBENCH_DATA].")
+@click.option("--out", "-o", default=Path("runs"), show_default=True, type=click.Path(file_okay=False, path_type=Path),
+              help="Output root of the run folders.")
+@click.option("--device", default="auto", show_default=True, help="torch device: auto, cpu, cuda, cuda:1, ...")
+@click.option("--executor", type=click.Choice(EXECUTORS),
+              help="inline (this process), local (process pool), slurm (job array via submitit). "
+                   "Default: inline, or local with --jobs > 1.")
+@click.option("--jobs", "-j", "workers", default=1, show_default=True, help="Parallel jobs for the local executor.")
+@click.option("--dry-run", is_flag=True, help="Print the job table and exit (no data is generated).")
+@click.option("--force", is_flag=True, help="Rerun jobs from scratch, replacing finished, partial or stale folders.")
+@click.option("--checkpoint-every", type=int, help="Checkpoint every N steps (default: iterations/10; also every "
+                                                  "10 minutes).")
+@click.option("--save-components", is_flag=True, help="Also save render components (diffuse, shadow, ...) "
+                                                      "of the test split.")
+@click.option("--slurm-partition", help="Slurm partition.")
+@click.option("--slurm-time", default="24:00:00", show_default=True, help="Wall-clock limit per task "
+                                                                         "(minutes or [D-]H:MM:SS).")
+@click.option("--slurm-gpus", default=0, show_default=True, help="GPUs per task.")
+@click.option("--slurm-cpus", default=4, show_default=True, help="CPUs per task.")
+@click.option("--slurm-array-parallelism", default=64, show_default=True, help="Tasks running at once.")
+@click.option("--wait/--no-wait", default=False, show_default=True,
+              help="With --executor slurm: wait for the array and print the summary.")
+@click.option("--quiet", "-q", is_flag=True, help="No progress bars.")
+def run(method, suite, scenes, variants, ablation, seeds, iterations, resolution, data_root, out, device, executor,
+        workers, dry_run, force, checkpoint_every, save_components, slurm_partition, slurm_time, slurm_gpus,
+        slurm_cpus, slurm_array_parallelism, wait, quiet) -> None:
+    """Train and evaluate METHOD on every scene of SUITE; rerunning skips finished jobs and resumes
+    interrupted ones from their last checkpoint.
+
+    Jobs are method × scene × variant × seed. Each writes to
+    OUT/<suite>/<method>/<variant>/<scene>/seed<k>/ (results.json, renders, checkpoints, logs).
+    The exit code is the number of failed jobs (at most 125).
+
+    \b
+    Examples:
+      olatbench run --method ssdgs --suite mini
+      olatbench run -m ssdgs -s nrhints --scenes Pixiu,Fish --data-root /data/nrhints
+      olatbench run -m ssdgs -s nrhints --scenes Pixiu --ablation components --dry-run
+      olatbench run -m ssdgs -s gs3 --seeds 3 --executor slurm --slurm-partition gpu --slurm-gpus 1
+    """
+    from olatbench.bench.plan import PlanOptions, make_plan
+    from olatbench.bench.store import job_state
+    from olatbench.datasets.errors import DatasetError
+
+    progress = not quiet
+    if executor is None:
+        executor = "local" if workers > 1 else "inline"
+    options = PlanOptions(device=_device(device), checkpoint_every=checkpoint_every, save_components=save_components)
+    try:
+        jobs = make_plan(method, suite, out, scenes=_split_names(scenes), variants=_split_names(variants),
+                         ablation=ablation, seeds=seeds, iterations=iterations,
+                         resolution=_parse_resolution(resolution), data_root=data_root, options=options,
+                         hash_data=not dry_run, progress=progress)
+    except (PlanError, DatasetError, KeyError, FileNotFoundError) as error:
+        raise click.ClickException(str(error.args[0] if isinstance(error, KeyError) else error)) from None
+
+    states = [job_state(job.folder, job.id or None) for job in jobs]
+    if dry_run:
+        _print_plan(jobs, states, out)
+        return
+
+    stale = [state for state in states if state.state == "stale"]
+    if stale and not force:
+        listing = "\n  ".join(f"{s.folder}: {s.message}" for s in stale[:10])
+        raise click.ClickException(f"{len(stale)} job folder(s) hold results of a different job (config, data or "
+                                   f"code changed):\n  {listing}\nRerun with --force to replace them, or choose "
+                                   f"another --out.")
+    to_run, skipped = [], []
+    for job, state in zip(jobs, states, strict=True):
+        if state.state == "done" and not force:
+            skipped.append(job)
+            continue
+        if force and state.state != "absent":
+            shutil.rmtree(job.folder)
+        to_run.append(job)
+    _write_pending(to_run)
+    click.echo(f"{len(jobs)} job(s): {len(skipped)} already done, {len(to_run)} to run "
+               f"({executor}, device {options.device}) -> {out}", err=True)
+    if not to_run:
+        _print_summary(jobs, out)
+        return
+
+    def report(outcome) -> None:
+        if outcome.status == "failed":
+            from tqdm.auto import tqdm
+
+            tqdm.write(f"FAILED {outcome.label}: {outcome.error} (see {Path(outcome.folder) / 'error.txt'})",
+                       file=sys.stderr)
+
+    if executor == "slurm":
+        from olatbench.bench.executors import SlurmOptions, submit_slurm, wait_slurm
+
+        slurm = SlurmOptions(partition=slurm_partition, time_minutes=_parse_minutes(slurm_time), gpus=slurm_gpus,
+                             cpus=slurm_cpus, array_parallelism=slurm_array_parallelism)
+        submitted = submit_slurm(to_run, out, slurm)
+        click.echo(f"submitted {len(submitted)} task(s) as array {submitted[0].job_id.split('_')[0]}; "
+                   f"follow with: olatbench status {out}", err=True)
+        if not wait:
+            return
+        outcomes = wait_slurm(submitted, to_run, progress, report)
+    elif executor == "local":
+        from olatbench.bench.executors import run_local
+
+        outcomes = run_local(to_run, workers, progress, report)
+    else:
+        from olatbench.bench.executors import run_inline
+
+        outcomes = run_inline(to_run, progress, report)
+    _print_summary(jobs, out)
+    failed = sum(outcome.status == "failed" for outcome in outcomes)
+    if failed:
+        click.echo(f"{failed} job(s) failed; fix the cause (error.txt in each folder) and rerun the same command "
+                   f"to retry them.", err=True)
+    sys.exit(min(failed, 125))
+
+
+def _write_pending(jobs) -> None:
+    """Write job.json into each folder to run, so `olatbench status` lists it before it starts."""
+    from olatbench.atomic import write_json
+    from olatbench.bench.store import JOB_FILE
+
+    for job in jobs:
+        path = Path(job.folder) / JOB_FILE
+        if not path.is_file():
+            write_json(path, job.to_json())
+
+
+def _print_plan(jobs, states, out: Path) -> None:
+    rows = []
+    for index, (job, state) in enumerate(zip(jobs, states, strict=True)):
+        status = state.state if state.state != "absent" else "pending"
+        if state.state == "partial":
+            status = f"partial ({state.step}/{state.iterations})"
+        rows.append([str(index), job.suite, job.method, job.variant, job.scene, str(job.seed), str(job.iterations),
+                     job.id or "(data not hashed)", status, str(Path(job.folder).relative_to(out))])
+    click.echo(_table(rows, ["#", "suite", "method", "variant", "scene", "seed", "iters", "id", "state", "folder"]))
+    click.echo(f"{len(jobs)} job(s); ids are computed from the data when the run starts.")
+
+
+def _print_summary(jobs, out: Path) -> None:
+    """One line per job of the plan, read back from the folders (so skipped jobs appear too)."""
+    from olatbench.bench.results import ResultsError, read_results
+    from olatbench.bench.store import RESULTS_FILE
+
+    rows = []
+    for job in jobs:
+        path = Path(job.folder) / RESULTS_FILE
+        try:
+            results = read_results(path)
+        except ResultsError:
+            rows.append([job.scene, job.variant, str(job.seed), "not run", "—", "—", "—", "—", "—", "—"])
+            continue
+        test = results["metrics"].get(job.test_split, {}).get("mean", {})
+        timing = results.get("timing", {})
+        fps = timing.get("render_fps")
+        rows.append([job.scene, job.variant, str(job.seed), results["status"],
+                     str(results.get("model", {}).get("iterations", "—")), _format_seconds(timing.get("train_seconds")),
+                     "—" if fps is None else f"{fps:.1f}", _metric(test, "psnr"), _metric(test, "ssim"),
+                     _metric(test, "lpips")])
+    click.echo(_table(rows, ["scene", "variant", "seed", "status", "iters", "train", "fps", "test PSNR", "SSIM",
+                             "LPIPS"]))
+
+
+@click.command(context_settings={"help_option_names": ["-h", "--help"]})
+@click.argument("runs", type=click.Path(exists=True, file_okay=False, path_type=Path), default=Path("runs"))
+def status(runs: Path) -> None:
+    """Show the state of every job below RUNS: done, failed, partial (last checkpoint step) or pending.
+
+    \b
+    Example:
+      olatbench status runs/
+    """
+    from collections import Counter
+
+    from olatbench.bench.store import scan_runs
+
+    states = scan_runs(runs)
+    if not states:
+        raise click.ClickException(f"no job folders (job.json) below {runs}; start one with: "
+                                   f"olatbench run --method ssdgs --suite mini --out {runs}")
+    rows = []
+    for state in states:
+        step = "—" if state.step is None else f"{state.step}/{state.iterations}"
+        rows.append([str(state.folder.relative_to(runs)), state.state, step, state.message[:80]])
+    click.echo(_table(rows, ["job", "state", "step", "note"]))
+    counts = Counter(state.state for state in states)
+    click.echo(", ".join(f"{count} {name}" for name, count in sorted(counts.items())))
