@@ -47,12 +47,13 @@ def nrhints_ground_truth(frame: Frame) -> np.ndarray:
 
 def gs3_ground_truth(frame: Frame, alpha_quirk: bool = True,
                      quantize: Literal["round", "truncate"] | None = "round") -> np.ndarray:
-    """Linear EXR composited on white, gamma 2.2 encoded, quantised to 8 bits (``quantize=None`` keeps floats)."""
+    """Linear EXR composited on white, gamma 2.2 encoded, clipped to [0, 1] and quantised to 8 bits
+    (``quantize=None`` keeps the clipped floats)."""
     rgb, alpha = _stored(frame)
     mode = "straight" if alpha_quirk else "premultiplied"
     encoded = colour.gamma_encode(colour.composite(rgb, alpha, 1.0, mode))
     if quantize is None:
-        return encoded
+        return np.clip(encoded, 0.0, 1.0)
     return colour.dequantize_8bit(colour.quantize_8bit(encoded, quantize))
 
 
