@@ -63,14 +63,15 @@ def figure_html(title: str, png: bytes) -> str:
 
 
 def to_html(tables: Sequence[Table], figures: Sequence[tuple[str, bytes]] = (), title: str = "olatbench report",
-            colours: Sequence[str] = PAPER_COLOURS) -> str:
-    """A complete page: every table, then every figure; nothing is loaded from outside the file."""
+            colours: Sequence[str] = PAPER_COLOURS, notes: Sequence[str] = ()) -> str:
+    """A complete page: every table, every figure, then notes (e.g. skipped figures); nothing external."""
     legend = (f'<p class="note">Best cells <span style="background:{_css_colour(colours[0])}">like this</span>'
               + (f', second best <span style="background:{_css_colour(colours[1])}">like this</span>'
                  if len(colours) > 1 else "") + ".</p>")
     body = [f"<h1>{html.escape(title)}</h1>", legend]
     body += [table_html(table, colours) for table in tables]
     body += [figure_html(name, png) for name, png in figures]
+    body += [f'<p class="note">{html.escape(note)}</p>' for note in notes]
     return ("<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n"
             f"<title>{html.escape(title)}</title>\n<style>{STYLE}</style>\n</head>\n<body>\n"
             + "\n".join(body) + "\n</body>\n</html>\n")

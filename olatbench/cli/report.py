@@ -1,0 +1,171 @@
+"""``olatbench report`` (the paper's tables from results.json files) and ``olatbench render`` (sweeps)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from olatbench.atomic import write_text
+
+LAYOUTS = ("scenes", "overview", "ablation")
+
+
+def _split_list(text: str | None) -> list[str] | None:
+    if text is None:
+        return None
+    items = [item.strip() for item in text.split(",") if item.strip()]
+    return items or None
+
+
+def _emit(text: str, output: str | None) -> None:
+    if output is None:
+        click.echo(text, nl=False)
+    else:
+        write_text(output, text)
+        click.echo(f"wrote {output}", err=True)
+
+
+@click.command("report")
+@click.argument("runs", nargs=-1, type=click.Path(exists=True, path_type=Path))
+@click.option("--suite", help="Only runs of this suite (nrhints, gs3, sssgs, mini); names its scenes.")
+@click.option("--methods", help="Comma-separated methods (or method/variant) to include; default all.")
+@click.option("--metrics", default="psnr,ssim,lpips", show_default=True, help="Comma-separated metric blocks.")
+@click.option("--splits", default="train,test", show_default=True, help="Comma-separated splits.")
+@click.option("--layout", "layouts", type=click.Choice(LAYOUTS), multiple=True,
+              help="Table layout(s): per-scene (Table 1), overview (mean ± std, FPS, time, device) or "
+                   "ablation grid (A–F, H–K). Repeatable; default scenes.")
+@click.option("--average/--no-average", default=False, help="Add a scene-average column (scenes layout).")
+@click.option("--format", "fmt", type=click.Choice(("latex", "markdown", "csv", "html")),
+              help="Output format; default from -o's suffix, else markdown.")
+@click.option("-o", "--output", type=click.Path(dir_okay=False), help="Write to this file instead of stdout.")
+@click.option("--standalone", is_flag=True, help="LaTeX: a complete document that compiles with pdflatex.")
+@click.option("--booktabs", is_flag=True, help="LaTeX: booktabs rules instead of the paper's \\hline.")
+@click.option("--colours", help='Best;second colours as rgb in [0,1], default "1,0.8,0.8;1,0.9,0.8" (the paper).')
+@click.option("--published", is_flag=True, help="Put the paper's numbers (and a Δ row) beside matching runs.")
+@click.option("--published-only", is_flag=True, help="Regenerate the paper's tables from its numbers alone.")
+@click.option("--table", "paper_tables", multiple=True,
+              type=click.Choice(("real", "gs3", "sssgs", "sssgs-overview", "ablation", "ablation-scenes",
+                                 "shadow-on-sss", "relighting-baselines")),
+              help="With --published-only: which paper table(s); default all.")
+@click.option("--seeds", type=click.Choice(("mean", "all")), default="mean", show_default=True,
+              help="Average seeds into one row, or show every seed as its own row.")
+@click.option("--figures/--no-figures", default=True, show_default=True,
+              help="HTML: embed comparison grids, decompositions and training curves.")
+@click.option("--frames", "frame_ids", help="HTML figures: comma-separated test frame ids (default: the first).")
+def report(runs, suite, methods, metrics, splits, layouts, average, fmt, output, standalone, booktabs, colours,
+           published, published_only, paper_tables, seeds, figures, frame_ids) -> None:
+    """Build the paper's tables (and an HTML page with figures) from results.json files.
+
+    \b
+    Examples:
+      olatbench report runs/ --suite nrhints --average
+      olatbench report runs/ --suite nrhints --published -o table.tex --standalone
+      olatbench report runs/ --layout ablation --format markdown
+      olatbench report runs/ --suite sssgs --layout overview -o report.html
+      olatbench report --published-only --table real -o table1a.tex
+    """
+    from olatbench.bench.results import ResultsError
+    from olatbench.reports.output import format_for, parse_colours, render_tables
+    from olatbench.reports.published import PublishedError
+    from olatbench.reports.runs_tables import ReportError
+
+    try:
+        fmt = format_for(output, fmt)
+        palette = parse_colours(colours)
+        rules = "booktabs" if booktabs else "hline"
+        if published_only:
+            from olatbench.reports.paper import paper_table
+            from olatbench.reports.published import PAPER_TABLES
+
+            tables = [paper_table(name) for name in (paper_tables or PAPER_TABLES)]
+            text = render_tables(tables, fmt, standalone=standalone, colours=palette, rules=rules,
+                                 title="SSD-GS (ICLR 2026): published tables")
+            _emit(text, output)
+            return
+        if not runs:
+            raise click.UsageError("give a runs folder (or results.json files), or use --published-only; e.g. "
+                                   "olatbench report runs/ --suite mini")
+        text = _report_runs(runs, suite, _split_list(methods), _split_list(metrics), _split_list(splits),
+                            layouts or ("scenes",), average, fmt, standalone, palette, rules, published, seeds,
+                            figures, _split_list(frame_ids) or [])
+    except (ResultsError, ReportError, PublishedError, ValueError, FileNotFoundError) as error:
+        raise click.ClickException(f"{error}\nSee olatbench report --help; 'olatbench status RUNS' shows which "
+                                   "jobs finished.") from None
+    _emit(text, output)
+
+
+def _report_runs(runs, suite, methods, metrics, splits, layouts, average, fmt, standalone, palette, rules,
+                 published, seeds, with_figures, frame_ids) -> str:
+    from olatbench.reports.collect import collect
+    from olatbench.reports.output import render_tables
+    from olatbench.reports.ranking import rank_table
+    from olatbench.reports.runs_tables import ablation_table, overview_table, scene_table
+
+    frame = collect(runs)
+    if frame.empty:
+        raise FileNotFoundError(f"no results.json below {', '.join(map(str, runs))}; run "
+                                "'olatbench run --method ssdgs --suite mini' first")
+    tables = []
+    for layout in layouts:
+        if layout == "scenes":
+            table = scene_table(frame, suite=suite, methods=methods, metrics=metrics, splits=splits, seeds=seeds,
+                                average=average, published=published)
+        elif layout == "overview":
+            table = overview_table(frame, suite=suite, methods=methods, metrics=metrics, splits=splits, seeds=seeds)
+        else:
+            table = ablation_table(frame, suite=suite, metrics=metrics, splits=splits, seeds=seeds,
+                                   published=published)
+        tables.append(rank_table(table, min_values=2))
+    figures, notes = [], []
+    if fmt == "html" and with_figures:
+        from olatbench.reports.gallery import report_figures
+
+        selected = frame if suite is None else frame[frame["suite"] == suite]
+        figures, notes = report_figures(selected, frame_ids)
+    return render_tables(tables, fmt, standalone=standalone, colours=palette, rules=rules, figures=figures,
+                         notes=notes)
+
+
+def _parse_resolution(text: str | None) -> tuple[int, int] | None:
+    if text is None:
+        return None
+    try:
+        width, height = (int(part) for part in text.lower().split("x"))
+    except ValueError:
+        raise click.BadParameter(f"{text!r}: expected WIDTHxHEIGHT, e.g. 512x512") from None
+    return width, height
+
+
+@click.command("render")
+@click.argument("run", type=click.Path(exists=True, file_okay=False, path_type=Path))
+@click.option("--sweep", "kind", type=click.Choice(("light-orbit", "view-orbit", "paper")), default="light-orbit",
+              show_default=True, help="Light 360° (2.4° steps), camera 360° (2° steps), or the paper's trajectory.")
+@click.option("--frames", "count", type=click.IntRange(min=1), help="Spread this many frames over the sweep.")
+@click.option("--start-frame", help="Test frame id whose camera and light start the sweep (default: the first).")
+@click.option("--component", default="rgb", show_default=True, help="What to render: rgb, diffuse, shadow, ...")
+@click.option("--fps", type=click.FloatRange(min=1), default=30.0, show_default=True, help="Video frame rate.")
+@click.option("--device", default="cpu", show_default=True, help="torch device for rendering.")
+@click.option("--resolution", help="WIDTHxHEIGHT of the frames (default: the job's).")
+@click.option("-o", "--output", type=click.Path(file_okay=False, path_type=Path),
+              help="Folder for <sweep>.mp4 and <sweep>_frames/ (default: RUN/videos).")
+def render(run, kind, count, start_frame, component, fps, device, resolution, output) -> None:
+    """Render a relighting sweep of a finished job to an MP4 and a frame folder.
+
+    \b
+    Examples:
+      olatbench render runs/mini/ssdgs/mini/lego/seed0 --sweep light-orbit
+      olatbench render runs/nrhints/ssdgs/nrhints/Pixiu/seed0 --sweep paper --resolution 256x256
+    """
+    from olatbench.datasets.errors import DatasetError
+    from olatbench.reports.jobfolder import JobFolder, JobFolderError
+    from olatbench.reports.video import render_sweep
+
+    try:
+        job = JobFolder.open(run)
+        result = render_sweep(job, kind, output or run / "videos", count=count, frame_id=start_frame,
+                              component=component, fps=fps, device=device, resolution=_parse_resolution(resolution))
+    except (JobFolderError, DatasetError, RuntimeError, OSError, ValueError) as error:
+        raise click.ClickException(f"{error}\nCheck the job with 'olatbench status {run.parent.parent.parent}'.") \
+            from None
+    click.echo(f"wrote {result.video} and {result.frames} frames in {result.frames_dir}")

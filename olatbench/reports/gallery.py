@@ -1,0 +1,100 @@
+"""The figures of an HTML report, gathered from the job folders next to each results.json.
+
+Per scene: a comparison grid (ground truth | each method | error maps) for the chosen test frames,
+the SSD-GS decomposition when the job saved components, and the training curves of every job.
+A figure that cannot be made (data moved, renders missing) is skipped with a note saying why.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+import pandas as pd
+
+from olatbench.datasets.errors import DatasetError
+from olatbench.reports.figures import ComparisonRow, comparison_grid, decomposition_figure, training_curves
+from olatbench.reports.jobfolder import JobFolder, JobFolderError, read_png
+
+Figure = tuple[str, bytes]
+
+
+def _job_label(job: JobFolder) -> str:
+    return job.job["method"] if job.job["variant"] in ("default", job.job["suite"]) else \
+        f"{job.job['method']}/{job.job['variant']}"
+
+
+def scene_jobs(frame: pd.DataFrame, notes: list[str]) -> dict[tuple[str, str], list[JobFolder]]:
+    """Finished jobs by (suite, scene), the lowest seed of each method/variant; unreadable folders go to ``notes``."""
+    done = frame[frame["status"] == "done"].drop_duplicates("path").sort_values("seed", kind="stable")
+    done = done.drop_duplicates(["suite", "scene", "method", "variant"])
+    groups: dict[tuple[str, str], list[JobFolder]] = {}
+    for _, row in done.iterrows():
+        try:
+            job = JobFolder.open(Path(row["path"]).parent)
+        except JobFolderError as error:
+            notes.append(f"figures of {row['method']}/{row['variant']}/{row['scene']} skipped ({error})")
+            continue
+        groups.setdefault((row["suite"], row["scene"]), []).append(job)
+    return groups
+
+
+def comparison_for_scene(jobs: Sequence[JobFolder], frame_ids: Sequence[str] = ()) -> bytes:
+    """The comparison grid of one scene's jobs on the given (default: first) test frames."""
+    reference = jobs[0]
+    scene = reference.load_scene()
+    split = reference.job["test_split"]
+    frames = scene.split(split)
+    chosen = [f for f in frames if f.frame_id in set(frame_ids)] if frame_ids else frames[:1]
+    if not chosen:
+        raise JobFolderError(f"none of the frames {', '.join(frame_ids)} is in the {split} split of {scene.name}")
+    rows = []
+    for frame in chosen:
+        ground_truth = frame.load(colourspace="srgb", background="official", resolution=reference.resolution).rgb
+        predictions = [(_job_label(job), read_png(job.render_path(split, frame.frame_id))) for job in jobs]
+        rows.append(ComparisonRow(frame.frame_id, ground_truth, predictions))
+    return comparison_grid(rows)
+
+
+def decomposition_for_job(job: JobFolder, frame_id: str | None = None) -> bytes | None:
+    """The saved components and final render of one test frame, or None when none were saved."""
+    split = job.job["test_split"]
+    renders = sorted((job.folder / "renders" / split).glob("*.png"))
+    if not renders:
+        return None
+    stem = frame_id or renders[0].stem
+    components = job.components(split, stem)
+    if not components:
+        return None
+    images = {name: read_png(path) for name, path in components.items()}
+    images["rgb"] = read_png(job.render_path(split, stem))
+    return decomposition_figure(images, title=f"{job.label}, frame {stem}")
+
+
+def report_figures(frame: pd.DataFrame, frame_ids: Sequence[str] = ()) -> tuple[list[Figure], list[str]]:
+    """(figures, notes on skipped figures) for every scene of the collected runs."""
+    figures: list[Figure] = []
+    notes: list[str] = []
+    for (suite, scene), jobs in scene_jobs(frame, notes).items():
+        try:
+            figures.append((f"{suite}/{scene}: ground truth, renders and error maps",
+                            comparison_for_scene(jobs, frame_ids)))
+        except (JobFolderError, DatasetError, ValueError) as error:
+            notes.append(f"{suite}/{scene}: comparison grid skipped ({error})")
+        for job in jobs:
+            try:
+                picture = decomposition_for_job(job, frame_ids[0] if frame_ids else None)
+            except (JobFolderError, DatasetError) as error:
+                notes.append(f"{job.label}: decomposition skipped ({error})")
+                continue
+            if picture is not None:
+                figures.append((f"{job.label}: SSD-GS decomposition", picture))
+        logs = {}
+        for job in jobs:
+            try:
+                logs[_job_label(job)] = job.train_log()
+            except JobFolderError as error:
+                notes.append(f"{job.label}: training curve skipped ({error})")
+        if logs:
+            figures.append((f"{suite}/{scene}: training curves", training_curves(logs)))
+    return figures, notes

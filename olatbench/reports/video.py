@@ -1,0 +1,120 @@
+"""Render a relighting sweep of a finished job to an MP4 and a folder of PNG frames.
+
+The method is rebuilt through the registry (`olatbench.methods.registry.get_method`) from the
+job's ``method`` and ``config``, its state read from the newest checkpoint with
+``torch.load(weights_only=True)`` (`olatbench.bench.checkpoints.load_checkpoint`), then
+``method.render(camera, light)`` draws each frame. Renders are converted from the job's colour space
+to sRGB and written as 8-bit PNGs (``frames/00000.png`` …) and an ``mp4v`` MP4 (OpenCV).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from tqdm.auto import tqdm
+
+from olatbench.atomic import atomic_path
+from olatbench.datasets import colour
+from olatbench.datasets.images import write_image
+from olatbench.reports.jobfolder import JobFolder, JobFolderError
+from olatbench.reports.sweeps import SweepFrame, orbit_frame, subsample, trajectory
+
+
+@dataclass(frozen=True)
+class SweepOutput:
+    """Where a sweep went: the video, the frame folder and the number of frames."""
+
+    video: Path
+    frames_dir: Path
+    frames: int
+
+
+def load_trained_method(job: JobFolder, device: str = "cpu"):
+    """The job's method with its newest checkpoint restored (``weights_only=True``)."""
+    from olatbench.bench.checkpoints import list_checkpoints, load_checkpoint
+    from olatbench.methods.registry import get_method
+
+    checkpoints = list_checkpoints(job.folder)
+    if not checkpoints:
+        raise JobFolderError(f"{job.folder / 'checkpoints'}: no checkpoint; train the job first "
+                             f"(olatbench run ...) or check the folder")
+    try:
+        method_class = get_method(job.job["method"])
+    except KeyError as error:
+        raise JobFolderError(str(error.args[0])) from None
+    method = method_class(method_class.resolve_config(None, **job.job["config"]))
+    payload = load_checkpoint(checkpoints[-1][1], job.job["id"])
+    method.load_state_dict(payload["method"])
+    if hasattr(method, "to") and callable(method.to):
+        method.to(device)
+    return method
+
+
+def sweep_frames(job: JobFolder, kind: str, frame_id: str | None = None, count: int | None = None,
+                 resolution: tuple[int, int] | None = None) -> list[SweepFrame]:
+    """The sweep's cameras and lights, starting at a test frame (default: the first) of the job's scene."""
+    scene = job.load_scene()
+    frames = scene.split(job.job["test_split"])
+    train = scene.split(job.job["train_split"])
+    if frame_id is None:
+        start = frames[0]
+    else:
+        matches = [f for f in frames + train if f.frame_id == frame_id]
+        if not matches:
+            raise JobFolderError(f"{job.job['scene_path']}: no frame {frame_id!r} in the test or train split")
+        start = matches[0]
+    size = resolution or job.resolution
+    camera = start.camera.resized(*size) if size else start.camera
+    centre, up = orbit_frame([frame.camera for frame in train])
+    return subsample(trajectory(kind, camera, start.light, centre, up), count)
+
+
+def _to_numpy(tensor) -> np.ndarray:
+    return tensor.detach().to("cpu").float().numpy()
+
+
+def render_sweep(job: JobFolder, kind: str, out_dir: str | Path, *, count: int | None = None,
+                 frame_id: str | None = None, component: str = "rgb", fps: float = 30.0, device: str = "cpu",
+                 resolution: tuple[int, int] | None = None, progress: bool = True, method=None,
+                 frames: list[SweepFrame] | None = None) -> SweepOutput:
+    """Render the sweep into ``out_dir`` (``<kind>.mp4`` and ``<kind>_frames/``); returns where.
+
+    ``method`` and ``frames`` may be given to skip loading them from the job (tests, notebooks).
+    """
+    import cv2
+    import torch
+
+    out_dir = Path(out_dir)
+    frames = frames if frames is not None else sweep_frames(job, kind, frame_id, count, resolution)
+    method = method if method is not None else load_trained_method(job, device)
+    frames_dir = out_dir / f"{kind}_frames"
+    frames_dir.mkdir(parents=True, exist_ok=True)
+    video_path = out_dir / f"{kind}.mp4"
+    width, height = frames[0].camera.width, frames[0].camera.height
+    with atomic_path(video_path) as temporary:
+        writer = cv2.VideoWriter(str(temporary), cv2.VideoWriter_fourcc(*"mp4v"), float(fps), (width, height))
+        if not writer.isOpened():
+            raise OSError(f"{video_path}: OpenCV cannot open an mp4v video writer")
+        try:
+            with torch.no_grad():
+                for index, frame in enumerate(tqdm(frames, desc=f"{job.label}: {kind}", disable=not progress)):
+                    output = method.render(frame.camera, frame.light)
+                    if component not in output:
+                        raise JobFolderError(f"method '{job.job['method']}' renders no component {component!r}; "
+                                             f"it renders {', '.join(sorted(output))}")
+                    image = _to_numpy(output[component])
+                    if image.ndim == 2:
+                        image = image[..., None]
+                    if image.shape[2] == 1:
+                        image = np.repeat(image, 3, axis=2)
+                    elif component == "rgb" or image.shape[2] == 3:
+                        image = colour.convert_colourspace(image, job.job["colourspace"], "srgb")
+                    image = np.clip(image, 0.0, 1.0)
+                    write_image(frames_dir / f"{index:05d}.png", image)
+                    bgr = colour.quantize_8bit(image)[..., ::-1]
+                    writer.write(np.ascontiguousarray(bgr))
+        finally:
+            writer.release()
+    return SweepOutput(video_path, frames_dir, len(frames))
