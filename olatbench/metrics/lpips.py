@@ -18,6 +18,7 @@ from olatbench.metrics.lpips_net import LPIPSNet
 from olatbench.metrics.weights import load_lpips_net
 
 BACKENDS: tuple[str, ...] = ("torch", "onnxruntime")
+MIN_SIZE = {"alex": 31, "vgg": 16}  # smaller inputs leave an empty feature map in the backbone
 
 
 @functools.lru_cache(maxsize=8)
@@ -34,6 +35,9 @@ def lpips_nchw(model: LPIPSNet, pred: torch.Tensor, gt: torch.Tensor, mask: torc
     """
     check_unit_range(pred, "pred")
     check_unit_range(gt, "gt")
+    if min(pred.shape[-2:]) < MIN_SIZE[model.net]:
+        raise ValueError(f"LPIPS-{model.net} needs images of at least {MIN_SIZE[model.net]}×{MIN_SIZE[model.net]} "
+                         f"pixels, found {tuple(pred.shape[-2:])}")
     if mask is not None:
         pred, gt = pred * mask, gt * mask
     if not unit_range_compat:
