@@ -1,0 +1,271 @@
+"""Reports from a tiny folder of results.json files (schema v1) written here: tables, footnotes, CLI, LaTeX."""
+
+from __future__ import annotations
+
+import json
+import re
+import shutil
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from olatbench.bench.results import ResultsError, write_results
+from olatbench.cli import main
+from olatbench.reports.collect import COLUMNS, collect
+from olatbench.reports.latex import to_latex
+from olatbench.reports.paper import paper_table
+from olatbench.reports.published import PAPER_TABLES
+from olatbench.reports.ranking import rank_table
+from olatbench.reports.runs_tables import ReportError, ablation_table, overview_table, scene_table
+
+SCENES = ("diffuse_shadow", "aniso_metal", "translucent")  # the mini suite, in its order
+
+
+def write_run(root: Path, method: str, variant: str, suite: str, scene: str, seed: int,
+              metrics: dict[str, dict[str, float | None]] | None = None, status: str = "done",
+              fps: float = 50.0, seconds: float = 1800.0, device: str = "cpu") -> Path:
+    """One job's results.json in the runner's folder layout."""
+    folder = root / suite / method / variant / scene / f"seed{seed}"
+    failed = status == "failed"
+    data = {"schema_version": 1, "status": status,
+            "job": {"id": f"{method}-{variant}-{scene}-{seed}", "method": method, "variant": variant, "suite": suite,
+                    "scene": scene, "seed": seed, "config": {"iterations": 10}},
+            "protocol": {"id": "olatbench-v1", "version": 1},
+            "metrics": {} if failed else {split: {"mean": mean, "per_image": {}} for split, mean in metrics.items()},
+            "timing": {"train_seconds": None if failed else seconds, "render_fps": None if failed else fps},
+            "resources": {"device": device, "peak_rss_mb": 100.0, "cuda_peak_mb": None},
+            "model": {"iterations": 10, "num_gaussians": None if failed else 1000},
+            "versions": {"olatbench": "0.1.0"}, "hashes": {"data_manifest": "x", "config": "y", "code": "z"},
+            "error": {"type": "RuntimeError", "message": "out of memory"} if failed else None}
+    return write_results(folder / "results.json", data)
+
+
+def metric_values(psnr: float, ssim: float = 0.9, lpips: float | None = 0.1) -> dict[str, dict[str, float | None]]:
+    return {"train": {"psnr": psnr + 1.0, "ssim": ssim, "lpips": lpips},
+            "test": {"psnr": psnr, "ssim": ssim - 0.01, "lpips": lpips}}
+
+
+def make_tiny_runs(root: Path) -> Path:
+    """ssdgs (2 seeds, one failed), gs3 (LPIPS missing in one scene), rng (one failed, one missing scene)."""
+    for index, scene in enumerate(SCENES):
+        write_run(root, "ssdgs", "mini", "mini", scene, 0, metric_values(30.0 + index))
+        if scene == "translucent":
+            write_run(root, "ssdgs", "mini", "mini", scene, 1, status="failed")
+        else:
+            write_run(root, "ssdgs", "mini", "mini", scene, 1, metric_values(31.0 + index))
+        lpips = None if scene == "aniso_metal" else 0.05
+        write_run(root, "gs3", "default", "mini", scene, 0, metric_values(29.0 + 2 * index, 0.95, lpips), fps=120.0,
+                  seconds=600.0 * (index + 1), device="cuda:0 (RTX 3090)")
+    write_run(root, "rng", "default", "mini", "diffuse_shadow", 0, metric_values(25.0))
+    write_run(root, "rng", "default", "mini", "aniso_metal", 0, status="failed")
+    return root
+
+
+@pytest.fixture()
+def tiny_runs(tmp_path: Path) -> Path:
+    return make_tiny_runs(tmp_path / "runs")
+
+
+def test_collect_long_form(tiny_runs):
+    frame = collect(tiny_runs)
+    assert list(frame.columns) == list(COLUMNS)
+    assert len(frame[frame["status"] == "failed"]) == 2
+    psnr = frame[(frame["method"] == "ssdgs") & (frame["scene"] == "aniso_metal") & (frame["split"] == "test")
+                 & (frame["metric"] == "psnr")]
+    assert sorted(psnr["value"]) == [31.0, 32.0]
+    assert set(frame["protocol"]) == {"olatbench-v1 v1"}
+    fps = frame[(frame["method"] == "gs3") & (frame["metric"] == "fps")]
+    assert list(fps["value"]) == [120.0] * 3 and set(fps["split"]) == {"-"}
+
+
+def test_unknown_schema_version_names_the_file(tmp_path):
+    path = tmp_path / "runs" / "results.json"
+    path.parent.mkdir(parents=True)
+    path.write_text(json.dumps({"schema_version": 2, "status": "done"}))
+    with pytest.raises(ResultsError, match=r"results\.json: schema_version 2 is not supported"):
+        collect(tmp_path / "runs")
+    result = CliRunner().invoke(main, ["report", str(tmp_path / "runs")])
+    assert result.exit_code == 1 and "schema_version 2" in result.output and "Traceback" not in result.output
+
+
+def test_scene_table_means_marks_and_footnotes(tiny_runs):
+    table = rank_table(scene_table(collect(tiny_runs), average=True))
+    assert table.columns[:2] == ["diffuse_shadow/Train", "diffuse_shadow/Test"]
+    # mean over two seeds
+    assert table.cell("PSNR ↑", ("ssdgs",), "aniso_metal/Test").number == pytest.approx(31.5)
+    # one seed failed: the finished seed only, marked "c"
+    partial = table.cell("PSNR ↑", ("ssdgs",), "translucent/Test")
+    assert partial.number == pytest.approx(32.0) and partial.marks == ("c",)
+    # failed run "a", missing run "b", average over incomplete scenes "d", metric not computed "e"
+    assert table.cell("PSNR ↑", ("rng",), "aniso_metal/Test").marks == ("a",)
+    assert table.cell("PSNR ↑", ("rng",), "translucent/Test").marks == ("b",)
+    assert table.cell("PSNR ↑", ("rng",), "Average/Test").text() == "—"
+    assert table.cell("PSNR ↑", ("rng",), "Average/Test").marks == ("d",)
+    assert table.cell("LPIPS ↓", ("gs3",), "aniso_metal/Test").marks == ("e",)
+    assert table.cell("LPIPS ↓", ("gs3",), "Average/Test").number is None
+    # the average is the plain mean of the per-scene cells
+    ssdgs = [table.cell("PSNR ↑", ("ssdgs",), f"{s}/Test").number for s in SCENES]
+    assert table.cell("PSNR ↑", ("ssdgs",), "Average/Test").number == pytest.approx(np.mean(ssdgs))
+    # ranking: ssdgs 30.5 > gs3 29 > rng 25 on diffuse_shadow Test; lower-is-better LPIPS: gs3 0.05 best
+    assert table.cell("PSNR ↑", ("ssdgs",), "diffuse_shadow/Test").rank == 1
+    assert table.cell("PSNR ↑", ("gs3",), "diffuse_shadow/Test").rank == 2
+    assert table.cell("PSNR ↑", ("rng",), "diffuse_shadow/Test").rank is None
+    assert table.cell("LPIPS ↓", ("gs3",), "diffuse_shadow/Test").rank == 1
+    assert table.protocol.startswith("olatbench-v1 v1; suite mini")
+    notes = "\n".join(table.footnotes)
+    for letter in "abcde":
+        assert f"{letter}: " in notes
+    assert "Failed: rng/default/aniso_metal seed0 — RuntimeError: out of memory" in notes
+
+
+def test_seeds_all_gives_one_row_per_seed(tiny_runs):
+    table = scene_table(collect(tiny_runs), methods=["ssdgs"], seeds="all")
+    assert [row.labels[0] for row in table.blocks[0].rows] == ["ssdgs seed0", "ssdgs seed1"]
+    assert table.cell("PSNR ↑", ("ssdgs seed1",), "translucent/Test").marks == ("a",)
+
+
+def test_selection_errors_are_clear(tiny_runs):
+    frame = collect(tiny_runs)
+    with pytest.raises(ReportError, match="the runs hold suites mini"):
+        scene_table(frame, suite="gs3")
+    with pytest.raises(ReportError, match="no ablation runs"):
+        ablation_table(frame)
+
+
+def test_overview_mean_std_fps_time_device(tiny_runs):
+    table = overview_table(collect(tiny_runs), methods=["gs3"])
+    psnr = table.cell(None, ("gs3",), "Test (Average)/PSNR ↑")
+    expected = [29.0, 31.0, 33.0]
+    assert psnr.number == pytest.approx(np.mean(expected)) and psnr.std == pytest.approx(np.std(expected))
+    assert table.cell(None, ("gs3",), "FPS").text() == "120.0 ± 0.0"
+    assert table.cell(None, ("gs3",), "Train T.").text() == "20.0 min"  # mean of 10, 20, 30 minutes
+    assert table.cell(None, ("gs3",), "Device").text() == "cuda:0 (RTX 3090)"
+    lpips = table.cell(None, ("gs3",), "Test (Average)/LPIPS ↓")
+    assert lpips.value is None and lpips.marks == ("d",)
+
+
+def test_published_beside_runs_adds_paper_and_delta_rows(tmp_path):
+    root = tmp_path / "runs"
+    write_run(root, "ssdgs", "nrhints", "nrhints", "Cat", 0, metric_values(28.0, 0.9, 0.12))
+    write_run(root, "mymethod", "default", "nrhints", "Cat", 0, metric_values(20.0))
+    table = rank_table(scene_table(collect(root), published=True))
+    labels = [row.labels[0] for row in table.blocks[0].rows]
+    assert labels == ["mymethod", "ssdgs", "Ours (paper)", "Δ ssdgs − paper"]
+    assert table.cell("PSNR ↑", ("Ours (paper)",), "Cat/Test").number == 27.6844
+    delta = table.cell("PSNR ↑", ("Δ ssdgs − paper",), "Cat/Test")
+    assert delta.number == pytest.approx(28.0 - 27.6844) and delta.text() == "+0.3156"
+    assert table.cell("PSNR ↑", ("Ours (paper)",), "Cat/Test").rank is None  # paper rows are never ranked
+    assert table.cell("PSNR ↑", ("Δ ssdgs − paper",), "Fish/Test").value is None
+
+
+def test_ablation_tables_from_runs(tmp_path):
+    root = tmp_path / "runs"
+    for variant, psnr in (("ablation-A", 20.0), ("ablation-D", 33.0), ("schedule-H", 32.0), ("schedule-I", 33.0)):
+        write_run(root, "ssdgs", variant, "nrhints", "Pixiu", 0, metric_values(psnr))
+    table = rank_table(ablation_table(collect(root), published=True))
+    labels = [row.labels[0] for row in table.blocks[0].rows]
+    assert labels[0] == "A: Diff" and "H: Joint" in labels and "A: Diff (paper)" in labels
+    assert table.cell(None, ("A: Diff (paper)",), "Train Set/PSNR ↑").number == 20.2869
+    assert table.cell(None, ("D: Full (Ours)",), "Test Set/PSNR ↑").rank == 1
+    assert table.cell(None, ("I: Prog. Phys (Ours)",), "Test Set/PSNR ↑").rank == 1  # ranked within schedules
+    assert table.cell(None, ("A: Diff",), "Test Set/PSNR ↑").rank == 2
+    for variant, psnr in (("ablation-A", 21.0), ("ablation-D", 31.0)):
+        write_run(root, "ssdgs", variant, "gs3", "Lego", 0, metric_values(psnr))
+    grid = rank_table(ablation_table(collect(root)))
+    assert grid.label_names == ("Method", "Split")
+    assert grid.cell("PSNR ↑", ("A: Diff", "Test"), "Average").number == pytest.approx(20.5)
+    assert grid.cell("PSNR ↑", ("H: Joint", "Test"), "Average").marks == ("d",)  # no Lego run
+
+
+def latex_balance_problems(text: str) -> list[str]:
+    """Unbalanced braces, environments or inline math, and tabular rows with the wrong number of cells."""
+    problems = []
+    depth = 0
+    for char in re.sub(r"\\[{}$&%#_]", "", text):
+        depth += {"{": 1, "}": -1}.get(char, 0)
+        if depth < 0:
+            problems.append("a '}' closes nothing")
+            depth = 0
+    if depth:
+        problems.append(f"{depth} unclosed '{{'")
+    stack = []
+    for kind, name in re.findall(r"\\(begin|end)\{([^}]*)\}", text):
+        if kind == "begin":
+            stack.append(name)
+        elif not stack or stack.pop() != name:
+            problems.append(f"\\end{{{name}}} does not match")
+    problems += [f"\\begin{{{name}}} not closed" for name in stack]
+    for line in text.splitlines():
+        if re.sub(r"\\\$", "", line).count("$") % 2:
+            problems.append(f"odd number of $ in: {line[:60]}")
+    for match in re.finditer(r"\\begin\{tabular\}\{([^}]*)\}(.*?)\\end\{tabular\}", text, re.S):
+        columns = len(re.sub(r"[^lcr]", "", match.group(1)))
+        for row in match.group(2).split("\\\\"):
+            if "&" in row and "\\multicolumn" not in row:
+                cells = len(re.sub(r"\\&", "", row).split("&"))
+                if cells != columns:
+                    problems.append(f"row with {cells} cells in a {columns}-column tabular")
+    return problems
+
+
+def test_latex_balance_checker_catches_errors():
+    assert latex_balance_problems(r"\begin{table}{x}\end{table}") == []
+    assert latex_balance_problems(r"\begin{table}{x\end{tabular}")
+    assert latex_balance_problems(r"\begin{tabular}{cc} a & b & c \\ \end{tabular}")
+
+
+def test_latex_output_is_balanced(tiny_runs):
+    tables = [paper_table(name) for name in PAPER_TABLES]
+    tables.append(rank_table(scene_table(collect(tiny_runs), average=True)))
+    for table in tables:
+        for rules in ("hline", "booktabs"):
+            text = to_latex(table, rules=rules, standalone=True)
+            assert latex_balance_problems(text) == [], table.name
+            assert text.startswith("\\documentclass") and text.rstrip().endswith("\\end{document}")
+
+
+def test_latex_compiles_with_pdflatex(tmp_path, tiny_runs):
+    if shutil.which("pdflatex") is None:
+        pytest.skip("pdflatex is not installed on this machine; the balance test stands in for it")
+    source = tmp_path / "table.tex"
+    source.write_text(to_latex(paper_table("real"), standalone=True))
+    run = subprocess.run(["pdflatex", "-interaction=nonstopmode", "-halt-on-error", source.name], cwd=tmp_path,
+                         capture_output=True, text=True, timeout=120)
+    assert run.returncode == 0, run.stdout[-2000:]
+
+
+def test_cli_report_formats(tiny_runs, tmp_path):
+    runner = CliRunner()
+    markdown = runner.invoke(main, ["report", str(tiny_runs), "--suite", "mini", "--average"])
+    assert markdown.exit_code == 0, markdown.output
+    assert "| ssdgs | **31.5000** |" in markdown.output and "Protocol: olatbench-v1 v1" in markdown.output
+    out = tmp_path / "t.csv"
+    csv = runner.invoke(main, ["report", str(tiny_runs), "--metrics", "psnr", "--splits", "test", "-o", str(out)])
+    assert csv.exit_code == 0, csv.output
+    lines = out.read_text().splitlines()
+    assert lines[0] == "block,method,diffuse_shadow/Test,aniso_metal/Test,translucent/Test"
+    assert lines[3] == "PSNR ↑,ssdgs,30.5000,31.5000,32.0000c"
+    latex = runner.invoke(main, ["report", str(tiny_runs), "--format", "latex", "--standalone", "--booktabs",
+                                 "--colours", "0.8,1,0.8;0.9,1,0.9"])
+    assert latex.exit_code == 0 and latex_balance_problems(latex.output) == []
+    assert "\\cellcolor[rgb]{0.8,1,0.8}" in latex.output and "\\toprule" in latex.output
+    overview = runner.invoke(main, ["report", str(tiny_runs), "--layout", "overview", "--format", "markdown"])
+    assert overview.exit_code == 0 and "Train T." in overview.output
+    bad = runner.invoke(main, ["report", str(tiny_runs), "--colours", "red"])
+    assert bad.exit_code == 1 and "three comma-separated numbers" in bad.output
+    nothing = runner.invoke(main, ["report"])
+    assert nothing.exit_code == 2 and "--published-only" in nothing.output
+
+
+def test_cli_published_only(tmp_path):
+    out = tmp_path / "paper.tex"
+    result = CliRunner().invoke(main, ["report", "--published-only", "--table", "real", "--table", "ablation",
+                                       "-o", str(out), "--standalone"])
+    assert result.exit_code == 0, result.output
+    text = out.read_text()
+    assert text.count("\\begin{tabular}") == 2 and latex_balance_problems(text) == []
+    every = CliRunner().invoke(main, ["report", "--published-only", "--format", "csv"])
+    assert every.exit_code == 0 and every.output.count("block,method") == len(PAPER_TABLES)
