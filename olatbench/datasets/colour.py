@@ -31,7 +31,7 @@ def linear_to_srgb(x: np.ndarray) -> np.ndarray:
 
 def gamma_encode(x: np.ndarray, gamma: float = 2.2) -> np.ndarray:
     """Linear light to a pure power-law encoding ``x ** (1 / gamma)`` (negative clamps to 0)."""
-    return np.power(np.clip(np.asarray(x, dtype=np.float32), 0.0, None), 1.0 / gamma).astype(np.float32)
+    return np.power(np.clip(np.asarray(x, dtype=np.float32), 0.0, None), np.float32(1.0 / gamma))
 
 
 def gamma_decode(x: np.ndarray, gamma: float = 2.2) -> np.ndarray:
@@ -76,9 +76,11 @@ def composite(rgb: np.ndarray, alpha: np.ndarray, background: np.ndarray | float
         raise ValueError(f"unknown alpha mode {mode!r}; expected 'straight' or 'premultiplied'")
     rgb = np.asarray(rgb, dtype=np.float32)
     a = np.asarray(alpha, dtype=np.float32)[..., None]
-    bg = np.broadcast_to(np.asarray(background, dtype=np.float32), rgb.shape)
-    fg = rgb * a if mode == "straight" else rgb
-    return (fg + bg * (1.0 - a)).astype(np.float32)
+    bg = np.asarray(background, dtype=np.float32)
+    out = rgb * a if mode == "straight" else rgb.copy()
+    if np.any(bg):  # a black background adds nothing
+        out += bg * (1.0 - a)
+    return out
 
 
 def quantize_8bit(x: np.ndarray, mode: Literal["round", "truncate"] = "round") -> np.ndarray:
