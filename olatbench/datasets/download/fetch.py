@@ -13,6 +13,7 @@ from pathlib import Path
 from olatbench.atomic import write_json
 from olatbench.datasets.download import archives, manifest, transfer
 from olatbench.datasets.download.sources import HF_ENDPOINT, Source, sources_for
+from olatbench.datasets.errors import DatasetError
 
 KNOWN_HASHES = ".olatbench-sources.json"
 DOWNLOADS = ".downloads"
@@ -91,11 +92,11 @@ def download_scene(suite: str, scene: str, root: Path, *, source: str | None = N
 
     An intact earlier download is kept. Archives are checked against published hashes or against the
     hash recorded the first time (``root/.olatbench-sources.json``); unpacking happens in a temporary
-    folder renamed into place only after the scene loads, so no half-unpacked scene is ever left.
+    folder renamed into place only after the scene validates, so no half-unpacked scene is ever left.
     """
     from tqdm.auto import tqdm
 
-    from olatbench.datasets import load_scene
+    from olatbench.datasets.validate import validate_folder
 
     root = Path(root)
     destination = root / scene
@@ -130,7 +131,12 @@ def download_scene(suite: str, scene: str, root: Path, *, source: str | None = N
         unpacked = Path(temporary) / "content"
         archives.extract(archive, unpacked)
         folder = _scene_folder(unpacked)
-        load_scene(folder)  # refuses a tree that is not a readable scene, before anything is put in place
+        report = validate_folder(folder)  # a tree that is not a valid scene is refused before it is put in place
+        if not report.ok:
+            first = "; ".join(f"{issue.message} ({issue.path or ''} {issue.frame or ''})".strip()
+                              for issue in report.errors[:3])
+            raise DatasetError(f"{suite}/{scene}: the unpacked archive is not a valid scene: {first}",
+                               path=archive)
         manifest.write_manifest(folder, candidate.name, recorded)
         if destination.exists():
             shutil.rmtree(destination)
