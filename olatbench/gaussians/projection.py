@@ -128,7 +128,7 @@ def project(
 
     with torch.no_grad():
         mid = 0.5 * (a + c)
-        lam_max = mid + torch.sqrt(torch.clamp(mid * mid - det, min=0.1))
+        lam_max = mid + torch.sqrt(torch.clamp(mid * mid - det, min=0.0))
         radius = torch.ceil(RADIUS_SIGMAS * torch.sqrt(lam_max.clamp(min=0.0)))
         mx, my = means2d.unbind(-1)
         on_screen = (mx + radius > 0) & (mx - radius < width) & (my + radius > 0) & (my - radius < height)

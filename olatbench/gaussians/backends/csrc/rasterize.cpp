@@ -21,21 +21,38 @@ namespace {
 constexpr double kAlphaMax = 0.99;
 constexpr double kAlphaMin = 1.0 / 255.0;
 constexpr double kTMin = 1e-4;
+// Extra half-width (px) of the per-Gaussian pixel boxes, absorbing rounding in their computation.
+constexpr double kBoxSlack = 1e-2;
 
 struct Grid {
   int width, height, tile, tiles_x, tiles_y;
   int64_t num_tiles() const { return int64_t(tiles_x) * tiles_y; }
 };
 
-// The tile's Gaussians gathered into contiguous arrays (better locality than indexing through ids).
+// Pixel rectangle [x0, x1) x [y0, y1) inside one tile, with pixel indices local to the tile.
+struct Box {
+  int x0, x1, y0, y1;
+};
+
+// One tile: its pixel extent and its Gaussians gathered into contiguous arrays (better locality than
+// indexing through ids), with for each Gaussian the half-widths of the box outside which it surely
+// contributes nothing (alpha < 1/255).
 template <typename F>
 struct TileData {
-  std::vector<F> mx, my, ca, cb, cc, op, feat;
+  std::vector<F> mx, my, ca, cb, cc, op, cutoff, feat;
+  std::vector<double> hx, hy;
   int64_t n = 0;
+  int origin_x = 0, origin_y = 0, size_x = 0, size_y = 0;
+
   void load(const F* means2d, const F* conics, const F* opac, const F* features, int channels,
-            const int64_t* ids, int64_t start, int64_t end) {
+            const int64_t* ids, int64_t start, int64_t end, const Grid& grid, int64_t tile) {
+    origin_x = int(tile % grid.tiles_x) * grid.tile;
+    origin_y = int(tile / grid.tiles_x) * grid.tile;
+    size_x = std::min(grid.width, origin_x + grid.tile) - origin_x;
+    size_y = std::min(grid.height, origin_y + grid.tile) - origin_y;
     n = end - start;
-    mx.resize(n); my.resize(n); ca.resize(n); cb.resize(n); cc.resize(n); op.resize(n);
+    for (auto* v : {&mx, &my, &ca, &cb, &cc, &op, &cutoff}) v->resize(n);
+    hx.resize(n); hy.resize(n);
     feat.resize(size_t(n) * channels);
     for (int64_t k = 0; k < n; ++k) {
       const int64_t g = ids[start + k];
@@ -43,54 +60,99 @@ struct TileData {
       ca[k] = conics[3 * g]; cb[k] = conics[3 * g + 1]; cc[k] = conics[3 * g + 2];
       op[k] = opac[g];
       if (features) for (int c = 0; c < channels; ++c) feat[size_t(k) * channels + c] = features[g * channels + c];
+      // alpha <= o, so o < 1/255 never contributes. Otherwise, below `cutoff` o * exp(power) < 1/255 for sure
+      // (the margin absorbs rounding); near the cut-off the exact test on alpha still decides, so results do
+      // not depend on this shortcut. The set {power >= cutoff} is an ellipse with the box below.
+      const double o = double(op[k]);
+      const double det = double(ca[k]) * double(cc[k]) - double(cb[k]) * double(cb[k]);
+      if (!(o >= kAlphaMin)) {
+        cutoff[k] = F(0); hx[k] = hy[k] = -1.0;  // never contributes
+      } else {
+        const double cut = -std::log(255.0 * o) - 1e-3;
+        cutoff[k] = F(cut);
+        if (det > 0.0 && ca[k] > F(0) && cc[k] > F(0)) {
+          hx[k] = std::sqrt(-2.0 * cut * double(cc[k]) / det) + kBoxSlack;
+          hy[k] = std::sqrt(-2.0 * cut * double(ca[k]) / det) + kBoxSlack;
+        } else {
+          hx[k] = hy[k] = 1e30;  // not positive definite: evaluate the whole tile
+        }
+      }
     }
   }
+  // Tile pixels whose centres may lie within Gaussian k's box widened to at least `min_half` px; false if none.
+  bool box(int64_t k, double min_half, Box& b) const {
+    const double wx = std::max(hx[k], min_half), wy = std::max(hy[k], min_half);
+    if (wx < 0.0) return false;
+    const double cx = double(mx[k]) - origin_x - 0.5, cy = double(my[k]) - origin_y - 0.5;
+    b.x0 = int(std::max(0.0, std::ceil(std::max(cx - wx, -1.0))));
+    b.x1 = int(std::min(double(size_x), std::floor(std::min(cx + wx, double(size_x))) + 1.0));
+    b.y0 = int(std::max(0.0, std::ceil(std::max(cy - wy, -1.0))));
+    b.y1 = int(std::min(double(size_y), std::floor(std::min(cy + wy, double(size_y))) + 1.0));
+    return b.x0 < b.x1 && b.y0 < b.y1;
+  }
   // power = -1/2 d^T conic d with d = mean - pixel centre (same expression in forward and backward).
-  inline F power(int64_t k, F px, F py, F& dx, F& dy) const {
-    dx = mx[k] - px; dy = my[k] - py;
+  inline F power(int64_t k, int lx, int ly, F& dx, F& dy) const {
+    dx = mx[k] - (F(origin_x + lx) + F(0.5));
+    dy = my[k] - (F(origin_y + ly) + F(0.5));
     return F(-0.5) * (ca[k] * dx * dx + cc[k] * dy * dy) - cb[k] * dx * dy;
   }
+  // True when Gaussian k surely contributes nothing at this power (power > 0 or alpha < 1/255).
+  inline bool negligible(int64_t k, F pw) const { return pw > F(0) || pw < cutoff[k]; }
 };
 
+// Forward. Per tile, Gaussians front to back (outer) and the pixels of their box (inner): each pixel still
+// sees its Gaussians in list order, with per-pixel state kept in tile-sized arrays.
 template <typename F>
 void forward_impl(const F* means2d, const F* conics, const F* opac, const F* features, int channels,
                   const int64_t* offsets, const int64_t* ids, Grid grid, int threads,
                   F* out_colour, F* out_t, int32_t* out_count) {
   const int64_t num_tiles = grid.num_tiles();
+  const int area = grid.tile * grid.tile;
 #pragma omp parallel num_threads(threads)
   {
     TileData<F> td;
-    std::vector<F> acc(channels);
+    std::vector<F> acc(size_t(area) * channels), T(area);
+    std::vector<int32_t> count(area);
+    std::vector<char> done(area);
 #pragma omp for schedule(dynamic, 1)
     for (int64_t tile = 0; tile < num_tiles; ++tile) {
-      const int tx = int(tile % grid.tiles_x), ty = int(tile / grid.tiles_x);
-      td.load(means2d, conics, opac, features, channels, ids, offsets[tile], offsets[tile + 1]);
-      const int y_end = std::min(grid.height, (ty + 1) * grid.tile);
-      const int x_end = std::min(grid.width, (tx + 1) * grid.tile);
-      for (int y = ty * grid.tile; y < y_end; ++y) {
-        for (int x = tx * grid.tile; x < x_end; ++x) {
-          const F px = F(x) + F(0.5), py = F(y) + F(0.5);
-          std::fill(acc.begin(), acc.end(), F(0));
-          F T = F(1);
-          int32_t count = 0;
-          for (int64_t k = 0; k < td.n; ++k) {
+      td.load(means2d, conics, opac, features, channels, ids, offsets[tile], offsets[tile + 1], grid, tile);
+      const int sx = td.size_x;
+      std::fill(acc.begin(), acc.end(), F(0));
+      std::fill(T.begin(), T.end(), F(1));
+      std::fill(count.begin(), count.end(), 0);
+      std::fill(done.begin(), done.end(), 0);
+      int active = sx * td.size_y;
+      Box b;
+      for (int64_t k = 0; k < td.n && active > 0; ++k) {
+        if (!td.box(k, -1.0, b)) continue;
+        const F* f = &td.feat[size_t(k) * channels];
+        for (int ly = b.y0; ly < b.y1; ++ly) {
+          for (int lx = b.x0; lx < b.x1; ++lx) {
+            const int p = ly * sx + lx;
+            if (done[p]) continue;
             F dx, dy;
-            const F pw = td.power(k, px, py, dx, dy);
-            if (pw > F(0)) continue;
+            const F pw = td.power(k, lx, ly, dx, dy);
+            if (td.negligible(k, pw)) continue;
             const F alpha = std::min(F(kAlphaMax), td.op[k] * std::exp(pw));
             if (alpha < F(kAlphaMin)) continue;
-            const F t_next = T * (F(1) - alpha);
-            if (t_next < F(kTMin)) break;
-            const F w = alpha * T;
-            const F* f = &td.feat[size_t(k) * channels];
-            for (int c = 0; c < channels; ++c) acc[c] += w * f[c];
-            T = t_next;
-            count = int32_t(k + 1);
+            const F t_next = T[p] * (F(1) - alpha);
+            if (t_next < F(kTMin)) { done[p] = 1; --active; continue; }
+            const F w = alpha * T[p];
+            F* a = &acc[size_t(p) * channels];
+            for (int c = 0; c < channels; ++c) a[c] += w * f[c];
+            T[p] = t_next;
+            count[p] = int32_t(k + 1);
           }
-          const int64_t pix = int64_t(y) * grid.width + x;
-          for (int c = 0; c < channels; ++c) out_colour[pix * channels + c] = acc[c];
-          out_t[pix] = T;
-          out_count[pix] = count;
+        }
+      }
+      for (int ly = 0; ly < td.size_y; ++ly) {
+        for (int lx = 0; lx < sx; ++lx) {
+          const int p = ly * sx + lx;
+          const int64_t pix = int64_t(td.origin_y + ly) * grid.width + td.origin_x + lx;
+          for (int c = 0; c < channels; ++c) out_colour[pix * channels + c] = acc[size_t(p) * channels + c];
+          out_t[pix] = T[p];
+          out_count[pix] = count[p];
         }
       }
     }
@@ -100,54 +162,68 @@ void forward_impl(const F* means2d, const F* conics, const F* opac, const F* fea
 // Gradient slots per pair: mean x, mean y, conic a, b, c, opacity, then C feature channels.
 constexpr int kPairFixed = 6;
 
+// Backward (3DGS): per pixel, Gaussians back to front from its last composited one, recovering the
+// transmittance in front of each from the final one (T_k = T_{k+1} / (1 - alpha_k)).
 template <typename F>
 void backward_impl(const F* means2d, const F* conics, const F* opac, const F* features, int channels,
                    const int64_t* offsets, const int64_t* ids, Grid grid, int threads,
                    const F* final_t, const int32_t* counts, const F* grad_colour, const F* grad_t,
                    int64_t num_gaussians, F* grad_means2d, F* grad_conics, F* grad_opac, F* grad_features) {
   const int64_t num_tiles = grid.num_tiles();
+  const int area = grid.tile * grid.tile;
   const int stride = kPairFixed + channels;
   const int64_t num_pairs = offsets[num_tiles];
   std::vector<F> pair_grad(size_t(num_pairs) * stride, F(0));
 #pragma omp parallel num_threads(threads)
   {
     TileData<F> td;
-    std::vector<F> behind(channels), g(channels);
+    std::vector<F> behind(size_t(area) * channels), g(size_t(area) * channels), T(area), tf(area), gt(area);
+    std::vector<int32_t> count(area);
 #pragma omp for schedule(dynamic, 1)
     for (int64_t tile = 0; tile < num_tiles; ++tile) {
-      const int tx = int(tile % grid.tiles_x), ty = int(tile / grid.tiles_x);
       const int64_t start = offsets[tile];
-      td.load(means2d, conics, opac, features, channels, ids, start, offsets[tile + 1]);
+      td.load(means2d, conics, opac, features, channels, ids, start, offsets[tile + 1], grid, tile);
+      const int sx = td.size_x;
+      for (int ly = 0; ly < td.size_y; ++ly) {
+        for (int lx = 0; lx < sx; ++lx) {
+          const int p = ly * sx + lx;
+          const int64_t pix = int64_t(td.origin_y + ly) * grid.width + td.origin_x + lx;
+          T[p] = tf[p] = final_t[pix];
+          gt[p] = grad_t[pix];
+          count[p] = counts[pix];
+          for (int c = 0; c < channels; ++c) {
+            g[size_t(p) * channels + c] = grad_colour[pix * channels + c];
+            behind[size_t(p) * channels + c] = F(0);
+          }
+        }
+      }
       F* tile_grad = pair_grad.data() + size_t(start) * stride;
-      const int y_end = std::min(grid.height, (ty + 1) * grid.tile);
-      const int x_end = std::min(grid.width, (tx + 1) * grid.tile);
-      for (int y = ty * grid.tile; y < y_end; ++y) {
-        for (int x = tx * grid.tile; x < x_end; ++x) {
-          const int64_t pix = int64_t(y) * grid.width + x;
-          const F px = F(x) + F(0.5), py = F(y) + F(0.5);
-          const F t_final = final_t[pix];
-          const F g_t = grad_t[pix];
-          for (int c = 0; c < channels; ++c) g[c] = grad_colour[pix * channels + c];
-          std::fill(behind.begin(), behind.end(), F(0));
-          F T = t_final;  // transmittance behind the current Gaussian, recovered back to front
-          for (int64_t k = int64_t(counts[pix]) - 1; k >= 0; --k) {
+      Box b;
+      for (int64_t k = td.n - 1; k >= 0; --k) {
+        if (!td.box(k, -1.0, b)) continue;
+        const F* f = &td.feat[size_t(k) * channels];
+        F* pg = tile_grad + size_t(k) * stride;
+        for (int ly = b.y0; ly < b.y1; ++ly) {
+          for (int lx = b.x0; lx < b.x1; ++lx) {
+            const int p = ly * sx + lx;
+            if (k >= count[p]) continue;
             F dx, dy;
-            const F pw = td.power(k, px, py, dx, dy);
-            if (pw > F(0)) continue;
+            const F pw = td.power(k, lx, ly, dx, dy);
+            if (td.negligible(k, pw)) continue;
             const F gauss = std::exp(pw);
             const F raw = td.op[k] * gauss;
             const F alpha = std::min(F(kAlphaMax), raw);
             if (alpha < F(kAlphaMin)) continue;
             const F one_minus = F(1) - alpha;
-            T = T / one_minus;  // now the transmittance in front of Gaussian k
-            const F w = alpha * T;
-            const F* f = &td.feat[size_t(k) * channels];
-            F* pg = tile_grad + size_t(k) * stride;
-            F d_alpha = -g_t * t_final / one_minus;
+            T[p] = T[p] / one_minus;  // now the transmittance in front of Gaussian k
+            const F w = alpha * T[p];
+            const F* gp = &g[size_t(p) * channels];
+            F* bp = &behind[size_t(p) * channels];
+            F d_alpha = -gt[p] * tf[p] / one_minus;
             for (int c = 0; c < channels; ++c) {
-              pg[kPairFixed + c] += w * g[c];
-              d_alpha += g[c] * (T * f[c] - behind[c] / one_minus);
-              behind[c] += w * f[c];
+              pg[kPairFixed + c] += w * gp[c];
+              d_alpha += gp[c] * (T[p] * f[c] - bp[c] / one_minus);
+              bp[c] += w * f[c];
             }
             if (raw > F(kAlphaMax)) continue;  // clamped: alpha does not depend on opacity or position
             pg[5] += gauss * d_alpha;
@@ -163,10 +239,10 @@ void backward_impl(const F* means2d, const F* conics, const F* opac, const F* fe
     }
   }
   // Deterministic reduction in pair order.
-  for (int64_t i = 0; i < num_gaussians * 2; ++i) grad_means2d[i] = F(0);
-  for (int64_t i = 0; i < num_gaussians * 3; ++i) grad_conics[i] = F(0);
-  for (int64_t i = 0; i < num_gaussians; ++i) grad_opac[i] = F(0);
-  for (int64_t i = 0; i < num_gaussians * channels; ++i) grad_features[i] = F(0);
+  std::fill(grad_means2d, grad_means2d + num_gaussians * 2, F(0));
+  std::fill(grad_conics, grad_conics + num_gaussians * 3, F(0));
+  std::fill(grad_opac, grad_opac + num_gaussians, F(0));
+  std::fill(grad_features, grad_features + num_gaussians * channels, F(0));
   for (int64_t m = 0; m < num_pairs; ++m) {
     const int64_t gid = ids[m];
     const F* pg = pair_grad.data() + size_t(m) * stride;
@@ -190,44 +266,54 @@ void shadow_gather_impl(const F* means2d, const F* conics, const F* opac, const 
                         F* vis_sum, int32_t* count, F* weight) {
   const int64_t num_tiles = grid.num_tiles();
   const int64_t num_pairs = offsets[num_tiles];
+  const int area = grid.tile * grid.tile;
   std::vector<F> pair_vis(num_pairs, F(0)), pair_weight(num_pairs, F(0));
   std::vector<int32_t> pair_count(num_pairs, 0);
   const F r2 = radius_px * radius_px;
 #pragma omp parallel num_threads(threads)
   {
     TileData<F> td;
+    std::vector<F> T(area);
+    std::vector<char> done(area);
 #pragma omp for schedule(dynamic, 1)
     for (int64_t tile = 0; tile < num_tiles; ++tile) {
-      const int tx = int(tile % grid.tiles_x), ty = int(tile / grid.tiles_x);
       const int64_t start = offsets[tile];
-      td.load(means2d, conics, opac, nullptr, 0, ids, start, offsets[tile + 1]);
-      const int y_end = std::min(grid.height, (ty + 1) * grid.tile);
-      const int x_end = std::min(grid.width, (tx + 1) * grid.tile);
-      for (int y = ty * grid.tile; y < y_end; ++y) {
-        for (int x = tx * grid.tile; x < x_end; ++x) {
-          const F px = F(x) + F(0.5), py = F(y) + F(0.5);
-          F T = F(1);
-          bool done = false;
-          for (int64_t k = 0; k < td.n; ++k) {
+      td.load(means2d, conics, opac, nullptr, 0, ids, start, offsets[tile + 1], grid, tile);
+      const int sx = td.size_x;
+      std::fill(T.begin(), T.end(), F(1));
+      std::fill(done.begin(), done.end(), 0);
+      Box b;
+      for (int64_t k = 0; k < td.n; ++k) {
+        if (!td.box(k, double(radius_px) + kBoxSlack, b)) continue;
+        F vis = F(0), wsum = F(0);
+        int32_t cnt = 0;
+        for (int ly = b.y0; ly < b.y1; ++ly) {
+          for (int lx = b.x0; lx < b.x1; ++lx) {
+            const int p = ly * sx + lx;
             F dx, dy;
-            const F pw = td.power(k, px, py, dx, dy);
+            const F pw = td.power(k, lx, ly, dx, dy);
             if (dx * dx + dy * dy <= r2) {
-              pair_vis[start + k] += done ? F(0) : T;
-              pair_count[start + k] += 1;
+              vis += done[p] ? F(0) : T[p];
+              cnt += 1;
             }
-            if (done || pw > F(0)) continue;
+            if (done[p] || td.negligible(k, pw)) continue;
             const F alpha = std::min(F(kAlphaMax), td.op[k] * std::exp(pw));
             if (alpha < F(kAlphaMin)) continue;
-            const F t_next = T * (F(1) - alpha);
-            if (t_next < F(kTMin)) { done = true; continue; }
-            pair_weight[start + k] += alpha * T;
-            T = t_next;
+            const F t_next = T[p] * (F(1) - alpha);
+            if (t_next < F(kTMin)) { done[p] = 1; continue; }
+            wsum += alpha * T[p];
+            T[p] = t_next;
           }
         }
+        pair_vis[start + k] = vis;
+        pair_count[start + k] = cnt;
+        pair_weight[start + k] = wsum;
       }
     }
   }
-  for (int64_t i = 0; i < num_gaussians; ++i) { vis_sum[i] = F(0); count[i] = 0; weight[i] = F(0); }
+  std::fill(vis_sum, vis_sum + num_gaussians, F(0));
+  std::fill(count, count + num_gaussians, 0);
+  std::fill(weight, weight + num_gaussians, F(0));
   for (int64_t m = 0; m < num_pairs; ++m) {
     const int64_t gid = ids[m];
     vis_sum[gid] += pair_vis[m];

@@ -1,0 +1,170 @@
+"""Minimal PLY point reader/writer (numpy only): the ``vertex`` element's x, y, z and optional red, green, blue.
+
+Reads ``ascii``, ``binary_little_endian`` and ``binary_big_endian`` files. Other elements (faces, …) are
+skipped; in binary files an element with list properties can only be skipped when it comes *after* the
+vertices (its size is not known in advance). Colours stored as integers are scaled to [0, 1] by their type's
+maximum (255 for ``uchar``); float colours are returned as stored.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from olatbench.atomic import write_bytes
+from olatbench.datasets.colour import quantize_8bit
+
+# PLY scalar type names (both spellings) -> numpy type codes without byte order.
+_PLY_TYPES = {
+    "char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1",
+    "short": "i2", "int16": "i2", "ushort": "u2", "uint16": "u2",
+    "int": "i4", "int32": "i4", "uint": "u4", "uint32": "u4",
+    "float": "f4", "float32": "f4", "double": "f8", "float64": "f8",
+}  # fmt: skip
+_FORMATS = {"ascii": None, "binary_little_endian": "<", "binary_big_endian": ">"}
+
+
+class PlyError(ValueError):
+    """A PLY file that cannot be read; the message names the file and the problem."""
+
+
+@dataclass
+class _Element:
+    name: str
+    count: int
+    properties: list[tuple[str, str]] = field(default_factory=list)  # (name, numpy code)
+    has_list: bool = False
+
+
+def _parse_header(path: Path, handle) -> tuple[str, list[_Element]]:
+    magic = handle.readline().strip()
+    if magic != b"ply":
+        raise PlyError(f"{path}: not a PLY file (first line is {magic[:20]!r}, expected b'ply')")
+    fmt = None
+    elements: list[_Element] = []
+    while True:
+        raw = handle.readline()
+        if not raw:
+            raise PlyError(f"{path}: header has no 'end_header' line")
+        words = raw.decode("ascii", errors="replace").split()
+        if not words or words[0] in ("comment", "obj_info"):
+            continue
+        if words[0] == "end_header":
+            break
+        if words[0] == "format":
+            if len(words) < 2 or words[1] not in _FORMATS:
+                raise PlyError(f"{path}: unsupported PLY format line {raw!r}")
+            fmt = words[1]
+        elif words[0] == "element":
+            if len(words) != 3 or not words[2].isdigit():
+                raise PlyError(f"{path}: malformed element line {raw!r}")
+            elements.append(_Element(words[1], int(words[2])))
+        elif words[0] == "property":
+            if not elements:
+                raise PlyError(f"{path}: property before any element: {raw!r}")
+            if len(words) >= 2 and words[1] == "list":
+                elements[-1].has_list = True
+                elements[-1].properties.append((words[-1], "list"))
+            elif len(words) == 3 and words[1] in _PLY_TYPES:
+                elements[-1].properties.append((words[2], _PLY_TYPES[words[1]]))
+            else:
+                raise PlyError(f"{path}: unsupported property line {raw!r}")
+    if fmt is None:
+        raise PlyError(f"{path}: header has no 'format' line")
+    return fmt, elements
+
+
+def _colour_scale(code: str) -> float:
+    return float(np.iinfo(np.dtype(code)).max) if code[0] in "iu" else 1.0
+
+
+def read_ply_points(path: str | Path) -> tuple[np.ndarray, np.ndarray | None]:
+    """Vertex positions (N, 3) float32 and colours (N, 3) float32 in [0, 1] (``None`` without red/green/blue)."""
+    path = Path(path)
+    if not path.is_file():
+        raise PlyError(f"{path}: no such PLY file")
+    with open(path, "rb") as handle:
+        fmt, elements = _parse_header(path, handle)
+        vertex = next((e for e in elements if e.name == "vertex"), None)
+        if vertex is None:
+            raise PlyError(f"{path}: no 'vertex' element")
+        names = [name for name, _ in vertex.properties]
+        missing = [axis for axis in "xyz" if axis not in names]
+        if missing:
+            raise PlyError(f"{path}: vertex element lacks properties {missing} (has {names})")
+        if vertex.has_list:
+            raise PlyError(f"{path}: list properties in the vertex element are not supported")
+        order = _FORMATS[fmt]
+        if order is None:
+            table = _read_ascii(path, handle, elements, vertex)
+        else:
+            table = _read_binary(path, handle, elements, vertex, order)
+    types = dict(vertex.properties)
+    points = np.stack([table["x"], table["y"], table["z"]], axis=1).astype(np.float32)
+    colours = None
+    if all(channel in types for channel in ("red", "green", "blue")):
+        colours = np.stack(
+            [table[c].astype(np.float64) / _colour_scale(types[c]) for c in ("red", "green", "blue")], axis=1
+        ).astype(np.float32)
+    return points, colours
+
+
+def _read_ascii(path: Path, handle, elements: list[_Element], vertex: _Element) -> dict[str, np.ndarray]:
+    for element in elements:
+        if element is vertex:
+            break
+        for _ in range(element.count):
+            handle.readline()
+    rows = [handle.readline().split() for _ in range(vertex.count)]
+    width = len(vertex.properties)
+    bad = next((i for i, row in enumerate(rows) if len(row) < width), None)
+    if bad is not None:
+        raise PlyError(f"{path}: vertex {bad} has {len(rows[bad])} values, expected {width}")
+    try:
+        values = np.array([row[:width] for row in rows], dtype=np.float64).reshape(vertex.count, width)
+    except ValueError as error:
+        raise PlyError(f"{path}: non-numeric vertex data ({error})") from error
+    return {name: values[:, i] for i, (name, _) in enumerate(vertex.properties)}
+
+
+def _read_binary(path: Path, handle, elements: list[_Element], vertex: _Element, order: str) -> dict[str, np.ndarray]:
+    for element in elements:
+        if element is vertex:
+            break
+        if element.has_list:
+            raise PlyError(f"{path}: cannot skip element '{element.name}' with list properties before the vertices")
+        handle.seek(element.count * np.dtype([(n, order + c) for n, c in element.properties]).itemsize, 1)
+    dtype = np.dtype([(name, order + code) for name, code in vertex.properties])
+    data = handle.read(dtype.itemsize * vertex.count)
+    if len(data) != dtype.itemsize * vertex.count:
+        raise PlyError(f"{path}: truncated vertex data ({len(data)} of {dtype.itemsize * vertex.count} bytes)")
+    table = np.frombuffer(data, dtype=dtype, count=vertex.count)
+    return {name: table[name] for name in dtype.names}
+
+
+def write_ply_points(path: str | Path, points: np.ndarray, colours: np.ndarray | None = None) -> Path:
+    """Write points (N, 3) (+ colours (N, 3) in [0, 1], stored as uchar) as binary little-endian PLY, atomically."""
+    points = np.asarray(points, dtype=np.float32)
+    if points.ndim != 2 or points.shape[1] != 3:
+        raise ValueError(f"points must be (N, 3), got {points.shape}")
+    fields = [("x", "<f4"), ("y", "<f4"), ("z", "<f4")]
+    if colours is not None:
+        colours = np.asarray(colours, dtype=np.float64)
+        if colours.shape != points.shape:
+            raise ValueError(f"colours must be {points.shape}, got {colours.shape}")
+        fields += [("red", "u1"), ("green", "u1"), ("blue", "u1")]
+    table = np.empty(len(points), dtype=np.dtype(fields))
+    table["x"], table["y"], table["z"] = points.T
+    header = ["ply", "format binary_little_endian 1.0", f"element vertex {len(points)}"]
+    header += ["property float x", "property float y", "property float z"]
+    if colours is not None:
+        quantised = quantize_8bit(colours)
+        table["red"], table["green"], table["blue"] = quantised.T
+        header += ["property uchar red", "property uchar green", "property uchar blue"]
+    header.append("end_header")
+    return write_bytes(path, ("\n".join(header) + "\n").encode("ascii") + table.tobytes())
+
+
+__all__ = ["PlyError", "read_ply_points", "write_ply_points"]
