@@ -6,7 +6,7 @@ import math
 
 import pytest
 import torch
-from gaussian_scenes import camera, scene
+from test_rasterize_scenes import camera, scene
 
 from olatbench.gaussians.projection import covariances_3d, project, quat_to_rotmat
 

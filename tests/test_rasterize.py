@@ -7,7 +7,7 @@ import math
 
 import pytest
 import torch
-from gaussian_scenes import camera, scene
+from test_rasterize_scenes import camera, scene
 
 from olatbench.gaussians.projection import project
 from olatbench.gaussians.rasterize import rasterize

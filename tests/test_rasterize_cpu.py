@@ -6,7 +6,7 @@ import math
 
 import pytest
 import torch
-from gaussian_scenes import camera, scene
+from test_rasterize_scenes import camera, scene
 
 from olatbench.gaussians.backends import cpu_backend_status
 from olatbench.gaussians.backends.cpu import rasterize_cpu, shadow_gather_cpu

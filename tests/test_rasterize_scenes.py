@@ -1,4 +1,4 @@
-"""Small random Gaussian scenes shared by the rasterizer and projection tests."""
+"""Small random Gaussian scenes shared by the rasterizer and projection tests (helpers only, no tests)."""
 
 from __future__ import annotations
 
