@@ -23,6 +23,7 @@ COMMANDS: dict[str, str] = {
     "weights": "olatbench.cli.metrics:weights",
     "report": "olatbench.cli.report:report",
     "render": "olatbench.cli.report:render",
+    "doctor": "olatbench.cli.doctor:doctor",
 }
 
 HELP_LINES: dict[str, str] = {
@@ -35,6 +36,7 @@ HELP_LINES: dict[str, str] = {
     "weights": "Install and locate the LPIPS weights.",
     "report": "Build the paper's tables and figures from results.json files.",
     "render": "Render relighting sweeps (videos) from a finished run.",
+    "doctor": "Show what this machine supports and how to fix what is missing.",
 }
 
 

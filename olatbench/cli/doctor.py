@@ -1,0 +1,123 @@
+"""``olatbench doctor``: what this machine supports, each line with the command that fixes it."""
+
+from __future__ import annotations
+
+import importlib.util
+import platform
+import tempfile
+from collections.abc import Callable
+from pathlib import Path
+
+import click
+
+Check = tuple[str, bool, str, str]  # name, ok, detail, fix
+
+
+def _torch() -> Check:
+    if importlib.util.find_spec("torch") is None:
+        return "torch", False, "not installed", "pip install torch==2.13.0  (CPU build; pick a CUDA build on a GPU box)"
+    import torch
+
+    devices = ["cpu"] + ([f"cuda ({torch.cuda.get_device_name(0)})"] if torch.cuda.is_available() else [])
+    return "torch", True, f"{torch.__version__}; devices: {', '.join(devices)}; {torch.get_num_threads()} threads", ""
+
+
+def _rasterizer() -> Check:
+    if importlib.util.find_spec("torch") is None:
+        return "C++ rasterizer", False, "needs torch", "pip install torch==2.13.0"
+    from olatbench.gaussians.backends import cpu_backend_status
+
+    ok, detail = cpu_backend_status()
+    return "C++ rasterizer", ok, detail, "" if ok else "apt-get install g++  (then rerun; the build is cached)"
+
+
+def _gsplat() -> Check:
+    found = importlib.util.find_spec("gsplat") is not None
+    return ("gsplat (CUDA backend)", found, "installed" if found else "not installed (only needed on a GPU)",
+            "" if found else "pip install gsplat  (on a CUDA machine)")
+
+
+def _mitsuba() -> Check:
+    if importlib.util.find_spec("mitsuba") is None:
+        return "Mitsuba (scene generator)", False, "not installed", "pip install 'olatbench[synth]'"
+    from olatbench.datasets.synth.backend import probe_variant
+
+    return "Mitsuba (scene generator)", True, f"variant {probe_variant()}", ""
+
+
+def _lpips() -> Check:
+    if importlib.util.find_spec("torch") is None:
+        return "LPIPS weights", False, "needs torch", "pip install torch==2.13.0"
+    from olatbench.metrics.weights import find_weights
+
+    found = {net: find_weights(net) for net in ("alex", "vgg")}
+    missing = [net for net, source in found.items() if source is None]
+    detail = "; ".join(f"{net}: {source.kind if source else 'missing'}" for net, source in found.items())
+    return "LPIPS weights", not missing, detail, "olatbench weights install" if missing else ""
+
+
+def _exr() -> Check:
+    import numpy as np
+
+    from olatbench.datasets.images import read_image, write_image
+
+    with tempfile.TemporaryDirectory() as folder:
+        path = write_image(Path(folder) / "probe.exr", np.full((2, 2, 4), 0.25, np.float32))
+        ok = bool(np.allclose(read_image(path), 0.25))
+    return "EXR read/write (OpenImageIO)", ok, "round trip ok" if ok else "round trip failed", \
+        "" if ok else "pip install --force-reinstall OpenImageIO"
+
+
+def _slurm() -> Check:
+    import shutil
+
+    has_submitit = importlib.util.find_spec("submitit") is not None
+    has_sbatch = shutil.which("sbatch") is not None
+    detail = f"submitit {'installed' if has_submitit else 'missing'}; sbatch {'found' if has_sbatch else 'not found'}"
+    return "Slurm executor", has_submitit, detail, "" if has_submitit else "pip install 'olatbench[slurm]'"
+
+
+def _video() -> Check:
+    import cv2
+    import numpy as np
+
+    with tempfile.TemporaryDirectory() as folder:
+        path = str(Path(folder) / "probe.mp4")
+        writer = cv2.VideoWriter(path, cv2.VideoWriter_fourcc(*"mp4v"), 10, (16, 16))
+        ok = writer.isOpened()
+        if ok:
+            for _ in range(3):
+                writer.write(np.zeros((16, 16, 3), np.uint8))
+        writer.release()
+        ok = ok and Path(path).stat().st_size > 0
+    return "MP4 writing (OpenCV, no ffmpeg)", ok, "mp4v ok" if ok else "VideoWriter failed", \
+        "" if ok else "pip install --force-reinstall opencv-contrib-python-headless"
+
+
+CHECKS: tuple[Callable[[], Check], ...] = (_torch, _rasterizer, _gsplat, _mitsuba, _lpips, _exr, _slurm, _video)
+
+
+def run_checks() -> list[Check]:
+    """Run every check; a check that raises is reported as failed with its error."""
+    results = []
+    for check in CHECKS:
+        try:
+            results.append(check())
+        except Exception as error:  # a doctor reports, it does not crash
+            results.append((check.__name__.strip("_"), False, f"{type(error).__name__}: {error}", ""))
+    return results
+
+
+@click.command()
+def doctor() -> None:
+    """Show what this machine supports and how to fix what is missing.
+
+    \b
+    Example:
+      olatbench doctor
+    """
+    click.echo(f"olatbench on Python {platform.python_version()} ({platform.machine()})")
+    for name, ok, detail, fix in run_checks():
+        click.echo(f"  {'ok ' if ok else 'NO '} {name:<32} {detail}")
+        if fix:
+            click.echo(f"      fix: {fix}")
