@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from olatbench.atomic import write_json
+from olatbench.datasets.errors import DatasetError
 from olatbench.datasets.records import Frame, Scene
 from olatbench.datasets.synth.backend import mitsuba, probe_variant
 from olatbench.datasets.synth.geometry import write_geometry
@@ -100,6 +101,11 @@ def write_rendered(rendered: RenderedScene, out_dir: Path, fmt: str = "nrhints")
 
 def generate(recipe: Recipe, out_dir: Path, fmt: str = "nrhints", progress: bool = True,
              geometry: bool = True) -> Path:
-    """Render ``recipe`` and write it to ``out_dir`` in format ``fmt``."""
+    """Render ``recipe`` and write it to ``out_dir`` in format ``fmt`` (refused, before rendering, when a
+    scene already exists there)."""
+    from olatbench.datasets.formats import is_scene_folder
+
+    if is_scene_folder(Path(out_dir)):
+        raise DatasetError("a scene already exists here; choose another folder or delete it first", path=out_dir)
     rendered = render_recipe(recipe, root=out_dir, progress=progress, geometry=geometry)
     return write_rendered(rendered, out_dir, fmt)

@@ -31,6 +31,7 @@ def write_geometry(path: str | Path, channels: dict[str, np.ndarray]) -> Path:
     spec = oiio.ImageSpec(width, height, count, "half")
     spec.channelnames = tuple(names)
     spec.attribute("compression", "zip")
+    spec.attribute("DateTime", "")  # no time stamp: the same pixels give the same bytes
     with atomic_path(path) as temporary:
         output = oiio.ImageOutput.create(str(temporary))
         if output is None or not output.open(str(temporary), spec):
