@@ -151,11 +151,11 @@ def make_plan(method: str, suite: str | Suite, out: str | Path, scenes: Sequence
               variants: Sequence[str] = (), ablation: str | None = None, seeds: int = 1,
               iterations: int | None = None, resolution: tuple[int, int] | None = None,
               data_root: str | Path | None = None, options: PlanOptions | None = None,
-              hash_data: bool = True, progress: bool = True) -> list[Job]:
+              generate: bool = True, progress: bool = True) -> list[Job]:
     """Expand one method on one suite into jobs (scene-major, then variant, then seed).
 
-    ``resolution`` (width, height) overrides the suite's. ``hash_data=False`` (dry runs) plans without
-    touching or generating data: such jobs have ``data_manifest=None`` and no id.
+    ``resolution`` (width, height) overrides the suite's. ``generate=False`` (dry runs) never creates
+    a generator suite's data: when it is missing, jobs have ``data_manifest=None`` and no id.
     """
     options = options or PlanOptions()
     suite = get_suite(suite) if isinstance(suite, str) else suite
@@ -170,14 +170,14 @@ def make_plan(method: str, suite: str | Suite, out: str | Path, scenes: Sequence
     protocol = get_protocol(suite.protocol)
     variant_names = expand_variants(method_class, variants, ablation)
     scene_names = resolve_scenes(suite, scenes)
-    root = resolve_data_root(suite, data_root, scene_names, generate=hash_data, progress=progress)
+    root = resolve_data_root(suite, data_root, scene_names, generate=generate, progress=progress)
     code = code_hash(method_class)
     configs = {variant: config_to_dict(resolve_config(method_class, suite, variant, iterations))
                for variant in variant_names}
     jobs = []
     for scene in scene_names:
         scene_path = suite.scene_path(root, scene) if root is not None else None
-        manifest = data_manifest_hash(scene_path) if (hash_data and scene_path is not None) else None
+        manifest = data_manifest_hash(scene_path) if scene_path is not None else None
         for variant in variant_names:
             for seed in range(seeds):
                 job = Job(method=method, method_ref=method_reference(method_class), suite=suite.name, scene=scene,

@@ -90,7 +90,8 @@ def _metric(metrics: dict, key: str) -> str:
               help="inline (this process), local (process pool), slurm (job array via submitit). "
                    "Default: inline, or local with --jobs > 1.")
 @click.option("--jobs", "-j", "workers", default=1, show_default=True, help="Parallel jobs for the local executor.")
-@click.option("--dry-run", is_flag=True, help="Print the job table and exit (no data is generated).")
+@click.option("--dry-run", is_flag=True, help="Print the job table with each job's state and exit (never "
+                                             "generates data).")
 @click.option("--force", is_flag=True, help="Rerun jobs from scratch, replacing finished, partial or stale folders.")
 @click.option("--checkpoint-every", type=int, help="Checkpoint every N steps (default: iterations/10; also every "
                                                   "10 minutes).")
@@ -134,7 +135,7 @@ def run(method, suite, scenes, variants, ablation, seeds, iterations, resolution
         jobs = make_plan(method, suite, out, scenes=_split_names(scenes), variants=_split_names(variants),
                          ablation=ablation, seeds=seeds, iterations=iterations,
                          resolution=_parse_resolution(resolution), data_root=data_root, options=options,
-                         hash_data=not dry_run, progress=progress)
+                         generate=not dry_run, progress=progress)
     except (PlanError, DatasetError, KeyError, FileNotFoundError) as error:
         raise click.ClickException(str(error.args[0] if isinstance(error, KeyError) else error)) from None
 
@@ -216,9 +217,10 @@ def _print_plan(jobs, states, out: Path) -> None:
         if state.state == "partial":
             status = f"partial ({state.step}/{state.iterations})"
         rows.append([str(index), job.suite, job.method, job.variant, job.scene, str(job.seed), str(job.iterations),
-                     job.id or "(data not hashed)", status, str(Path(job.folder).relative_to(out))])
+                     job.id or "(no data yet)", status, str(Path(job.folder).relative_to(out))])
     click.echo(_table(rows, ["#", "suite", "method", "variant", "scene", "seed", "iters", "id", "state", "folder"]))
-    click.echo(f"{len(jobs)} job(s); ids are computed from the data when the run starts.")
+    note = "" if all(job.id for job in jobs) else "; ids are computed once the data exists"
+    click.echo(f"{len(jobs)} job(s){note}.")
 
 
 def _print_summary(jobs, out: Path) -> None:

@@ -1,0 +1,103 @@
+"""Plans: variant and ablation grids, config resolution order, scenes, data roots."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import pytest
+import test_runner_support as support
+
+from olatbench.bench.plan import (
+    ABLATIONS,
+    PlanError,
+    expand_variants,
+    make_plan,
+    resolve_config,
+    resolve_data_root,
+    resolve_scenes,
+)
+from olatbench.bench.store import job_folder
+
+Trivial = support.TrivialMethod
+
+
+def test_ablation_grids_expand_to_the_papers_presets():
+    assert expand_variants(Trivial, ablation="components") == [f"ablation-{x}" for x in "ABCDEF"]
+    assert expand_variants(Trivial, ablation="schedule") == [f"schedule-{x}" for x in "HIJK"]
+    assert expand_variants(Trivial, ablation="shadow-on-sss") == ["default", "shadow-on-sss"]
+    assert expand_variants(Trivial) == ["default"]
+    assert expand_variants(Trivial, ["ablation-D", "default"], "components")[:2] == ["ablation-D", "default"]
+    assert len(expand_variants(Trivial, ["ablation-D"], "components")) == 6  # deduplicated
+    assert set(ABLATIONS) == {"components", "schedule", "shadow-on-sss"}
+
+
+def test_unknown_variant_or_ablation_is_one_clear_error():
+    with pytest.raises(PlanError, match=r"no preset nope; its presets: .*ablation-A"):
+        expand_variants(Trivial, ["nope"])
+    with pytest.raises(PlanError, match="unknown ablation"):
+        expand_variants(Trivial, ablation="lighting")
+
+
+def test_config_resolution_order():
+    suite = support.tiny_suite(name="other", iterations=33)
+    assert resolve_config(Trivial, suite).iterations == 33  # the suite's iteration count
+    tiny = support.tiny_suite(name="tiny", iterations=33)
+    assert resolve_config(Trivial, tiny).iterations == 12  # the method's preset named after the suite wins
+    config = resolve_config(Trivial, tiny, "ablation-C")
+    assert (config.iterations, config.lr) == (12, pytest.approx(0.03))  # variant on top of the suite preset
+    assert resolve_config(Trivial, tiny, "ablation-C", iterations=5).iterations == 5  # overrides last
+
+
+def test_ablation_plan_has_one_job_per_scene_variant_and_seed(tmp_path):
+    data = support.write_tiny_data(tmp_path / "data")
+    jobs = make_plan("trivial", support.tiny_suite(name="x"), tmp_path / "runs", ablation="components", seeds=2,
+                     data_root=data, progress=False)
+    assert len(jobs) == 2 * 6 * 2
+    assert len({job.id for job in jobs}) == len(jobs)
+    job = jobs[7]
+    assert (job.scene, job.variant, job.seed) == ("Alpha", "ablation-D", 1)
+    assert job.config["lr"] == pytest.approx(0.04)
+    assert job.folder == str(job_folder(tmp_path / "runs", "x", "trivial", "ablation-D", "Alpha", 1))
+    assert job.folder.endswith("x/trivial/ablation-D/Alpha/seed1")
+
+
+def test_scenes_accept_aliases_and_reject_unknown_names():
+    suite = support.tiny_suite()
+    assert resolve_scenes(suite, ["beta", "Alpha", "Beta"]) == ["Beta", "Alpha"]
+    assert resolve_scenes(suite) == ["Alpha", "Beta"]
+    with pytest.raises(PlanError, match="no scene 'Gamma'; scenes: Alpha, Beta"):
+        resolve_scenes(suite, ["Gamma"])
+
+
+def test_missing_data_root_suggests_the_download(monkeypatch):
+    monkeypatch.delenv("OLATBENCH_DATA", raising=False)
+    with pytest.raises(PlanError, match=r"--data-root or set OLATBENCH_DATA.*datasets download"):
+        resolve_data_root(support.tiny_suite(), None, ["Alpha"])
+
+
+def test_generator_suites_create_their_data_once(tmp_path, monkeypatch):
+    calls = []
+
+    def generate(root, progress=True):
+        calls.append(root)
+        return support.write_tiny_data(tmp_path / "generated")
+
+    monkeypatch.setattr(support, "fake_generator", generate, raising=False)
+    suite = dataclasses.replace(support.tiny_suite(), generator="test_runner_support:fake_generator")
+    assert resolve_data_root(suite, None, ["Alpha"], generate=False) is None  # dry runs never generate
+    assert calls == []
+    assert resolve_data_root(suite, None, ["Alpha"]) == tmp_path / "generated"
+    assert resolve_data_root(suite, tmp_path / "generated", ["Alpha"]) == tmp_path / "generated"
+    assert calls == [None]  # present data is used as is
+
+
+def test_dry_plan_without_data_has_no_ids(tmp_path, monkeypatch):
+    monkeypatch.setattr(support, "fake_generator", lambda root, progress=True: 1 / 0, raising=False)
+    suite = dataclasses.replace(support.tiny_suite(), generator="test_runner_support:fake_generator")
+    jobs = make_plan("trivial", suite, tmp_path, generate=False, progress=False)
+    assert [job.id for job in jobs] == ["", ""]
+
+
+def test_unknown_method_names_the_known_ones(tmp_path):
+    with pytest.raises(PlanError, match=r"unknown method 'nope'.*trivial.*olatbench methods list"):
+        make_plan("nope", support.tiny_suite(), tmp_path, data_root=tmp_path)

@@ -1,0 +1,240 @@
+"""Running jobs: layout, results, skip, resume after SIGKILL (bit-exact), failure isolation, CLI, status."""
+
+from __future__ import annotations
+
+import json
+import os
+import pickle
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+import test_runner_support as support
+import torch
+from click.testing import CliRunner
+
+from olatbench.bench.checkpoints import list_checkpoints
+from olatbench.bench.execute import run_job
+from olatbench.bench.executors import run_inline
+from olatbench.bench.plan import PlanOptions, make_plan
+from olatbench.bench.results import read_results
+from olatbench.bench.store import find_results, job_state, scan_runs
+from olatbench.cli import main
+from olatbench.datasets import suites
+from olatbench.datasets.images import read_image
+
+
+@pytest.fixture()
+def data(tmp_path):
+    return support.write_tiny_data(tmp_path / "data")
+
+
+@pytest.fixture()
+def cli_suite(monkeypatch):
+    """The tiny suite registered under the name 'tiny' for the CLI."""
+    monkeypatch.setitem(suites.SUITES, "tiny", support.tiny_suite())
+
+
+def plan(data, out, **kwargs):
+    return make_plan("trivial", support.tiny_suite(), out, data_root=data, progress=False, **kwargs)
+
+
+def test_end_to_end_layout_and_results(data, tmp_path):
+    jobs = plan(data, tmp_path / "runs", options=PlanOptions(save_components=True))
+    outcomes = run_inline(jobs, progress=False)
+    assert [o.status for o in outcomes] == ["done", "done"]
+    folder = Path(jobs[0].folder)
+    assert (folder / "DONE").read_text().strip() == jobs[0].id
+    results = read_results(folder / "results.json")
+    assert results["status"] == "done" and results["job"]["id"] == jobs[0].id
+    assert results["protocol"] == {"id": support.FAST_PROTOCOL, "version": 1}
+    assert set(results["metrics"]) == {"train", "test"}
+    assert set(results["metrics"]["test"]["per_image"]) == {"000", "001"}
+    assert set(results["metrics"]["train"]["per_image"]) == {"000", "001", "002", "003"}
+    mean = results["metrics"]["test"]["mean"]
+    assert 5 < mean["psnr"] < 40 and mean["lpips"] is None
+    assert results["model"] == {"iterations": 12, "num_gaussians": 64 * 48}
+    assert results["timing"]["train_seconds"] > 0 and results["timing"]["render_fps"] > 0
+    assert results["resources"]["peak_rss_mb"] > 50 and results["resources"]["cuda_peak_mb"] is None
+    assert results["versions"]["torch"] == torch.__version__
+    assert results["hashes"]["data_manifest"] == jobs[0].data_manifest
+    for split, count in (("train", 4), ("test", 2)):
+        renders = sorted((folder / "renders" / split).glob("*.png"))
+        assert len(renders) == count
+        assert read_image(renders[0]).shape == (48, 64, 3)
+    assert sorted(p.name for p in (folder / "components" / "test").iterdir()) == ["diffuse", "shadow"]
+    assert read_image(folder / "components" / "test" / "shadow" / "000.png").shape == (48, 64, 1)
+    log = [json.loads(line) for line in (folder / "train_log.jsonl").read_text().splitlines()]
+    assert [entry["step"] for entry in log] == list(range(1, 13))
+    assert {"loss", "psnr", "seconds"} <= set(log[0])
+    assert len(list_checkpoints(folder)) == 1  # only the final model stays
+    assert json.loads((folder / "config.json").read_text())["iterations"] == 12
+    assert "done" in (folder / "log.txt").read_text()
+    assert find_results(tmp_path / "runs") == sorted(Path(job.folder) / "results.json" for job in jobs)
+
+
+def test_metrics_match_the_saved_renders(data, tmp_path):
+    """The per-image PSNR is the protocol's score of the render the job saved (8-bit sRGB)."""
+    from olatbench.datasets import load_scene
+    from olatbench.metrics.protocols import get_protocol
+
+    job = plan(data, tmp_path / "runs", scenes=["Beta"])[0]
+    run_job(job, progress=False)
+    results = read_results(Path(job.folder) / "results.json")
+    frame = load_scene(data / "Beta").split("test")[1]
+    gt = frame.load(colourspace="srgb").rgb
+    render = read_image(Path(job.folder) / "renders" / "test" / "001.png")
+    expected = get_protocol(support.FAST_PROTOCOL).evaluate(render, gt)["psnr"]
+    assert results["metrics"]["test"]["per_image"]["001"]["psnr"] == pytest.approx(expected, abs=1e-4)
+
+
+def _weights(folder):
+    step, path = list_checkpoints(folder)[-1]
+    return step, torch.load(path, weights_only=True)["method"]
+
+
+def _start_job(job, tmp_path):
+    job_file = tmp_path / f"job-{time.monotonic_ns()}.pkl"
+    job_file.write_bytes(pickle.dumps(job))
+    script = (f"import pickle, sys; sys.path.insert(0, {str(support.TESTS)!r}); import test_runner_support; "
+              f"from olatbench.bench.execute import run_job; "
+              f"run_job(pickle.load(open({str(job_file)!r}, 'rb')), progress=False)")
+    return subprocess.Popen([sys.executable, "-c", script])
+
+
+def _wait_for_checkpoint(process, folder, timeout=90.0):
+    deadline = time.monotonic() + timeout
+    while not list_checkpoints(folder):
+        assert process.poll() is None, "the job process ended before its first checkpoint"
+        assert time.monotonic() < deadline, "no checkpoint in time"
+        time.sleep(0.02)
+
+
+@pytest.mark.parametrize("sig", [signal.SIGKILL, signal.SIGINT])
+def test_interrupted_job_resumes_to_the_uninterrupted_result(data, tmp_path, sig):
+    kwargs = dict(scenes=["Alpha"], iterations=40, options=PlanOptions(checkpoint_every=5))
+    reference = plan(data, tmp_path / "reference", **kwargs)[0]
+    interrupted = plan(data, tmp_path / "interrupted", **kwargs)[0]
+    assert reference.id == interrupted.id
+    slow = {**interrupted.config, "step_sleep": 0.05}  # same id: only slows the first attempt down
+    first_attempt = type(interrupted)(**{**interrupted.__dict__, "config": slow})
+
+    process = _start_job(first_attempt, tmp_path)
+    _wait_for_checkpoint(process, interrupted.folder)
+    process.send_signal(sig)
+    process.wait(timeout=60)
+    state = job_state(interrupted.folder, interrupted.id)
+    assert state.state == "partial" and 5 <= state.step < 40, state
+    assert not (Path(interrupted.folder) / "error.txt").exists()
+
+    assert run_job(interrupted, progress=False).status == "done"
+    assert "resumed from step_" in (Path(interrupted.folder) / "log.txt").read_text()
+    assert run_job(reference, progress=False).status == "done"
+
+    resumed = read_results(Path(interrupted.folder) / "results.json")
+    uninterrupted = read_results(Path(reference.folder) / "results.json")
+    assert resumed["metrics"] == uninterrupted["metrics"]  # exact, not approximate
+    step_a, weights_a = _weights(interrupted.folder)
+    step_b, weights_b = _weights(reference.folder)
+    assert step_a == step_b == 40
+    assert torch.equal(weights_a["logits"], weights_b["logits"]) and torch.equal(weights_a["gain"], weights_b["gain"])
+    logs = [[json.loads(line) for line in (Path(job.folder) / "train_log.jsonl").read_text().splitlines()]
+            for job in (interrupted, reference)]
+    assert [(e["step"], e["loss"]) for e in logs[0]] == [(e["step"], e["loss"]) for e in logs[1]]
+
+
+def test_a_failing_job_is_recorded_and_the_others_continue(data, tmp_path):
+    jobs = plan(data, tmp_path / "runs", variants=["fails", "default"], scenes=["Alpha"])
+    outcomes = run_inline(jobs, progress=False)
+    assert [o.status for o in outcomes] == ["failed", "done"]
+    assert "injected failure at step 3" in outcomes[0].error
+    failed = Path(jobs[0].folder)
+    assert "Traceback" in (failed / "error.txt").read_text()
+    results = read_results(failed / "results.json")
+    assert results["status"] == "failed" and results["metrics"] == {}
+    assert results["error"] == {"type": "RuntimeError", "message": "injected failure at step 3"}
+    assert not (failed / "DONE").exists()
+    states = {s.folder.parts[-3]: s for s in scan_runs(tmp_path / "runs")}
+    assert states["fails"].state == "failed" and "injected failure" in states["fails"].message
+    assert states["default"].state == "done"
+
+
+def test_cli_run_skips_done_jobs_and_exits_with_the_failure_count(data, tmp_path, cli_suite):
+    runner = CliRunner()
+    args = ["run", "--method", "trivial", "--suite", "tiny", "--data-root", str(data), "--out",
+            str(tmp_path / "runs"), "--quiet", "--device", "cpu"]
+    result = runner.invoke(main, [*args, "--variant", "fails", "--variant", "default"])
+    assert result.exit_code == 2, result.output  # both scenes of the failing variant
+    assert "FAILED Alpha/fails/seed0" in result.output and "error.txt" in result.output
+    assert "rerun the same command" in result.output
+    done = tmp_path / "runs" / "tiny" / "trivial" / "default" / "Alpha" / "seed0" / "results.json"
+    stamp = done.stat().st_mtime_ns
+
+    result = runner.invoke(main, [*args, "--variant", "default"])
+    assert result.exit_code == 0, result.output
+    assert "2 already done, 0 to run" in result.output
+    assert done.stat().st_mtime_ns == stamp
+    assert "Alpha" in result.output and "done" in result.output  # the summary table
+
+    result = runner.invoke(main, [*args, "--variant", "default", "--iterations", "3"])
+    assert result.exit_code == 1 and "hold results of a different job" in result.output and "--force" in result.output
+    result = runner.invoke(main, [*args, "--variant", "default", "--iterations", "3", "--force"])
+    assert result.exit_code == 0, result.output
+    assert read_results(done)["model"]["iterations"] == 3
+
+    status = runner.invoke(main, ["status", str(tmp_path / "runs")])
+    assert status.exit_code == 0, status.output
+    assert "2 done, 2 failed" in status.output
+
+
+def test_cli_dry_run_prints_the_table_without_running(data, tmp_path, cli_suite):
+    result = CliRunner().invoke(main, ["run", "-m", "trivial", "-s", "tiny", "--data-root", str(data), "--out",
+                                       str(tmp_path / "runs"), "--ablation", "schedule", "--seeds", "2",
+                                       "--dry-run"])
+    assert result.exit_code == 0, result.output
+    rows = [line for line in result.output.splitlines() if "schedule-" in line]
+    assert len(rows) == 2 * 4 * 2 and all("pending" in row for row in rows)
+    assert "16 job(s)." in result.output
+    assert not (tmp_path / "runs").exists()
+
+
+def test_cli_errors_are_one_line_with_a_next_step(data, tmp_path, cli_suite):
+    runner = CliRunner()
+    result = runner.invoke(main, ["run", "-m", "nope", "-s", "tiny", "--data-root", str(data)])
+    assert result.exit_code == 1 and "olatbench methods list" in result.output and "Traceback" not in result.output
+    result = runner.invoke(main, ["run", "-m", "trivial", "-s", "tiny", "--variant", "zzz", "--data-root", str(data)])
+    assert "olatbench methods show trivial" in result.output
+    result = runner.invoke(main, ["run", "-m", "trivial", "-s", "tiny", "--resolution", "big"])
+    assert result.exit_code == 2 and "WIDTHxHEIGHT" in result.output
+    result = runner.invoke(main, ["status", str(tmp_path)])
+    assert result.exit_code == 1 and "olatbench run" in result.output
+
+
+def test_status_shows_partial_and_pending_jobs(data, tmp_path, cli_suite):
+    jobs = plan(data, tmp_path / "runs", iterations=10, options=PlanOptions(checkpoint_every=4))
+    slow = type(jobs[0])(**{**jobs[0].__dict__, "config": {**jobs[0].config, "step_sleep": 0.05}})
+    process = _start_job(slow, tmp_path)
+    _wait_for_checkpoint(process, jobs[0].folder)
+    os.kill(process.pid, signal.SIGKILL)
+    process.wait(timeout=60)
+    from olatbench.cli.run import _write_pending
+
+    _write_pending(jobs[1:])
+    result = CliRunner().invoke(main, ["status", str(tmp_path / "runs")])
+    assert result.exit_code == 0, result.output
+    assert "partial" in result.output and "/10" in result.output and "pending" in result.output
+    assert "1 partial, 1 pending" in result.output
+
+
+def test_methods_cli_lists_and_shows_presets():
+    runner = CliRunner()
+    listed = runner.invoke(main, ["methods", "list"])
+    assert listed.exit_code == 0 and "trivial" in listed.output
+    shown = runner.invoke(main, ["methods", "show", "trivial"])
+    assert shown.exit_code == 0, shown.output
+    assert "iterations" in shown.output and "ablation-A: lr=0.01" in shown.output
+    missing = runner.invoke(main, ["methods", "show", "nope"])
+    assert missing.exit_code == 1 and "olatbench methods list" in missing.output
