@@ -23,6 +23,9 @@ import torch
 from tqdm import tqdm
 
 from olatbench.datasets.colour import dequantize_8bit, quantize_8bit
+from olatbench.datasets.errors import DatasetError
+from olatbench.datasets.official import official_ground_truth
+from olatbench.datasets.records import Frame
 from olatbench.metrics.lpips import get_network, lpips_nchw
 from olatbench.metrics.psnr import mse_torch
 from olatbench.metrics.ssim import ssim_nchw
@@ -47,6 +50,8 @@ class Protocol:
     lpips_primary: str = "alex"
     lpips_unit_range_compat: bool = False    # True: feed [0, 1] to the [-1, 1] network (3DGS mistake)
     masked: bool = False
+    ground_truth: str = "frame"              # "frame": Frame.load(colourspace, official background);
+    #                                          "official": the official loader's image (olatbench.datasets.official)
     steps: tuple[str, ...] = field(default=())
 
     @property
@@ -78,6 +83,24 @@ class Protocol:
         if self.quantize is not None:
             array = dequantize_8bit(quantize_8bit(array, mode=self.quantize))
         return array
+
+    def load_ground_truth(self, frame: Frame, scene_format: str,
+                          resolution: tuple[int, int] | None = None) -> tuple[np.ndarray, np.ndarray | None]:
+        """Ground truth of ``frame`` as this protocol scores it: (rgb (H, W, 3) float32, mask (H, W) or None).
+
+        ``resolution`` (width, height) resizes with area averaging (not with ``ground_truth="official"``).
+        """
+        mask = None
+        if self.masked:
+            mask = frame.load(colourspace=self.colourspace, background=None, resolution=resolution).alpha
+            if mask is None:
+                raise DatasetError(f"protocol {self.id} needs an alpha mask but the image has none",
+                                   path=frame.image_path, frame=frame.frame_id)
+        if self.ground_truth == "official":
+            if resolution is not None:
+                raise ValueError(f"protocol {self.id} scores the official ground truth at its native resolution")
+            return official_ground_truth(frame, scene_format), mask
+        return frame.load(colourspace=self.colourspace, background="official", resolution=resolution).rgb, mask
 
     # --- evaluation ----------------------------------------------------------------------------------------------
     def lpips_available(self) -> bool:
@@ -257,10 +280,12 @@ register_protocol(Protocol(
     reproduces="SSD-GS / 3DGS metrics.py: torchvision.utils.save_image PNGs, utils/loss_utils.ssim, "
                "lpipsPyTorch.lpips(net_type='vgg')",
     quantize="round", ssim_variant="3dgs", lpips_nets=("vgg",), lpips_primary="vgg",
-    lpips_unit_range_compat=True,
+    lpips_unit_range_compat=True, ground_truth="official",
     steps=(
-        "inputs: float (H, W, 3) images in the space the official scripts display (sRGB for NRHints data; "
-        "for GS³/SSS-GS EXR data the scripts apply gamma 1/2.2 first: pass gamma22-encoded images)",
+        "inputs: float (H, W, 3) images in the space the official method trains in (sRGB for NRHints and "
+        "SSS-GS data, gamma-2.2 encoded for GS³ EXRs); the ground truth is the official loader's image "
+        "(olatbench.datasets.official: NRHints PNGs composited on black and TRUNCATED to 8 bit by the "
+        "GS³/SSD-GS loader; GS³ composited on white, gamma 2.2, 8 bit; SSS-GS masked on black)",
         "clip to [0, 1] and quantise to 8 bit: torchvision save_image computes floor(255x + 0.5) (ties up), "
         "olatbench rounds ties to even: identical except at exact .5 ties; no truncation in these scripts",
         "PSNR = 20 log10(1 / sqrt(MSE)) per image, MSE over pixels and channels",

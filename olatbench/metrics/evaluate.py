@@ -1,0 +1,188 @@
+"""Score a folder of rendered images against a scene's ground truth under one protocol.
+
+Predictions are matched to ground-truth frames by file stem = frame id (``renders/<split>/<frame_id>.png``,
+the runner's layout). Missing, ambiguous (two files for one id) and unknown (extra) files are refused with
+the full list; unreadable files are named. The result is written atomically as JSON with per-image values,
+the protocol's id, version and definition, package versions and the sha256 of every input file.
+"""
+
+from __future__ import annotations
+
+import datetime
+import hashlib
+import platform
+from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
+
+import numpy as np
+
+import olatbench
+from olatbench.atomic import write_json
+from olatbench.datasets import colour
+from olatbench.datasets.errors import DatasetError
+from olatbench.metrics.protocols import Protocol
+
+IMAGE_SUFFIXES = (".png", ".exr", ".jpg", ".jpeg", ".tif", ".tiff", ".hdr")
+LINEAR_SUFFIXES = (".exr", ".hdr")
+RESULT_SCHEMA = "olatbench-evaluate/1"
+
+
+class EvaluationError(ValueError):
+    """Predictions that cannot be scored: the message lists every offending file or frame."""
+
+
+def _listing(title: str, items: Sequence[str], limit: int = 20) -> str:
+    shown = ", ".join(items[:limit]) + (f", … ({len(items) - limit} more)" if len(items) > limit else "")
+    return f"{title} ({len(items)}): {shown}"
+
+
+def match_predictions(pred_dir: Path, frame_ids: Sequence[str], allow_extra: bool = False) -> dict[str, Path]:
+    """frame id -> prediction file in ``pred_dir`` (stem = frame id, image suffixes only).
+
+    Raises `EvaluationError` listing missing ids, ambiguous ids and (unless ``allow_extra``) extra files.
+    """
+    pred_dir = Path(pred_dir)
+    if not pred_dir.is_dir():
+        raise EvaluationError(f"prediction folder {pred_dir} does not exist")
+    wanted = set(frame_ids)
+    found: dict[str, list[Path]] = {}
+    for path in sorted(pred_dir.iterdir()):
+        if path.is_file() and not path.name.startswith(".") and path.suffix.lower() in IMAGE_SUFFIXES:
+            found.setdefault(path.stem, []).append(path)
+    problems = []
+    missing = [i for i in frame_ids if i not in found]
+    ambiguous = [f"{i} ({', '.join(p.name for p in found[i])})" for i in frame_ids if len(found.get(i, [])) > 1]
+    extra = [p.name for stem, paths in found.items() if stem not in wanted for p in paths]
+    if missing:
+        problems.append(_listing("missing predictions for frames", missing))
+    if ambiguous:
+        problems.append(_listing("several files for one frame", ambiguous))
+    if extra and not allow_extra:
+        problems.append(_listing("files matching no ground-truth frame", extra) + " (use --allow-extra to skip them)")
+    if problems:
+        raise EvaluationError(f"{pred_dir}: cannot match predictions to {len(frame_ids)} frames:\n  "
+                              + "\n  ".join(problems))
+    return {i: found[i][0] for i in frame_ids}
+
+
+def read_prediction(path: Path, colourspace: str, background: np.ndarray) -> np.ndarray:
+    """A prediction file as float32 (H, W, 3) in ``colourspace``.
+
+    PNG/JPEG/TIFF are sRGB-encoded, EXR/HDR linear. RGBA is composited (straight alpha) over
+    ``background`` (given in ``colourspace``).
+    """
+    from olatbench.datasets.images import read_image
+
+    pixels = read_image(path)
+    channels = pixels.shape[2]
+    if channels not in (3, 4):
+        raise DatasetError(f"expected an RGB or RGBA image, found {channels} channels", path=path)
+    if not np.isfinite(pixels).all():
+        raise DatasetError("image holds NaN or Inf pixels", path=path)
+    stored = "linear" if path.suffix.lower() in LINEAR_SUFFIXES else "srgb"
+    rgb = colour.convert_colourspace(pixels[..., :3], stored, colourspace)
+    if channels == 4:
+        rgb = colour.composite(rgb, pixels[..., 3], background, "straight")
+    return rgb.astype(np.float32)
+
+
+def sha256_file(path: Path) -> str:
+    """Hex sha256 of a file's bytes."""
+    digest = hashlib.sha256()
+    with open(path, "rb") as handle:
+        for block in iter(lambda: handle.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def package_versions() -> dict[str, str | None]:
+    """Versions that can change metric values."""
+    import torch
+
+    versions: dict[str, str | None] = {"olatbench": olatbench.__version__, "python": platform.python_version(),
+                                       "numpy": np.__version__, "torch": torch.__version__}
+    try:
+        import OpenImageIO
+
+        versions["OpenImageIO"] = OpenImageIO.__version__
+    except ImportError:  # pragma: no cover - a dependency of olatbench
+        versions["OpenImageIO"] = None
+    return versions
+
+
+def evaluate_matched(protocol: Protocol, matched: Mapping[str, Path],
+                     ground_truth: Callable[[str], tuple[np.ndarray, np.ndarray | None, Path | None]],
+                     background: np.ndarray, progress: bool = False, batch_size: int = 4
+                     ) -> tuple[dict[str, dict], dict[str, dict]]:
+    """Score predictions given as frame id -> file against ``ground_truth(frame_id) -> (rgb, mask, file)``.
+
+    Returns (per_image metrics by frame id, inputs with paths and sha256 by frame id).
+    """
+    ids = list(matched)
+    inputs: dict[str, dict] = {}
+
+    def pairs():
+        for frame_id in ids:
+            path = matched[frame_id]
+            try:
+                pred = read_prediction(path, protocol.colourspace, background)
+                gt, mask, gt_path = ground_truth(frame_id)
+            except DatasetError as error:
+                raise EvaluationError(f"frame {frame_id}: {error}") from None
+            if pred.shape != gt.shape:
+                raise EvaluationError(f"frame {frame_id}: prediction {path.name} is {pred.shape[1]}×{pred.shape[0]} "
+                                      f"but the ground truth is {gt.shape[1]}×{gt.shape[0]} (use --resize-gt to "
+                                      "score against an area-resized ground truth)")
+            inputs[frame_id] = {"pred": str(path), "pred_sha256": sha256_file(path),
+                                "gt": None if gt_path is None else str(gt_path),
+                                "gt_sha256": None if gt_path is None else sha256_file(gt_path)}
+            yield pred, gt, mask
+
+    rows = protocol.evaluate_many(pairs(), progress=progress, batch_size=batch_size, total=len(ids))
+    return dict(zip(ids, rows, strict=True)), inputs
+
+
+def evaluate_folder(pred_dir: str | Path, scene_dir: str | Path, split: str = "test", protocol: Protocol | None = None,
+                    allow_extra: bool = False, resize_gt: bool = False, progress: bool = False) -> dict:
+    """Score ``pred_dir`` against split ``split`` of the scene at ``scene_dir``; return the result dict."""
+    from olatbench.datasets import load_scene
+    from olatbench.metrics.protocols import get_protocol
+
+    protocol = protocol or get_protocol("olatbench-v1")
+    scene = load_scene(scene_dir)
+    frames = {f.frame_id: f for f in scene.split(split) if f.image_path is not None}
+    if not frames:
+        raise EvaluationError(f"{scene_dir}: split '{split}' has no ground-truth images")
+    matched = match_predictions(Path(pred_dir), list(frames), allow_extra)
+    background = colour.convert_colourspace(np.asarray(scene.background, np.float32),
+                                            next(iter(frames.values())).colourspace, protocol.colourspace)
+
+    def ground_truth(frame_id: str):
+        frame = frames[frame_id]
+        resolution = None
+        if resize_gt:
+            from olatbench.datasets.images import image_size
+
+            resolution = image_size(matched[frame_id])
+        rgb, mask = protocol.load_ground_truth(frame, scene.format, resolution)
+        return rgb, mask, frame.image_path
+
+    per_image, inputs = evaluate_matched(protocol, matched, ground_truth, background, progress)
+    return {
+        "schema": RESULT_SCHEMA,
+        "created": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+        "protocol": {"id": protocol.id, "version": protocol.version, "definition": protocol.definition()},
+        "scene": {"name": scene.name, "format": scene.format, "root": str(Path(scene_dir).resolve())},
+        "predictions": str(Path(pred_dir).resolve()),
+        "metrics": {split: {"mean": protocol.mean(list(per_image.values())), "per_image": per_image}},
+        "inputs": inputs,
+        "versions": package_versions(),
+    }
+
+
+def write_result(result: dict, output: str | Path, overwrite: bool = False) -> Path:
+    """Write ``result`` atomically to ``output``; refuse to replace an existing file unless ``overwrite``."""
+    output = Path(output)
+    if output.exists() and not overwrite:
+        raise EvaluationError(f"{output} exists; pass --overwrite to replace it")
+    return write_json(output, result)

@@ -1,0 +1,151 @@
+"""``olatbench evaluate``: matching predictions to frames, refusing bad folders, the result JSON."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+from datasets_trees import write_nrhints_tree
+
+from olatbench.cli.metrics import evaluate, explain, list_protocols, where
+from olatbench.datasets import load_scene
+from olatbench.datasets.images import write_image
+from olatbench.datasets.official import official_ground_truth
+from olatbench.metrics.evaluate import EvaluationError, evaluate_folder, match_predictions, sha256_file, write_result
+from olatbench.metrics.protocols import get_protocol
+
+SIZE = (40, 36)
+
+
+@pytest.fixture
+def scene(tmp_path) -> Path:
+    write_nrhints_tree(tmp_path / "Cat", n_train=1, n_test=3, size=SIZE, seed=3)
+    return tmp_path / "Cat"
+
+
+def write_predictions(scene: Path, out: Path, noise: float = 0.0) -> list[str]:
+    """Ground truth as the benchmark sees it (composited sRGB), optionally perturbed, as 8-bit PNGs."""
+    rng = np.random.default_rng(0)
+    ids = []
+    for frame in load_scene(scene).split("test"):
+        rgb = frame.load(colourspace="srgb").rgb
+        write_image(out / f"{frame.frame_id}.png", np.clip(rgb + noise * rng.standard_normal(rgb.shape), 0, 1))
+        ids.append(frame.frame_id)
+    return ids
+
+
+def test_match_predictions_reports_missing_extra_and_ambiguous(tmp_path):
+    for name in ("a.png", "b.png", "b.exr", "zz.png", "notes.txt"):
+        (tmp_path / name).write_bytes(b"x")
+    with pytest.raises(EvaluationError) as info:
+        match_predictions(tmp_path, ["a", "b", "c"])
+    message = str(info.value)
+    assert "missing predictions for frames (1): c" in message
+    assert "several files for one frame (1): b (b.exr, b.png)" in message
+    assert "files matching no ground-truth frame (1): zz.png" in message and "notes.txt" not in message
+    assert match_predictions(tmp_path, ["a", "zz"], allow_extra=True) == {"a": tmp_path / "a.png",
+                                                                           "zz": tmp_path / "zz.png"}
+
+
+def test_perfect_predictions_and_result_json(scene, tmp_path):
+    ids = write_predictions(scene, tmp_path / "pred")
+    result = evaluate_folder(tmp_path / "pred", scene, "test", get_protocol("olatbench-v1"))
+    block = result["metrics"]["test"]
+    assert sorted(block["per_image"]) == sorted(ids)
+    assert block["mean"]["psnr"] == 100.0 and block["mean"]["ssim"] == pytest.approx(1.0, abs=1e-6)
+    assert block["mean"]["lpips"] in (0.0, None)
+    assert result["protocol"]["id"] == "olatbench-v1" and result["protocol"]["version"] == 1
+    first = ids[0]
+    assert result["inputs"][first]["pred_sha256"] == sha256_file(tmp_path / "pred" / f"{first}.png")
+    assert result["inputs"][first]["gt_sha256"] == sha256_file(Path(result["inputs"][first]["gt"]))
+    out = write_result(result, tmp_path / "r.json")
+    assert json.loads(out.read_text())["metrics"]["test"]["mean"]["psnr"] == 100.0
+    with pytest.raises(EvaluationError, match="--overwrite"):
+        write_result(result, out)
+
+
+def test_noisy_predictions_match_direct_protocol_call(scene, tmp_path):
+    write_predictions(scene, tmp_path / "pred", noise=0.05)
+    protocol = get_protocol("nrhints")
+    result = evaluate_folder(tmp_path / "pred", scene, "test", protocol)
+    frame = load_scene(scene).split("test")[1]
+    from olatbench.datasets.images import read_image
+
+    pred = read_image(tmp_path / "pred" / f"{frame.frame_id}.png")
+    direct = protocol.evaluate(pred, frame.load(colourspace="srgb").rgb)
+    assert result["metrics"]["test"]["per_image"][frame.frame_id]["psnr"] == pytest.approx(direct["psnr"])
+    assert 15 < direct["psnr"] < 40
+
+
+def test_ssdgs_scores_against_the_official_truncated_ground_truth(scene, tmp_path):
+    frame = load_scene(scene).split("test")[0]
+    official = official_ground_truth(frame, "nrhints")
+    rgb, _ = get_protocol("ssdgs").load_ground_truth(frame, "nrhints")
+    np.testing.assert_array_equal(rgb, official)
+    rgb_v1, _ = get_protocol("olatbench-v1").load_ground_truth(frame, "nrhints")
+    assert not np.array_equal(rgb_v1, official)  # rounding vs the loader's truncation
+
+
+def test_masked_protocol_uses_alpha(scene, tmp_path):
+    write_predictions(scene, tmp_path / "pred", noise=0.05)
+    result = evaluate_folder(tmp_path / "pred", scene, "test", get_protocol("olatbench-v1-masked"))
+    assert result["metrics"]["test"]["mean"]["psnr"] < 100
+
+
+def test_cli_refuses_missing_extra_corrupt_and_overwrite(scene, tmp_path):
+    runner = CliRunner()
+    pred = tmp_path / "pred"
+    ids = write_predictions(scene, pred)
+    out = tmp_path / "res.json"
+    args = [str(pred), "--gt", str(scene), "-o", str(out), "--protocol", "nrhints"]
+    ok = runner.invoke(evaluate, args)
+    assert ok.exit_code == 0, ok.output
+    assert "nrhints v1, test, 3 images" in ok.output and out.is_file()
+    first = out.read_bytes()
+    again = runner.invoke(evaluate, args)
+    assert again.exit_code != 0 and "--overwrite" in again.output
+    (pred / "999.png").write_bytes((pred / f"{ids[0]}.png").read_bytes())
+    extra = runner.invoke(evaluate, [*args, "--overwrite"])
+    assert extra.exit_code != 0 and "999.png" in extra.output and "Traceback" not in extra.output
+    assert runner.invoke(evaluate, [*args, "--overwrite", "--allow-extra"]).exit_code == 0
+    first = out.read_bytes()
+    (pred / "999.png").unlink()
+    (pred / f"{ids[1]}.png").write_bytes(b"\x89PNG not really")
+    corrupt = runner.invoke(evaluate, [*args, "--overwrite"])
+    assert corrupt.exit_code != 0 and f"frame {ids[1]}" in corrupt.output and f"{ids[1]}.png" in corrupt.output
+    (pred / f"{ids[1]}.png").unlink()
+    missing = runner.invoke(evaluate, [*args, "--overwrite"])
+    assert missing.exit_code != 0 and f"missing predictions for frames (1): {ids[1]}" in missing.output
+    assert out.read_bytes() == first  # failed runs leave the result untouched
+
+
+def test_cli_require_lpips_without_weights(scene, tmp_path, monkeypatch):
+    from olatbench.metrics.lpips import get_network
+
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+    monkeypatch.setenv("TORCH_HOME", str(tmp_path / "torch"))
+    monkeypatch.delenv("OLATBENCH_WEIGHTS_DIR", raising=False)
+    monkeypatch.setattr("olatbench.metrics.weights._package_dir", lambda name: None)
+    get_network.cache_clear()
+    try:
+        write_predictions(scene, tmp_path / "pred")
+        result = CliRunner().invoke(evaluate, [str(tmp_path / "pred"), "--gt", str(scene), "--require", "lpips"])
+        assert result.exit_code != 0 and "olatbench weights install" in result.output
+        shown = CliRunner().invoke(where, [])
+        assert "not found" in shown.output and "olatbench weights install" in shown.output
+    finally:
+        get_network.cache_clear()
+
+
+def test_metrics_list_and_explain():
+    runner = CliRunner()
+    listing = runner.invoke(list_protocols, [])
+    assert "olatbench-v1" in listing.output and "ssdgs" in listing.output
+    text = runner.invoke(explain, ["ssdgs"])
+    assert text.exit_code == 0 and "ZERO padding" in text.output
+    as_json = json.loads(runner.invoke(explain, ["nrhints", "--json"]).output)
+    assert as_json == get_protocol("nrhints").definition()
+    assert runner.invoke(explain, ["nope"]).exit_code != 0
