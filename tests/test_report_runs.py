@@ -16,6 +16,7 @@ from olatbench.bench.results import ResultsError, write_results
 from olatbench.cli import main
 from olatbench.reports.collect import COLUMNS, collect
 from olatbench.reports.latex import to_latex
+from olatbench.reports.output import render_tables
 from olatbench.reports.paper import paper_table
 from olatbench.reports.published import PAPER_TABLES
 from olatbench.reports.ranking import rank_table
@@ -230,11 +231,16 @@ def test_latex_output_is_balanced(tiny_runs):
 def test_latex_compiles_with_pdflatex(tmp_path, tiny_runs):
     if shutil.which("pdflatex") is None:
         pytest.skip("pdflatex is not installed on this machine; the balance test stands in for it")
-    source = tmp_path / "table.tex"
-    source.write_text(to_latex(paper_table("real"), standalone=True))
-    run = subprocess.run(["pdflatex", "-interaction=nonstopmode", "-halt-on-error", source.name], cwd=tmp_path,
-                         capture_output=True, text=True, timeout=120)
-    assert run.returncode == 0, run.stdout[-2000:]
+    write_run(tiny_runs, "ssdgs", "nrhints", "nrhints", "Cat", 0, metric_values(28.0))
+    tables = [paper_table(name) for name in PAPER_TABLES]
+    tables.append(rank_table(scene_table(collect(tiny_runs), suite="nrhints", average=True, published=True)))
+    for rules in ("hline", "booktabs"):
+        source = tmp_path / f"tables_{rules}.tex"
+        source.write_text(render_tables(tables, "latex", standalone=True, rules=rules))
+        run = subprocess.run(["pdflatex", "-interaction=nonstopmode", "-halt-on-error", source.name], cwd=tmp_path,
+                             capture_output=True, text=True, timeout=120)
+        assert run.returncode == 0, run.stdout[-2000:]
+        assert (tmp_path / f"tables_{rules}.pdf").stat().st_size > 1000
 
 
 def test_cli_report_formats(tiny_runs, tmp_path):

@@ -19,7 +19,8 @@ PACKAGES = ("[table]{xcolor}", "{colortbl}", "{multirow}", "{diagbox}", "{bookta
 
 _ESCAPES = {"\\": r"\textbackslash{}", "&": r"\&", "%": r"\%", "$": r"\$", "#": r"\#", "_": r"\_",
             "{": r"\{", "}": r"\}", "^": r"\^{}", "~": r"$\approx$", "↑": r"$\uparrow$", "↓": r"$\downarrow$",
-            "±": r"$\pm$", "–": "--", "—": "---", "≈": r"$\approx$", "<": r"$<$", ">": r"$>$", "Δ": r"$\Delta$"}
+            "±": r"$\pm$", "–": "--", "—": "---", "≈": r"$\approx$", "<": r"$<$", ">": r"$>$", "Δ": r"$\Delta$",
+            "−": r"$-$", "×": r"$\times$"}
 
 
 def latex_text(text: str) -> str:
