@@ -31,6 +31,7 @@ class TrivialConfig:
     noise: float = 0.01
     fail_at_step: int = -1  # raise in train_step at this step (failure-isolation tests)
     step_sleep: float = 0.0  # seconds per step (kill tests)
+    interrupt_at_step: int = -1  # raise KeyboardInterrupt at this step (an in-process Ctrl-C)
 
 
 class TrivialMethod(Method):
@@ -61,6 +62,8 @@ class TrivialMethod(Method):
     def train_step(self, step: int) -> dict[str, float]:
         if step == self.config.fail_at_step:
             raise RuntimeError(f"injected failure at step {step}")
+        if step == self.config.interrupt_at_step:
+            raise KeyboardInterrupt
         if self.config.step_sleep:
             time.sleep(self.config.step_sleep)
         index = int(torch.randint(len(self.images), (1,)).item())

@@ -98,11 +98,14 @@ def resolve_data_root(suite: Suite, data_root: str | Path | None, scenes: Sequen
                       generate: bool = True, progress: bool = True) -> Path | None:
     """The folder holding the suite's scene folders.
 
-    ``data_root`` (or ``$OLATBENCH_DATA``) is used as given for suites without a generator. A suite
-    with a ``generator`` (``mini``) creates its data there on first use, or in its default cache when
-    no root is given. Returns None when the data is missing and ``generate`` is False (dry runs).
+    Suites without a generator use ``data_root``, else ``$OLATBENCH_DATA``. A suite with a
+    ``generator`` (``mini``) ignores ``$OLATBENCH_DATA`` (which points at real data) and creates its
+    data on first use in ``data_root`` when given, else in the generator's default cache. Returns
+    None when the data is missing and ``generate`` is False (dry runs).
     """
-    root = data_root if data_root is not None else os.environ.get(DATA_ENV)
+    root = data_root
+    if root is None and suite.generator is None:
+        root = os.environ.get(DATA_ENV)
     if suite.generator is None:
         if root is None:
             raise PlanError(f"suite '{suite.name}' needs its data: pass --data-root or set {DATA_ENV}. "

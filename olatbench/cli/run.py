@@ -81,8 +81,8 @@ def _metric(metrics: dict, key: str) -> str:
 @click.option("--seeds", default=1, show_default=True, help="Seeds 0…N-1 per scene and variant.")
 @click.option("--iterations", type=int, help="Training iterations (the method scales its schedule).")
 @click.option("--resolution", help="Image size WIDTHxHEIGHT (default: the suite's, else native).")
-@click.option("--data-root", type=click.Path(file_okay=False, path_type=Path), envvar="OLATBENCH_DATA",
-              help="Folder holding the suite's scene folders [env OLATBENCH_DATA].")
+@click.option("--data-root", type=click.Path(file_okay=False, path_type=Path),
+              help="Folder holding the suite's scene folders (default: $OLATBENCH_DATA; mini: its cache).")
 @click.option("--out", "-o", default=Path("runs"), show_default=True, type=click.Path(file_okay=False, path_type=Path),
               help="Output root of the run folders.")
 @click.option("--device", default="auto", show_default=True, help="torch device: auto, cpu, cuda, cuda:1, ...")
