@@ -101,8 +101,10 @@ class ToyRelight(Method):
         super().__init__(config)
         self.gain = torch.tensor(0.0)
 
-    def setup(self, train, device, seed) -> None:  # pragma: no cover - the sweep never trains
-        raise AssertionError("rendering a sweep must not call setup()")
+    def setup(self, train, device, seed) -> None:
+        """As in the runner, `setup` sees the training views before the checkpoint is loaded."""
+        assert len(train) == 6 and train.images.shape == (6, 12, 16, 3)
+        self.gain = torch.tensor(-1.0)  # overwritten by the checkpoint
 
     def train_step(self, step):  # pragma: no cover
         raise AssertionError("rendering a sweep must not train")
@@ -126,9 +128,11 @@ def make_job(tmp_path: Path) -> Path:
     write_nrhints_tree(scene, n_train=6, n_test=2, size=(16, 12))
     folder = tmp_path / "runs" / "nrhints" / "toy-relight" / "default" / "Toy" / "seed0"
     folder.mkdir(parents=True)
-    job = {"id": "job123", "method": "toy-relight", "variant": "default", "suite": "nrhints", "scene": "Toy",
-           "seed": 0, "config": {"iterations": 1}, "scene_path": str(scene), "scene_format": "nrhints",
-           "colourspace": "srgb", "resolution": None, "train_split": "train", "test_split": "test"}
+    job = {"id": "job123", "method": "toy-relight", "method_ref": "test_render_sweep:ToyRelight", "variant": "default",
+           "suite": "nrhints", "scene": "Toy", "seed": 0, "config": {"iterations": 1}, "scene_path": str(scene),
+           "scene_format": "nrhints", "colourspace": "srgb", "resolution": None, "train_split": "train",
+           "test_split": "test", "protocol": "olatbench-v1", "protocol_version": 1, "data_manifest": None,
+           "code": "x", "folder": "", "device": "cpu"}
     (folder / "job.json").write_text(json.dumps(job))
     save_checkpoint(folder, 1, {"gain": torch.tensor(1.0)}, "job123", train_seconds=1.0)
     return folder

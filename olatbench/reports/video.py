@@ -1,10 +1,11 @@
 """Render a relighting sweep of a finished job to an MP4 and a folder of PNG frames.
 
 The method is rebuilt through the registry (`olatbench.methods.registry.get_method`) from the
-job's ``method`` and ``config``, its state read from the newest checkpoint with
-``torch.load(weights_only=True)`` (`olatbench.bench.checkpoints.load_checkpoint`), then
-``method.render(camera, light)`` draws each frame. Renders are converted from the job's colour space
-to sRGB and written as 8-bit PNGs (``frames/00000.png`` …) and an ``mp4v`` MP4 (OpenCV).
+job's ``method`` and ``config``, set up on the job's training views exactly as the runner does, its
+state read from the newest checkpoint with ``torch.load(weights_only=True)``
+(`olatbench.bench.checkpoints.load_checkpoint`), then ``method.render(camera, light)`` draws each
+frame. Renders are converted from the job's colour space to sRGB and written as 8-bit PNGs
+(``<sweep>_frames/00000.png`` …) and an ``mp4v`` MP4 (OpenCV).
 """
 
 from __future__ import annotations
@@ -31,9 +32,17 @@ class SweepOutput:
     frames: int
 
 
-def load_trained_method(job: JobFolder, device: str = "cpu"):
-    """The job's method with its newest checkpoint restored (``weights_only=True``)."""
+def load_trained_method(job: JobFolder, device: str = "cpu", progress: bool = True):
+    """The job's method, set up on its training views and restored from the newest checkpoint.
+
+    As in the runner, ``setup`` runs first (methods such as SSD-GS size their per-view refinements from
+    the training views), then ``load_state_dict`` with the checkpoint read with ``weights_only=True``.
+    """
+    import dataclasses
+
     from olatbench.bench.checkpoints import list_checkpoints, load_checkpoint
+    from olatbench.bench.execute import load_views
+    from olatbench.bench.jobs import Job
     from olatbench.methods.registry import get_method
 
     checkpoints = list_checkpoints(job.folder)
@@ -44,11 +53,20 @@ def load_trained_method(job: JobFolder, device: str = "cpu"):
         method_class = get_method(job.job["method"])
     except KeyError as error:
         raise JobFolderError(str(error.args[0])) from None
+    names = {field.name for field in dataclasses.fields(Job)}
+    values = {key: value for key, value in job.job.items() if key in names}
+    values["resolution"] = job.resolution
+    values["device"] = device
+    try:
+        runner_job = Job(**values)
+    except TypeError as error:
+        raise JobFolderError(f"{job.folder / 'job.json'}: not a job written by this olatbench ({error})") from None
+    scene = job.load_scene()
+    views = load_views(scene.split(runner_job.train_split), runner_job, progress=progress, position=0)
     method = method_class(method_class.resolve_config(None, **job.job["config"]))
+    method.setup(views, device, int(job.job["seed"]))
     payload = load_checkpoint(checkpoints[-1][1], job.job["id"])
     method.load_state_dict(payload["method"])
-    if hasattr(method, "to") and callable(method.to):
-        method.to(device)
     return method
 
 
@@ -88,7 +106,7 @@ def render_sweep(job: JobFolder, kind: str, out_dir: str | Path, *, count: int |
 
     out_dir = Path(out_dir)
     frames = frames if frames is not None else sweep_frames(job, kind, frame_id, count, resolution)
-    method = method if method is not None else load_trained_method(job, device)
+    method = method if method is not None else load_trained_method(job, device, progress)
     frames_dir = out_dir / f"{kind}_frames"
     frames_dir.mkdir(parents=True, exist_ok=True)
     video_path = out_dir / f"{kind}.mp4"
