@@ -77,9 +77,12 @@ def composite(rgb: np.ndarray, alpha: np.ndarray, background: np.ndarray | float
     rgb = np.asarray(rgb, dtype=np.float32)
     a = np.asarray(alpha, dtype=np.float32)[..., None]
     bg = np.asarray(background, dtype=np.float32)
-    out = rgb * a if mode == "straight" else rgb.copy()
-    if np.any(bg):  # a black background adds nothing
-        out += bg * (1.0 - a)
+    if not np.any(bg):  # a black background adds nothing
+        return rgb * a if mode == "straight" else rgb.copy()
+    if bg.ndim == 0:
+        bg = np.full(rgb.shape[-1], bg, dtype=np.float32)
+    out = np.multiply(1.0 - a, bg, dtype=np.float32)  # the background's share, full size
+    out += rgb * a if mode == "straight" else rgb
     return out
 
 
