@@ -235,3 +235,17 @@ def test_methods_cli_lists_and_shows_presets():
     assert "iterations" in shown.output and "ablation-A: lr=0.01" in shown.output
     missing = runner.invoke(main, ["methods", "show", "nope"])
     assert missing.exit_code == 1 and "olatbench methods list" in missing.output
+
+
+def test_a_job_running_elsewhere_is_skipped_not_touched(data, tmp_path):
+    from olatbench.bench.store import job_lock
+
+    job = plan(data, tmp_path / "runs", scenes=["Alpha"])[0]
+    with job_lock(job.folder) as acquired:  # another process (here: another open file) runs the job
+        assert acquired
+        outcome = run_job(job, progress=False)
+        assert outcome.status == "skipped" and "another process" in outcome.error
+        assert job_state(job.folder).state == "running"
+    assert not (Path(job.folder) / "results.json").exists()
+    assert run_job(job, progress=False).status == "done"
+    assert job_state(job.folder, job.id).state == "done"

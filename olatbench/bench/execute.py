@@ -38,7 +38,7 @@ from olatbench.bench.checkpoints import (
 from olatbench.bench.jobs import Job, hash_json
 from olatbench.bench.plan import load_method_class
 from olatbench.bench.results import SCHEMA_VERSION, write_results
-from olatbench.bench.store import DONE_FILE, ERROR_FILE, JOB_FILE, RESULTS_FILE
+from olatbench.bench.store import DONE_FILE, ERROR_FILE, JOB_FILE, RESULTS_FILE, job_lock
 from olatbench.datasets import colour, load_scene
 from olatbench.datasets.formats._common import safe_file_stem
 from olatbench.datasets.images import write_image
@@ -79,19 +79,23 @@ class JobLog:
 def run_job(job: Job, progress: bool = True, position: int = 1) -> JobOutcome:
     """Run ``job`` to completion; a failure is recorded in the folder and returned, never raised.
 
-    ``KeyboardInterrupt`` is not a failure: the job stays partial and resumes on the next run.
+    ``KeyboardInterrupt`` is not a failure: the job stays partial and resumes on the next run. A job
+    whose folder is locked by another process (running elsewhere) is returned as ``skipped``.
     """
     folder = Path(job.folder)
     folder.mkdir(parents=True, exist_ok=True)
     log = JobLog(folder)
-    try:
-        return _run(job, folder, log, progress, position)
-    except Exception as error:
-        text = traceback.format_exc()
-        write_text(folder / ERROR_FILE, text)
-        log(f"FAILED: {type(error).__name__}: {error}")
-        write_results(folder / RESULTS_FILE, _failed_results(job, error))
-        return JobOutcome(job.id, job.label, str(folder), "failed", error=f"{type(error).__name__}: {error}")
+    with job_lock(folder) as acquired:
+        if not acquired:
+            return JobOutcome(job.id, job.label, str(folder), "skipped", error="running in another process")
+        try:
+            return _run(job, folder, log, progress, position)
+        except Exception as error:
+            text = traceback.format_exc()
+            write_text(folder / ERROR_FILE, text)
+            log(f"FAILED: {type(error).__name__}: {error}")
+            write_results(folder / RESULTS_FILE, _failed_results(job, error))
+            return JobOutcome(job.id, job.label, str(folder), "failed", error=f"{type(error).__name__}: {error}")
 
 
 def _run(job: Job, folder: Path, log: JobLog, progress: bool, position: int) -> JobOutcome:

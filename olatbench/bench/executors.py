@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import multiprocessing
 import os
+import sys
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
@@ -50,8 +51,8 @@ def _worker(job: Job, slots, progress: bool, threads: int) -> JobOutcome:
 
 def run_local(jobs: Sequence[Job], workers: int, progress: bool = True, on_outcome: OnOutcome | None = None
               ) -> list[JobOutcome]:
-    """Run the jobs in ``workers`` spawned processes, a fresh one per job (honest peak memory, isolation
-    from crashes); torch threads are shared out between the workers."""
+    """Run the jobs in ``workers`` spawned processes, a fresh one per job on Python ≥ 3.11 (honest peak
+    memory, isolation from crashes); torch threads are shared out between the workers."""
     context = multiprocessing.get_context("spawn")
     threads = max(1, (os.cpu_count() or 1) // workers)
     outcomes: dict[int, JobOutcome] = {}
@@ -59,7 +60,8 @@ def run_local(jobs: Sequence[Job], workers: int, progress: bool = True, on_outco
         slots = manager.Queue()
         for slot in range(1, workers + 1):
             slots.put(slot)
-        with ProcessPoolExecutor(max_workers=workers, mp_context=context, max_tasks_per_child=1) as pool, \
+        fresh = {"max_tasks_per_child": 1} if sys.version_info >= (3, 11) else {}
+        with ProcessPoolExecutor(max_workers=workers, mp_context=context, **fresh) as pool, \
                 tqdm(total=len(jobs), desc="jobs", position=0, disable=not progress, unit="job") as bar:
             futures = {pool.submit(_worker, job, slots, progress, threads): index for index, job in enumerate(jobs)}
             try:

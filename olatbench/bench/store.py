@@ -9,6 +9,8 @@ and a ``results.json`` with ``status: "failed"``.
 from __future__ import annotations
 
 import json
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -19,6 +21,7 @@ JOB_FILE = "job.json"
 DONE_FILE = "DONE"
 RESULTS_FILE = "results.json"
 ERROR_FILE = "error.txt"
+LOCK_FILE = ".lock"
 
 
 def job_folder(out: str | Path, suite: str, method: str, variant: str, scene: str, seed: int) -> Path:
@@ -35,9 +38,9 @@ def find_results(runs_root: str | Path) -> list[Path]:
 class JobState:
     """State of one job folder.
 
-    ``state``: ``done`` (DONE matches the job id), ``failed``, ``partial`` (checkpoint at ``step`` of
-    ``iterations``), ``pending`` (planned, nothing trained yet), ``stale`` (the folder holds another
-    job id than the one asked for) or ``absent`` (no folder).
+    ``state``: ``done`` (DONE matches the job id), ``running`` (another process holds the job's lock),
+    ``failed``, ``partial`` (checkpoint at ``step`` of ``iterations``), ``pending`` (planned, nothing
+    trained yet), ``stale`` (the folder holds another job id than the one asked for) or ``absent``.
     """
 
     folder: Path
@@ -73,6 +76,8 @@ def job_state(folder: str | Path, expected_id: str | None = None) -> JobState:
         return JobState(folder, "done", job_id, step=iterations, iterations=iterations)
     checkpoints = list_checkpoints(folder)
     step = checkpoints[-1][0] if checkpoints else None
+    if is_locked(folder):
+        return JobState(folder, "running", job_id, step=step, iterations=iterations)
     if (folder / ERROR_FILE).is_file():
         first_line = _last_line(folder / ERROR_FILE)
         return JobState(folder, "failed", job_id, step=step, iterations=iterations, message=first_line)
@@ -89,3 +94,35 @@ def _last_line(path: Path) -> str:
 def scan_runs(runs_root: str | Path) -> list[JobState]:
     """The state of every job folder (a folder with job.json) below ``runs_root``."""
     return [job_state(path.parent) for path in sorted(Path(runs_root).rglob(JOB_FILE))]
+
+
+@contextmanager
+def job_lock(folder: str | Path) -> Iterator[bool]:
+    """Hold an exclusive advisory lock (``flock``) on the job folder; yields False when another process
+    holds it. The kernel releases it when the process dies (even by SIGKILL), so no lock goes stale.
+    Without ``fcntl`` (Windows) this always yields True."""
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover - non-POSIX
+        yield True
+        return
+    path = Path(folder) / LOCK_FILE
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path, "a") as handle:
+        try:
+            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            yield False
+            return
+        try:
+            yield True
+        finally:
+            fcntl.flock(handle, fcntl.LOCK_UN)
+
+
+def is_locked(folder: str | Path) -> bool:
+    """True when another process is running the job in ``folder`` (holds its lock)."""
+    if not (Path(folder) / LOCK_FILE).is_file():
+        return False
+    with job_lock(folder) as acquired:
+        return not acquired

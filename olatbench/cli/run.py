@@ -150,27 +150,33 @@ def run(method, suite, scenes, variants, ablation, seeds, iterations, resolution
         raise click.ClickException(f"{len(stale)} job folder(s) hold results of a different job (config, data or "
                                    f"code changed):\n  {listing}\nRerun with --force to replace them, or choose "
                                    f"another --out.")
-    to_run, skipped = [], []
+    to_run, skipped, running = [], [], []
     for job, state in zip(jobs, states, strict=True):
         if state.state == "done" and not force:
             skipped.append(job)
+            continue
+        if state.state == "running":
+            running.append(job)
             continue
         if force and state.state != "absent":
             shutil.rmtree(job.folder)
         to_run.append(job)
     _write_pending(to_run)
-    click.echo(f"{len(jobs)} job(s): {len(skipped)} already done, {len(to_run)} to run "
+    busy = f", {len(running)} running in another process" if running else ""
+    click.echo(f"{len(jobs)} job(s): {len(skipped)} already done{busy}, {len(to_run)} to run "
                f"({executor}, device {options.device}) -> {out}", err=True)
     if not to_run:
         _print_summary(jobs, out)
         return
 
     def report(outcome) -> None:
-        if outcome.status == "failed":
-            from tqdm.auto import tqdm
+        from tqdm.auto import tqdm
 
+        if outcome.status == "failed":
             tqdm.write(f"FAILED {outcome.label}: {outcome.error} (see {Path(outcome.folder) / 'error.txt'})",
                        file=sys.stderr)
+        elif outcome.status == "skipped":
+            tqdm.write(f"skipped {outcome.label}: {outcome.error}", file=sys.stderr)
 
     if executor == "slurm":
         from olatbench.bench.executors import SlurmOptions, submit_slurm, wait_slurm
