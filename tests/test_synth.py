@@ -55,7 +55,7 @@ def test_opencv_to_mitsuba_axes_flip_x_and_y():
     assert np.allclose(to_world[:3, 1], -c2w[:3, 1])    # Mitsuba y = up
 
 
-@pytest.mark.parametrize("fmt", ["nrhints", "gs3"])
+@pytest.mark.parametrize("fmt", ["nrhints", "gs3", "sssgs"])
 def test_generated_scene_loads_back_with_the_rendered_cameras_and_lights(tmp_path, fmt):
     recipe = tiny("diffuse_shadow", shape="blob", resolution=(32, 32), novel_views=True)
     generate(recipe, tmp_path / "scene", fmt, progress=False)

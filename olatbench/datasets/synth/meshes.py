@@ -134,7 +134,7 @@ def rounded_box(resolution: int = 64, half_extents: tuple[float, float, float] =
     return _grid_mesh(directions * (0.5 * (low + high))[..., None], uvs)
 
 
-def torus(resolution: int = 48, major: float = 1.0, minor: float = 0.4) -> TriangleMesh:
+def torus(resolution: int = 48, major: float = 1.0, minor: float = 0.45) -> TriangleMesh:
     """A torus around the z axis; u runs along the major circle (the anisotropy direction of a
     brushed-metal BSDF), v around the tube."""
     u = np.linspace(0.0, 2.0 * np.pi, 2 * resolution + 1)

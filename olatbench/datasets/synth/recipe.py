@@ -162,7 +162,7 @@ RECIPES: dict[str, Recipe] = {
         material=Material(kind="diffuse", albedo=(0.75, 0.45, 0.2), texture="checker", texture_scale=8.0)),
     "aniso_metal": Recipe(
         name="aniso_metal", shape="torus", max_depth=2,
-        material=Material(kind="roughconductor", conductor="Cu", alpha_u=0.04, alpha_v=0.35)),
+        material=Material(kind="roughconductor", conductor="Cu", alpha_u=0.06, alpha_v=0.4)),
     "translucent": Recipe(
         name="translucent", shape="rounded_box", spp=128, max_depth=32,
         material=Material(kind="translucent", albedo=(0.95, 0.85, 0.7), sigma_t=4.0, g=0.3)),

@@ -95,7 +95,8 @@ class SceneRenderer:
                                     "light": {"type": "point", "position": [0.0, 0.0, 10.0],
                                               "intensity": _rgb(recipe.lights.intensity)}})
         self._light_params = mi.traverse(self._scene)
-        self._object_only = mi.load_dict({"type": "scene", "object": shapes["object"]})
+        self._object_only = mi.load_dict({"type": "scene",
+                                          "object": _mitsuba_mesh(self.mesh, {"type": "diffuse"}, None)})
         self._geometry_integrator = mi.load_dict({"type": "aov", "aovs": "n:sh_normal,p:position",
                                                   "integrator": {"type": "depth"}})
 
