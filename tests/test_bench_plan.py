@@ -46,6 +46,11 @@ def test_config_resolution_order():
     config = resolve_config(Trivial, tiny, "ablation-C")
     assert (config.iterations, config.lr) == (12, pytest.approx(0.03))  # variant on top of the suite preset
     assert resolve_config(Trivial, tiny, "ablation-C", iterations=5).iterations == 5  # overrides last
+    combined = resolve_config(Trivial, tiny, "ablation-C+schedule-I")
+    assert (combined.lr, combined.noise) == (pytest.approx(0.03), pytest.approx(0.002))
+    assert expand_variants(Trivial, ["ablation-C+schedule-I"]) == ["ablation-C+schedule-I"]
+    with pytest.raises(PlanError, match="no preset schedule-Z"):
+        expand_variants(Trivial, ["ablation-C+schedule-Z"])
 
 
 def test_ablation_plan_has_one_job_per_scene_variant_and_seed(tmp_path):

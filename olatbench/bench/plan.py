@@ -2,7 +2,8 @@
 
 Config resolution order for one job (later wins): the method config's defaults, the suite's
 ``iterations``, the method's preset named after the suite (when it has one), the variant's preset,
-then explicit overrides (``--iterations``). The variant ``default`` applies no variant preset.
+then explicit overrides (``--iterations``). The variant ``default`` applies no variant preset; a variant
+``a+b`` applies the presets ``a`` then ``b``.
 """
 
 from __future__ import annotations
@@ -49,7 +50,7 @@ def expand_variants(method_class: type[Method], variants: Sequence[str] = (), ab
                     ) -> list[str]:
     """The variant names of a plan: ``variants`` then the ablation grid, deduplicated, checked.
 
-    No variant and no ablation gives ``["default"]``.
+    No variant and no ablation gives ``["default"]``; ``"a+b"`` names a combination of presets.
     """
     names = list(variants)
     if ablation is not None:
@@ -57,7 +58,8 @@ def expand_variants(method_class: type[Method], variants: Sequence[str] = (), ab
             raise PlanError(f"unknown ablation '{ablation}'; choose one of {', '.join(ABLATIONS)}")
         names += ABLATIONS[ablation]
     names = list(dict.fromkeys(names or [DEFAULT_VARIANT]))
-    missing = [name for name in names if name != DEFAULT_VARIANT and name not in method_class.presets]
+    missing = [part for name in names if name != DEFAULT_VARIANT for part in name.split("+")
+               if part not in method_class.presets]
     if missing:
         known = ", ".join(sorted(method_class.presets)) or "none"
         raise PlanError(f"method '{method_class.name}' has no preset {', '.join(missing)}; its presets: {known}. "
@@ -75,7 +77,8 @@ def resolve_config(method_class: type[Method], suite: Suite, variant: str = DEFA
     if suite.name in method_class.presets:
         values.update(method_class.presets[suite.name])
     if variant != DEFAULT_VARIANT:
-        values.update(method_class.presets[variant])
+        for part in variant.split("+"):
+            values.update(method_class.presets[part])
     if iterations is not None:
         values["iterations"] = int(iterations)
     return method_class.resolve_config(None, **values)
