@@ -156,7 +156,7 @@ class Frame:
         elif alpha is not None and self.alpha_mode == "premultiplied":
             rgb = colour.unpremultiply(rgb, alpha)
         rgb = colour.convert_colourspace(rgb, self.colourspace, target)
-        return LoadedImage(rgb=rgb.astype(np.float32), alpha=alpha, colourspace=target)
+        return LoadedImage(rgb=rgb.astype(np.float32, copy=False), alpha=alpha, colourspace=target)
 
 
 @dataclass(eq=False)
