@@ -110,6 +110,8 @@ def test_scene_table_means_marks_and_footnotes(tiny_runs):
     # the average is the plain mean of the per-scene cells
     ssdgs = [table.cell("PSNR ↑", ("ssdgs",), f"{s}/Test").number for s in SCENES]
     assert table.cell("PSNR ↑", ("ssdgs",), "Average/Test").number == pytest.approx(np.mean(ssdgs))
+    assert table.cell("PSNR ↑", ("ssdgs",), "Average/Test").marks == ("c",)  # includes the partial seed mean
+    assert table.cell("PSNR ↑", ("gs3",), "Average/Test").marks == ()
     # ranking: ssdgs 30.5 > gs3 29 > rng 25 on diffuse_shadow Test; lower-is-better LPIPS: gs3 0.05 best
     assert table.cell("PSNR ↑", ("ssdgs",), "diffuse_shadow/Test").rank == 1
     assert table.cell("PSNR ↑", ("gs3",), "diffuse_shadow/Test").rank == 2

@@ -34,7 +34,7 @@ from olatbench.reports.published import VARIANT_LABELS, lookup, normalise_name, 
 NOTE_TEXTS = {
     "a": "the run failed (see the failures listed below and the job's error.txt)",
     "b": "no run found for this cell",
-    "c": "mean over the finished seeds only (others failed or are missing)",
+    "c": "mean over the finished seeds only (others failed or are missing); an average marked c includes such a scene",
     "d": "average not computed: at least one scene has no value",
     "e": "the run did not compute this metric (null in results.json, e.g. LPIPS weights missing)",
 }
@@ -150,21 +150,28 @@ class RunCells:
             if done.empty:
                 return Cell(None, marks=mark("a"))
             return Cell(None, marks=mark("e" if not values.empty else "b"))
-        complete = set(values.loc[numbers.index, "seed"]) >= set(self.seeds[row])
+        complete = self._complete(row, scene, split, metric)
         std = float(numbers.std(ddof=0)) if with_std and len(numbers) > 1 else None
         return Cell(float(numbers.mean()), std=std, marks=() if complete else mark("c"))
 
     def average(self, row: str, scenes: Sequence[str], split: str, metric: str, with_std: bool = False) -> Cell:
         """Mean (± population std) over scenes of the per-scene means; "—" unless every scene has a value."""
-        numbers = []
+        numbers, partial = [], False
         for scene in scenes:
             cell = self.cell(row, scene, split, metric, note=False)
             if cell.number is None:
                 return Cell(None, marks=self.notes.mark("d"))
             numbers.append(cell.number)
+            partial |= not self._complete(row, scene, split, metric)
         mean = sum(numbers) / len(numbers)
         std = math.sqrt(sum((n - mean) ** 2 for n in numbers) / len(numbers)) if with_std else None
-        return Cell(mean, std=std)
+        return Cell(mean, std=std, marks=self.notes.mark("c") if partial else ())
+
+    def _complete(self, row: str, scene: str, split: str, metric: str) -> bool:
+        """Whether every seed of the row has a value for this scene (else the seed mean is partial)."""
+        jobs = self.jobs(row, scene)
+        values = jobs[(jobs["status"] == "done") & (jobs["split"] == split) & (jobs["metric"] == metric)]
+        return set(values.dropna(subset=["value"])["seed"]) >= set(self.seeds[row])
 
 
 def _protocol_line(frame: pd.DataFrame, suite: str, seeds: str) -> str:
@@ -260,7 +267,8 @@ def overview_table(frame: pd.DataFrame, *, suite: str | None = None, methods: Se
         fps.decimals = 1
         cells[(row, "Average", "-", "fps")] = fps
         time = run_cells.average(row, scenes, "-", "train_time")
-        cells[(row, "Average", "-", "train_time")] = Cell(_hours(time.number)) if time.number is not None else time
+        cells[(row, "Average", "-", "train_time")] = (Cell(_hours(time.number), marks=time.marks)
+                                                     if time.number is not None else time)
         devices = sorted(set(run_cells.frame[run_cells.frame["row"] == row]["device"]) - {""})
         cells[(row, "Average", "-", "gpu")] = Cell(", ".join(devices) or None)
     table = overview_layout(CellLookup(cells), run_cells.rows, splits, metrics, name=f"tab:{suite}-overview",
