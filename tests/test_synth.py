@@ -6,6 +6,7 @@ The fast path renders tiny images with ``scalar_rgb``; the full-size mini recipe
 from __future__ import annotations
 
 import dataclasses
+import json
 
 import numpy as np
 import pytest
@@ -21,7 +22,7 @@ from olatbench.datasets.synth.geometry import read_geometry
 from olatbench.datasets.synth.mini import MANIFEST, ensure_mini_suite, file_hashes, scene_is_valid
 from olatbench.datasets.synth.recipe import RECIPES, CameraRig, Recipe
 from olatbench.datasets.synth.render import SceneRenderer, object_mesh
-from olatbench.datasets.synth.rigs import OBJECT_CENTRE, make_rig
+from olatbench.datasets.synth.rigs import make_rig
 
 
 @pytest.fixture(autouse=True)
@@ -61,8 +62,10 @@ def test_generated_scene_loads_back_with_the_rendered_cameras_and_lights(tmp_pat
     generate(recipe, tmp_path / "scene", fmt, progress=False)
     scene = load_scene(tmp_path / "scene")
     assert scene.format == fmt
-    rig = make_rig(recipe)
     mesh = object_mesh(recipe)
+    rig = make_rig(recipe, mesh.bounding_sphere()[0])
+    recorded = json.loads((tmp_path / "scene" / "synth.json").read_text())
+    assert np.allclose(recorded["object_bounding_sphere"]["centre"], mesh.bounding_sphere()[0])
     for split in ("train", "test"):
         loaded = scene.split(split)
         assert len(loaded) == len(rig.frames[split])
@@ -90,7 +93,7 @@ def check_reprojection(camera: Camera, geometry: dict, mesh, ground_radius: floa
     towards = camera.position - vertices
     facing = np.einsum("ij,ij->i", mesh.normals[first], towards) / np.linalg.norm(towards, axis=1) > 0.3
     # the bounding-sphere centre lies inside the blob: it projects into the object mask
-    (u, v), = project_points(OBJECT_CENTRE[None], camera.K, camera.c2w)[0]
+    (u, v), = project_points(mesh.bounding_sphere()[0][None], camera.K, camera.c2w)[0]
     assert geometry["object"][int(v), int(u)] > 0.5
     rng = np.random.default_rng(0)
     angle, radius = rng.uniform(0, 2 * np.pi, 400), ground_radius * np.sqrt(rng.uniform(0.3, 0.8, 400))
@@ -231,7 +234,7 @@ def test_mini_recipes_fill_the_frame_and_are_well_exposed(name):
     """Full-size mini frames: the object covers a good part of the image and is neither black nor clipped."""
     recipe = RECIPES[name]
     renderer = SceneRenderer(recipe)
-    rig = make_rig(recipe)
+    rig = make_rig(recipe, renderer.mesh.bounding_sphere()[0])
     for index in (0, 37, 71):
         camera, light = rig.frames["train"][index]
         image = renderer.render(camera, light, seed=index)

@@ -12,7 +12,7 @@ import pytest
 from olatbench.datasets.cameras import project_points
 from olatbench.datasets.synth import meshes
 from olatbench.datasets.synth.recipe import RECIPES, Recipe, get_recipe
-from olatbench.datasets.synth.rigs import OBJECT_CENTRE, band_directions, make_rig
+from olatbench.datasets.synth.rigs import band_directions, make_rig
 
 
 def signed_volume(mesh: meshes.TriangleMesh) -> float:
@@ -87,7 +87,8 @@ def test_band_directions_cover_the_band_evenly():
 @pytest.mark.parametrize("novel_views", [False, True])
 def test_rig_lights_are_disjoint_cameras_look_at_the_object(novel_views):
     recipe = RECIPES["diffuse_shadow"].with_overrides(train=30, test=8, novel_views=novel_views)
-    rig = make_rig(recipe)
+    centre = np.array([0.0, 0.0, 0.6])
+    rig = make_rig(recipe, centre)
     train, test = rig.frames["train"], rig.frames["test"]
     assert (len(train), len(test)) == (30, 8)
     train_lights = np.array([light.position for _, light in train])
@@ -95,14 +96,14 @@ def test_rig_lights_are_disjoint_cameras_look_at_the_object(novel_views):
     gaps = np.linalg.norm(test_lights[:, None] - train_lights[None], axis=-1)
     assert gaps.min() > 0.1  # every test light is new
     for camera, light in train + test:
-        uv, depth = project_points(OBJECT_CENTRE[None], camera.K, camera.c2w)
+        uv, depth = project_points(centre[None], camera.K, camera.c2w)
         assert np.allclose(uv[0], [camera.width / 2, camera.height / 2])
         assert depth[0] == pytest.approx(recipe.cameras.radius)
         assert np.linalg.norm(light.position - camera.position) > camera.near
     train_positions = {tuple(np.round(camera.position, 9)) for camera, _ in train}
     seen = [tuple(np.round(camera.position, 9)) in train_positions for camera, _ in test]
     assert all(seen) != novel_views and (any(seen) != novel_views)
-    again = make_rig(recipe)
+    again = make_rig(recipe, centre)
     assert np.array_equal(again.frames["test"][3][1].position, test[3][1].position)
 
 

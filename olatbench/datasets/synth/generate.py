@@ -24,7 +24,7 @@ from olatbench.datasets.synth.geometry import write_geometry
 from olatbench.datasets.synth.meshes import TriangleMesh
 from olatbench.datasets.synth.recipe import Recipe
 from olatbench.datasets.synth.render import SceneRenderer
-from olatbench.datasets.synth.rigs import OBJECT_CENTRE, make_rig
+from olatbench.datasets.synth.rigs import make_rig
 
 GENERATOR_VERSION = 1
 
@@ -47,11 +47,11 @@ def frame_seed(recipe: Recipe, index: int) -> int:
     return (recipe.seed * 1_000_003 + index) % (2**31)
 
 
-def synth_metadata(recipe: Recipe, variant: str) -> dict[str, Any]:
+def synth_metadata(recipe: Recipe, variant: str, centre: np.ndarray) -> dict[str, Any]:
     """What ``synth.json`` and ``Scene.metadata['synth']`` record about the generation."""
     return {"generator_version": GENERATOR_VERSION, "mitsuba_variant": variant,
             "mitsuba_version": mitsuba().__version__, "recipe": recipe.to_dict(),
-            "object_bounding_sphere": {"centre": OBJECT_CENTRE.tolist(), "radius": 1.0},
+            "object_bounding_sphere": {"centre": np.asarray(centre, dtype=float).tolist(), "radius": 1.0},
             "alpha": "coverage of the object and the ground disc (both foreground); background empty",
             "frame_seed": "(recipe.seed * 1000003 + frame index) mod 2^31, train frames first"}
 
@@ -63,7 +63,8 @@ def render_recipe(recipe: Recipe, root: Path | None = None, progress: bool = Tru
 
     renderer = SceneRenderer(recipe)
     variant = probe_variant()
-    rig = make_rig(recipe)
+    centre = renderer.mesh.bounding_sphere()[0]
+    rig = make_rig(recipe, centre)
     frames: dict[str, list[Frame]] = {}
     pixels: dict[tuple[str, str], np.ndarray] = {}
     passes: dict[tuple[str, str], dict[str, np.ndarray]] = {}
@@ -83,7 +84,7 @@ def render_recipe(recipe: Recipe, root: Path | None = None, progress: bool = Tru
                 index += 1
                 bar.update()
     scene = Scene(name=recipe.name, format="synth", root=Path(root) if root is not None else Path("."),
-                  frames=frames, background=np.zeros(3), metadata={"synth": synth_metadata(recipe, variant)})
+                  frames=frames, background=np.zeros(3), metadata={"synth": synth_metadata(recipe, variant, centre)})
     return RenderedScene(recipe, scene, pixels, passes, renderer.mesh, variant)
 
 

@@ -1,7 +1,8 @@
 """Scene recipes: everything that decides a synthetic OLAT scene, as plain frozen dataclasses.
 
-World frame: z is up, the object's bounding sphere has radius 1 and rests on the ground plane z = 0,
-so its centre is about (0, 0, 1). Distances are in these units. Light intensities are radiant
+World frame: z is up, the object's bounding sphere has radius 1 and the object rests on the ground
+plane z = 0, centred on the z axis; cameras and lights are placed around the bounding-sphere centre.
+Distances are in these units. Light intensities are radiant
 intensities (W/sr in Mitsuba's units): the irradiance at distance d is ``intensity / d²``.
 A recipe is serialisable to JSON (`Recipe.to_dict` / `Recipe.from_dict`) and built-in recipes are
 listed in `RECIPES`.
@@ -47,7 +48,7 @@ class Material:
 
 @dataclass(frozen=True)
 class CameraRig:
-    """Cameras on a spherical band around the object centre, looking at it.
+    """Cameras on a spherical band around the object's bounding-sphere centre, looking at it.
 
     ``radius``: distance to the bounding-sphere centre; ``elevation_deg``: (min, max) above the
     horizontal; ``fill``: fraction of the image width covered by the bounding sphere (sets the field

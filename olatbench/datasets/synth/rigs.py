@@ -16,8 +16,6 @@ from olatbench.datasets.cameras import intrinsics_from_fov, look_at
 from olatbench.datasets.records import Camera, PointLight
 from olatbench.datasets.synth.recipe import Recipe
 
-OBJECT_CENTRE = np.array([0.0, 0.0, 1.0])  # the bounding-sphere centre after `meshes.place_on_ground`
-
 
 def band_directions(count: int, elevation_deg: tuple[float, float], rng: np.random.Generator) -> np.ndarray:
     """``count`` unit vectors (count, 3) spread evenly over the band of elevations (degrees above z = 0)."""
@@ -38,11 +36,11 @@ def field_of_view(recipe: Recipe) -> float:
     return 2.0 * math.atan(math.tan(half_angle) / recipe.cameras.fill)
 
 
-def make_camera(position: np.ndarray, recipe: Recipe) -> Camera:
-    """An OpenCV camera at ``position`` looking at the object centre, world z up."""
+def make_camera(position: np.ndarray, target: np.ndarray, recipe: Recipe) -> Camera:
+    """An OpenCV camera at ``position`` looking at ``target``, world z up."""
     width, height = recipe.resolution
     K = intrinsics_from_fov(field_of_view(recipe), width, height)
-    return Camera(K=K, c2w=look_at(position, OBJECT_CENTRE, up=(0.0, 0.0, 1.0)), width=width, height=height,
+    return Camera(K=K, c2w=look_at(position, target, up=(0.0, 0.0, 1.0)), width=width, height=height,
                   near=recipe.cameras.near, far=recipe.cameras.far)
 
 
@@ -53,13 +51,15 @@ class Rig:
     frames: dict[str, list[tuple[Camera, PointLight]]]
 
 
-def make_rig(recipe: Recipe) -> Rig:
-    """Place the cameras and lights of ``recipe`` (deterministic in ``recipe.seed``)."""
+def make_rig(recipe: Recipe, centre: np.ndarray) -> Rig:
+    """Place the cameras and lights of ``recipe`` around ``centre`` (3,), the object's bounding-sphere centre
+    (radius 1); deterministic in ``recipe.seed``."""
+    centre = np.asarray(centre, dtype=np.float64)
     rng = np.random.default_rng(recipe.seed)
     n_train, n_test = recipe.train, recipe.test
-    train_cameras = OBJECT_CENTRE + recipe.cameras.radius * band_directions(n_train, recipe.cameras.elevation_deg,
+    train_cameras = centre + recipe.cameras.radius * band_directions(n_train, recipe.cameras.elevation_deg,
                                                                             rng)
-    lights = OBJECT_CENTRE + recipe.lights.radius * band_directions(n_train + n_test, recipe.lights.elevation_deg,
+    lights = centre + recipe.lights.radius * band_directions(n_train + n_test, recipe.lights.elevation_deg,
                                                                     rng)
     is_test = np.zeros(n_train + n_test, dtype=bool)
     if n_test:
@@ -68,7 +68,7 @@ def make_rig(recipe: Recipe) -> Rig:
     train_lights = train_lights[rng.permutation(n_train)]
     test_lights = test_lights[rng.permutation(n_test)]
     if recipe.novel_views:
-        test_cameras = OBJECT_CENTRE + recipe.cameras.radius * band_directions(
+        test_cameras = centre + recipe.cameras.radius * band_directions(
             n_test, recipe.cameras.elevation_deg, rng)
     else:
         test_cameras = train_cameras[rng.choice(n_train, size=n_test, replace=n_test > n_train)]
@@ -80,7 +80,8 @@ def make_rig(recipe: Recipe) -> Rig:
     intensity = np.asarray(recipe.lights.intensity, dtype=np.float64)
 
     def frames(cameras: np.ndarray, light_positions: np.ndarray) -> list[tuple[Camera, PointLight]]:
-        return [(make_camera(c, recipe), PointLight(position=p, intensity=intensity.copy(), intensity_known=True))
+        return [(make_camera(c, centre, recipe),
+                 PointLight(position=p, intensity=intensity.copy(), intensity_known=True))
                 for c, p in zip(cameras, light_positions, strict=True)]
 
     return Rig(frames={"train": frames(train_cameras, train_lights), "test": frames(test_cameras, test_lights)})
