@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 import torch
 
-from olatbench.metrics.lpips import get_network, lpips, lpips_nchw
+from olatbench.metrics.lpips import clear_caches, lpips, lpips_nchw
 from olatbench.metrics.lpips_net import LPIPSNet, tap_channels
 from olatbench.metrics.weights import (
     CHECKPOINTS,
@@ -198,9 +198,9 @@ def isolated_lookup(monkeypatch, tmp_path):
     monkeypatch.setenv("TORCH_HOME", str(tmp_path / "torch"))
     monkeypatch.delenv("OLATBENCH_WEIGHTS_DIR", raising=False)
     monkeypatch.setattr("olatbench.metrics.weights._package_dir", lambda name: None)
-    get_network.cache_clear()
+    clear_caches()
     yield tmp_path
-    get_network.cache_clear()
+    clear_caches()
 
 
 def test_no_weights_is_a_clear_error_never_random(isolated_lookup):
@@ -245,3 +245,45 @@ def test_lookup_order_env_then_cache_then_torchvision(isolated_lookup, monkeypat
     (explicit / "lpips_alex.pt").write_bytes(b"not a torch file")
     with pytest.raises(WeightsError, match=r"lpips_alex\.pt"):
         load_lpips_net("alex")
+
+
+# --- onnxruntime backend ------------------------------------------------------------------------------------------
+
+def _onnx_ready() -> bool:
+    from olatbench.metrics.lpips_onnx import exporter_available, onnxruntime_installed
+
+    return exporter_available() and onnxruntime_installed()
+
+
+needs_onnx = pytest.mark.skipif(not _onnx_ready(), reason="onnx export needs the 'onnx' and 'onnxruntime' packages")
+
+
+@needs_onnx
+def test_onnx_export_matches_torch_and_is_cached(tmp_path):
+    from olatbench.metrics.lpips_onnx import OnnxLPIPS
+
+    model = LPIPSNet("alex").load_lpips_state(seeded_state("alex", SEED, None))
+    path = tmp_path / "alex.onnx"
+    runner = OnnxLPIPS(model, path=path)
+    assert path.is_file()
+    a, b = images(SEED + 1, 3, 64, 48)
+    np.testing.assert_allclose(distances(runner, a, b, "unit"), EXPECTED[("alex", "random", "unit")], rtol=1e-5)
+    a2, b2 = images(5, 2, 40, 56)  # dynamic batch and size
+    np.testing.assert_allclose(distances(runner, a2, b2, "unit"), distances(model, a2, b2, "unit"), rtol=1e-5)
+    mtime = path.stat().st_mtime_ns
+    OnnxLPIPS(model, path=path)
+    assert path.stat().st_mtime_ns == mtime
+
+
+@needs_onnx
+@needs_weights
+def test_onnx_backend_real_weights(monkeypatch, tmp_path):
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))  # export into a temporary cache
+    monkeypatch.setenv("OLATBENCH_WEIGHTS_DIR", str(WEIGHTS["alex"].files[0].parent))
+    clear_caches()
+    try:
+        a, b = images(SEED + 2, 2, 96, 80)
+        np.testing.assert_allclose(lpips(a, b, net="alex", backend="onnxruntime"), EXPECTED_REAL[("alex", "unit")],
+                                   rtol=1e-5)
+    finally:
+        clear_caches()

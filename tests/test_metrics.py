@@ -13,7 +13,7 @@ import torch.nn.functional as F
 from skimage.metrics import peak_signal_noise_ratio, structural_similarity
 
 from olatbench.metrics import get_protocol, protocol_names, psnr, ssim, ssim_loss, ssim_torch
-from olatbench.metrics.lpips import get_network
+from olatbench.metrics.lpips import clear_caches
 from olatbench.metrics.ssim import gaussian_taps
 
 
@@ -205,7 +205,7 @@ def test_missing_weights_give_none_with_one_warning(monkeypatch, tmp_path):
     monkeypatch.delenv("OLATBENCH_WEIGHTS_DIR", raising=False)
     monkeypatch.setattr("olatbench.metrics.weights._package_dir", lambda name: None)
     monkeypatch.setattr("olatbench.metrics.protocols._WARNED", set())
-    get_network.cache_clear()
+    clear_caches()
     try:
         protocol = get_protocol("nrhints")
         a, b = pair((24, 24, 3))
@@ -218,4 +218,4 @@ def test_missing_weights_give_none_with_one_warning(monkeypatch, tmp_path):
         assert len(messages) == 1 and "olatbench weights install" in messages[0]
         assert not protocol.lpips_available()
     finally:
-        get_network.cache_clear()
+        clear_caches()

@@ -123,13 +123,13 @@ def test_cli_refuses_missing_extra_corrupt_and_overwrite(scene, tmp_path):
 
 
 def test_cli_require_lpips_without_weights(scene, tmp_path, monkeypatch):
-    from olatbench.metrics.lpips import get_network
+    from olatbench.metrics.lpips import clear_caches
 
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
     monkeypatch.setenv("TORCH_HOME", str(tmp_path / "torch"))
     monkeypatch.delenv("OLATBENCH_WEIGHTS_DIR", raising=False)
     monkeypatch.setattr("olatbench.metrics.weights._package_dir", lambda name: None)
-    get_network.cache_clear()
+    clear_caches()
     try:
         write_predictions(scene, tmp_path / "pred")
         result = CliRunner().invoke(evaluate, [str(tmp_path / "pred"), "--gt", str(scene), "--require", "lpips"])
@@ -137,7 +137,7 @@ def test_cli_require_lpips_without_weights(scene, tmp_path, monkeypatch):
         shown = CliRunner().invoke(where, [])
         assert "not found" in shown.output and "olatbench weights install" in shown.output
     finally:
-        get_network.cache_clear()
+        clear_caches()
 
 
 def test_metrics_list_and_explain():

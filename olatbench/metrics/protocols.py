@@ -26,7 +26,7 @@ from olatbench.datasets.colour import dequantize_8bit, quantize_8bit
 from olatbench.datasets.errors import DatasetError
 from olatbench.datasets.official import official_ground_truth
 from olatbench.datasets.records import Frame
-from olatbench.metrics.lpips import get_network, lpips_nchw
+from olatbench.metrics.lpips import get_runner, lpips_nchw
 from olatbench.metrics.psnr import mse_torch
 from olatbench.metrics.ssim import ssim_nchw
 from olatbench.metrics.weights import INSTALL_HINT, WeightsError
@@ -53,6 +53,7 @@ class Protocol:
     ground_truth: str = "frame"              # "frame": Frame.load(colourspace, official background);
     #                                          "official": the official loader's image (olatbench.datasets.official)
     steps: tuple[str, ...] = field(default=())
+    lpips_backend: str = field(default="auto", compare=False)  # execution only: values agree to ~1e-7
 
     @property
     def metrics(self) -> tuple[str, ...]:
@@ -63,6 +64,7 @@ class Protocol:
     def definition(self) -> dict:
         """JSON-able exact definition (stored in results and printed by ``olatbench metrics explain``)."""
         data = asdict(self)
+        data.pop("lpips_backend")  # how LPIPS is executed, not what it computes
         data["metrics"] = list(self.metrics)
         data["steps"] = list(self.steps)
         data["lpips_nets"] = list(self.lpips_nets)
@@ -106,8 +108,7 @@ class Protocol:
     def lpips_available(self) -> bool:
         """True when the weights of every LPIPS network of this protocol are installed."""
         try:
-            for net in self.lpips_nets:
-                get_network(net)
+            self.require_lpips()
         except WeightsError:
             return False
         return True
@@ -115,14 +116,14 @@ class Protocol:
     def require_lpips(self) -> None:
         """Raise ``WeightsError`` (with install instructions) unless LPIPS can be computed."""
         for net in self.lpips_nets:
-            get_network(net)
+            get_runner(net, backend="torch")
 
     def _lpips_batch(self, pred: torch.Tensor, gt: torch.Tensor, mask: torch.Tensor | None,
                      device: str) -> dict[str, list[float | None]]:
         out: dict[str, list[float | None]] = {}
         for net in self.lpips_nets:
             try:
-                model = get_network(net, None, device)
+                model = get_runner(net, None, device, self.lpips_backend)
             except WeightsError:
                 if net not in _WARNED:
                     _WARNED.add(net)
