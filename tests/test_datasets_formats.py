@@ -31,6 +31,15 @@ def test_each_format_is_detected(tmp_path):
     assert [load_scene(tmp_path / n).format for n in "abc"] == ["nrhints", "gs3", "sssgs"]
 
 
+def test_gs3_without_file_ext_is_detected_from_the_files(tmp_path):
+    """The GS³ loader takes the extension from the command line; trees may omit ``file_ext``."""
+    write_gs3_tree(tmp_path / "g")
+    for name in ("transforms_train.json", "transforms_test.json"):
+        _edit(tmp_path / "g" / name, lambda m: [f.pop("file_ext") for f in m["frames"]])
+    scene = load_scene(tmp_path / "g")
+    assert scene.format == "gs3" and scene.split("train")[0].image_path.suffix == ".exr"
+
+
 def test_unknown_folder_is_a_clear_error(tmp_path):
     with pytest.raises(DatasetError, match="no known dataset format"):
         load_scene(tmp_path)

@@ -27,12 +27,13 @@ FLAVOUR = NerfFlavour(format_name=FORMAT_NAME, default_ext=".exr", colourspace="
 
 
 def detect(root: Path) -> bool:
-    """A NeRF-style tree whose first frame is an EXR (``file_ext`` ".exr" or a ``file_path`` ending in it)."""
-    found = c.first_frame(Path(root), (SPLIT_FILES["train"], SPLIT_FILES["test"], SPLIT_FILES["val"]))
+    """A NeRF-style tree whose first frame is an EXR (``file_ext`` ".exr", a ``file_path`` ending in it, or on disk)."""
+    root = Path(root)
+    found = c.first_frame(root, (SPLIT_FILES["train"], SPLIT_FILES["test"], SPLIT_FILES["val"]))
     if found is None:
         return False
     _, _, frame = found
-    return "file_paths" not in frame and _is_exr(frame.get("file_path"), frame.get("file_ext"))
+    return "file_paths" not in frame and _is_exr(root, frame)
 
 
 def read_scene(root: Path, errors: list[DatasetError] | None = None) -> Scene:

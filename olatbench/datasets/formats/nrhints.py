@@ -7,8 +7,9 @@ images, exposed as split ``path``). Intrinsics ``camera_intrinsics`` = [cx, cy, 
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -26,18 +27,24 @@ FLAVOUR = NerfFlavour(format_name=FORMAT_NAME, default_ext=".png", colourspace="
 
 def detect(root: Path) -> bool:
     """A NeRF-style tree whose frames have one ``file_path`` and PNG (not EXR) images."""
-    found = c.first_frame(Path(root), (SPLIT_FILES["train"], SPLIT_FILES["test"], SPLIT_FILES["val"]))
+    root = Path(root)
+    found = c.first_frame(root, (SPLIT_FILES["train"], SPLIT_FILES["test"], SPLIT_FILES["val"]))
     if found is None:
         return False
     _, _, frame = found
-    ext = frame.get("file_ext")
-    return "file_path" in frame and "file_paths" not in frame and not _is_exr(frame.get("file_path"), ext)
+    return "file_path" in frame and "file_paths" not in frame and not _is_exr(root, frame)
 
 
-def _is_exr(file_path: object, ext: object) -> bool:
+def _is_exr(root: Path, frame: Mapping[str, Any]) -> bool:
+    """Whether a frame's image is an EXR: its ``file_ext``, its ``file_path`` suffix, or the file on disk."""
+    ext, file_path = frame.get("file_ext"), frame.get("file_path")
     if isinstance(ext, str):
         return ext.lower().lstrip(".") == "exr"
-    return isinstance(file_path, str) and file_path.lower().endswith(".exr")
+    if not isinstance(file_path, str):
+        return False
+    if file_path.lower().endswith(".exr"):
+        return True
+    return not (root / f"{file_path}.png").is_file() and (root / f"{file_path}.exr").is_file()
 
 
 def read_scene(root: Path, errors: list[DatasetError] | None = None) -> Scene:
