@@ -126,3 +126,17 @@ print(result.exit_code, result.output)
     assert result.returncode == 0, result.stderr
     assert result.stdout.startswith("1 ")
     assert "pip install 'olatbench[synth]'" in result.stdout
+
+
+@pytest.mark.parametrize("name", ["checker", "marble"])
+def test_procedural_textures_are_seamless_in_u_and_bounded(name):
+    from olatbench.datasets.synth.textures import procedural_texture
+
+    texture = procedural_texture(name, (0.7, 0.4, 0.2), size=128, scale=8.0)
+    assert texture.shape == (128, 128, 3) and texture.dtype == np.float32
+    assert texture.min() >= 0.02 and texture.max() <= 0.9
+    seam = np.abs(texture[:, 0] - texture[:, -1]).mean()
+    neighbours = np.abs(texture[:, 1:] - texture[:, :-1]).mean()
+    middle = np.abs(texture[:, 64] - texture[:, 63]).mean()  # u = 0.5: a tile edge of the checker
+    assert seam < 1.5 * middle + 3 * neighbours  # wrapping around u looks like any other place of the pattern
+    assert texture.std() > 0.05  # an actual pattern

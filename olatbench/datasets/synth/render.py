@@ -43,7 +43,7 @@ def _bsdf_and_medium(recipe: Recipe) -> tuple[dict, dict | None]:
     if m.kind == "diffuse":
         if m.texture is None:
             return {"type": "diffuse", "reflectance": _rgb(m.albedo)}, None
-        texture = procedural_texture(m.texture, m.albedo, scale=m.texture_scale, seed=recipe.seed)
+        texture = procedural_texture(m.texture, m.albedo, scale=m.texture_scale)  # the seed moves rigs only
         return {"type": "diffuse", "reflectance": {"type": "bitmap", "bitmap": mi.Bitmap(texture), "raw": True,
                                                    "filter_type": "bilinear"}}, None
     if m.kind == "roughconductor":
