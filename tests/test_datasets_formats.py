@@ -70,6 +70,16 @@ def test_nrhints_camera_angle_x_fallback(tmp_path):
     assert camera.fx == camera.fy and (camera.cx, camera.cy) == (8.0, 6.0)
 
 
+def test_split_without_intrinsics_uses_the_train_split(tmp_path):
+    """The NRHints parser reads intrinsics and near/far from the first split's file only."""
+    tree = write_gs3_tree(tmp_path / "g")
+    _edit(tmp_path / "g/transforms_test.json", lambda m: [m.pop(k) for k in ("camera_angle_x", "camera_near",
+                                                                              "camera_far")])
+    camera = load_scene(tmp_path / "g").split("test")[0].camera
+    np.testing.assert_allclose(camera.K, tree.frames["train"][0]["K"])
+    assert (camera.near, camera.far) == (0.5, 20.0)
+
+
 def test_transform_matrix_is_converted_once_to_opencv(tmp_path):
     """Cameras look at the origin: it must project onto the principal point, in front of the camera."""
     tree = write_nrhints_tree(tmp_path / "s")

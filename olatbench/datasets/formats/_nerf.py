@@ -86,6 +86,10 @@ def _image_size(root: Path, metas: dict[str, tuple[Path, dict]], flavour: NerfFl
     raise DatasetError("cannot determine the image size: no image split and no 'w'/'h' keys", path=root)
 
 
+def _optional_positive(meta: Mapping[str, Any], key: str, path: Path) -> float | None:
+    return c.as_positive(meta[key], path=path, frame=None, key=key) if meta.get(key) is not None else None
+
+
 def read_nerf_scene(root: Path, flavour: NerfFlavour, name: str,
                     errors: list[DatasetError] | None = None) -> Scene:
     """Read every ``transforms_<split>.json`` of ``root``.
@@ -100,13 +104,17 @@ def read_nerf_scene(root: Path, flavour: NerfFlavour, name: str,
     width, height = _image_size(root, metas, flavour)
     background = np.asarray(flavour.background, dtype=np.float64)
     frames: dict[str, list[Frame]] = {}
+    first_path, first_meta = next(iter(metas.values()))  # train when present: the official parser's "meta"
+    fallback = {"K": _intrinsics(first_meta, width, height, path=first_path, frame=None),
+                "near": _optional_positive(first_meta, "camera_near", first_path),
+                "far": _optional_positive(first_meta, "camera_far", first_path)}
     for split, (path, meta) in metas.items():
         raw_frames = c.frames_of(meta, path)
-        near = c.as_positive(meta["camera_near"], path=path, frame=None, key="camera_near") \
-            if meta.get("camera_near") is not None else None
-        far = c.as_positive(meta["camera_far"], path=path, frame=None, key="camera_far") \
-            if meta.get("camera_far") is not None else None
+        # a split without its own intrinsics / near / far uses the first split's, as the NRHints parser does
         split_K = _intrinsics(meta, width, height, path=path, frame=None)
+        split_K = fallback["K"] if split_K is None else split_K
+        near = _optional_positive(meta, "camera_near", path) or fallback["near"]
+        far = _optional_positive(meta, "camera_far", path) or fallback["far"]
         stems = [Path(str(raw.get("file_path", f"{split}_{i:04d}"))).stem if split != "path" else f"path_{i:04d}"
                  for i, raw in enumerate(raw_frames)]
         parsed = []
