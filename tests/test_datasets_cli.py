@@ -74,6 +74,15 @@ def test_dataset_errors_are_one_line_without_traceback(tmp_path):
     assert run("info", tmp_path).exit_code == 1  # a folder without scenes
 
 
+def test_info_keeps_going_past_a_broken_scene(tmp_path):
+    write_nrhints_tree(tmp_path / "Pixiu")
+    write_nrhints_tree(tmp_path / "Fish")
+    (tmp_path / "Fish/transforms_test.json").write_text("{")
+    result = run("info", tmp_path)
+    assert result.exit_code == 1 and "Pixiu  (nrhints" in result.output
+    assert "Fish/transforms_test.json: malformed JSON" in result.output and "Traceback" not in result.output
+
+
 def test_validate_reports_unreadable_json_as_an_error(tmp_path):
     write_sssgs_tree(tmp_path / "s")
     (tmp_path / "s/transforms_test.json").write_text("[1]")

@@ -189,13 +189,21 @@ def test_validate_light_inside_camera_and_bad_rotation(tmp_path):
     assert "orthonormal" in messages[("r_2", "transform_matrix")]
 
 
+def test_sssgs_off_centre_principal_point_is_a_warning(tmp_path):
+    write_sssgs_tree(tmp_path / "s")
+    _edit(tmp_path / "s/transforms_train.json", lambda m: m["frames"][1].update(cx=3.0))
+    report = validate_folder(tmp_path / "s")
+    assert report.ok and [issue.key for issue in report.issues] == ["cx"]
+    assert "3 records" in report.issues[0].message
+
+
 def test_clean_trees_validate(tmp_path):
     write_nrhints_tree(tmp_path / "a", n_path=2)
     write_gs3_tree(tmp_path / "b")
     write_sssgs_tree(tmp_path / "c", share_first=True, excluded=("r_0_l_1",))
     for name in "abc":
         report = validate_folder(tmp_path / name)
-        assert report.ok, report.issues
+        assert report.ok and not report.issues, report.issues
 
 
 @pytest.mark.skipif(os.geteuid() == 0, reason="root ignores file permissions")

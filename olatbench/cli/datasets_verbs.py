@@ -35,16 +35,20 @@ def info(path: Path, fmt: str | None, as_json: bool) -> None:
     from olatbench.datasets import load_scene
     from olatbench.datasets.info import format_summary, scene_summary
 
-    summaries = []
+    summaries, failures = [], []
     for folder in _scene_folders(path):
         try:
             summaries.append(scene_summary(load_scene(folder, fmt)))
         except DatasetError as error:
-            raise click.ClickException(f"{error}. Run: olatbench datasets validate {folder}") from None
+            failures.append((folder, error))
     if as_json:
         click.echo(json.dumps(summaries, indent=2))
-    else:
+    elif summaries:
         click.echo("\n\n".join(format_summary(summary) for summary in summaries))
+    if failures:
+        folder, error = failures[0]
+        more = f" ({len(failures) - 1} more unreadable scenes)" if len(failures) > 1 else ""
+        raise click.ClickException(f"{error}{more}. Run: olatbench datasets validate {folder}")
 
 
 @click.command()

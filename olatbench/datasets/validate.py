@@ -3,7 +3,8 @@
 Checks: the transforms files parse; every frame has its keys with finite values and a ``file_path`` inside
 the root; every image exists, decodes, has the camera's resolution, 1/3/4 channels and finite pixels;
 camera rotations are orthonormal; lights are not inside the camera (distance to the camera centre >
-``near``, or > 0 when ``near`` is unknown).
+``near``, or > 0 when ``near`` is unknown). Warnings: several resolutions in one scene; SSS-GS principal points
+off the centre (the official projection ignores them).
 """
 
 from __future__ import annotations
@@ -95,6 +96,13 @@ def validate_scene(scene: Scene, decode: bool = True, progress: bool = False) ->
     frames = list(scene)
     for frame in tqdm(frames, desc=f"validate {scene.name}", disable=not progress, unit="frame"):
         report.issues.extend(check_frame(frame, decode))
+    if scene.format == "sssgs":
+        off_centre = [f for f in frames if max(abs(f.camera.cx - f.camera.width / 2),
+                                               abs(f.camera.cy - f.camera.height / 2)) > 0.5]
+        if off_centre:
+            report.issues.append(Issue("warning", f"{len(off_centre)} records have a principal point more than 0.5 px "
+                                       "off the image centre; the official SSS-GS projection ignores cx, cy",
+                                       path=str(scene.root), frame=off_centre[0].frame_id, key="cx"))
     sizes = Counter((f.camera.width, f.camera.height) for f in frames if f.image_path is not None)
     if len(sizes) > 1:
         report.issues.append(Issue("warning", "several resolutions: " + ", ".join(
