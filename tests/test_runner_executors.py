@@ -3,7 +3,10 @@
 from __future__ import annotations
 
 import os
+import shutil
 import signal
+import socket
+import subprocess
 import time
 from pathlib import Path
 
@@ -82,3 +85,79 @@ def test_slurm_preemption_requeues_and_resumes(data, tmp_path, tests_on_pythonpa
     assert outcome.status == "done", outcome
     log = (Path(job.folder) / "log.txt").read_text()
     assert log.count("job " + job.id) == 2 and "resumed from step_" in log
+
+
+def _free_port() -> int:
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        return probe.getsockname()[1]
+
+
+@pytest.fixture()
+def slurm_cluster(tmp_path, monkeypatch):
+    """A one-node Slurm cluster on localhost (Debian's slurmctld + slurmd + munge), started for this test."""
+    tools = ("munged", "slurmctld", "slurmd", "sbatch", "sinfo")
+    if not all(shutil.which(tool) for tool in tools) or os.geteuid() != 0 or not Path("/etc/munge/munge.key").exists():
+        pytest.skip("needs root and Debian's slurmctld, slurmd, slurm-client and munge")
+    root = tmp_path / "slurm"
+    munge = root / "munge"
+    for folder in (root / "state", root / "spool", munge):
+        folder.mkdir(parents=True)
+    munge.chmod(0o700)
+    host = socket.gethostname()
+    conf = root / "slurm.conf"
+    conf.write_text("\n".join([
+        "ClusterName=olatbench-test", f"SlurmctldHost={host}", "SlurmUser=root", "SlurmdUser=root",
+        "AuthType=auth/munge", f"AuthInfo=socket={munge / 'munge.socket'}",
+        f"StateSaveLocation={root / 'state'}", f"SlurmdSpoolDir={root / 'spool'}",
+        f"SlurmctldPidFile={root / 'ctld.pid'}", f"SlurmdPidFile={root / 'd.pid'}",
+        f"SlurmctldPort={_free_port()}", f"SlurmdPort={_free_port()}",
+        "ProctrackType=proctrack/linuxproc", "TaskPlugin=task/none", "MpiDefault=none",
+        "SelectType=select/cons_tres", "SelectTypeParameters=CR_Core", "ReturnToService=2",
+        "JobAcctGatherType=jobacct_gather/none", "AccountingStorageType=accounting_storage/none",
+        f"SlurmctldLogFile={root / 'ctld.log'}", f"SlurmdLogFile={root / 'd.log'}",
+        f"NodeName={host} CPUs={os.cpu_count()} State=UNKNOWN",
+        f"PartitionName=olat Nodes={host} Default=YES MaxTime=INFINITE State=UP", ""]))
+    processes = [subprocess.Popen(["munged", "-F", "--force", f"--socket={munge / 'munge.socket'}",
+                                   f"--pid-file={munge / 'pid'}", f"--log-file={munge / 'log'}",
+                                   f"--seed-file={munge / 'seed'}"])]
+    time.sleep(1.0)
+    processes += [subprocess.Popen([daemon, "-D", "-f", str(conf)]) for daemon in ("slurmctld", "slurmd")]
+    monkeypatch.setenv("SLURM_CONF", str(conf))
+    try:
+        deadline = time.monotonic() + 60
+        while "idle" not in subprocess.run(["sinfo", "-h", "-o", "%t"], capture_output=True, text=True).stdout:
+            assert time.monotonic() < deadline, (root / "ctld.log").read_text()[-2000:]
+            time.sleep(0.5)
+        yield root
+        deadline = time.monotonic() + 60  # let the job steps finish before their daemons go
+        while subprocess.run(["squeue", "-h"], capture_output=True, text=True).stdout.strip():
+            if time.monotonic() > deadline:
+                subprocess.run(["scancel", "--full", "--user=root"], check=False)
+                break
+            time.sleep(0.5)
+    finally:
+        for process in reversed(processes):
+            process.terminate()
+        for process in processes:
+            process.wait(timeout=30)
+
+
+@pytest.mark.slow
+def test_run_cli_on_a_real_single_node_slurm_cluster(data, tmp_path, slurm_cluster, tests_on_pythonpath,
+                                                     monkeypatch):
+    from click.testing import CliRunner
+
+    from olatbench.cli import main
+    from olatbench.datasets import suites
+
+    monkeypatch.setitem(suites.SUITES, "tiny", support.tiny_suite())
+    args = ["run", "-m", "trivial", "-s", "tiny", "--data-root", str(data), "--out", str(tmp_path / "runs"),
+            "--quiet", "--device", "cpu", "--executor", "slurm", "--slurm-partition", "olat", "--slurm-time", "10",
+            "--slurm-cpus", "1", "--wait"]
+    result = CliRunner().invoke(main, args)
+    assert result.exit_code == 0, result.output
+    assert "submitted 2 task(s) as array" in result.output
+    folders = sorted((tmp_path / "runs" / "tiny" / "trivial" / "default").glob("*/seed0"))
+    assert len(folders) == 2 and all((folder / "DONE").is_file() for folder in folders)
+    assert any((tmp_path / "runs" / ".submitit").rglob("*_log.out"))
