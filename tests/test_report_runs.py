@@ -162,6 +162,26 @@ def test_published_beside_runs_adds_paper_and_delta_rows(tmp_path):
     assert delta.number == pytest.approx(28.0 - 27.6844) and delta.text() == "+0.3156"
     assert table.cell("PSNR ↑", ("Ours (paper)",), "Cat/Test").rank is None  # paper rows are never ranked
     assert table.cell("PSNR ↑", ("Δ ssdgs − paper",), "Fish/Test").value is None
+    assert any(note.startswith("(paper) rows") for note in table.footnotes)
+
+
+def test_overview_with_published_rows(tmp_path):
+    root = tmp_path / "runs"
+    for index, scene in enumerate(("Bunny", "Candle", "Dragon", "Soap", "Statue")):
+        write_run(root, "ssdgs", "sssgs", "sssgs", scene, 0, metric_values(36.0 + index))
+    table = rank_table(overview_table(collect(root), published=True))
+    labels = [row.labels[0] for row in table.blocks[0].rows]
+    assert labels == ["ssdgs", "KiloOSF (paper)", "SSS-GS (paper)", "Ours (w/o Opt) (paper)", "Ours (w/ Opt) (paper)"]
+    assert table.cell(None, ("SSS-GS (paper)",), "Test (Average)/PSNR ↑").text() == "35.01 ± 1.01"
+    assert table.cell(None, ("KiloOSF (paper)",), "Train T.").text() == ">20 h"
+    assert table.cell(None, ("Ours (w/ Opt) (paper)",), "Test (Average)/PSNR ↑").rank is None
+    assert table.cell(None, ("ssdgs",), "Test (Average)/PSNR ↑").number == pytest.approx(38.0)
+    nrhints = tmp_path / "nrhints"
+    write_run(nrhints, "ssdgs", "nrhints", "nrhints", "Cat", 0, metric_values(28.0))
+    derived = overview_table(collect(nrhints), published=True, metrics=["psnr"], splits=["test"])
+    ours = derived.cell(None, ("Ours (paper)",), "Test (Average)/PSNR ↑")
+    paper = [27.6844, 34.6472, 37.4702, 31.1646, 30.7349, 31.9298, 31.1213]  # Table 1(a), Ours, Test
+    assert ours.number == pytest.approx(np.mean(paper)) and ours.std == pytest.approx(np.std(paper))
 
 
 def test_ablation_tables_from_runs(tmp_path):

@@ -106,17 +106,24 @@ def _report_runs(runs, suite, methods, metrics, splits, layouts, average, fmt, s
     if frame.empty:
         raise FileNotFoundError(f"no results.json below {', '.join(map(str, runs))}; run "
                                 "'olatbench run --method ssdgs --suite mini' first")
+    from olatbench.reports.runs_tables import select_runs
+
+    # one per-scene / overview table per suite holding the selected methods
+    suites = [suite] if suite else sorted(set(select_runs(frame, None, methods)["suite"]))
     tables = []
     for layout in layouts:
-        if layout == "scenes":
-            table = scene_table(frame, suite=suite, methods=methods, metrics=metrics, splits=splits, seeds=seeds,
-                                average=average, published=published)
-        elif layout == "overview":
-            table = overview_table(frame, suite=suite, methods=methods, metrics=metrics, splits=splits, seeds=seeds)
-        else:
-            table = ablation_table(frame, suite=suite, metrics=metrics, splits=splits, seeds=seeds,
-                                   published=published)
-        tables.append(rank_table(table, min_values=2))
+        if layout == "ablation":
+            tables.append(ablation_table(frame, suite=suite, metrics=metrics, splits=splits, seeds=seeds,
+                                         published=published))
+            continue
+        for name in suites:
+            if layout == "scenes":
+                tables.append(scene_table(frame, suite=name, methods=methods, metrics=metrics, splits=splits,
+                                          seeds=seeds, average=average, published=published))
+            else:
+                tables.append(overview_table(frame, suite=name, methods=methods, metrics=metrics, splits=splits,
+                                             seeds=seeds, published=published))
+    tables = [rank_table(table, min_values=2) for table in tables]
     figures, notes = [], []
     if fmt == "html" and with_figures:
         from olatbench.reports.gallery import report_figures

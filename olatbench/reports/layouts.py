@@ -74,7 +74,8 @@ def scenes_layout(lookup: CellLookup, rows: Sequence[str], scenes: Sequence[str]
 def overview_layout(lookup: CellLookup, rows: Sequence[str], splits: Sequence[str], metrics: Sequence[str], *,
                     name: str, caption: str, protocol: str, scene: str = "Average",
                     extras: Sequence[tuple[str, str, str]] = (("fps", "FPS", "test"), ("train_time", "Train T.", "-"),
-                                                              ("gpu", "GPU", "-"))) -> Table:
+                                                              ("gpu", "GPU", "-")),
+                    rank_sets: Mapping[str, str | None] | None = None) -> Table:
     """Per-split averages (mean ± std over scenes) of each metric, then FPS, training time and device.
 
     ``extras`` are (metric, column title, split) of the "Other Metrics" columns.
@@ -93,7 +94,7 @@ def overview_layout(lookup: CellLookup, rows: Sequence[str], splits: Sequence[st
     for row in rows:
         cells = [lookup(row, scene, split, metric) for split in splits for metric in metrics]
         cells += [lookup(row, scene, split, metric) for metric, _, split in extras]
-        block_rows.append(Row((row,), cells))
+        block_rows.append(Row((row,), cells, rank_set=(rank_sets or {}).get(row, "all")))
     rules = tuple(len(metrics) * (i + 1) - 1 for i in range(len(splits)))
     return Table(name, caption, protocol, ("Method",), header, columns, [Block(None, block_rows, directions)],
                  column_rules=rules)

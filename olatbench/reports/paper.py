@@ -137,13 +137,14 @@ def rank_disagreements(table: Table, rows: pd.DataFrame) -> list[str]:
              for _, r in rows.iterrows()}
     computed = _computed_ranks(table, rows)
     words = {1: "best", 2: "second best", None: "uncoloured"}
+    paper_words = {1: "colours it best", 2: "colours it second best", None: "leaves it uncoloured"}
     notes = []
     for key, paper_rank in paper.items():
         ours = computed.get(key)
         if key in computed and ours != paper_rank:
             method, scene, split, metric = key
-            notes.append(f"{method}, {scene} {split_title(split)} {metric.upper()}: the paper colours it "
-                         f"{words[paper_rank]}, its numbers make it {words[ours]}")
+            notes.append(f"{method}, {scene} {split_title(split)} {metric.upper()}: the paper "
+                         f"{paper_words[paper_rank]}, its numbers make it {words[ours]}")
     return notes
 
 

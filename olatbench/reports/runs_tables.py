@@ -239,10 +239,16 @@ def scene_table(frame: pd.DataFrame, *, suite: str | None = None, methods: Seque
     if published:
         rows = _add_published(cells, rows, run_cells, suite, [(s, sp) for s in columns for sp in splits],
                               metrics, ranks)
+    if published:
+        has_paper = len(rows) > len(run_cells.rows)
+        table_notes = ["(paper) rows: SSD-GS (ICLR 2026) as printed; Δ rows: run − paper; neither is ranked."
+                       if has_paper else f"--published: the paper reports none of these methods on {suite}."]
+    else:
+        table_notes = []
     table = scenes_layout(CellLookup(cells), rows, columns, splits, metrics, name=f"tab:{suite}",
                           caption=f"Per-scene results on the {suite} suite.",
                           protocol=_protocol_line(selected, suite, seeds), rank_sets=ranks)
-    table.footnotes += ([scene_note] if scene_note else []) + run_cells.notes.lines()
+    table.footnotes += table_notes + ([scene_note] if scene_note else []) + run_cells.notes.lines()
     return table
 
 
@@ -250,10 +256,44 @@ def _hours(seconds: float) -> str:
     return f"{seconds / 3600:.2f} h" if seconds >= 3600 else f"{seconds / 60:.1f} min"
 
 
+def published_overview_cells(suite: str, metrics: Sequence[str], splits: Sequence[str]) -> dict:
+    """The paper's overview rows for a suite, keyed like `overview_table`'s cells ("<method> (paper)").
+
+    SSS-GS: the paper's Table 1(c) as printed. NRHints / GS3: mean ± population std over the scenes of
+    Table 1(a) / 1(b) (the paper prints no overview there, so FPS, time and GPU stay "—").
+    """
+    from olatbench.reports.published import published_table
+
+    cells: dict = {}
+    if suite == "sssgs":
+        rows = published_table("sssgs-overview")
+        for _, row in rows.iterrows():
+            label = f"{row['method']} (paper)"
+            split = "-" if row["metric"] in ("train_time", "gpu", "fps") else row["split"]
+            std = None if pd.isna(row["std"]) else float(row["std"])
+            value = str(row["value"]) if pd.isna(row["number"]) else float(row["number"])
+            decimals = 4 if std is None and row["metric"] in ("psnr", "ssim", "lpips") else int(row["decimals"])
+            cells[(label, "Average", split, row["metric"])] = Cell(value, std=std, decimals=decimals)
+        return cells
+    table = {"nrhints": "real", "gs3": "gs3"}.get(suite)
+    if table is None:
+        return cells
+    rows = published_table(table)
+    for (method, split, metric), group in rows.groupby(["method", "split", "metric"], sort=False):
+        if split in splits and metric in metrics:
+            numbers = group["number"].astype(float)
+            cells[(f"{method} (paper)", "Average", split, metric)] = Cell(float(numbers.mean()),
+                                                                          std=float(numbers.std(ddof=0)))
+    return cells
+
+
 def overview_table(frame: pd.DataFrame, *, suite: str | None = None, methods: Sequence[str] | None = None,
                    metrics: Sequence[str] = ("psnr", "ssim", "lpips"), splits: Sequence[str] = ("train", "test"),
-                   seeds: str = "mean") -> Table:
-    """Per-split averages over the suite's scenes (mean ± std over scenes), FPS, training time, device."""
+                   seeds: str = "mean", published: bool = False) -> Table:
+    """Per-split averages over the suite's scenes (mean ± std over scenes), FPS, training time, device.
+
+    ``published=True`` appends the paper's rows for the suite (`published_overview_cells`), never ranked.
+    """
     selected = select_runs(frame, suite, methods)
     suite = suite or single_suite(selected)
     run_cells = RunCells(selected, seeds)
@@ -271,12 +311,26 @@ def overview_table(frame: pd.DataFrame, *, suite: str | None = None, methods: Se
                                                      if time.number is not None else time)
         devices = sorted(set(run_cells.frame[run_cells.frame["row"] == row]["device"]) - {""})
         cells[(row, "Average", "-", "gpu")] = Cell(", ".join(devices) or None)
-    table = overview_layout(CellLookup(cells), run_cells.rows, splits, metrics, name=f"tab:{suite}-overview",
+    rows = list(run_cells.rows)
+    if published:
+        paper_cells = published_overview_cells(suite, metrics, splits)
+        cells.update(paper_cells)
+        rows += list(dict.fromkeys(key[0] for key in paper_cells))
+        if paper_cells:
+            source = ("as printed in Table 1(c)" if suite == "sssgs"
+                      else "mean ± std over the scenes of the paper's per-scene table")
+            notes_before = [f"(paper) rows: SSD-GS (ICLR 2026), {source}; never ranked."]
+        else:
+            notes_before = [f"--published: the paper reports no {suite} overview."]
+    else:
+        notes_before = []
+    table = overview_layout(CellLookup(cells), rows, splits, metrics, name=f"tab:{suite}-overview",
                             caption=f"Averages over the {len(scenes)} scenes of the {suite} suite "
                                     f"(mean ± std over scenes; training time is the mean per scene).",
                             protocol=_protocol_line(selected, suite, seeds),
-                            extras=(("fps", "FPS", "-"), ("train_time", "Train T.", "-"), ("gpu", "Device", "-")))
-    table.footnotes += ([scene_note] if scene_note else []) + run_cells.notes.lines()
+                            extras=(("fps", "FPS", "-"), ("train_time", "Train T.", "-"), ("gpu", "Device", "-")),
+                            rank_sets={row: ("all" if row in run_cells.rows else None) for row in rows})
+    table.footnotes += notes_before + ([scene_note] if scene_note else []) + run_cells.notes.lines()
     return table
 
 
