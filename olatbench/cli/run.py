@@ -178,25 +178,30 @@ def run(method, suite, scenes, variants, ablation, seeds, iterations, resolution
         elif outcome.status == "skipped":
             tqdm.write(f"skipped {outcome.label}: {outcome.error}", file=sys.stderr)
 
-    if executor == "slurm":
-        from olatbench.bench.executors import SlurmOptions, submit_slurm, wait_slurm
+    try:
+        if executor == "slurm":
+            from olatbench.bench.executors import SlurmOptions, submit_slurm, wait_slurm
 
-        slurm = SlurmOptions(partition=slurm_partition, time_minutes=_parse_minutes(slurm_time), gpus=slurm_gpus,
-                             cpus=slurm_cpus, array_parallelism=slurm_array_parallelism)
-        submitted = submit_slurm(to_run, out, slurm)
-        click.echo(f"submitted {len(submitted)} task(s) as array {submitted[0].job_id.split('_')[0]}; "
-                   f"follow with: olatbench status {out}", err=True)
-        if not wait:
-            return
-        outcomes = wait_slurm(submitted, to_run, progress, report)
-    elif executor == "local":
-        from olatbench.bench.executors import run_local
+            slurm = SlurmOptions(partition=slurm_partition, time_minutes=_parse_minutes(slurm_time), gpus=slurm_gpus,
+                                 cpus=slurm_cpus, array_parallelism=slurm_array_parallelism)
+            submitted = submit_slurm(to_run, out, slurm)
+            click.echo(f"submitted {len(submitted)} task(s) as array {submitted[0].job_id.split('_')[0]}; "
+                       f"follow with: olatbench status {out}", err=True)
+            if not wait:
+                return
+            outcomes = wait_slurm(submitted, to_run, progress, report)
+        elif executor == "local":
+            from olatbench.bench.executors import run_local
 
-        outcomes = run_local(to_run, workers, progress, report)
-    else:
-        from olatbench.bench.executors import run_inline
+            outcomes = run_local(to_run, workers, progress, report)
+        else:
+            from olatbench.bench.executors import run_inline
 
-        outcomes = run_inline(to_run, progress, report)
+            outcomes = run_inline(to_run, progress, report)
+    except KeyboardInterrupt:
+        click.echo(f"\nInterrupted. Rerun the same command to resume from the last checkpoints "
+                   f"(olatbench status {out} shows where each job stands).", err=True)
+        sys.exit(130)
     _print_summary(jobs, out)
     failed = sum(outcome.status == "failed" for outcome in outcomes)
     if failed:
