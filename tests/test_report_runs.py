@@ -197,8 +197,11 @@ def test_ablation_tables_from_runs(tmp_path):
     assert table.cell(None, ("A: Diff",), "Test Set/PSNR ↑").rank == 2
     for variant, psnr in (("ablation-A", 21.0), ("ablation-D", 31.0)):
         write_run(root, "ssdgs", variant, "gs3", "Lego", 0, metric_values(psnr))
-    grid = rank_table(ablation_table(collect(root)))
+    grid = rank_table(ablation_table(collect(root), published=True))
     assert grid.label_names == ("Method", "Split")
+    assert grid.cell("PSNR ↑", ("A: Diff (paper)", "Train"), "Lego").number == 20.6157  # a GS3 scene
+    assert grid.cell("PSNR ↑", ("A: Diff (paper)", "Test"), "Pixiu").number == 20.1878  # an NRHints scene
+    assert grid.cell("PSNR ↑", ("A: Diff (paper)", "Test"), "Average").number == pytest.approx((20.1878 + 17.6430) / 2)
     assert grid.cell("PSNR ↑", ("A: Diff", "Test"), "Average").number == pytest.approx(20.5)
     assert grid.cell("PSNR ↑", ("H: Joint", "Test"), "Average").marks == ("d",)  # no Lego run
 

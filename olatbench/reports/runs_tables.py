@@ -16,7 +16,7 @@ never ranked.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
 import pandas as pd
@@ -184,9 +184,13 @@ def _protocol_line(frame: pd.DataFrame, suite: str, seeds: str) -> str:
     return text
 
 
-def _add_published(cells: dict, rows: list[str], run_cells: RunCells, suite: str, keys: Sequence[tuple[str, str]],
+def _add_published(cells: dict, rows: list[str], run_cells: RunCells, suite: str | Mapping[str, str],
+                   keys: Sequence[tuple[str, str]],
                    metrics: Sequence[str], ranks: dict[str, str | None]) -> list[str]:
-    """Insert "(paper)" and "Δ" rows after each run row the paper reports; returns the new row order."""
+    """Insert "(paper)" and "Δ" rows after each run row the paper reports; returns the new row order.
+
+    ``suite`` is the suite of every scene, or a mapping scene -> suite (ablations span suites).
+    """
     ordered = []
     for row in rows:
         ordered.append(row)
@@ -198,7 +202,8 @@ def _add_published(cells: dict, rows: list[str], run_cells: RunCells, suite: str
         found = False
         for scene, split in keys:
             for metric in metrics:
-                number = None if scene == "Average" else lookup(label, suite, scene, split, metric)
+                scene_suite = suite if isinstance(suite, str) else suite.get(scene, "")
+                number = None if scene == "Average" else lookup(label, scene_suite, scene, split, metric)
                 if scene == "Average":
                     numbers = [cells[(paper_row, s, split, metric)].number for s, sp in keys
                                if sp == split and s != "Average" and (paper_row, s, split, metric) in cells]
@@ -371,6 +376,10 @@ def ablation_table(frame: pd.DataFrame, *, suite: str | None = None, method: str
             for split in splits:
                 for metric in metrics:
                     cells[(row, "Average", split, metric)] = run_cells.average(row, scenes, split, metric)
+        if published:
+            scene_suites = dict(zip(selected["scene"], selected["suite"], strict=True))
+            rows = _add_published(cells, rows, run_cells, scene_suites,
+                                  [(scene, sp) for scene in [*scenes, "Average"] for sp in splits], metrics, sets)
         table = split_rows_layout(CellLookup(cells), rows, [*scenes, "Average"], splits, metrics,
                                   name="tab:ablation-scenes", caption="Ablation study over scenes.",
                                   protocol=protocol, rank_sets=sets, rule_before_rows=first_schedule)
