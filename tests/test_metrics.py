@@ -219,3 +219,23 @@ def test_missing_weights_give_none_with_one_warning(monkeypatch, tmp_path):
         assert not protocol.lpips_available()
     finally:
         clear_caches()
+
+
+def test_hdr_flip_fixed_exposure_range():
+    from olatbench.metrics.flip import HDR_PARAMETERS, flip_available, hdr_flip
+
+    if not flip_available():
+        pytest.skip("optional package flip-evaluator is not installed")
+    import flip_evaluator
+
+    rng = np.random.default_rng(0)
+    gt = (rng.random((48, 48, 3)) * 4).astype(np.float32)
+    assert hdr_flip(gt, gt) == 0.0
+    small, large = hdr_flip(gt * 1.2, gt), hdr_flip(gt * 2.0, gt)
+    assert 0 < small < large
+    _, mean, used = flip_evaluator.evaluate(gt, gt * 2.0, "HDR", inputsRGB=False, applyMagma=False,
+                                            parameters=dict(HDR_PARAMETERS))
+    assert used["startExposure"] == -3.0 and used["stopExposure"] == 3.0 and used["numExposures"] == 7
+    assert large == pytest.approx(float(mean))
+    with pytest.raises(ValueError, match="non-negative"):
+        hdr_flip(gt - 1, gt)
