@@ -140,7 +140,9 @@ def test_published_table_and_lookup():
     assert lookup("Ours", "nrhints", "cat", "test", "psnr") == 27.6844
     assert lookup("gs3", "gs3", "Lego", "train", "lpips") == 0.0323
     assert lookup("Ours", "nrhints", "NoSuchScene", "test", "psnr") is None
-    assert paper_method("ssdgs", "nrhints") == "Ours"
+    assert paper_method("ssdgs", "default", "nrhints") == "Ours"
+    assert paper_method("ssdgs", "default", "sssgs") == "Ours (w/ Opt)"
+    assert paper_method("ssdgs", "sssgs-no-opt", "sssgs") == "Ours (w/o Opt)"
     assert paper_method("ssdgs", "ablation-E") == "E: Full - S"
     assert paper_method("gs3", "default") == "GS3"
     assert paper_method("my-method", "default") is None

@@ -1,7 +1,7 @@
 """Markdown and HTML snapshots of a small report, and the figures embedded in the HTML page.
 
-Update the snapshots after an intended change with ``OLATBENCH_UPDATE_SNAPSHOTS=1 pytest tests/test_report_snapshots.py``
-and review the diff.
+Update the snapshots after an intended change with
+``OLATBENCH_UPDATE_SNAPSHOTS=1 pytest tests/test_report_snapshots.py`` and review the diff.
 """
 
 from __future__ import annotations

@@ -161,8 +161,8 @@ def render(run, kind, count, start_frame, component, fps, device, resolution, ou
 
     \b
     Examples:
-      olatbench render runs/mini/ssdgs/mini/lego/seed0 --sweep light-orbit
-      olatbench render runs/nrhints/ssdgs/nrhints/Pixiu/seed0 --sweep paper --resolution 256x256
+      olatbench render runs/mini/ssdgs/default/translucent/seed0 --sweep light-orbit
+      olatbench render runs/nrhints/ssdgs/default/Pixiu/seed0 --sweep paper --resolution 256x256
     """
     from olatbench.datasets.errors import DatasetError
     from olatbench.reports.jobfolder import JobFolder, JobFolderError

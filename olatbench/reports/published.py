@@ -113,16 +113,17 @@ def normalise_name(name: str) -> str:
     return re.sub(r"[^a-z0-9]", "", name.lower().replace("–", "-"))
 
 
-def paper_method(method: str, variant: str | None = None) -> str | None:
-    """The paper's row label for a run's method and variant, or None when the paper has no such row.
+def paper_method(method: str, variant: str | None = None, suite: str | None = None) -> str | None:
+    """The paper's row label for a run's method, variant and suite, or None when the paper has no such row.
 
-    ``ssdgs`` runs map to "Ours" (or the preset's label: "ablation-A" -> "A: Diff", "sssgs" ->
-    "Ours (w/ Opt)"); baselines match the paper's names ignoring case and punctuation ("gs3" -> "GS3").
+    ``ssdgs`` runs map to "Ours" (on the sssgs suite, whose preset refines cameras and lights:
+    "Ours (w/ Opt)"), or to the variant preset's label ("ablation-A" -> "A: Diff", "sssgs-no-opt" ->
+    "Ours (w/o Opt)"); baselines match the paper's names ignoring case and punctuation ("gs3" -> "GS3").
     """
     if variant in VARIANT_LABELS:
         return VARIANT_LABELS[variant]
     if normalise_name(method) == "ssdgs":
-        return "Ours"
+        return "Ours (w/ Opt)" if suite == "sssgs" else "Ours"
     wanted = normalise_name(method)
     for label in load_published()["method"].unique():
         if normalise_name(label) == wanted:

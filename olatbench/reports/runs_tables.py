@@ -195,7 +195,8 @@ def _add_published(cells: dict, rows: list[str], run_cells: RunCells, suite: str
     for row in rows:
         ordered.append(row)
         method, variant = run_cells.source[row]
-        label = paper_method(method, variant)
+        row_suite = suite if isinstance(suite, str) else next(iter(suite.values()), None)
+        label = paper_method(method, variant, row_suite)
         if label is None:
             continue
         paper_row, delta_row = f"{label} (paper)", f"Δ {row} − paper"
