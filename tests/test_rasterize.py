@@ -109,15 +109,20 @@ def test_negative_and_tied_sort_keys_order():
     assert bins.gaussian_ids.tolist() == [1, 3, 0, 2]
 
 
-def test_empty_scene_is_background():
+@pytest.mark.parametrize("backend", ["torch", "cpu"])
+@pytest.mark.parametrize("n", [0, 4])
+def test_empty_scene_is_background(backend, n):
     W, H = 19, 11
     w2c, K = camera(W, H)
-    s = scene(4, depth=-3.0)  # all behind the camera
+    s = scene(n, depth=-3.0)  # none, or all behind the camera
+    s["means"].requires_grad_()
     out = render(s["means"], s["quats"], s["scales"], s["opacities"], s["features"], w2c, K, W, H,
-                 s["background"], backend="torch", return_depth=True)  # fmt: skip
+                 s["background"], backend=backend, return_depth=True)  # fmt: skip
     assert not out["visible"].any()
-    torch.testing.assert_close(out["image"], s["background"].expand(H, W, -1))
+    torch.testing.assert_close(out["image"].detach(), s["background"].expand(H, W, -1))
     assert out["alpha"].abs().max() == 0 and out["depth"].abs().max() == 0
+    out["image"].sum().backward()
+    assert s["means"].grad.abs().sum() == 0
 
 
 def render_loss(backend: str, W: int, H: int, K: torch.Tensor, seed: int = 1):

@@ -66,9 +66,10 @@ class _RasterizeCPU(torch.autograd.Function):
     def backward(ctx, grad_colour, grad_t, _grad_counts):
         means2d, conics, opacities, features, offsets, ids, final_t, counts = ctx.saved_tensors
         dtype, n = means2d.dtype, means2d.shape[0]
-        grad_colour = torch.zeros_like(final_t)[..., None].expand(-1, -1, features.shape[1]) if grad_colour is None \
-            else grad_colour
-        grad_t = torch.zeros_like(final_t) if grad_t is None else grad_t
+        if grad_colour is None:
+            grad_colour = torch.zeros(*final_t.shape, features.shape[1], dtype=dtype)
+        if grad_t is None:
+            grad_t = torch.zeros_like(final_t)
         grad_colour, grad_t = _prepare([grad_colour, grad_t], dtype)
         out = [torch.empty_like(t) for t in (means2d, conics, opacities, features)]
         getattr(build.load(), f"olatbench_backward_{_suffix(dtype)}")(

@@ -95,7 +95,13 @@ def rasterize_torch(
 
     colour_tiles = torch.zeros(n_tiles, ts * ts, channels, device=device, dtype=dtype)
     t_tiles = torch.ones(n_tiles, ts * ts, device=device, dtype=dtype)
-    for chunk in _chunks(counts, ts * ts):
+    chunks = _chunks(counts, ts * ts)
+    if not chunks and use_checkpoint:
+        # Nothing visible: keep the outputs connected to the inputs (zero gradients) so that backward works on
+        # an empty view, as with the other backends.
+        tie = sum(t.sum() for t in (means2d, conics, opacities, features)) * 0
+        colour_tiles, t_tiles = colour_tiles + tie, t_tiles + tie
+    for chunk in chunks:
         chunk_dev = chunk.to(device)
         starts = offsets[chunk_dev]
         lengths = counts[chunk].to(device)
