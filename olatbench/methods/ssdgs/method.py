@@ -1,0 +1,375 @@
+"""SSD-GS (ICLR 2026): relightable Gaussians with diffuse, specular, dipole-SSS and refined-shadow terms.
+
+The runner owns the loop; this class answers `setup`, `train_step`, `render`, `state_dict` and
+`load_state_dict`. One training step: pick a training view (a fresh random permutation each epoch), project
+the Gaussians, shade only the visible ones (radii > 0) with the terms the schedule has switched on, splat the
+colour as 3 feature channels, take ``0.8 L1 + 0.2 (1 - SSIM)``, step Adam (per-Gaussian parameters and global
+parameters in two optimisers so densification surgery only touches the former), then densify as 3DGS.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any, ClassVar
+
+import numpy as np
+import torch
+import torch.nn.functional as F
+
+from olatbench.gaussians.densify import Densifier, DensifyConfig
+from olatbench.gaussians.lr import exponential_lr
+from olatbench.gaussians.model import GaussianModel
+from olatbench.gaussians.projection import project
+from olatbench.gaussians.rasterize import rasterize
+from olatbench.gaussians.refinement import LightRefinement, PoseRefinement
+from olatbench.methods.base import Method, Views
+from olatbench.methods.ssdgs.config import SSDGSConfig
+from olatbench.methods.ssdgs.presets import PRESETS, resolve_presets
+from olatbench.methods.ssdgs.schedule import Schedule
+from olatbench.methods.ssdgs.shader import Components, Shader
+from olatbench.metrics.ssim import ssim_loss
+
+if TYPE_CHECKING:
+    from olatbench.datasets.records import Camera, PointLight
+
+STATE_FORMAT = "olatbench.methods.ssdgs/1"
+COMPONENT_CHANNELS = (("rgb", 3), ("diffuse", 3), ("specular", 3), ("sss", 3), ("shadow", 1), ("shadow_coarse", 1))
+
+
+class SSDGS(Method):
+    """Subsurface scattering, shadow and specular decomposition in Gaussian splatting (reference method)."""
+
+    name: ClassVar[str] = "ssdgs"
+    config_class: ClassVar[type] = SSDGSConfig
+    presets: ClassVar[dict[str, dict[str, Any]]] = PRESETS
+    description: ClassVar[str] = ("SSD-GS (ICLR 2026): Lambert + ASG/Fresnel specular + dipole SSS + light-view "
+                                  "shadow refined by an MLP, trained with a progressive schedule")
+
+    @classmethod
+    def resolve_config(cls, preset: str | None = None, **overrides: Any) -> SSDGSConfig:
+        """Presets joined by '+' apply left to right (``"mini+ablation-C"``), then ``overrides``."""
+        values = resolve_presets(preset)
+        values.update(overrides)
+        return SSDGSConfig(**values)
+
+    def __init__(self, config: SSDGSConfig | None = None) -> None:
+        super().__init__(config if config is not None else SSDGSConfig())
+        self.config: SSDGSConfig
+        self.step = 0  # steps taken so far (the next train_step is normally called with this value)
+
+    # ------------------------------------------------------------------------------------------- setup
+    def setup(self, train: Views, device: str | torch.device, seed: int) -> None:
+        cfg = self.config
+        if len(train) == 0:
+            raise ValueError("SSD-GS: no training views")
+        self.device = torch.device(device)
+        self.views = train
+        background = np.asarray(train.background, dtype=np.float32).reshape(3)
+        if cfg.background is not None and not np.allclose(cfg.background, background, atol=1e-3):
+            raise ValueError(f"SSD-GS: the config's background {tuple(cfg.background)} differs from the training "
+                             f"views' {tuple(background.tolist())}; the images are composited on the latter")
+        self.background = torch.as_tensor(background, device=self.device)
+        self.schedule: Schedule = cfg.resolved_schedule()
+        self.terms_in_model = frozenset(
+            t for t, on in (("shadow", cfg.use_shadow), ("sss", cfg.use_sss), ("specular", cfg.use_specular)) if on)
+
+        f32 = dict(dtype=torch.float32, device=self.device)
+        self.Ks = torch.as_tensor(np.stack([c.K for c in train.cameras]), **f32)
+        self.w2cs = torch.as_tensor(np.stack([c.w2c() for c in train.cameras]), **f32)
+        self.light_positions = torch.as_tensor(np.stack([lt.position for lt in train.lights]), **f32)
+        self.light_intensities = torch.as_tensor(np.stack([lt.intensity for lt in train.lights]), **f32)
+        pairs = zip(train.cameras, train.lights, strict=True)
+        self._train_keys = {_view_key(c, lt): i for i, (c, lt) in enumerate(pairs)}
+        centres = np.stack([c.position for c in train.cameras])
+        self.scene_extent = float(1.1 * np.linalg.norm(centres - centres.mean(0), axis=1).max())
+
+        torch.manual_seed(seed)
+        self.generator = torch.Generator().manual_seed(seed)
+        self.view_order = torch.randperm(len(train), generator=self.generator)
+        self.view_cursor = 0
+
+        centre, radius = _initial_sphere(train, cfg.init_radius)
+        self.model = GaussianModel.random_in_sphere(
+            cfg.num_init_gaussians, radius, attributes=self._initial_attributes(cfg.num_init_gaussians),
+            seed=seed, device=self.device, center=tuple(centre.tolist()), opacity=cfg.init_opacity)
+        with torch.no_grad():  # random orientations: isotropic identity-rotated Gaussians would share one normal
+            self.model.quats.copy_(F.normalize(torch.randn(self.model.num_gaussians, 4, generator=self.generator),
+                                               dim=-1).to(self.device))
+        self.shader = Shader(cfg).to(self.device)
+        self.pose_refinement = PoseRefinement(len(train), self.device) if cfg.refine_camera else None
+        self.light_refinement = LightRefinement(len(train), self.device) if cfg.refine_light else None
+        self._build_optimisers()
+        self.densifier = Densifier(DensifyConfig(
+            densify_from=cfg.steps(cfg.densify_from), densify_until=cfg.steps(cfg.densify_until),
+            densify_interval=cfg.densify_interval, grad_threshold=cfg.densify_grad_threshold,
+            opacity_reset_interval=max(1, cfg.steps(cfg.opacity_reset_interval)), percent_dense=cfg.percent_dense,
+            reset_opacity_at_start=bool(np.all(background == 1.0)), max_gaussians=cfg.max_gaussians), seed=seed)
+        self.step = 0
+
+    def _initial_attributes(self, n: int) -> dict[str, torch.Tensor]:
+        cfg = self.config
+        colour = torch.full((n, 3), 0.5)  # raw; softplus(0.5) = 0.97 as in the official code
+        attributes = {"diffuse": colour, "specular": colour.clone(), "sss": colour.clone(),
+                      "asg_weights": torch.zeros(n, cfg.num_asg), "material": torch.ones(n, cfg.material_dim)}
+        if cfg.shading_frame == "learned":
+            quat = torch.zeros(n, 4)
+            quat[:, 0] = 1.0
+            attributes["shading_quat"] = quat
+        return attributes
+
+    def _build_optimisers(self) -> None:
+        cfg = self.config
+        groups = [{"params": [p], "name": name, "lr": 0.0} for name, p in self.model.per_gaussian_parameters().items()]
+        self.gaussian_optimizer = torch.optim.Adam(groups, lr=0.0, eps=1e-15)
+        global_groups = [
+            {"params": list(self.shader.asg.parameters()), "name": "asg_lobes", "lr": cfg.asg_lr_init},
+            {"params": list(self.shader.sss_net.parameters()), "name": "sss_mlp", "lr": cfg.mlp_lr_init},
+            {"params": list(self.shader.shadow_net.parameters()), "name": "shadow_mlp", "lr": cfg.mlp_lr_init},
+        ]
+        if self.pose_refinement is not None:
+            global_groups.append({"params": list(self.pose_refinement.parameters()), "name": "camera", "lr": 0.0})
+        if self.light_refinement is not None:
+            global_groups.append({"params": list(self.light_refinement.parameters()), "name": "light", "lr": 0.0})
+        self.global_optimizer = torch.optim.Adam(global_groups, lr=0.0, eps=1e-15)
+
+    # --------------------------------------------------------------------------------------- schedules
+    def _learning_rates(self, step: int) -> dict[str, float]:
+        cfg, s = self.config, self.config.steps
+
+        def decayed(init: float, final: float, start: int, length: int) -> float:
+            return exponential_lr(max(0, step - s(start)), init, final, max(1, s(length)))
+
+        asg = decayed(cfg.asg_lr_init, cfg.asg_lr_final, cfg.asg_lr_decay_from, cfg.asg_lr_max_steps)
+        mlp = decayed(cfg.mlp_lr_init, cfg.mlp_lr_final, cfg.mlp_lr_decay_from, cfg.mlp_lr_max_steps)
+        refine_length = max(1, s(cfg.refinement_lr_max_steps))
+        return {
+            "means": exponential_lr(step, cfg.position_lr_init * self.scene_extent,
+                                    cfg.position_lr_final * self.scene_extent, max(1, s(cfg.position_lr_max_steps))),
+            "log_scales": cfg.scaling_lr, "quats": cfg.rotation_lr, "opacity_logits": cfg.opacity_lr,
+            "attributes.diffuse": cfg.colour_lr, "attributes.specular": cfg.colour_lr, "attributes.sss": cfg.colour_lr,
+            "attributes.asg_weights": asg, "attributes.shading_quat": asg, "attributes.material": mlp,
+            "asg_lobes": asg, "sss_mlp": mlp, "shadow_mlp": mlp,
+            "camera": exponential_lr(step - self.schedule.refine_camera_from, cfg.camera_lr_init,
+                                     cfg.camera_lr_final, refine_length),
+            "light": exponential_lr(step - self.schedule.refine_light_from, cfg.light_lr_init,
+                                    cfg.light_lr_final, refine_length),
+        }
+
+    def active_terms(self, step: int) -> frozenset[str]:
+        """Terms of the model's composition that the schedule has switched on at ``step``."""
+        return frozenset(t for t in self.terms_in_model if self.schedule.is_enabled(t, step))
+
+    def frozen_parameters(self, step: int) -> list[torch.nn.Parameter]:
+        """Parameters held fixed at ``step`` by the schedule (their gradients are dropped before the update)."""
+        groups = {
+            "shadow_mlp": list(self.shader.shadow_net.parameters()),
+            "sss_mlp": list(self.shader.sss_net.parameters()),
+            "asg_lobes": list(self.shader.asg.parameters()),
+            "material": [self.model.attributes["material"]],
+            "specular": [self.model.attributes["specular"], self.model.attributes["asg_weights"]],
+        }
+        return [p for group, params in groups.items() if self.schedule.is_frozen(group, step) for p in params]
+
+    # ------------------------------------------------------------------------------------- forward pass
+    def _camera(self, index: int | None, w2c: torch.Tensor, step: int) -> torch.Tensor:
+        if index is not None and self.pose_refinement is not None and step >= self.schedule.refine_camera_from:
+            return self.pose_refinement.apply(index, w2c)
+        return w2c
+
+    def _light(self, index: int | None, position: torch.Tensor, step: int) -> torch.Tensor:
+        if index is not None and self.light_refinement is not None and step >= self.schedule.refine_light_from:
+            return self.light_refinement.apply(index, position)
+        return position
+
+    def _forward(self, w2c: torch.Tensor, K: torch.Tensor, width: int, height: int, light_position: torch.Tensor,
+                 intensity: torch.Tensor, step: int, components: bool) -> dict[str, Any]:
+        """Project, shade the visible Gaussians and rasterize: rgb only (training) or every component."""
+        model = self.model
+        means, quats, scales, opacities = model.means, model.quats, model.scales, model.opacities
+        projected = project(means, quats, scales, w2c, K, width, height)
+        visible = torch.nonzero(projected.radii > 0).squeeze(1)
+        terms = self.active_terms(step)
+        coarse, light_weight = None, None
+        if "shadow" in terms:
+            from olatbench.gaussians.shadow import shadow_gather  # the light-view pass (gaussians-support helper)
+
+            with torch.no_grad():
+                gathered = shadow_gather(means.detach(), quats.detach(), scales.detach(), opacities.detach(),
+                                         light_position.detach(), means.detach().mean(0),
+                                         resolution=self.config.shadow_resolution)
+            coarse, light_weight = gathered.visibility[visible], gathered.weight
+        rotation_t = w2c[:3, :3].T
+        camera_position = -rotation_t @ w2c[:3, 3]
+        attributes = {name: value[visible] for name, value in model.attributes.items()}
+        shaded: Components = self.shader(means[visible], quats[visible], scales[visible], attributes,
+                                         camera_position, light_position, intensity, terms, coarse)
+        if components:
+            per_gaussian = torch.cat([shaded.colour, shaded.diffuse, shaded.specular, shaded.sss, shaded.shadow,
+                                      shaded.shadow_coarse], dim=1)
+            background = torch.cat([self.background, self.background.new_zeros(per_gaussian.shape[1] - 3)])
+        else:
+            per_gaussian, background = shaded.colour, self.background
+        features = per_gaussian.new_zeros(means.shape[0], per_gaussian.shape[1]).index_copy(0, visible, per_gaussian)
+        out = rasterize(projected, opacities, features, background)
+        return {"image": out.image, "projected": projected, "terms": terms, "light_weight": light_weight}
+
+    # ------------------------------------------------------------------------------------------ training
+    def _next_view(self) -> int:
+        if self.view_cursor >= len(self.view_order):
+            self.view_order = torch.randperm(len(self.views), generator=self.generator)
+            self.view_cursor = 0
+        index = int(self.view_order[self.view_cursor])
+        self.view_cursor += 1
+        return index
+
+    def compute_gradients(self, step: int, index: int | None = None) -> dict[str, Any]:
+        """Forward + backward of one training view (no parameter update); frozen groups keep ``grad = None``.
+
+        Returns the scalars of `train_step` plus ``projected`` and ``light_weight`` (densification statistics)."""
+        cfg = self.config
+        index = self._next_view() if index is None else index
+        camera = self.views.cameras[index]
+        for p in self.frozen_parameters(step):
+            p.requires_grad_(False)
+        try:
+            w2c = self._camera(index, self.w2cs[index], step)
+            light = self._light(index, self.light_positions[index], step)
+            out = self._forward(w2c, self.Ks[index], camera.width, camera.height, light,
+                                self.light_intensities[index], step, components=False)
+            image = out["image"].clamp(0.0, 1.0) if cfg.clamp_output else out["image"]
+            target = torch.from_numpy(np.ascontiguousarray(self.views.images[index])).to(self.device, torch.float32)
+            l1 = (image - target).abs().mean()
+            loss = (1.0 - cfg.lambda_dssim) * l1 + cfg.lambda_dssim * ssim_loss(image, target, channels_last=True)
+            out["projected"].means2d.retain_grad()
+            loss.backward()
+        finally:
+            for p in self.frozen_parameters(step):
+                p.requires_grad_(True)
+                p.grad = None
+        mse = float(((image.detach() - target) ** 2).mean())
+        psnr = float(-10.0 * np.log10(max(mse, 1e-12)))
+        return {"loss": float(loss.detach()), "l1": float(l1.detach()), "psnr": psnr,
+                "projected": out["projected"], "light_weight": out["light_weight"]}
+
+    def train_step(self, step: int) -> dict[str, float]:
+        rates = self._learning_rates(step)
+        for optimizer in (self.gaussian_optimizer, self.global_optimizer):
+            for group in optimizer.param_groups:
+                group["lr"] = rates[group["name"]]
+        result = self.compute_gradients(step)
+        projected = result.pop("projected")
+        light_weight = result.pop("light_weight")
+        self.gaussian_optimizer.step()
+        self.global_optimizer.step()
+        self.gaussian_optimizer.zero_grad(set_to_none=True)
+        self.global_optimizer.zero_grad(set_to_none=True)
+        with torch.no_grad():
+            grad = projected.means2d.grad
+            if grad is not None and self.densifier.active(step):
+                self.densifier.accumulate(grad, projected.radii, projected.radii > 0, width=projected.width,
+                                          height=projected.height)
+                if light_weight is not None:
+                    self.densifier.accumulate_priority(light_weight)
+            self.densifier.step(self.model, self.gaussian_optimizer, step, self.scene_extent)
+        self.step = step + 1
+        result["num_gaussians"] = float(self.model.num_gaussians)
+        return result
+
+    # ----------------------------------------------------------------------------------------- rendering
+    @torch.no_grad()
+    def render(self, camera: Camera, light: PointLight) -> dict[str, torch.Tensor]:
+        """Every component at the current step; training views (same pose and light) use their refinements."""
+        f32 = dict(dtype=torch.float32, device=self.device)
+        index = self._train_keys.get(_view_key(camera, light))
+        step = max(self.step - 1, 0)
+        w2c = self._camera(index, torch.as_tensor(camera.w2c(), **f32), step)
+        position = self._light(index, torch.as_tensor(light.position, **f32), step)
+        out = self._forward(w2c, torch.as_tensor(camera.K, **f32), camera.width, camera.height, position,
+                            torch.as_tensor(light.intensity, **f32), step, components=True)
+        image, result, start = out["image"], {}, 0
+        for name, channels in COMPONENT_CHANNELS:
+            result[name] = image[..., start:start + channels]
+            start += channels
+        result["rgb"] = result["rgb"].clamp(0.0, 1.0)
+        return result
+
+    @property
+    def num_gaussians(self) -> int | None:
+        return self.model.num_gaussians if hasattr(self, "model") else None
+
+    # ----------------------------------------------------------------------------------------- checkpoints
+    def state_dict(self) -> dict[str, Any]:
+        state: dict[str, Any] = {
+            "format": STATE_FORMAT, "step": self.step, "config": self.config.to_dict(),
+            "model": self.model.state_dict(), "shader": self.shader.state_dict(),
+            "gaussian_optimizer": self.gaussian_optimizer.state_dict(),
+            "global_optimizer": self.global_optimizer.state_dict(),
+            "densifier": _densifier_state(self.densifier),
+            "generator": self.generator.get_state(), "torch_rng": torch.get_rng_state(),
+            "view_order": self.view_order.clone(), "view_cursor": self.view_cursor,
+        }
+        if self.pose_refinement is not None:
+            state["pose_refinement"] = self.pose_refinement.state_dict()
+        if self.light_refinement is not None:
+            state["light_refinement"] = self.light_refinement.state_dict()
+        return state
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        """Restore a `state_dict` (call `setup` with the same views first)."""
+        found = state.get("format") if isinstance(state, dict) else type(state).__name__
+        if found != STATE_FORMAT:
+            raise ValueError(f"not an SSD-GS checkpoint (format {found!r}, need {STATE_FORMAT!r})")
+        if state["config"] != self.config.to_dict():
+            changed = sorted(k for k, v in state["config"].items() if self.config.to_dict().get(k) != v)
+            raise ValueError(f"SSD-GS checkpoint was written with a different config (fields: {', '.join(changed)})")
+        self.model.load_state_dict(state["model"])
+        self.shader.load_state_dict(state["shader"])
+        if self.pose_refinement is not None:
+            self.pose_refinement.load_state_dict(state["pose_refinement"])
+        if self.light_refinement is not None:
+            self.light_refinement.load_state_dict(state["light_refinement"])
+        self._build_optimisers()
+        self.gaussian_optimizer.load_state_dict(state["gaussian_optimizer"])
+        self.global_optimizer.load_state_dict(state["global_optimizer"])
+        _load_densifier_state(self.densifier, state["densifier"])
+        self.generator.set_state(state["generator"])
+        torch.set_rng_state(state["torch_rng"])
+        self.view_order = state["view_order"].clone()
+        self.view_cursor = int(state["view_cursor"])
+        self.step = int(state["step"])
+
+
+_DENSIFIER_STATISTICS = ("grad_sum", "visible_count", "max_radii", "priority")
+
+
+def _densifier_state(densifier: Densifier) -> dict[str, torch.Tensor | None]:
+    """The densifier's running statistics and RNG (it has no state_dict of its own)."""
+    state: dict[str, torch.Tensor | None] = {name: getattr(densifier, name) for name in _DENSIFIER_STATISTICS}
+    state["generator"] = densifier.generator.get_state()
+    return state
+
+
+def _load_densifier_state(densifier: Densifier, state: dict[str, torch.Tensor | None]) -> None:
+    for name in _DENSIFIER_STATISTICS:
+        value = state[name]
+        setattr(densifier, name, None if value is None else value.clone())
+    densifier.generator.set_state(state["generator"])
+
+
+def _view_key(camera: Camera, light: PointLight) -> bytes:
+    """Exact identity of a (pose, light position) pair, to recognise training views at render time."""
+    return np.asarray(camera.c2w, dtype=np.float64).tobytes() + np.asarray(light.position, dtype=np.float64).tobytes()
+
+
+def _initial_sphere(train: Views, radius: float | None) -> tuple[np.ndarray, float]:
+    """Centre and radius of the initial ball: the origin and ``radius``, or (``None``) the point closest to all
+    optical axes and 0.55 × the median camera distance to it."""
+    if radius is not None:
+        return np.zeros(3), float(radius)
+    origins = np.stack([c.position for c in train.cameras])
+    axes = np.stack([c.c2w[:3, 2] / np.linalg.norm(c.c2w[:3, 2]) for c in train.cameras])
+    projector = np.eye(3)[None] - axes[:, :, None] * axes[:, None, :]  # (N, 3, 3) I - d dᵀ
+    centre = np.linalg.lstsq(projector.sum(0), (projector @ origins[:, :, None]).sum(0)[:, 0], rcond=None)[0]
+    return centre, 0.55 * float(np.median(np.linalg.norm(origins - centre, axis=1)))
+
+
+__all__ = ["SSDGS"]
