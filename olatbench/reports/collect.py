@@ -21,6 +21,7 @@ from typing import Any
 import pandas as pd
 
 from olatbench.bench.results import read_results
+from olatbench.bench.store import find_results
 
 COLUMNS = ("method", "variant", "suite", "scene", "seed", "split", "metric", "value", "status", "protocol",
            "device", "job_id", "error", "path")
@@ -36,7 +37,7 @@ def find_results_files(runs: str | Path | Iterable[str | Path]) -> list[Path]:
         if root.is_file():
             found.add(root)
         elif root.is_dir():
-            found.update(root.rglob("results.json"))
+            found.update(find_results(root))
         else:
             raise FileNotFoundError(f"{root}: no such file or folder")
     return sorted(found)
