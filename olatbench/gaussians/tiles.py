@@ -90,11 +90,13 @@ def bin_gaussians(
     total = int(counts.sum())
     gauss = torch.repeat_interleave(torch.arange(means2d.shape[0], device=device), counts)
     first = torch.cumsum(counts, 0) - counts
-    local = torch.arange(total, device=device) - first[gauss]
-    tile_x = tx0[gauss] + local % span_x[gauss]
-    tile_y = ty0[gauss] + torch.div(local, span_x[gauss], rounding_mode="floor")
+    # One gather of all per-Gaussian quantities the pairs need (cheaper than one gather each).
+    per_pair = torch.stack([tx0, ty0, span_x, first, float_order_key(sort_keys)], dim=1)[gauss]
+    local = torch.arange(total, device=device) - per_pair[:, 3]
+    tile_y = per_pair[:, 1] + torch.div(local, per_pair[:, 2], rounding_mode="floor")
+    tile_x = per_pair[:, 0] + local - (tile_y - per_pair[:, 1]) * per_pair[:, 2]
     tile_ids = tile_y * tiles_x + tile_x
-    keys = (tile_ids << 32) | float_order_key(sort_keys)[gauss]
+    keys = (tile_ids << 32) | per_pair[:, 4]
     order = torch.sort(keys, stable=True).indices
     gaussian_ids = gauss[order]
     per_tile = torch.bincount(tile_ids, minlength=tiles_x * tiles_y)
