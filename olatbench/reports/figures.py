@@ -46,11 +46,12 @@ def _png(figure) -> bytes:
     return buffer.getvalue()
 
 
-def _show(axis, image: np.ndarray, title: str, **kwargs) -> None:
-    axis.imshow(np.clip(image, 0.0, 1.0) if image.ndim == 3 else image, **kwargs)
+def _show(axis, image: np.ndarray, title: str, **kwargs):
+    shown = axis.imshow(np.clip(image, 0.0, 1.0) if image.ndim == 3 else image, **kwargs)
     axis.set_title(title, fontsize=8)
     axis.set_xticks([])
     axis.set_yticks([])
+    return shown
 
 
 def comparison_grid(rows: Sequence[ComparisonRow], error_max: float = 0.2, panel_inches: float = 2.0) -> bytes:
@@ -66,8 +67,9 @@ def comparison_grid(rows: Sequence[ComparisonRow], error_max: float = 0.2, panel
         for m, (label, prediction) in enumerate(row.predictions):
             value = psnr(np.clip(prediction, 0, 1), row.ground_truth)
             _show(axes[r, 1 + m], prediction, f"{label} ({value:.2f} dB)")
-            _show(axes[r, 1 + methods + m], error_map(prediction, row.ground_truth), f"|error| {label}",
-                  cmap="magma", vmin=0.0, vmax=error_max)
+            shown = _show(axes[r, 1 + methods + m], error_map(prediction, row.ground_truth), f"|error| {label}",
+                          cmap="magma", vmin=0.0, vmax=error_max)
+        figure.colorbar(shown, ax=axes[r, -1], fraction=0.046, pad=0.04)
     return _png(figure)
 
 
