@@ -16,6 +16,7 @@ import pandas as pd
 from olatbench.reports.layouts import (
     CellLookup,
     metric_columns_layout,
+    metric_title,
     overview_layout,
     scenes_layout,
     split_rows_layout,
@@ -160,8 +161,6 @@ def _computed_ranks(table: Table, rows: pd.DataFrame) -> dict[tuple[str, str, st
 
 
 def _find(table: Table, method: str, scene: str, split: str, metric: str) -> Cell | None:
-    from olatbench.reports.layouts import metric_title
-
     title = metric_title(metric)
     candidates = []
     if table.label_names == ("Method", "Split"):
