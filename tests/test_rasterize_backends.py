@@ -54,6 +54,19 @@ def test_failing_compilation_reports_the_compiler_output(fresh_build, monkeypatc
     assert not ok and "-fno-such-option" in detail and "failed" in detail
 
 
+def test_single_threaded_build_when_openmp_is_missing(fresh_build, monkeypatch):
+    fake = fresh_build / "cxx-without-openmp"
+    fake.write_text('#!/bin/sh\nfor a in "$@"; do [ "$a" = -fopenmp ] && { echo "no OpenMP here" >&2; exit 1; }; done\n'
+                    'exec g++ "$@"\n')  # fmt: skip
+    fake.chmod(0o755)
+    monkeypatch.setenv("OLATBENCH_CXX", str(fake))
+    ok, detail = cpu_backend_status()
+    assert ok and "single-threaded" in detail and "no OpenMP here" in detail
+    assert build.loaded_path()[0] == build.library_path("serial")
+    out = tiny_render(backend="cpu")
+    assert float(out["alpha"].max()) > 0
+
+
 def test_fresh_build_lands_in_the_hashed_cache(fresh_build):
     ok, detail = cpu_backend_status()
     assert ok, detail

@@ -35,7 +35,8 @@ def cpu_backend_status() -> tuple[bool, str]:
         build.load()
     except build.BuildError as error:
         return False, str(error)
-    return True, str(build.library_path())
+    path, note = build.loaded_path()
+    return True, f"{path} ({note})" if note else str(path)
 
 
 def resolve_backend(requested: str, device: torch.device | str, dtype: torch.dtype = torch.float32) -> str:

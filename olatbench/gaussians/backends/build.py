@@ -8,7 +8,9 @@ processes may build concurrently and none ever loads a half-written file.
 
 Flags: ``-O3 -fopenmp -shared -fPIC -std=c++17 -ffp-contract=off``. Deliberately no ``-march=native`` (the
 cache may be shared between machines) and no ``-ffast-math`` (the backward must reproduce the forward's
-floating-point decisions exactly).
+floating-point decisions exactly). If the OpenMP build fails (e.g. Apple clang without libomp), a
+single-threaded build without ``-fopenmp`` is tried next (``loaded_path()`` and ``cpu_backend_status()`` say so); once a
+single-threaded library is cached it is used without retrying OpenMP (delete the cache to retry).
 """
 
 from __future__ import annotations
@@ -23,7 +25,9 @@ import threading
 from pathlib import Path
 
 SOURCE = Path(__file__).with_name("csrc") / "rasterize.cpp"
-FLAGS = ("-O3", "-fopenmp", "-shared", "-fPIC", "-std=c++17", "-ffp-contract=off")
+BASE_FLAGS = ("-O3", "-shared", "-fPIC", "-std=c++17", "-ffp-contract=off")
+# Build variants in order of preference.
+VARIANTS = {"openmp": (*BASE_FLAGS, "-fopenmp"), "serial": BASE_FLAGS}
 LIBRARY_NAME = "olatbench_rasterize.so"
 ABI_VERSION = 1
 
@@ -42,25 +46,25 @@ def cache_root() -> Path:
     return Path(base) / "olatbench" / "ext"
 
 
-def build_hash() -> str:
+def build_hash(variant: str = "openmp") -> str:
     digest = hashlib.sha256(SOURCE.read_bytes())
-    digest.update("\0".join([*compiler(), *FLAGS]).encode())
+    digest.update("\0".join([*compiler(), *VARIANTS[variant]]).encode())
     return digest.hexdigest()[:16]
 
 
-def library_path() -> Path:
-    return cache_root() / build_hash() / LIBRARY_NAME
+def library_path(variant: str = "openmp") -> Path:
+    return cache_root() / build_hash(variant) / LIBRARY_NAME
 
 
-def build() -> Path:
-    """Compile the library if its cached copy is missing; return its path. Raises BuildError."""
-    target = library_path()
+def compile_variant(variant: str) -> Path:
+    """Compile one variant into the cache (atomically) unless present; return its path. Raises BuildError."""
+    target = library_path(variant)
     if target.exists():
         return target
     target.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp_name = tempfile.mkstemp(prefix=".build-", suffix=".so", dir=target.parent)
     os.close(fd)
-    command = [*compiler(), *FLAGS, str(SOURCE), "-o", tmp_name]
+    command = [*compiler(), *VARIANTS[variant], str(SOURCE), "-o", tmp_name]
     try:
         result = subprocess.run(command, capture_output=True, text=True, timeout=300)
     except (OSError, subprocess.SubprocessError) as error:
@@ -73,35 +77,71 @@ def build() -> Path:
     return target
 
 
+def build() -> tuple[Path, str]:
+    """The library path and a note ("" for the OpenMP build, else why it is single-threaded), compiling on
+    first use. Raises BuildError (with the OpenMP build's error) when no variant builds."""
+    if library_path("openmp").exists():
+        return library_path("openmp"), ""
+    if library_path("serial").exists():
+        return library_path("serial"), "single-threaded build (cached; delete it to retry OpenMP)"
+    try:
+        return compile_variant("openmp"), ""
+    except BuildError as openmp_error:
+        try:
+            path = compile_variant("serial")
+        except BuildError:
+            raise openmp_error from None
+        return path, f"single-threaded build: the OpenMP build failed: {openmp_error}"
+
+
 _lock = threading.Lock()
 _library: ctypes.CDLL | None = None
+_path: Path | None = None
+_note = ""
 _error: BuildError | None = None
 
 
 def load() -> ctypes.CDLL:
     """The loaded library (built on first use; the outcome is cached for the process). Raises BuildError."""
-    global _library, _error
+    global _library, _path, _note, _error
     with _lock:
         if _library is None and _error is None:
             try:
-                lib = ctypes.CDLL(str(build()))
+                path, note = build()
+                lib = ctypes.CDLL(str(path))
                 if lib.olatbench_abi_version() != ABI_VERSION:
-                    raise BuildError(f"{library_path()} has an unexpected ABI version")
-                _library = lib
+                    raise BuildError(f"{path} has an unexpected ABI version")
+                _library, _path, _note = lib, path, note
             except BuildError as error:
                 _error = error
             except OSError as error:
-                _error = BuildError(f"could not load {library_path()}: {error}")
+                _error = BuildError(f"could not load the C++ rasterizer library: {error}")
         if _error is not None:
             raise _error
         return _library
 
 
+def loaded_path() -> tuple[Path | None, str]:
+    """Path of the loaded library (None before a successful ``load``) and its note (see ``build``)."""
+    return _path, _note
+
+
 def reset() -> None:
     """Forget the cached load outcome (tests use this after changing the compiler environment)."""
-    global _library, _error
+    global _library, _path, _note, _error
     with _lock:
-        _library, _error = None, None
+        _library, _path, _note, _error = None, None, "", None
 
 
-__all__ = ["BuildError", "build", "build_hash", "cache_root", "compiler", "library_path", "load", "reset"]
+__all__ = [
+    "BuildError",
+    "build",
+    "build_hash",
+    "cache_root",
+    "compile_variant",
+    "compiler",
+    "library_path",
+    "load",
+    "loaded_path",
+    "reset",
+]
