@@ -84,6 +84,9 @@ def test_deterministic_across_thread_counts():
     one, two, three = run(1), run(2), run(3)
     for a, b, c in zip(one, two, three, strict=True):
         assert torch.equal(a, b) and torch.equal(a, c)
+    gathers = [shadow_gather_cpu(*leaves[:3], bins, threads=t) for t in (1, 2, 3)]
+    for field in ("vis_sum", "count", "weight"):
+        assert all(torch.equal(getattr(gathers[0], field), getattr(g, field)) for g in gathers[1:])
 
 
 def test_rasterize_cpu_and_torch_agree_through_public_api_with_depth():
