@@ -48,6 +48,14 @@ def test_broken_compiler_falls_back_to_torch_with_one_warning(fresh_build, monke
         tiny_render(backend="cpu")  # an explicit request fails loudly instead of falling back
 
 
+def test_unwritable_cache_is_a_clear_build_error(fresh_build, monkeypatch):
+    blocker = fresh_build / "file-not-folder"
+    blocker.write_text("")
+    monkeypatch.setenv("XDG_CACHE_HOME", str(blocker))
+    ok, detail = cpu_backend_status()
+    assert not ok and "XDG_CACHE_HOME" in detail
+
+
 def test_failing_compilation_reports_the_compiler_output(fresh_build, monkeypatch):
     monkeypatch.setenv("OLATBENCH_CXX", "g++ -DOLATBENCH_NO_SUCH_FLAG -fno-such-option")
     ok, detail = cpu_backend_status()

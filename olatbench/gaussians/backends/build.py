@@ -61,8 +61,13 @@ def compile_variant(variant: str) -> Path:
     target = library_path(variant)
     if target.exists():
         return target
-    target.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp_name = tempfile.mkstemp(prefix=".build-", suffix=".so", dir=target.parent)
+    try:
+        target.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp_name = tempfile.mkstemp(prefix=".build-", suffix=".so", dir=target.parent)
+    except OSError as error:
+        raise BuildError(
+            f"cannot write the build cache {target.parent}: {error}; point XDG_CACHE_HOME at a writable folder"
+        ) from error
     os.close(fd)
     command = [*compiler(), *VARIANTS[variant], str(SOURCE), "-o", tmp_name]
     try:
