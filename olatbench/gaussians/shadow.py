@@ -1,0 +1,299 @@
+"""SSD-GS light-view visibility pass (forward only): a coarse shadow hint per Gaussian.
+
+The Gaussians are splatted from a pinhole camera placed at the point light, sorted front to back by their
+**squared distance to the light**, and every pixel is composited with the 3DGS rules (α = min(0.99, o·G),
+skip α < 1/255, stop once T would drop below 1e-4: every Gaussian behind a stopped pixel sees T = 0 there).
+For each Gaussian g this yields:
+
+- ``visibility`` (N,) in [0, 1]: the transmittance *in front of* g averaged over pixels near g's projected
+  centre (the coarse visibility v̂_g of the paper, Eq. 6). ``mode`` chooses the average:
+
+  * ``"uniform"`` (default): the plain mean over the pixels whose centre lies within ``radius_px`` = 2 px of
+    g's 2D mean (the C++ kernel; fast);
+  * ``"density"``: the same pixels weighted by g's own 2D density ρ = exp(-½ dᵀ conic d) (no opacity):
+    v̂ = Σ ρ T / Σ ρ. This is what the official SSD-GS CUDA kernel computes (``out_trans / non_trans`` with
+    ``dd < thres = 4``); for Gaussians wider than a few pixels ρ ≈ 1 on the disc and it equals ``"uniform"``;
+  * ``"footprint"`` (the paper's Eq. 6 read literally): every pixel g is composited at (α ≥ 1/255), weighted
+    by ρ.
+
+  "In front of" always excludes g itself; with ``depth_offset`` > 0 it also excludes every Gaussian whose
+  squared distance to the light is within ``depth_offset`` of g's (the official self-shadow offset, 0.015 in
+  squared-distance units, i.e. the sort key's units). ``OFFICIAL_KERNEL`` = ``{"mode": "density",
+  "depth_offset": 0.015}`` reproduces the official kernel's arithmetic, except that its lagging pointer also
+  counts the first Gaussian inside the offset band for later Gaussians at the same pixel (an order-dependent
+  artefact we do not copy) and it never stops a pixel at T < 1e-4. Gaussians the light camera does not see
+  (behind it, outside its frustum, culled, or with no pixel to average over) get visibility 0 ("hint 0") and
+  ``seen = False``.
+- ``weight`` (N,): g's accumulated blending weight Σ_pixels T·α in the light view (how much of the light g
+  intercepts; SSD-GS uses it to cap the number of Gaussians).
+- ``seen`` (N,) bool.
+
+The light camera (:func:`light_camera`) sits at the light, looks at ``target`` with world up +z (another up
+when the view direction is parallel to it, see :func:`olatbench.datasets.cameras.look_at`) and has the
+narrowest square field of view that contains the sphere of ``scene_radius`` around ``target`` (× ``margin``),
+at most 120°. The official code instead scales the *viewing* camera's focal length by |light| / |camera| and
+looks at the mean of the Gaussian centres; callers can pass that mean as ``target``.
+
+Backends: ``"torch"`` (reference, any device) implements every option; ``"cpu"`` (the C++ kernel of
+:mod:`olatbench.gaussians.backends.cpu`) implements ``mode="uniform"`` with ``depth_offset=0``; ``"auto"``
+uses the C++ kernel for CPU tensors whenever the options allow it and torch otherwise.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+import torch
+
+from olatbench.datasets.cameras import look_at
+from olatbench.gaussians.projection import project
+from olatbench.gaussians.tiles import TileBins, bin_gaussians, float_order_key
+
+ShadowMode = Literal["uniform", "density", "footprint"]
+MODES = ("uniform", "density", "footprint")
+OFFICIAL_DEPTH_OFFSET = 0.015  # squared-distance units (the official kernel's `offset`)
+# Options reproducing the official SSD-GS light kernel (torch backend unless the C++ kernel grows them).
+OFFICIAL_KERNEL = {"mode": "density", "depth_offset": OFFICIAL_DEPTH_OFFSET}
+MAX_FOV_DEGREES = 120.0
+# Compositing constants of the rasterizer (kept identical to backends/csrc/rasterize.cpp).
+_ALPHA_MAX = 0.99
+_ALPHA_MIN = 1.0 / 255.0
+_T_MIN = 1e-4
+# Number of (pair, pixel) entries the torch reference handles at once.
+_ENTRY_BUDGET = 1 << 21
+
+
+@dataclass
+class ShadowResult:
+    """Per-Gaussian light-view results: ``visibility`` (N,) in [0, 1], ``weight`` (N,) ≥ 0, ``seen`` (N,) bool,
+    and the ``backend`` that computed them."""
+
+    visibility: torch.Tensor
+    weight: torch.Tensor
+    seen: torch.Tensor
+    backend: str
+
+
+def light_camera(
+    light_position: torch.Tensor,
+    target: torch.Tensor,
+    scene_radius: float = 1.0,
+    resolution: int = 256,
+    up: tuple[float, float, float] = (0.0, 0.0, 1.0),
+    margin: float = 1.05,
+) -> tuple[torch.Tensor, torch.Tensor, int, int]:
+    """Square pinhole camera at the light looking at ``target``: ``(w2c (4, 4), K (3, 3), width, height)``.
+
+    The half field of view is ``asin(scene_radius / distance) × margin`` (the sphere around ``target`` just
+    fits), capped at ``MAX_FOV_DEGREES`` / 2 — also when the light is inside that sphere. Tensors are float32
+    on the light's device; K follows the +0.5 pixel-centre convention (principal point at the image centre).
+    """
+    eye = light_position.detach().double().cpu().numpy()
+    centre = target.detach().double().cpu().numpy()
+    distance = float(np.linalg.norm(centre - eye))
+    if not distance > 0:
+        raise ValueError(f"light position {eye.tolist()} coincides with the target {centre.tolist()}")
+    max_half = math.radians(MAX_FOV_DEGREES) / 2
+    half = math.asin(scene_radius / distance) * margin if scene_radius < distance else max_half
+    half = min(half, max_half)
+    focal = 0.5 * resolution / math.tan(half)
+    c2w = look_at(eye, centre, np.asarray(up, dtype=np.float64))
+    w2c = torch.as_tensor(np.linalg.inv(c2w), dtype=torch.float32, device=light_position.device)
+    K = torch.tensor(
+        [[focal, 0.0, resolution / 2.0], [0.0, focal, resolution / 2.0], [0.0, 0.0, 1.0]],
+        dtype=torch.float32,
+        device=light_position.device,
+    )
+    return w2c, K, int(resolution), int(resolution)
+
+
+@torch.no_grad()
+def shadow_gather(
+    means: torch.Tensor,
+    quats: torch.Tensor,
+    scales: torch.Tensor,
+    opacities: torch.Tensor,
+    light_position: torch.Tensor,
+    target: torch.Tensor,
+    resolution: int = 256,
+    backend: str = "auto",
+    *,
+    mode: ShadowMode = "uniform",
+    depth_offset: float = 0.0,
+    radius_px: float = 2.0,
+    scene_radius: float | None = None,
+    near: float = 0.01,
+) -> ShadowResult:
+    """Light-view coarse visibility, blending weight and seen flag per Gaussian (see the module docstring).
+
+    ``means`` (N, 3), ``quats`` (N, 4) wxyz, ``scales`` (N, 3) linear, ``opacities`` (N,) in [0, 1],
+    ``light_position`` (3,), ``target`` (3,). ``scene_radius`` defaults to the largest distance from ``target``
+    to a Gaussian centre. Forward only (no autograd).
+    """
+    if mode not in MODES:
+        raise ValueError(f"unknown shadow mode {mode!r}; choose one of {', '.join(MODES)}")
+    if depth_offset < 0:
+        raise ValueError(f"depth_offset must be ≥ 0, got {depth_offset}")
+    n = means.shape[0]
+    dtype = means.dtype if means.dtype in (torch.float32, torch.float64) else torch.float32
+    light = light_position.to(device=means.device, dtype=dtype)
+    target = target.to(device=means.device, dtype=dtype)
+    if scene_radius is None:
+        scene_radius = float((means - target).norm(dim=1).max()) if n > 0 else 1.0
+    w2c, K, width, height = light_camera(light, target, scene_radius=scene_radius, resolution=resolution)
+    chosen = _choose_backend(backend, means.device, dtype, mode, depth_offset)
+    zeros = torch.zeros(n, device=means.device, dtype=dtype)
+    if n == 0:
+        return ShadowResult(zeros, zeros.clone(), torch.zeros(0, dtype=torch.bool, device=means.device), chosen)
+    projected = project(means.to(dtype), quats.to(dtype), scales.to(dtype), w2c.to(dtype), K.to(dtype),
+                        width, height, near=near)  # fmt: skip
+    keys = ((means.to(dtype) - light) ** 2).sum(-1)
+    bins = bin_gaussians(projected.means2d, projected.radii, keys, width, height)
+    opacities = opacities.to(dtype).reshape(n)
+    if chosen == "cpu":
+        from olatbench.gaussians.backends.cpu import shadow_gather_cpu
+
+        sums = shadow_gather_cpu(projected.means2d, projected.conics, opacities, bins, radius_px=radius_px)
+        vis_sum, norm, weight = sums.vis_sum, sums.count.to(dtype), sums.weight
+        vis_sum, norm, weight = (t.to(means.device) for t in (vis_sum, norm, weight))
+    else:
+        vis_sum, norm, weight = _gather_torch(
+            projected.means2d, projected.conics, opacities, keys, bins, mode, radius_px, depth_offset
+        )
+    seen = (norm > 0) & (projected.radii > 0)
+    visibility = torch.where(seen, vis_sum / norm.clamp_min(torch.finfo(dtype).tiny), zeros).clamp(0.0, 1.0)
+    return ShadowResult(visibility=visibility, weight=weight, seen=seen, backend=chosen)
+
+
+def _choose_backend(backend: str, device: torch.device, dtype: torch.dtype, mode: str, depth_offset: float) -> str:
+    cpp_ok = mode == "uniform" and depth_offset == 0.0
+    if backend == "torch":
+        return "torch"
+    if backend == "cpu":
+        if not cpp_ok:
+            raise ValueError(
+                "the C++ light pass implements mode='uniform' with depth_offset=0 only; "
+                f"got mode={mode!r}, depth_offset={depth_offset} (use backend='torch' or 'auto')"
+            )
+        if device.type != "cpu":
+            raise ValueError(f"backend='cpu' needs CPU tensors, got {device}")
+        return "cpu"
+    if backend != "auto":
+        raise ValueError(f"unknown shadow backend {backend!r}; choose 'auto', 'torch' or 'cpu'")
+    if not cpp_ok:
+        return "torch"
+    from olatbench.gaussians.backends import resolve_backend
+
+    return "cpu" if resolve_backend("auto", device, dtype) == "cpu" else "torch"
+
+
+def _gather_torch(
+    means2d: torch.Tensor,
+    conics: torch.Tensor,
+    opacities: torch.Tensor,
+    keys: torch.Tensor,
+    bins: TileBins,
+    mode: str,
+    radius_px: float,
+    depth_offset: float,
+) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """Torch reference of the light pass on the tile bins: (visibility sum, normaliser, weight), each (N,).
+
+    Every pixel of every tile sees the tile's whole front-to-back list (exactly the C++ kernel's per-pixel
+    compositing). Entries (pair, pixel) are laid out pixel-major inside each tile so that one pixel's list is
+    contiguous; transmittance is a segmented cumulative sum of log(1 - α) in float64.
+    """
+    device, dtype = means2d.device, means2d.dtype
+    n = means2d.shape[0]
+    ts = bins.tile_size
+    area = ts * ts
+    offsets, ids = bins.offsets.to(device), bins.gaussian_ids.to(device)
+    vis_sum = torch.zeros(n, device=device, dtype=torch.float64)
+    norm = torch.zeros(n, device=device, dtype=torch.float64)
+    weight = torch.zeros(n, device=device, dtype=torch.float64)
+    log_t_min = math.log(_T_MIN)
+
+    # Sorted pair keys (tile << 32 | key order) to find, per pair, how many of its tile's Gaussians lie in front
+    # of it by more than depth_offset (the list prefix its transmittance is read from).
+    pair_tiles = torch.repeat_interleave(torch.arange(bins.num_tiles, device=device), offsets[1:] - offsets[:-1])
+    if depth_offset > 0:
+        pair_keys = (pair_tiles << 32) | float_order_key(keys[ids])
+        shifted = (keys[ids].double() - depth_offset).to(keys.dtype)
+        query = (pair_tiles << 32) | float_order_key(shifted)
+        front_count = torch.searchsorted(pair_keys, query) - offsets[pair_tiles]
+    else:
+        front_count = torch.arange(ids.numel(), device=device) - offsets[pair_tiles]
+
+    tile = 0
+    while tile < bins.num_tiles:
+        # Chunk of whole tiles with at most _ENTRY_BUDGET entries (at least one tile).
+        limit = int(offsets[tile]) + max(1, _ENTRY_BUDGET // area)
+        last = int(torch.searchsorted(offsets, torch.tensor(limit, device=device), right=True)) - 1
+        last = min(max(last, tile + 1), bins.num_tiles)
+        p0, p1 = int(offsets[tile]), int(offsets[last])
+        if p1 > p0:
+            _gather_chunk(means2d, conics, opacities, bins, ids, offsets, front_count, tile, last, p0, p1, mode,
+                          radius_px, log_t_min, vis_sum, norm, weight)  # fmt: skip
+        tile = last
+    return vis_sum.to(dtype), norm.to(dtype), weight.to(dtype)
+
+
+def _gather_chunk(means2d, conics, opacities, bins, ids, offsets, front_count, t0, t1, p0, p1, mode, radius_px,
+                  log_t_min, vis_sum, norm, weight) -> None:  # fmt: skip
+    """Accumulate tiles [t0, t1) (pairs [p0, p1)) into ``vis_sum``, ``norm`` and ``weight`` in place."""
+    device = means2d.device
+    ts = bins.tile_size
+    area = ts * ts
+    tiles = torch.arange(t0, t1, device=device)
+    counts = offsets[t0 + 1 : t1 + 1] - offsets[t0:t1]  # pairs per tile
+    tile_entry_start = (offsets[t0:t1] - p0) * area
+    total = (p1 - p0) * area
+    entry_tile = torch.repeat_interleave(torch.arange(t1 - t0, device=device), counts * area)
+    local = torch.arange(total, device=device) - tile_entry_start[entry_tile]
+    n_t = counts[entry_tile]
+    pix = torch.div(local, n_t, rounding_mode="floor")
+    k = local - pix * n_t
+    pair = offsets[t0:t1][entry_tile] + k
+    g = ids[pair]
+    tile_id = tiles[entry_tile]
+    px = (tile_id % bins.tiles_x) * ts + pix % ts
+    py = torch.div(tile_id, bins.tiles_x, rounding_mode="floor") * ts + torch.div(pix, ts, rounding_mode="floor")
+    inside = (px < bins.width) & (py < bins.height)
+
+    dx = means2d[g, 0] - (px.to(means2d.dtype) + 0.5)
+    dy = means2d[g, 1] - (py.to(means2d.dtype) + 0.5)
+    a, b, c = conics[g].unbind(-1)
+    power = -0.5 * (a * dx * dx + c * dy * dy) - b * dx * dy
+    alpha = torch.clamp(opacities[g] * torch.exp(power), max=_ALPHA_MAX)
+    candidate = inside & (power <= 0) & (alpha >= _ALPHA_MIN)
+    log_keep = torch.where(candidate, torch.log1p(-alpha.double()), torch.zeros_like(alpha, dtype=torch.float64))
+
+    # Exclusive prefix sums per pixel segment (a segment = one pixel's list, contiguous, n_t entries).
+    prefix = torch.zeros(total + 1, device=device, dtype=torch.float64)
+    prefix[1:] = torch.cumsum(log_keep, 0)
+    seg_start = tile_entry_start[entry_tile] + pix * n_t
+    base = prefix[seg_start]
+    cum_excl = prefix[:-1] - base
+    cum_incl = prefix[1:] - base
+    composited = candidate & (cum_incl >= log_t_min)
+    w = torch.where(composited, alpha.double() * torch.exp(cum_excl), torch.zeros_like(cum_excl))
+
+    # Transmittance in front of g (by more than depth_offset): the prefix of front_count entries.
+    front = prefix[seg_start + front_count[pair]] - base
+    t_front = torch.where(front >= log_t_min, torch.exp(front), torch.zeros_like(front))
+    if mode == "footprint":
+        sample = candidate
+        rho = torch.exp(power.double())
+    else:
+        sample = inside & (dx * dx + dy * dy <= radius_px * radius_px)
+        rho = torch.exp(power.double()) if mode == "density" else torch.ones_like(t_front)
+    rho = torch.where(sample, rho, torch.zeros_like(rho))
+    vis_sum.index_add_(0, g, rho * t_front)
+    norm.index_add_(0, g, rho)
+    weight.index_add_(0, g, w)
+
+
+__all__ = ["MODES", "OFFICIAL_DEPTH_OFFSET", "OFFICIAL_KERNEL", "ShadowResult", "light_camera", "shadow_gather"]
