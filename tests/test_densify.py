@@ -153,3 +153,21 @@ def test_surgery_with_multi_tensor_groups_and_no_state():
     assert optimizer.state[a]["exp_avg"].shape == (3, 2) and float(optimizer.state[b]["exp_avg"][-1]) == 0.0
     with pytest.raises(ValueError, match="cannot append rows"):
         append_rows([a], optimizer, [torch.ones(1, 3)])
+
+
+def test_exponential_lr_closed_form():
+    from olatbench.gaussians.lr import exponential_lr, exponential_lr_schedule
+
+    assert exponential_lr(0, 1.6e-4, 1.6e-6, 30_000) == pytest.approx(1.6e-4, rel=1e-12)
+    assert exponential_lr(30_000, 1.6e-4, 1.6e-6, 30_000) == pytest.approx(1.6e-6, rel=1e-12)
+    assert exponential_lr(90_000, 1.6e-4, 1.6e-6, 30_000) == pytest.approx(1.6e-6, rel=1e-12)  # held after
+    assert exponential_lr(15_000, 1.6e-4, 1.6e-6, 30_000) == pytest.approx(math.sqrt(1.6e-4 * 1.6e-6), rel=1e-12)
+    assert exponential_lr(-1, 1.0, 0.1, 10) == 0.0 and exponential_lr(5, 0.0, 0.0, 10) == 0.0
+    # delayed warm-up: delay_mult + (1 - delay_mult) sin(π/2 · step/delay_steps)
+    expected = (0.01 + 0.99 * math.sin(math.pi / 4)) * 1.0 * (0.1 / 1.0) ** (50 / 1000)
+    assert exponential_lr(50, 1.0, 0.1, 1000, delay_steps=100, delay_mult=0.01) == pytest.approx(expected, rel=1e-12)
+    assert exponential_lr(0, 1.0, 0.1, 1000, delay_steps=100, delay_mult=0.01) == pytest.approx(0.01, rel=1e-12)
+    schedule = exponential_lr_schedule(1.0, 0.1, 1000)
+    assert schedule(500) == exponential_lr(500, 1.0, 0.1, 1000)
+    with pytest.raises(ValueError, match="lr_final > 0"):
+        exponential_lr(1, 1.0, 0.0, 10)
