@@ -9,6 +9,7 @@ it with ``normalize=True`` (``unit``: [0, 1] mapped to [-1, 1]) and ``normalize=
 
 from __future__ import annotations
 
+import functools
 import io
 import os
 import pickle
@@ -66,8 +67,9 @@ def images(seed: int, n: int, h: int, w: int) -> tuple[np.ndarray, np.ndarray]:
     return a, b
 
 
-def seeded_state(net: str, seed: int, heads: dict[str, torch.Tensor] | None) -> dict[str, torch.Tensor]:
-    """He-scaled normal convs and 0.01-scaled biases in layer order (then |normal|·0.1 heads unless given)."""
+@functools.lru_cache(maxsize=8)
+def _seeded(net: str, seed: int) -> tuple[tuple[str, torch.Tensor], ...]:
+    """He-scaled normal convs and 0.01-scaled biases in layer order, then |normal|·0.1 heads."""
     model, rs, state = LPIPSNet(net), np.random.RandomState(seed), {}
     for index in sorted(int(k) for k in model.features):
         shape = tuple(model.features[str(index)].weight.shape)
@@ -76,8 +78,16 @@ def seeded_state(net: str, seed: int, heads: dict[str, torch.Tensor] | None) -> 
         state[f"features.{index}.bias"] = torch.from_numpy(rs.standard_normal(shape[0]).astype(np.float32)
                                                            * np.float32(0.01))
     for k, channels in enumerate(tap_channels(net)):
-        state[f"lin{k}"] = heads[f"lin{k}"] if heads else torch.from_numpy(
-            np.abs(rs.standard_normal((1, channels, 1, 1))).astype(np.float32) * np.float32(0.1))
+        state[f"lin{k}"] = torch.from_numpy(np.abs(rs.standard_normal((1, channels, 1, 1))).astype(np.float32)
+                                            * np.float32(0.1))
+    return tuple(state.items())
+
+
+def seeded_state(net: str, seed: int, heads: dict[str, torch.Tensor] | None) -> dict[str, torch.Tensor]:
+    """The seeded random weights of the reference script; ``heads`` replaces the random heads."""
+    state = dict(_seeded(net, seed))
+    if heads:
+        state.update({f"lin{k}": heads[f"lin{k}"] for k in range(5)})
     return state
 
 
