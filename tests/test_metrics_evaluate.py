@@ -149,3 +149,17 @@ def test_metrics_list_and_explain():
     as_json = json.loads(runner.invoke(explain, ["nrhints", "--json"]).output)
     assert as_json == get_protocol("nrhints").definition()
     assert runner.invoke(explain, ["nope"]).exit_code != 0
+
+
+def test_ssdgs_on_gs3_scores_in_the_official_gamma22_space(tmp_path):
+    from datasets_trees import write_gs3_tree
+
+    write_gs3_tree(tmp_path / "Lego", n_train=1, n_test=2, size=SIZE)
+    scene = load_scene(tmp_path / "Lego")
+    for frame in scene.split("test"):
+        write_image(tmp_path / "pred" / f"{frame.frame_id}.png", official_ground_truth(frame, "gs3"))
+    result = evaluate_folder(tmp_path / "pred", tmp_path / "Lego", "test", get_protocol("ssdgs"))
+    assert result["colourspace"] == "gamma22"
+    assert result["metrics"]["test"]["mean"]["psnr"] == 100.0
+    v1 = evaluate_folder(tmp_path / "pred", tmp_path / "Lego", "test", get_protocol("olatbench-v1"))
+    assert v1["colourspace"] == "srgb" and v1["metrics"]["test"]["mean"]["psnr"] < 60  # other space, other truth

@@ -25,6 +25,9 @@ from olatbench.metrics.protocols import Protocol
 IMAGE_SUFFIXES = (".png", ".exr", ".jpg", ".jpeg", ".tif", ".tiff", ".hdr")
 LINEAR_SUFFIXES = (".exr", ".hdr")
 RESULT_SCHEMA = "olatbench-evaluate/1"
+# The space the official pipelines train and score in (see olatbench.datasets.official): PNG predictions of a
+# protocol with ground_truth="official" are taken to be encoded in it.
+OFFICIAL_SPACE = {"nrhints": "srgb", "gs3": "gamma22", "sssgs": "srgb"}
 
 
 class EvaluationError(ValueError):
@@ -65,11 +68,11 @@ def match_predictions(pred_dir: Path, frame_ids: Sequence[str], allow_extra: boo
     return {i: found[i][0] for i in frame_ids}
 
 
-def read_prediction(path: Path, colourspace: str, background: np.ndarray) -> np.ndarray:
+def read_prediction(path: Path, colourspace: str, background: np.ndarray, encoded_as: str = "srgb") -> np.ndarray:
     """A prediction file as float32 (H, W, 3) in ``colourspace``.
 
-    PNG/JPEG/TIFF are sRGB-encoded, EXR/HDR linear. RGBA is composited (straight alpha) over
-    ``background`` (given in ``colourspace``).
+    PNG/JPEG/TIFF hold values encoded as ``encoded_as`` (sRGB by default), EXR/HDR linear light. RGBA is
+    composited (straight alpha) over ``background`` (given in ``colourspace``).
     """
     from olatbench.datasets.images import read_image
 
@@ -79,7 +82,7 @@ def read_prediction(path: Path, colourspace: str, background: np.ndarray) -> np.
         raise DatasetError(f"expected an RGB or RGBA image, found {channels} channels", path=path)
     if not np.isfinite(pixels).all():
         raise DatasetError("image holds NaN or Inf pixels", path=path)
-    stored = "linear" if path.suffix.lower() in LINEAR_SUFFIXES else "srgb"
+    stored = "linear" if path.suffix.lower() in LINEAR_SUFFIXES else encoded_as
     rgb = colour.convert_colourspace(pixels[..., :3], stored, colourspace)
     if channels == 4:
         rgb = colour.composite(rgb, pixels[..., 3], background, "straight")
@@ -112,12 +115,14 @@ def package_versions() -> dict[str, str | None]:
 
 def evaluate_matched(protocol: Protocol, matched: Mapping[str, Path],
                      ground_truth: Callable[[str], tuple[np.ndarray, np.ndarray | None, Path | None]],
-                     background: np.ndarray, progress: bool = False, batch_size: int = 4
-                     ) -> tuple[dict[str, dict], dict[str, dict]]:
+                     background: np.ndarray, progress: bool = False, batch_size: int = 4,
+                     colourspace: str | None = None) -> tuple[dict[str, dict], dict[str, dict]]:
     """Score predictions given as frame id -> file against ``ground_truth(frame_id) -> (rgb, mask, file)``.
 
-    Returns (per_image metrics by frame id, inputs with paths and sha256 by frame id).
+    ``colourspace``: the space predictions are scored in (default: the protocol's); 8-bit files are taken to be
+    encoded in it. Returns (per_image metrics by frame id, inputs with paths and sha256 by frame id).
     """
+    space = colourspace or protocol.colourspace
     ids = list(matched)
     inputs: dict[str, dict] = {}
 
@@ -125,7 +130,7 @@ def evaluate_matched(protocol: Protocol, matched: Mapping[str, Path],
         for frame_id in ids:
             path = matched[frame_id]
             try:
-                pred = read_prediction(path, protocol.colourspace, background)
+                pred = read_prediction(path, space, background, encoded_as=space)
                 gt, mask, gt_path = ground_truth(frame_id)
             except DatasetError as error:
                 raise EvaluationError(f"frame {frame_id}: {error}") from None
@@ -154,8 +159,9 @@ def evaluate_folder(pred_dir: str | Path, scene_dir: str | Path, split: str = "t
     if not frames:
         raise EvaluationError(f"{scene_dir}: split '{split}' has no ground-truth images")
     matched = match_predictions(Path(pred_dir), list(frames), allow_extra)
+    space = OFFICIAL_SPACE.get(scene.format, "srgb") if protocol.ground_truth == "official" else protocol.colourspace
     background = colour.convert_colourspace(np.asarray(scene.background, np.float32),
-                                            next(iter(frames.values())).colourspace, protocol.colourspace)
+                                            next(iter(frames.values())).colourspace, space)
 
     def ground_truth(frame_id: str):
         frame = frames[frame_id]
@@ -167,12 +173,13 @@ def evaluate_folder(pred_dir: str | Path, scene_dir: str | Path, split: str = "t
         rgb, mask = protocol.load_ground_truth(frame, scene.format, resolution)
         return rgb, mask, frame.image_path
 
-    per_image, inputs = evaluate_matched(protocol, matched, ground_truth, background, progress)
+    per_image, inputs = evaluate_matched(protocol, matched, ground_truth, background, progress, colourspace=space)
     return {
         "schema": RESULT_SCHEMA,
         "created": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
         "protocol": {"id": protocol.id, "version": protocol.version, "definition": protocol.definition()},
         "scene": {"name": scene.name, "format": scene.format, "root": str(Path(scene_dir).resolve())},
+        "colourspace": space,
         "predictions": str(Path(pred_dir).resolve()),
         "metrics": {split: {"mean": protocol.mean(list(per_image.values())), "per_image": per_image}},
         "inputs": inputs,
