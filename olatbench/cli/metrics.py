@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import warnings
 from pathlib import Path
 
 import click
@@ -51,7 +52,11 @@ def evaluate(pred_dir: Path, scene_dir: Path, split: str, protocol_name: str, ou
     try:
         if "lpips" in required:
             protocol.require_lpips()
-        result = evaluate_folder(pred_dir, scene_dir, split, protocol, allow_extra, resize_gt, progress=True)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", UserWarning)
+            result = evaluate_folder(pred_dir, scene_dir, split, protocol, allow_extra, resize_gt, progress=True)
+        for message in dict.fromkeys(str(w.message) for w in caught):
+            click.echo(f"warning: {message}", err=True)
         write_result(result, output, overwrite)
     except WeightsError as error:
         raise click.ClickException(str(error)) from None
