@@ -1,0 +1,229 @@
+"""Vanilla 3D Gaussian Splatting (Kerbl et al. 2023): the light-unaware lower bound of the paper's tables.
+
+Colour is view-dependent spherical harmonics of degree 3 (`olatbench.methods.baselines.sh`), raised one degree
+every ``sh_increase_interval`` steps; the light of a view is ignored, so one radiance field has to explain every
+lighting at once and novel lights are not reproduced. Training is the 3DGS recipe on the shared core: one view
+per step, ``0.8 L1 + 0.2 (1 - SSIM)``, Adam (eps 1e-15) with the exponential position rate, and 3DGS density
+control (`olatbench.gaussians.densify.Densifier`). Gaussians start uniformly in a ball (the OLAT datasets
+have no SfM points), as SSD-GS does.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+from typing import TYPE_CHECKING, Any, ClassVar
+
+import numpy as np
+import torch
+
+from olatbench.gaussians.densify import Densifier, DensifyConfig
+from olatbench.gaussians.lr import exponential_lr
+from olatbench.gaussians.model import GaussianModel
+from olatbench.gaussians.projection import project
+from olatbench.gaussians.rasterize import rasterize
+from olatbench.methods.base import Method, Views
+from olatbench.methods.baselines import sh
+from olatbench.methods.baselines.training import (
+    TrainingViews,
+    camera_centre,
+    camera_tensors,
+    densifier_state,
+    initial_ball,
+    load_densifier_state,
+    photometric_loss,
+    psnr_of,
+)
+
+if TYPE_CHECKING:
+    from olatbench.datasets.records import Camera, PointLight
+
+STATE_FORMAT = "olatbench.methods.baselines.3dgs/1"
+
+
+@dataclass
+class GS3DConfig:
+    """3DGS settings. Iteration-valued fields are given at ``reference_iterations`` and scale with
+    ``iterations``; ``densify_interval`` and ``sh_increase_interval`` are cadences and do not."""
+
+    iterations: int = 30_000
+    reference_iterations: int = 30_000
+    sh_degree: int = 3
+    sh_increase_interval: int = 1_000
+    num_init_gaussians: int = 10_000
+    init_radius: float | None = 1.0  # None: fitted to the cameras (see training.initial_ball)
+    init_opacity: float = 0.1
+    lambda_dssim: float = 0.2
+    position_lr_init: float = 1.6e-4  # × scene extent
+    position_lr_final: float = 1.6e-6
+    position_lr_delay_mult: float = 0.01
+    position_lr_max_steps: int = 30_000
+    feature_lr: float = 2.5e-3  # DC; the higher-order coefficients use feature_lr / 20
+    opacity_lr: float = 0.05
+    scaling_lr: float = 5e-3
+    rotation_lr: float = 1e-3
+    densify_from: int = 500
+    densify_until: int = 15_000
+    densify_interval: int = 100
+    densify_grad_threshold: float = 2e-4
+    opacity_reset_interval: int = 3_000
+    percent_dense: float = 0.01
+    max_gaussians: int | None = None
+
+    def __post_init__(self) -> None:
+        if self.iterations <= 0 or self.reference_iterations <= 0:
+            raise ValueError("3DGS config: iterations and reference_iterations must be positive")
+        if not 0 <= self.sh_degree <= sh.MAX_DEGREE:
+            raise ValueError(f"3DGS config: sh_degree must be in 0..{sh.MAX_DEGREE}, got {self.sh_degree}")
+
+    def steps(self, value: int) -> int:
+        """An iteration count given at ``reference_iterations``, scaled to ``iterations``."""
+        return round(value * self.iterations / self.reference_iterations)
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+# The 100K (NRHints, GS³) and 60K (SSS-GS) runs use the same position-decay and densification windows as the
+# official SSD-GS / GS³ scripts ("all methods are trained for 100K iterations with identical settings").
+PRESETS: dict[str, dict[str, Any]] = {
+    "nrhints": {"iterations": 100_000, "reference_iterations": 100_000, "position_lr_max_steps": 70_000,
+                "densify_until": 90_000, "max_gaussians": 550_000},
+    "gs3": {"iterations": 100_000, "reference_iterations": 100_000, "position_lr_max_steps": 70_000,
+            "densify_until": 90_000, "max_gaussians": 550_000},
+    "sssgs": {"iterations": 60_000, "reference_iterations": 60_000, "position_lr_max_steps": 50_000,
+              "densify_until": 50_000, "max_gaussians": 550_000},
+    # CPU-sized: 3000 steps, the 60K windows × 0.05, SH degree raised every 250 steps, few Gaussians.
+    "mini": {"iterations": 3_000, "reference_iterations": 60_000, "num_init_gaussians": 2_000, "init_radius": None,
+             "max_gaussians": 12_000, "sh_increase_interval": 250, "position_lr_max_steps": 60_000,
+             "densify_from": 4_000, "densify_until": 44_000, "opacity_reset_interval": 30_000},
+}
+
+
+class GaussianSplatting3D(Method):
+    """3DGS with degree-3 SH colour, unaware of the light (the paper's lower bound)."""
+
+    name: ClassVar[str] = "3dgs"
+    config_class: ClassVar[type] = GS3DConfig
+    presets: ClassVar[dict[str, dict[str, Any]]] = PRESETS
+    description: ClassVar[str] = ("3D Gaussian Splatting (Kerbl et al. 2023), SH degree 3, ignores the light: the "
+                                  "lower bound for relighting")
+
+    def __init__(self, config: GS3DConfig | None = None) -> None:
+        super().__init__(config if config is not None else GS3DConfig())
+        self.config: GS3DConfig
+        self.step = 0
+
+    # ------------------------------------------------------------------------------------------- setup
+    def setup(self, train: Views, device: str | torch.device, seed: int) -> None:
+        cfg = self.config
+        self.device = torch.device(device)
+        torch.manual_seed(seed)
+        self.train_views = TrainingViews(train, self.device, seed)
+        centre, radius = initial_ball(train, cfg.init_radius)
+        n = cfg.num_init_gaussians
+        rest = sh.num_coefficients(cfg.sh_degree) - 1
+        attributes = {"sh_dc": torch.zeros(n, 1, 3), "sh_rest": torch.zeros(n, rest, 3)}
+        self.model = GaussianModel.random_in_sphere(n, radius, attributes=attributes, seed=seed, device=self.device,
+                                                    center=tuple(centre.tolist()), opacity=cfg.init_opacity)
+        self._build_optimizer()
+        white = bool(np.allclose(train.background, 1.0))
+        self.densifier = Densifier(DensifyConfig(
+            densify_from=max(1, cfg.steps(cfg.densify_from)), densify_until=max(1, cfg.steps(cfg.densify_until)),
+            densify_interval=cfg.densify_interval, grad_threshold=cfg.densify_grad_threshold,
+            opacity_reset_interval=max(1, cfg.steps(cfg.opacity_reset_interval)), percent_dense=cfg.percent_dense,
+            reset_opacity_at_start=white, max_gaussians=cfg.max_gaussians), seed=seed)
+        self.step = 0
+
+    def _build_optimizer(self) -> None:
+        groups = [{"params": [p], "name": name, "lr": 0.0} for name, p in self.model.per_gaussian_parameters().items()]
+        self.optimizer = torch.optim.Adam(groups, lr=0.0, eps=1e-15)
+
+    def learning_rates(self, step: int) -> dict[str, float]:
+        """Per parameter group at ``step``: exponential decay for positions, constants otherwise (3DGS)."""
+        cfg = self.config
+        extent = self.train_views.scene_extent
+        return {
+            "means": exponential_lr(step, cfg.position_lr_init * extent, cfg.position_lr_final * extent,
+                                    max(1, cfg.steps(cfg.position_lr_max_steps))),
+            "log_scales": cfg.scaling_lr, "quats": cfg.rotation_lr, "opacity_logits": cfg.opacity_lr,
+            "attributes.sh_dc": cfg.feature_lr, "attributes.sh_rest": cfg.feature_lr / 20.0,
+        }
+
+    def active_sh_degree(self, step: int) -> int:
+        """SH degree in use at ``step``: one more every ``sh_increase_interval`` steps, up to ``sh_degree``."""
+        return min(self.config.sh_degree, step // self.config.sh_increase_interval)
+
+    # ------------------------------------------------------------------------------------- forward pass
+    def _forward(self, w2c: torch.Tensor, K: torch.Tensor, width: int, height: int, degree: int) -> dict[str, Any]:
+        model = self.model
+        projected = project(model.means, model.quats, model.scales, w2c, K, width, height)
+        dirs = torch.nn.functional.normalize(model.means - camera_centre(w2c)[None, :], dim=-1)
+        coefficients = torch.cat([model.attributes["sh_dc"], model.attributes["sh_rest"]], dim=1)
+        colours = (sh.eval_sh(degree, coefficients, dirs) + 0.5).clamp_min(0.0)
+        out = rasterize(projected, model.opacities, colours, self.train_views.background)
+        return {"image": out.image, "projected": projected}
+
+    # ------------------------------------------------------------------------------------------ training
+    def train_step(self, step: int) -> dict[str, float]:
+        for group in self.optimizer.param_groups:
+            group["lr"] = self.learning_rates(step)[group["name"]]
+        views = self.train_views
+        index = views.next_index()
+        camera = views.views.cameras[index]
+        out = self._forward(views.w2cs[index], views.Ks[index], camera.width, camera.height,
+                            self.active_sh_degree(step))
+        image = out["image"].clamp(0.0, 1.0)
+        target = views.image(index)
+        loss, l1 = photometric_loss(image, target, self.config.lambda_dssim)
+        projected = out["projected"]
+        projected.means2d.retain_grad()
+        loss.backward()
+        self.optimizer.step()
+        with torch.no_grad():
+            grad = projected.means2d.grad
+            if grad is not None and self.densifier.active(step):
+                self.densifier.accumulate(grad, projected.radii, projected.radii > 0, width=projected.width,
+                                          height=projected.height)
+            self.optimizer.zero_grad(set_to_none=True)
+            self.densifier.step(self.model, self.optimizer, step, views.scene_extent)
+        self.step = step + 1
+        return {"loss": float(loss.detach()), "l1": float(l1.detach()), "psnr": psnr_of(image, target),
+                "num_gaussians": float(self.model.num_gaussians), "sh_degree": float(self.active_sh_degree(step))}
+
+    # ----------------------------------------------------------------------------------------- rendering
+    @torch.no_grad()
+    def render(self, camera: Camera, light: PointLight) -> dict[str, torch.Tensor]:
+        """``rgb`` (H, W, 3) in [0, 1]; ``light`` is ignored (3DGS has no notion of it)."""
+        w2c, K = camera_tensors(camera, self.device)
+        out = self._forward(w2c, K, camera.width, camera.height, self.active_sh_degree(max(self.step - 1, 0)))
+        return {"rgb": out["image"].clamp(0.0, 1.0)}
+
+    @property
+    def num_gaussians(self) -> int | None:
+        return self.model.num_gaussians if hasattr(self, "model") else None
+
+    # ----------------------------------------------------------------------------------------- checkpoints
+    def state_dict(self) -> dict[str, Any]:
+        return {"format": STATE_FORMAT, "step": self.step, "config": self.config.to_dict(),
+                "model": self.model.state_dict(), "optimizer": self.optimizer.state_dict(),
+                "densifier": densifier_state(self.densifier), "views": self.train_views.state_dict(),
+                "torch_rng": torch.get_rng_state()}
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        """Restore a `state_dict` (call `setup` with the same views first)."""
+        found = state.get("format") if isinstance(state, dict) else type(state).__name__
+        if found != STATE_FORMAT:
+            raise ValueError(f"not a 3DGS checkpoint (format {found!r}, need {STATE_FORMAT!r})")
+        if state["config"] != self.config.to_dict():
+            changed = sorted(k for k, v in state["config"].items() if self.config.to_dict().get(k) != v)
+            raise ValueError(f"3DGS checkpoint was written with a different config (fields: {', '.join(changed)})")
+        self.model.load_state_dict(state["model"])
+        self._build_optimizer()
+        self.optimizer.load_state_dict(state["optimizer"])
+        load_densifier_state(self.densifier, state["densifier"])
+        self.train_views.load_state_dict(state["views"])
+        torch.set_rng_state(state["torch_rng"])
+        self.step = int(state["step"])
+
+
+__all__ = ["PRESETS", "GS3DConfig", "GaussianSplatting3D"]

@@ -1,0 +1,79 @@
+"""Real spherical harmonics up to degree 3 in the convention of 3D Gaussian Splatting (``utils/sh_utils.py``).
+
+Coefficients are ordered by degree l then order m = -l … l, so degree d uses ``(d + 1)²`` of them. With a
+unit direction (x, y, z) the basis functions are (3DGS / PlenOctrees sign convention)::
+
+    l = 0:  C0
+    l = 1:  -C1 y,  C1 z,  -C1 x
+    l = 2:  C2[0] xy,  C2[1] yz,  C2[2] (2z² - x² - y²),  C2[3] xz,  C2[4] (x² - y²)
+    l = 3:  C3[0] y(3x² - y²),  C3[1] xyz,  C3[2] y(4z² - x² - y²),  C3[3] z(2z² - 3x² - 3y²),
+            C3[4] x(4z² - x² - y²),  C3[5] z(x² - y²),  C3[6] x(x² - 3y²)
+
+with the orthonormal constants written out below in closed form (3DGS's ``C0 … C3`` values, signs included:
+C0 = 1/(2√π), C1 = √3/(2√π), |C2| = √15/(2√π), √15/(2√π), √5/(4√π), √15/(2√π), √15/(4√π), …). A colour is
+``eval_sh(...) + 0.5`` (3DGS stores the DC term of ``colour - 0.5``).
+"""
+
+from __future__ import annotations
+
+import math
+
+import torch
+
+C0 = 0.5 / math.sqrt(math.pi)
+C1 = math.sqrt(3.0) / (2.0 * math.sqrt(math.pi))
+C2 = (
+    math.sqrt(15.0) / (2.0 * math.sqrt(math.pi)),
+    -math.sqrt(15.0) / (2.0 * math.sqrt(math.pi)),
+    math.sqrt(5.0) / (4.0 * math.sqrt(math.pi)),
+    -math.sqrt(15.0) / (2.0 * math.sqrt(math.pi)),
+    math.sqrt(15.0) / (4.0 * math.sqrt(math.pi)),
+)
+C3 = (
+    -math.sqrt(70.0) / (8.0 * math.sqrt(math.pi)),
+    math.sqrt(105.0) / (2.0 * math.sqrt(math.pi)),
+    -math.sqrt(42.0) / (8.0 * math.sqrt(math.pi)),
+    math.sqrt(7.0) / (4.0 * math.sqrt(math.pi)),
+    -math.sqrt(42.0) / (8.0 * math.sqrt(math.pi)),
+    math.sqrt(105.0) / (4.0 * math.sqrt(math.pi)),
+    -math.sqrt(70.0) / (8.0 * math.sqrt(math.pi)),
+)
+MAX_DEGREE = 3
+
+
+def num_coefficients(degree: int) -> int:
+    """``(degree + 1)²`` coefficients per colour channel."""
+    return (degree + 1) ** 2
+
+
+def sh_basis(degree: int, dirs: torch.Tensor) -> torch.Tensor:
+    """The real SH basis (…, (degree+1)²) at unit directions ``dirs`` (…, 3)."""
+    if not 0 <= degree <= MAX_DEGREE:
+        raise ValueError(f"SH degree must be in 0..{MAX_DEGREE}, got {degree}")
+    x, y, z = dirs.unbind(-1)
+    values = [torch.full_like(x, C0)]
+    if degree >= 1:
+        values += [-C1 * y, C1 * z, -C1 * x]
+    if degree >= 2:
+        xx, yy, zz, xy, yz, xz = x * x, y * y, z * z, x * y, y * z, x * z
+        values += [C2[0] * xy, C2[1] * yz, C2[2] * (2.0 * zz - xx - yy), C2[3] * xz, C2[4] * (xx - yy)]
+    if degree >= 3:
+        values += [C3[0] * y * (3.0 * xx - yy), C3[1] * xy * z, C3[2] * y * (4.0 * zz - xx - yy),
+                   C3[3] * z * (2.0 * zz - 3.0 * xx - 3.0 * yy), C3[4] * x * (4.0 * zz - xx - yy),
+                   C3[5] * z * (xx - yy), C3[6] * x * (xx - 3.0 * yy)]
+    return torch.stack(values, dim=-1)
+
+
+def eval_sh(degree: int, coefficients: torch.Tensor, dirs: torch.Tensor) -> torch.Tensor:
+    """Σ_k coefficients[..., k, :] · Y_k(dirs): ``coefficients`` (…, K ≥ (degree+1)², C), ``dirs`` (…, 3) unit
+    -> (…, C). Coefficients beyond ``degree`` are ignored (the progressive degree schedule of 3DGS)."""
+    k = num_coefficients(degree)
+    if coefficients.shape[-2] < k:
+        raise ValueError(f"degree {degree} needs {k} coefficients, got {coefficients.shape[-2]}")
+    basis = sh_basis(degree, dirs)
+    return (basis[..., :, None] * coefficients[..., :k, :]).sum(-2)
+
+
+def rgb_to_sh_dc(rgb: torch.Tensor) -> torch.Tensor:
+    """The DC coefficient whose colour (``C0 · dc + 0.5``) is ``rgb``."""
+    return (rgb - 0.5) / C0

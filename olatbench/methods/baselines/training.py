@@ -1,0 +1,126 @@
+"""Training plumbing shared by the in-process baselines (not by SSD-GS, which has its own).
+
+`TrainingViews` holds the training cameras and lights as tensors and draws views as 3DGS does (a fresh random
+permutation per epoch); `photometric_loss` is the 3DGS loss ``(1 - λ) L1 + λ (1 - SSIM)``; `DensifierState`
+saves and restores a `Densifier`'s running statistics for checkpoints.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import torch
+
+from olatbench.gaussians.densify import Densifier
+from olatbench.methods.base import Views
+from olatbench.metrics.ssim import ssim_loss
+
+if TYPE_CHECKING:
+    from olatbench.datasets.records import Camera, PointLight
+
+_DENSIFIER_STATISTICS = ("grad_sum", "visible_count", "max_radii", "priority")
+
+
+class TrainingViews:
+    """The training views on ``device``: ``Ks`` (N,3,3), ``w2cs`` (N,4,4), ``light_positions`` (N,3),
+    ``light_intensities`` (N,3) and the images (N,H,W,3) in [0,1], plus the epoch-wise view order."""
+
+    def __init__(self, views: Views, device: torch.device, seed: int) -> None:
+        if len(views) == 0:
+            raise ValueError("no training views")
+        f32 = dict(dtype=torch.float32, device=device)
+        self.views = views
+        self.device = device
+        self.Ks = torch.as_tensor(np.stack([c.K for c in views.cameras]), **f32)
+        self.w2cs = torch.as_tensor(np.stack([c.w2c() for c in views.cameras]), **f32)
+        self.light_positions = torch.as_tensor(np.stack([lt.position for lt in views.lights]), **f32)
+        self.light_intensities = torch.as_tensor(np.stack([lt.intensity for lt in views.lights]), **f32)
+        self.background = torch.as_tensor(np.asarray(views.background, dtype=np.float32).reshape(3), **f32)
+        centres = np.stack([c.position for c in views.cameras])
+        # 3DGS's cameras_extent: 1.1 × the largest camera distance from the mean camera centre.
+        self.scene_extent = float(1.1 * np.linalg.norm(centres - centres.mean(0), axis=1).max())
+        self.generator = torch.Generator().manual_seed(seed)
+        self.order = torch.randperm(len(views), generator=self.generator)
+        self.cursor = 0
+
+    def __len__(self) -> int:
+        return len(self.views)
+
+    def next_index(self) -> int:
+        """The next training view (every view once per epoch, in a fresh random order)."""
+        if self.cursor >= len(self.order):
+            self.order = torch.randperm(len(self.views), generator=self.generator)
+            self.cursor = 0
+        index = int(self.order[self.cursor])
+        self.cursor += 1
+        return index
+
+    def image(self, index: int) -> torch.Tensor:
+        """Training image ``index`` (H, W, 3) on the device."""
+        return torch.from_numpy(np.ascontiguousarray(self.views.images[index])).to(self.device, torch.float32)
+
+    def state_dict(self) -> dict[str, Any]:
+        return {"generator": self.generator.get_state(), "order": self.order.clone(), "cursor": self.cursor}
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        self.generator.set_state(state["generator"])
+        self.order = state["order"].clone()
+        self.cursor = int(state["cursor"])
+
+
+def camera_tensors(camera: Camera, device: torch.device) -> tuple[torch.Tensor, torch.Tensor]:
+    """``(w2c (4,4), K (3,3))`` of one camera as float32 tensors on ``device``."""
+    f32 = dict(dtype=torch.float32, device=device)
+    return torch.as_tensor(camera.w2c(), **f32), torch.as_tensor(camera.K, **f32)
+
+
+def light_tensors(light: PointLight, device: torch.device) -> tuple[torch.Tensor, torch.Tensor]:
+    """``(position (3,), intensity (3,))`` of one point light as float32 tensors on ``device``."""
+    f32 = dict(dtype=torch.float32, device=device)
+    return torch.as_tensor(light.position, **f32), torch.as_tensor(light.intensity, **f32)
+
+
+def camera_centre(w2c: torch.Tensor) -> torch.Tensor:
+    """World-space camera centre (3,) of a world-to-camera matrix (4,4): ``-Rᵀ t``."""
+    return -w2c[:3, :3].T @ w2c[:3, 3]
+
+
+def photometric_loss(image: torch.Tensor, target: torch.Tensor, lambda_dssim: float) -> tuple[torch.Tensor,
+                                                                                                torch.Tensor]:
+    """``((1 - λ) L1 + λ (1 - SSIM), L1)`` of (H, W, 3) images (SSIM: the 3DGS zero-padded variant)."""
+    l1 = (image - target).abs().mean()
+    return (1.0 - lambda_dssim) * l1 + lambda_dssim * ssim_loss(image, target, channels_last=True), l1
+
+
+def psnr_of(image: torch.Tensor, target: torch.Tensor) -> float:
+    """PSNR (dB, peak 1) of two images, for training logs."""
+    mse = float(((image.detach() - target) ** 2).mean())
+    return float(-10.0 * np.log10(max(mse, 1e-12)))
+
+
+def densifier_state(densifier: Densifier) -> dict[str, torch.Tensor | None]:
+    """A `Densifier`'s running statistics and RNG state (it has no ``state_dict`` of its own)."""
+    state: dict[str, torch.Tensor | None] = {name: getattr(densifier, name) for name in _DENSIFIER_STATISTICS}
+    state["generator"] = densifier.generator.get_state()
+    return state
+
+
+def load_densifier_state(densifier: Densifier, state: dict[str, torch.Tensor | None]) -> None:
+    """Inverse of `densifier_state`."""
+    for name in _DENSIFIER_STATISTICS:
+        value = state[name]
+        setattr(densifier, name, None if value is None else value.clone())
+    densifier.generator.set_state(state["generator"])
+
+
+def initial_ball(views: Views, radius: float | None) -> tuple[np.ndarray, float]:
+    """Centre and radius of the random initial Gaussians: the origin and ``radius``, or (``None``) the point
+    closest to all optical axes (least squares) and 0.55 × the median camera distance to it."""
+    if radius is not None:
+        return np.zeros(3), float(radius)
+    origins = np.stack([c.position for c in views.cameras])
+    axes = np.stack([c.c2w[:3, 2] / np.linalg.norm(c.c2w[:3, 2]) for c in views.cameras])
+    projector = np.eye(3)[None] - axes[:, :, None] * axes[:, None, :]  # (N, 3, 3) I - d dᵀ
+    centre = np.linalg.lstsq(projector.sum(0), (projector @ origins[:, :, None]).sum(0)[:, 0], rcond=None)[0]
+    return centre, 0.55 * float(np.median(np.linalg.norm(origins - centre, axis=1)))
