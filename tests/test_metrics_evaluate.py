@@ -162,8 +162,10 @@ def test_ssdgs_on_gs3_scores_in_the_official_gamma22_space(tmp_path):
     scene = load_scene(tmp_path / "Lego")
     for frame in scene.split("test"):
         write_image(tmp_path / "pred" / f"{frame.frame_id}.png", official_ground_truth(frame, "gs3"))
-    result = evaluate_folder(tmp_path / "pred", tmp_path / "Lego", "test", get_protocol("ssdgs"))
+    result = evaluate_folder(tmp_path / "pred", tmp_path / "Lego", "test", get_protocol("ssdgs"), png_space="gamma22")
     assert result["colourspace"] == "gamma22"
     assert result["metrics"]["test"]["mean"]["psnr"] == 100.0
+    as_srgb = evaluate_folder(tmp_path / "pred", tmp_path / "Lego", "test", get_protocol("ssdgs"))
+    assert as_srgb["metrics"]["test"]["mean"]["psnr"] < 60  # the same files read as sRGB are other values
     v1 = evaluate_folder(tmp_path / "pred", tmp_path / "Lego", "test", get_protocol("olatbench-v1"))
     assert v1["colourspace"] == "srgb" and v1["metrics"]["test"]["mean"]["psnr"] < 60  # other space, other truth

@@ -32,8 +32,10 @@ def _protocol(name: str):
 @click.option("--overwrite", is_flag=True, help="Replace an existing result file.")
 @click.option("--allow-extra", is_flag=True, help="Ignore image files that match no ground-truth frame.")
 @click.option("--resize-gt", is_flag=True, help="Area-resize the ground truth to the predictions' resolution.")
+@click.option("--png-space", type=click.Choice(["srgb", "gamma22", "linear"]), default="srgb", show_default=True,
+              help="Encoding of 8-bit prediction files (gamma22: official GS³/SSD-GS renders of GS³ data).")
 def evaluate(pred_dir: Path, scene_dir: Path, split: str, protocol_name: str, output: Path | None,
-             required: tuple[str, ...], overwrite: bool, allow_extra: bool, resize_gt: bool) -> None:
+             required: tuple[str, ...], overwrite: bool, allow_extra: bool, resize_gt: bool, png_space: str) -> None:
     """Score a folder of renders (<frame_id>.png) against a scene's ground truth.
 
     \b
@@ -54,7 +56,8 @@ def evaluate(pred_dir: Path, scene_dir: Path, split: str, protocol_name: str, ou
             protocol.require_lpips()
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", UserWarning)
-            result = evaluate_folder(pred_dir, scene_dir, split, protocol, allow_extra, resize_gt, progress=True)
+            result = evaluate_folder(pred_dir, scene_dir, split, protocol, allow_extra, resize_gt, progress=True,
+                                     png_space=png_space)
         for message in dict.fromkeys(str(w.message) for w in caught):
             click.echo(f"warning: {message}", err=True)
         write_result(result, output, overwrite)

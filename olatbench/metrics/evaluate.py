@@ -25,8 +25,8 @@ from olatbench.metrics.protocols import Protocol
 IMAGE_SUFFIXES = (".png", ".exr", ".jpg", ".jpeg", ".tif", ".tiff", ".hdr")
 LINEAR_SUFFIXES = (".exr", ".hdr")
 RESULT_SCHEMA = "olatbench-evaluate/1"
-# The space the official pipelines train and score in (see olatbench.datasets.official): PNG predictions of a
-# protocol with ground_truth="official" are taken to be encoded in it.
+# The space the official pipelines train and score in (see olatbench.datasets.official): protocols with
+# ground_truth="official" score in it.
 OFFICIAL_SPACE = {"nrhints": "srgb", "gs3": "gamma22", "sssgs": "srgb"}
 
 
@@ -116,11 +116,13 @@ def package_versions() -> dict[str, str | None]:
 def evaluate_matched(protocol: Protocol, matched: Mapping[str, Path],
                      ground_truth: Callable[[str], tuple[np.ndarray, np.ndarray | None, Path | None]],
                      background: np.ndarray, progress: bool = False, batch_size: int = 4,
-                     colourspace: str | None = None) -> tuple[dict[str, dict], dict[str, dict]]:
+                     colourspace: str | None = None, png_space: str = "srgb"
+                     ) -> tuple[dict[str, dict], dict[str, dict]]:
     """Score predictions given as frame id -> file against ``ground_truth(frame_id) -> (rgb, mask, file)``.
 
-    ``colourspace``: the space predictions are scored in (default: the protocol's); 8-bit files are taken to be
-    encoded in it. Returns (per_image metrics by frame id, inputs with paths and sha256 by frame id).
+    ``colourspace``: the space predictions are scored in (default: the protocol's); ``png_space``: how 8-bit
+    prediction files are encoded (``srgb``: the runner's renders).
+    Returns (per_image metrics by frame id, inputs with paths and sha256 by frame id).
     """
     space = colourspace or protocol.colourspace
     ids = list(matched)
@@ -130,7 +132,7 @@ def evaluate_matched(protocol: Protocol, matched: Mapping[str, Path],
         for frame_id in ids:
             path = matched[frame_id]
             try:
-                pred = read_prediction(path, space, background, encoded_as=space)
+                pred = read_prediction(path, space, background, encoded_as=png_space)
                 gt, mask, gt_path = ground_truth(frame_id)
             except DatasetError as error:
                 raise EvaluationError(f"frame {frame_id}: {error}") from None
@@ -148,8 +150,15 @@ def evaluate_matched(protocol: Protocol, matched: Mapping[str, Path],
 
 
 def evaluate_folder(pred_dir: str | Path, scene_dir: str | Path, split: str = "test", protocol: Protocol | None = None,
-                    allow_extra: bool = False, resize_gt: bool = False, progress: bool = False) -> dict:
-    """Score ``pred_dir`` against split ``split`` of the scene at ``scene_dir``; return the result dict."""
+                    allow_extra: bool = False, resize_gt: bool = False, progress: bool = False,
+                    png_space: str = "srgb") -> dict:
+    """Score ``pred_dir`` against split ``split`` of the scene at ``scene_dir``; return the result dict.
+
+    ``png_space``: encoding of 8-bit prediction files (``srgb`` for olatbench renders; ``gamma22`` for
+    renders saved by the official GS³/SSD-GS scripts of GS³ data).
+    """
+    if png_space not in colour.COLOUR_SPACES:
+        raise EvaluationError(f"unknown png_space {png_space!r}; expected one of {colour.COLOUR_SPACES}")
     from olatbench.datasets import load_scene
     from olatbench.metrics.protocols import get_protocol
 
@@ -173,13 +182,14 @@ def evaluate_folder(pred_dir: str | Path, scene_dir: str | Path, split: str = "t
         rgb, mask = protocol.load_ground_truth(frame, scene.format, resolution)
         return rgb, mask, frame.image_path
 
-    per_image, inputs = evaluate_matched(protocol, matched, ground_truth, background, progress, colourspace=space)
+    per_image, inputs = evaluate_matched(protocol, matched, ground_truth, background, progress, colourspace=space,
+                                         png_space=png_space)
     return {
         "schema": RESULT_SCHEMA,
         "created": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
         "protocol": {"id": protocol.id, "version": protocol.version, "definition": protocol.definition()},
         "scene": {"name": scene.name, "format": scene.format, "root": str(Path(scene_dir).resolve())},
-        "colourspace": space,
+        "colourspace": space, "png_space": png_space,
         "predictions": str(Path(pred_dir).resolve()),
         "metrics": {split: {"mean": protocol.mean(list(per_image.values())), "per_image": per_image}},
         "inputs": inputs,
