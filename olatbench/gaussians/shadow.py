@@ -63,7 +63,7 @@ _ALPHA_MAX = 0.99
 _ALPHA_MIN = 1.0 / 255.0
 _T_MIN = 1e-4
 # Number of (pair, pixel) entries the torch reference handles at once.
-_ENTRY_BUDGET = 1 << 21
+_ENTRY_BUDGET = 1 << 22
 
 
 @dataclass
@@ -202,98 +202,130 @@ def _gather_torch(
 ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
     """Torch reference of the light pass on the tile bins: (visibility sum, normaliser, weight), each (N,).
 
-    Every pixel of every tile sees the tile's whole front-to-back list (exactly the C++ kernel's per-pixel
-    compositing). Entries (pair, pixel) are laid out pixel-major inside each tile so that one pixel's list is
-    contiguous; transmittance is a segmented cumulative sum of log(1 - α) in float64.
+    Same per-pixel compositing as the C++ kernel: every pixel walks its tile's front-to-back list. Only the
+    (pair, pixel) entries that can matter are generated — pixels inside the box where the Gaussian's α can
+    reach 1/255, or inside the ``radius_px`` sampling disc; elsewhere it neither attenuates nor samples.
+    Entries are sorted by (pixel, list position) so each pixel's list is contiguous; transmittance is a
+    segmented cumulative sum of log(1 - α) in float64.
     """
     device, dtype = means2d.device, means2d.dtype
     n = means2d.shape[0]
-    ts = bins.tile_size
-    area = ts * ts
     offsets, ids = bins.offsets.to(device), bins.gaussian_ids.to(device)
-    vis_sum = torch.zeros(n, device=device, dtype=torch.float64)
-    norm = torch.zeros(n, device=device, dtype=torch.float64)
-    weight = torch.zeros(n, device=device, dtype=torch.float64)
-    log_t_min = math.log(_T_MIN)
-
-    # Sorted pair keys (tile << 32 | key order) to find, per pair, how many of its tile's Gaussians lie in front
-    # of it by more than depth_offset (the list prefix its transmittance is read from).
+    sums = [torch.zeros(n, device=device, dtype=torch.float64) for _ in range(3)]  # vis_sum, norm, weight
+    num_pairs = ids.numel()
+    if num_pairs == 0:
+        return tuple(t.to(dtype) for t in sums)
     pair_tiles = torch.repeat_interleave(torch.arange(bins.num_tiles, device=device), offsets[1:] - offsets[:-1])
+
+    # List position before which a pair's Gaussian reads its transmittance: itself, or with depth_offset > 0 the
+    # first Gaussian of its tile whose key is not below key - depth_offset (sorted pair keys: tile << 32 | key).
     if depth_offset > 0:
         pair_keys = (pair_tiles << 32) | float_order_key(keys[ids])
         shifted = (keys[ids].double() - depth_offset).to(keys.dtype)
-        query = (pair_tiles << 32) | float_order_key(shifted)
-        front_count = torch.searchsorted(pair_keys, query) - offsets[pair_tiles]
+        front_end = torch.searchsorted(pair_keys, (pair_tiles << 32) | float_order_key(shifted))
     else:
-        front_count = torch.arange(ids.numel(), device=device) - offsets[pair_tiles]
+        front_end = torch.arange(num_pairs, device=device)
 
+    x0, x1, y0, y1 = _pair_boxes(means2d, conics, opacities, bins, ids, pair_tiles, radius_px)
+    entries = (x1 - x0 + 1).clamp_min(0) * (y1 - y0 + 1).clamp_min(0)
+    tile_entries = torch.zeros(bins.num_tiles, dtype=torch.int64, device=device).index_add_(0, pair_tiles, entries)
+    cumulative = torch.cumsum(tile_entries, 0)
     tile = 0
-    while tile < bins.num_tiles:
-        # Chunk of whole tiles with at most _ENTRY_BUDGET entries (at least one tile).
-        limit = int(offsets[tile]) + max(1, _ENTRY_BUDGET // area)
-        last = int(torch.searchsorted(offsets, torch.tensor(limit, device=device), right=True)) - 1
+    while tile < bins.num_tiles:  # chunks of whole tiles (so every pixel's list is complete) within the budget
+        reached = int(cumulative[tile - 1]) if tile else 0
+        last = int(torch.searchsorted(cumulative, torch.tensor(reached + _ENTRY_BUDGET, device=device), right=True))
         last = min(max(last, tile + 1), bins.num_tiles)
         p0, p1 = int(offsets[tile]), int(offsets[last])
-        if p1 > p0:
-            _gather_chunk(means2d, conics, opacities, bins, ids, offsets, front_count, tile, last, p0, p1, mode,
-                          radius_px, log_t_min, vis_sum, norm, weight)  # fmt: skip
+        if p1 > p0 and int(cumulative[last - 1]) > reached:
+            box = (x0[p0:p1], x1[p0:p1], y0[p0:p1], entries[p0:p1])
+            _gather_chunk(means2d, conics, opacities, bins.width, ids, front_end, p0, p1, box, mode, radius_px, sums)
         tile = last
-    return vis_sum.to(dtype), norm.to(dtype), weight.to(dtype)
+    return tuple(t.to(dtype) for t in sums)
 
 
-def _gather_chunk(means2d, conics, opacities, bins, ids, offsets, front_count, t0, t1, p0, p1, mode, radius_px,
-                  log_t_min, vis_sum, norm, weight) -> None:  # fmt: skip
-    """Accumulate tiles [t0, t1) (pairs [p0, p1)) into ``vis_sum``, ``norm`` and ``weight`` in place."""
-    device = means2d.device
+def _pair_boxes(means2d, conics, opacities, bins: TileBins, ids, pair_tiles, radius_px):
+    """Inclusive pixel boxes (x0, x1, y0, y1) per (tile, Gaussian) pair: the tile ∩ image ∩ the box outside which
+    the Gaussian surely has α < 1/255, widened to the sampling disc. Non-positive-definite conics get the tile."""
+    slack = 0.05
+    m = means2d[ids].double()
+    a, b, c = conics[ids].double().unbind(-1)
+    o = opacities[ids].double()
+    det = a * c - b * b
+    cut = -torch.log((255.0 * o).clamp_min(1e-30)) - 1e-3  # power below which o·exp(power) < 1/255
+    proper = (det > 0) & (a > 0) & (c > 0)
+    safe_det = torch.where(proper, det, torch.ones_like(det))
+    hx = torch.sqrt((-2.0 * cut * c / safe_det).clamp_min(0.0)) + slack
+    hy = torch.sqrt((-2.0 * cut * a / safe_det).clamp_min(0.0)) + slack
+    hx = torch.where(o >= _ALPHA_MIN, hx, torch.full_like(hx, -1.0))
+    hy = torch.where(o >= _ALPHA_MIN, hy, torch.full_like(hy, -1.0))
+    hx = torch.where(proper, hx, torch.full_like(hx, 1e9)).clamp_min(radius_px + slack)
+    hy = torch.where(proper, hy, torch.full_like(hy, 1e9)).clamp_min(radius_px + slack)
     ts = bins.tile_size
-    area = ts * ts
-    tiles = torch.arange(t0, t1, device=device)
-    counts = offsets[t0 + 1 : t1 + 1] - offsets[t0:t1]  # pairs per tile
-    tile_entry_start = (offsets[t0:t1] - p0) * area
-    total = (p1 - p0) * area
-    entry_tile = torch.repeat_interleave(torch.arange(t1 - t0, device=device), counts * area)
-    local = torch.arange(total, device=device) - tile_entry_start[entry_tile]
-    n_t = counts[entry_tile]
-    pix = torch.div(local, n_t, rounding_mode="floor")
-    k = local - pix * n_t
-    pair = offsets[t0:t1][entry_tile] + k
+    tx0 = (pair_tiles % bins.tiles_x) * ts
+    ty0 = torch.div(pair_tiles, bins.tiles_x, rounding_mode="floor") * ts
+    tx1 = torch.clamp(tx0 + ts - 1, max=bins.width - 1)
+    ty1 = torch.clamp(ty0 + ts - 1, max=bins.height - 1)
+    x0 = torch.maximum(torch.ceil(m[:, 0] - 0.5 - hx).clamp(-1, 1e9).long(), tx0)
+    x1 = torch.minimum(torch.floor(m[:, 0] - 0.5 + hx).clamp(-1, 1e9).long(), tx1)
+    y0 = torch.maximum(torch.ceil(m[:, 1] - 0.5 - hy).clamp(-1, 1e9).long(), ty0)
+    y1 = torch.minimum(torch.floor(m[:, 1] - 0.5 + hy).clamp(-1, 1e9).long(), ty1)
+    return x0, x1, y0, y1
+
+
+def _gather_chunk(means2d, conics, opacities, width, ids, front_end, p0, p1, box, mode, radius_px, sums) -> None:
+    """Accumulate the pairs [p0, p1) (whole tiles) into ``sums`` = [vis_sum, norm, weight] in place."""
+    device = means2d.device
+    x0, x1, y0, counts = box
+    total = int(counts.sum())
+    pair = torch.repeat_interleave(torch.arange(p0, p1, device=device), counts)
+    local = torch.arange(total, device=device) - (torch.cumsum(counts, 0) - counts)[pair - p0]
+    box_width = (x1 - x0 + 1)[pair - p0]
+    row = torch.div(local, box_width, rounding_mode="floor")
+    px = x0[pair - p0] + local - row * box_width
+    py = y0[pair - p0] + row
+    pixel = py * width + px
+    # Pixel-major order; within a pixel, list (pair) order.
+    order = torch.sort(pixel * (p1 - p0) + (pair - p0)).indices
+    pair, pixel, px, py = pair[order], pixel[order], px[order], py[order]
     g = ids[pair]
-    tile_id = tiles[entry_tile]
-    px = (tile_id % bins.tiles_x) * ts + pix % ts
-    py = torch.div(tile_id, bins.tiles_x, rounding_mode="floor") * ts + torch.div(pix, ts, rounding_mode="floor")
-    inside = (px < bins.width) & (py < bins.height)
 
     dx = means2d[g, 0] - (px.to(means2d.dtype) + 0.5)
     dy = means2d[g, 1] - (py.to(means2d.dtype) + 0.5)
     a, b, c = conics[g].unbind(-1)
     power = -0.5 * (a * dx * dx + c * dy * dy) - b * dx * dy
     alpha = torch.clamp(opacities[g] * torch.exp(power), max=_ALPHA_MAX)
-    candidate = inside & (power <= 0) & (alpha >= _ALPHA_MIN)
+    candidate = (power <= 0) & (alpha >= _ALPHA_MIN)
     log_keep = torch.where(candidate, torch.log1p(-alpha.double()), torch.zeros_like(alpha, dtype=torch.float64))
 
-    # Exclusive prefix sums per pixel segment (a segment = one pixel's list, contiguous, n_t entries).
+    # Exclusive prefix sums per pixel segment.
     prefix = torch.zeros(total + 1, device=device, dtype=torch.float64)
     prefix[1:] = torch.cumsum(log_keep, 0)
-    seg_start = tile_entry_start[entry_tile] + pix * n_t
+    new_pixel = torch.ones(total, dtype=torch.bool, device=device)
+    new_pixel[1:] = pixel[1:] != pixel[:-1]
+    seg_start = torch.cummax(torch.where(new_pixel, torch.arange(total, device=device), 0), 0).values
     base = prefix[seg_start]
     cum_excl = prefix[:-1] - base
     cum_incl = prefix[1:] - base
+    log_t_min = math.log(_T_MIN)
     composited = candidate & (cum_incl >= log_t_min)
-    w = torch.where(composited, alpha.double() * torch.exp(cum_excl), torch.zeros_like(cum_excl))
+    weight = torch.where(composited, alpha.double() * torch.exp(cum_excl), torch.zeros_like(cum_excl))
 
-    # Transmittance in front of g (by more than depth_offset): the prefix of front_count entries.
-    front = prefix[seg_start + front_count[pair]] - base
+    if torch.equal(front_end[pair], pair):  # no offset: read T just before the entry itself
+        front = cum_excl
+    else:  # first entry of the pixel whose list position is ≥ front_end (entries are sorted by it)
+        sorted_key = pixel * (p1 - p0) + (pair - p0)
+        position = torch.searchsorted(sorted_key, pixel * (p1 - p0) + (front_end[pair] - p0))
+        front = prefix[position] - base
     t_front = torch.where(front >= log_t_min, torch.exp(front), torch.zeros_like(front))
     if mode == "footprint":
-        sample = candidate
-        rho = torch.exp(power.double())
+        sample, rho = candidate, torch.exp(power.double())
     else:
-        sample = inside & (dx * dx + dy * dy <= radius_px * radius_px)
+        sample = dx * dx + dy * dy <= radius_px * radius_px
         rho = torch.exp(power.double()) if mode == "density" else torch.ones_like(t_front)
     rho = torch.where(sample, rho, torch.zeros_like(rho))
-    vis_sum.index_add_(0, g, rho * t_front)
-    norm.index_add_(0, g, rho)
-    weight.index_add_(0, g, w)
+    sums[0].index_add_(0, g, rho * t_front)
+    sums[1].index_add_(0, g, rho)
+    sums[2].index_add_(0, g, weight)
 
 
 __all__ = ["MODES", "OFFICIAL_DEPTH_OFFSET", "OFFICIAL_KERNEL", "ShadowResult", "light_camera", "shadow_gather"]
