@@ -219,12 +219,15 @@ void backward_impl(const F* means2d, const F* conics, const F* opac, const F* fe
             const F w = alpha * T[p];
             const F* gp = &g[size_t(p) * channels];
             F* bp = &behind[size_t(p) * channels];
-            F d_alpha = -gt[p] * tf[p] / one_minus;
+            // dL/dalpha = sum_c g_c (T f_c - behind_c / (1 - alpha)) - gT T_final / (1 - alpha)
+            F g_f = F(0), g_behind = F(0);
             for (int c = 0; c < channels; ++c) {
               pg[kPairFixed + c] += w * gp[c];
-              d_alpha += gp[c] * (T[p] * f[c] - bp[c] / one_minus);
+              g_f += gp[c] * f[c];
+              g_behind += gp[c] * bp[c];
               bp[c] += w * f[c];
             }
+            const F d_alpha = T[p] * g_f - (g_behind + gt[p] * tf[p]) / one_minus;
             if (raw > F(kAlphaMax)) continue;  // clamped: alpha does not depend on opacity or position
             pg[5] += gauss * d_alpha;
             const F d_power = raw * d_alpha;
