@@ -171,3 +171,19 @@ def test_exponential_lr_closed_form():
     assert schedule(500) == exponential_lr(500, 1.0, 0.1, 1000)
     with pytest.raises(ValueError, match="lr_final > 0"):
         exponential_lr(1, 1.0, 0.0, 10)
+
+
+def test_densifier_state_roundtrip_reproduces_splits():
+    model_a, optimizer_a = _tagged_model(4)
+    model_b, optimizer_b = _tagged_model(4)
+    with torch.no_grad():
+        for model in (model_a, model_b):
+            model.log_scales[:] = math.log(LARGE)
+    first = Densifier(seed=3)
+    grads = torch.full((4, 2), 1e-5)
+    _accumulate(first, grads)
+    second = Densifier(seed=99)
+    second.load_state_dict({k: v for k, v in first.state_dict().items()})
+    first.densify_and_prune(model_a, optimizer_a, EXTENT, None)
+    second.densify_and_prune(model_b, optimizer_b, EXTENT, None)
+    assert torch.equal(model_a.means, model_b.means) and model_a.num_gaussians == 8

@@ -102,6 +102,23 @@ class Densifier:
         self.max_radii = torch.zeros(n, device=device)
         self.priority = torch.zeros(n, device=device)
 
+    def state_dict(self) -> dict[str, torch.Tensor | None]:
+        """Running statistics and the split sampler's RNG state (tensors only; for checkpoints)."""
+        return {
+            "grad_sum": self.grad_sum,
+            "visible_count": self.visible_count,
+            "max_radii": self.max_radii,
+            "priority": self.priority,
+            "generator": self.generator.get_state(),
+        }
+
+    def load_state_dict(self, state: dict[str, torch.Tensor | None]) -> None:
+        """Restore what :meth:`state_dict` returned (the config is not part of it)."""
+        for name in ("grad_sum", "visible_count", "max_radii", "priority"):
+            value = state[name]
+            setattr(self, name, None if value is None else value.clone())
+        self.generator.set_state(state["generator"])
+
     def active(self, iteration: int) -> bool:
         """Whether statistics are still collected at ``iteration`` (before ``densify_until``)."""
         return iteration < self.config.densify_until
