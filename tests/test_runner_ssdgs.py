@@ -1,0 +1,94 @@
+"""SSD-GS through the runner at a tiny size: end to end, and an exact resume after an interruption."""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import pytest
+import test_runner_support as support
+import torch
+
+from olatbench.bench.checkpoints import list_checkpoints
+from olatbench.bench.execute import run_job
+from olatbench.bench.plan import PlanOptions, make_plan
+from olatbench.bench.results import read_results
+
+pytest.importorskip("olatbench.gaussians.shadow")  # SSD-GS's light-view pass (gaussians-support helper)
+from olatbench.methods.ssdgs import SSDGS
+
+ITERATIONS = 30
+
+
+@pytest.fixture(scope="module")
+def data(tmp_path_factory):
+    return support.write_tiny_data(tmp_path_factory.mktemp("ssdgs") / "data", scenes=("Alpha",))
+
+
+def plan(data, out, iterations=ITERATIONS, **kwargs):
+    return make_plan("ssdgs", support.tiny_suite(scenes=("Alpha",)), out, variants=["mini"],
+                     iterations=iterations, data_root=data, progress=False, **kwargs)
+
+
+def smaller(job, **config):
+    """The same job with config overrides (and the id they give)."""
+    return dataclasses.replace(job, config={**job.config, **config}).with_id()
+
+
+def test_ssdgs_runs_end_to_end_at_a_few_iterations(data, tmp_path):
+    """Default-run sized: 16 iterations, 300 Gaussians (SSD-GS on CPU takes seconds per step)."""
+    job = plan(data, tmp_path / "runs", iterations=16, options=PlanOptions(save_components=True))[0]
+    job = smaller(job, num_init_gaussians=300, shadow_resolution=32)
+    outcome = run_job(job, progress=False)
+    assert outcome.status == "done", (Path(job.folder) / "error.txt").read_text()
+    results = read_results(Path(job.folder) / "results.json")
+    assert results["model"]["iterations"] == 16 and results["model"]["num_gaussians"] == 300
+    assert results["job"]["config"]["num_init_gaussians"] == 300
+    for split in ("train", "test"):
+        assert results["metrics"][split]["mean"]["psnr"] > 0
+    components = {p.name for p in (Path(job.folder) / "components" / "test").iterdir()}
+    assert {"diffuse", "specular", "sss", "shadow"} <= components
+    assert len(list((Path(job.folder) / "renders" / "test").glob("*.png"))) == 2
+
+
+@pytest.mark.slow
+def test_ssdgs_mini_preset_runs_end_to_end(data, tmp_path):
+    job = plan(data, tmp_path / "runs", options=PlanOptions(save_components=True))[0]
+    outcome = run_job(job, progress=False)
+    assert outcome.status == "done", (Path(job.folder) / "error.txt").read_text()
+    results = read_results(Path(job.folder) / "results.json")
+    assert results["model"]["iterations"] == ITERATIONS and results["model"]["num_gaussians"] > 0
+    assert results["job"]["config"]["num_init_gaussians"] == SSDGS.presets["mini"]["num_init_gaussians"]
+    for split in ("train", "test"):
+        assert results["metrics"][split]["mean"]["psnr"] > 0
+    components = {p.name for p in (Path(job.folder) / "components" / "test").iterdir()}
+    assert {"diffuse", "specular", "sss", "shadow"} <= components
+    assert len(list((Path(job.folder) / "renders" / "test").glob("*.png"))) == 2
+
+
+@pytest.mark.slow
+def test_ssdgs_resumes_exactly_through_the_runner(data, tmp_path, monkeypatch):
+    options = PlanOptions(checkpoint_every=10)
+    interrupted = plan(data, tmp_path / "interrupted", options=options)[0]
+    reference = plan(data, tmp_path / "reference", options=options)[0]
+    original = SSDGS.train_step
+
+    def ctrl_c_at_15(self, step):
+        if step == 15:
+            raise KeyboardInterrupt
+        return original(self, step)
+
+    monkeypatch.setattr(SSDGS, "train_step", ctrl_c_at_15)
+    with pytest.raises(KeyboardInterrupt):
+        run_job(interrupted, progress=False)
+    assert list_checkpoints(interrupted.folder)[-1][0] == 10
+    monkeypatch.setattr(SSDGS, "train_step", original)
+    assert run_job(interrupted, progress=False).status == "done"
+    assert run_job(reference, progress=False).status == "done"
+    a = read_results(Path(interrupted.folder) / "results.json")
+    b = read_results(Path(reference.folder) / "results.json")
+    assert a["metrics"] == b["metrics"]
+    model_a = torch.load(list_checkpoints(interrupted.folder)[-1][1], weights_only=True)["method"]["model"]
+    model_b = torch.load(list_checkpoints(reference.folder)[-1][1], weights_only=True)["method"]["model"]
+    assert model_a.keys() == model_b.keys()
+    assert all(torch.equal(model_a[key], model_b[key]) for key in model_a)
