@@ -310,7 +310,7 @@ def mean_neighbour_sq_distance(points: torch.Tensor, k: int = 3) -> torch.Tensor
         current = int(level[pending].min())
         cell = base * 2.0**current
         at_level = pending[level[pending] == current]
-        if cell > diagonal:  # the 27-cell block covers everything: the grid cannot help any more
+        if cell > diagonal or cell < diagonal * 2.0**-_FINEST_GRID_BITS:  # the grid cannot help (any more)
             brute.append(at_level)
             pending = pending[level[pending] != current]
             continue
@@ -318,9 +318,11 @@ def mean_neighbour_sq_distance(points: torch.Tensor, k: int = 3) -> torch.Tensor
         done = exact & ~crowded
         result[at_level[done]] = sq[done]
         up, down = at_level[~exact & ~crowded], at_level[crowded]
-        reversal = torch.cat([up[direction[up] < 0], down[direction[down] > 0]])
+        # A reversal, or a cluster that stays crowded at any cell size (many duplicates), goes to brute force.
+        stuck = direction[down] > 0
+        reversal = torch.cat([up[direction[up] < 0], down[stuck]])
         brute.append(reversal)
-        up, down = up[direction[up] >= 0], down[direction[down] <= 0]
+        up, down = up[direction[up] >= 0], down[~stuck]
         level[up] += 1
         direction[up] = 1
         level[down] -= 1
@@ -361,8 +363,10 @@ def _brute_force_knn(points: torch.Tensor, queries: torch.Tensor, k: int) -> tor
 
 
 _NEIGHBOUR_OFFSETS = torch.tensor([(i, j, l) for i in (-1, 0, 1) for j in (-1, 0, 1) for l in (-1, 0, 1)])
-# A query whose 27 cells hold more candidates than this is sent to a finer grid.
+# A query whose 27 cells hold more candidates than this is sent to a finer grid, down to cells of
+# diagonal / 2**_FINEST_GRID_BITS (cell keys must fit in int64; clusters of duplicates end in brute force).
 _MAX_CANDIDATES = 2048
+_FINEST_GRID_BITS = 20
 
 
 def _grid_knn(
