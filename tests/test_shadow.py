@@ -150,6 +150,8 @@ def test_light_camera_fits_the_sphere_and_handles_parallel_up():
     above = light_camera(torch.tensor([0.0, 0.0, 5.0]), torch.zeros(3), scene_radius=1.0)[0][:3, :3].double()
     torch.testing.assert_close(above @ above.T, torch.eye(3, dtype=torch.float64), atol=1e-6, rtol=0)
     assert float(above[2] @ torch.tensor([0.0, 0.0, -1.0], dtype=torch.float64)) == pytest.approx(1.0)
+    fixed = light_camera(light, target, scene_radius=0.8, resolution=64, focal_px=80.0)[1]
+    assert float(fixed[0, 0]) == 80.0 and float(fixed[1, 1]) == 80.0 and float(fixed[0, 2]) == 32.0
     inside = light_camera(torch.tensor([0.0, 0.0, 0.5]), torch.zeros(3), scene_radius=1.0, resolution=100)[1]
     assert 2 * math.degrees(math.atan(50 / float(K[0, 0]))) < 120.0
     assert 2 * math.degrees(math.atan(50 / float(inside[0, 0]))) == pytest.approx(120.0)

@@ -32,7 +32,8 @@ The light camera (:func:`light_camera`) sits at the light, looks at ``target`` w
 when the view direction is parallel to it, see :func:`olatbench.datasets.cameras.look_at`) and has the
 narrowest square field of view that contains the sphere of ``scene_radius`` around ``target`` (× ``margin``),
 at most 120°. The official code instead scales the *viewing* camera's focal length by |light| / |camera| and
-looks at the mean of the Gaussian centres; callers can pass that mean as ``target``.
+looks at the mean of the Gaussian centres (with the viewing image size); callers can pass that mean as
+``target`` and that focal length as ``focal_px``.
 
 Backends: ``"torch"`` (reference, any device) implements every option; ``"cpu"`` (the C++ kernel of
 :mod:`olatbench.gaussians.backends.cpu`) implements ``mode="uniform"`` with ``depth_offset=0``; ``"auto"``
@@ -84,12 +85,15 @@ def light_camera(
     resolution: int = 256,
     up: tuple[float, float, float] = (0.0, 0.0, 1.0),
     margin: float = 1.05,
+    focal_px: float | None = None,
 ) -> tuple[torch.Tensor, torch.Tensor, int, int]:
     """Square pinhole camera at the light looking at ``target``: ``(w2c (4, 4), K (3, 3), width, height)``.
 
     The half field of view is ``asin(scene_radius / distance) × margin`` (the sphere around ``target`` just
-    fits), capped at ``MAX_FOV_DEGREES`` / 2 — also when the light is inside that sphere. Tensors are float32
-    on the light's device; K follows the +0.5 pixel-centre convention (principal point at the image centre).
+    fits), capped at ``MAX_FOV_DEGREES`` / 2 — also when the light is inside that sphere. ``focal_px`` overrides
+    the fitted focal length (e.g. the official choice: the viewing camera's focal length × |light| / |camera|).
+    Tensors are float32 on the light's device; K follows the +0.5 pixel-centre convention (principal point at the
+    image centre).
     """
     eye = light_position.detach().double().cpu().numpy()
     centre = target.detach().double().cpu().numpy()
@@ -99,7 +103,9 @@ def light_camera(
     max_half = math.radians(MAX_FOV_DEGREES) / 2
     half = math.asin(scene_radius / distance) * margin if scene_radius < distance else max_half
     half = min(half, max_half)
-    focal = 0.5 * resolution / math.tan(half)
+    focal = 0.5 * resolution / math.tan(half) if focal_px is None else float(focal_px)
+    if not focal > 0:
+        raise ValueError(f"light camera focal length must be positive, got {focal}")
     c2w = look_at(eye, centre, np.asarray(up, dtype=np.float64))
     w2c = torch.as_tensor(np.linalg.inv(c2w), dtype=torch.float32, device=light_position.device)
     K = torch.tensor(
@@ -125,13 +131,15 @@ def shadow_gather(
     depth_offset: float = 0.0,
     radius_px: float = 2.0,
     scene_radius: float | None = None,
+    focal_px: float | None = None,
     near: float = 0.01,
 ) -> ShadowResult:
     """Light-view coarse visibility, blending weight and seen flag per Gaussian (see the module docstring).
 
     ``means`` (N, 3), ``quats`` (N, 4) wxyz, ``scales`` (N, 3) linear, ``opacities`` (N,) in [0, 1],
     ``light_position`` (3,), ``target`` (3,). ``scene_radius`` defaults to the largest distance from ``target``
-    to a Gaussian centre. Forward only (no autograd).
+    to a Gaussian centre; ``focal_px`` overrides the fitted focal length (see :func:`light_camera`). Forward
+    only (no autograd).
     """
     if mode not in MODES:
         raise ValueError(f"unknown shadow mode {mode!r}; choose one of {', '.join(MODES)}")
@@ -143,7 +151,7 @@ def shadow_gather(
     target = target.to(device=means.device, dtype=dtype)
     if scene_radius is None:
         scene_radius = float((means - target).norm(dim=1).max()) if n > 0 else 1.0
-    w2c, K, width, height = light_camera(light, target, scene_radius=scene_radius, resolution=resolution)
+    w2c, K, width, height = light_camera(light, target, scene_radius, resolution, focal_px=focal_px)
     chosen = _choose_backend(backend, means.device, dtype, mode, depth_offset)
     zeros = torch.zeros(n, device=means.device, dtype=dtype)
     if n == 0:
