@@ -26,7 +26,7 @@ from olatbench.datasets.synth.recipe import Recipe
 from olatbench.datasets.synth.render import SceneRenderer
 from olatbench.datasets.synth.rigs import make_rig
 
-GENERATOR_VERSION = 1
+GENERATOR_VERSION = 2  # bump when a change of code changes the pixels (v2: cameras aim at the real centre)
 
 
 @dataclass(eq=False)
