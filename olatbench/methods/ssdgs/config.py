@@ -19,6 +19,7 @@ _CHOICES = {
     "shading_frame": ("min_scale", "learned"),
     "asg_form": ("xu", "official"),
     "dipole_virtual_factor": ("jensen", "official"),
+    "shadow_mode": ("uniform", "density", "footprint"),
 }
 
 
@@ -51,6 +52,8 @@ class SSDGSConfig:
     shadow_layers: int = 3
     shadow_freqs: int = 3
     shadow_resolution: int = 256
+    shadow_mode: str = "uniform"  # light-view average: "uniform" (fast C++), "density" (official), "footprint"
+    shadow_depth_offset: float = 0.0  # the official kernel's self-shadow offset is 0.015 (squared distance)
     clamp_output: bool = True
     # Initialisation and size.
     num_init_gaussians: int = 10_000

@@ -195,7 +195,8 @@ class SSDGS(Method):
             with torch.no_grad():
                 gathered = shadow_gather(means.detach(), quats.detach(), scales.detach(), opacities.detach(),
                                          light_position.detach(), means.detach().mean(0),
-                                         resolution=self.config.shadow_resolution)
+                                         resolution=self.config.shadow_resolution, mode=self.config.shadow_mode,
+                                         depth_offset=self.config.shadow_depth_offset)
             coarse, light_weight = gathered.visibility[visible], gathered.weight
         rotation_t = w2c[:3, :3].T
         camera_position = -rotation_t @ w2c[:3, 3]

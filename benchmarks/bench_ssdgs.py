@@ -1,0 +1,180 @@
+"""SSD-GS training-step speed on CPU: one full iteration split by stage, with two ratios from the same run.
+
+For each (resolution, Gaussian count) the script times, median of ``--repeats`` runs after a warm-up:
+
+* ``step``: one complete `SSDGS.train_step` with every term on and nothing frozen (densification off);
+* ``mlp``: the two networks (Θ_SSS and Θ_shad, with their input encodings and the dipole) forward + backward
+  on the visible Gaussians' inputs;
+* ``matmul``: a bare chain of ``torch.addmm`` + ReLU with exactly the networks' layer shapes, forward +
+  backward on the same batch (the reference for ``mlp``);
+* ``raster``: projection + rasterization of 3 channels forward + backward alone (the reference for the rest);
+* ``shadow``: the light-view visibility pass (forward only) and ``optimizer``: both Adam steps.
+
+Ratios: ``mlp_efficiency = matmul / mlp`` (target ≥ 0.7) and ``rest_vs_raster = (step - mlp) / raster``
+(target ≤ 1.5). The last line is a parseable summary. Example::
+
+    python benchmarks/bench_ssdgs.py --repeats 3
+    python benchmarks/bench_ssdgs.py --sizes 128 --counts 5000 --no-shadow   # without the light-view pass
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import time
+from collections.abc import Callable
+
+import numpy as np
+import torch
+
+from olatbench.datasets.cameras import intrinsics_from_fov, look_at
+from olatbench.datasets.records import Camera, PointLight
+from olatbench.gaussians.projection import project
+from olatbench.gaussians.rasterize import rasterize
+from olatbench.methods.base import Views
+from olatbench.methods.ssdgs import SSDGS
+
+ALL_ON_STEP = 30_000  # Schedule I at 100K: every term on, nothing frozen
+
+
+def timed(fn: Callable[[], object], repeats: int) -> float:
+    fn()  # warm-up
+    samples = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        fn()
+        samples.append(time.perf_counter() - start)
+    return statistics.median(samples)
+
+
+def make_method(size: int, count: int, use_shadow: bool) -> SSDGS:
+    camera = Camera(K=intrinsics_from_fov(np.radians(45.0), size, size), c2w=look_at(np.array([0.0, -3.0, 1.0]),
+                    np.zeros(3)), width=size, height=size)
+    light = PointLight(position=np.array([2.0, -3.0, 3.0]), intensity=np.full(3, 16.0), intensity_known=True)
+    rng = np.random.default_rng(0)
+    views = Views(cameras=[camera], lights=[light], images=rng.random((1, size, size, 3), dtype=np.float32),
+                  frame_ids=["0"])
+    config = SSDGS.resolve_config(None, num_init_gaussians=count, init_radius=1.0, max_gaussians=None,
+                                  densify_from=200_000, densify_until=200_000, use_shadow=use_shadow)
+    method = SSDGS(config)
+    method.setup(views, "cpu", 0)
+    return method
+
+
+def mlp_stage(method: SSDGS, visible: torch.Tensor) -> Callable[[], None]:
+    """Θ_SSS and Θ_shad forward + backward on the visible Gaussians (random directions, fixed inputs)."""
+    k = int(visible.numel())
+    generator = torch.Generator().manual_seed(1)
+    positions = method.model.means.detach()[visible]
+    dirs = [torch.nn.functional.normalize(torch.randn(k, 3, generator=generator), dim=-1) for _ in range(3)]
+    material = method.model.attributes["material"].detach()[visible].requires_grad_(True)
+    coarse = torch.rand(k, 1, generator=generator)
+    shader = method.shader
+
+    def run() -> None:
+        sss = shader.sss_net(positions, dirs[0], dirs[1], dirs[2], material)
+        shadow = shader.shadow_net(positions, dirs[1], coarse, material)
+        (sss.sum() + shadow.sum()).backward()
+
+    return run
+
+
+def matmul_chain(method: SSDGS, k: int) -> Callable[[], None]:
+    """The same layer shapes as a bare addmm/ReLU chain (weights requiring grad), forward + backward."""
+    chains = []
+    for layers in ([m for m in method.shader.sss_net.network if isinstance(m, torch.nn.Linear)],
+                   list(method.shader.shadow_net.layers)):
+        weights = [(layer.weight.detach().clone().requires_grad_(True),
+                    torch.zeros(layer.out_features, requires_grad=True)) for layer in layers]
+        chains.append((torch.randn(k, layers[0].in_features), weights))
+
+    def run() -> None:
+        total = 0.0
+        for x, weights in chains:
+            for i, (w, b) in enumerate(weights):
+                x = torch.addmm(b, x, w.T)
+                if i < len(weights) - 1:
+                    x = torch.relu(x)
+            total = total + x.sum()
+        total.backward()
+
+    return run
+
+
+def raster_stage(method: SSDGS) -> Callable[[], None]:
+    model = method.model
+    camera = method.views.cameras[0]
+    features = torch.rand(model.num_gaussians, 3, requires_grad=True)
+
+    def run() -> None:
+        projected = project(model.means, model.quats, model.scales, method.w2cs[0], method.Ks[0], camera.width,
+                            camera.height)
+        out = rasterize(projected, model.opacities, features, method.background)
+        out.image.sum().backward()
+
+    return run
+
+
+def shadow_stage(method: SSDGS) -> Callable[[], None]:
+    from olatbench.gaussians.shadow import shadow_gather
+
+    model = method.model
+
+    def run() -> None:
+        with torch.no_grad():
+            shadow_gather(model.means, model.quats, model.scales, model.opacities, method.light_positions[0],
+                          model.means.mean(0), resolution=method.config.shadow_resolution)
+
+    return run
+
+
+def optimizer_stage(method: SSDGS) -> Callable[[], None]:
+    for p in [*method.model.parameters(), *method.shader.parameters()]:
+        p.grad = torch.zeros_like(p)
+
+    def run() -> None:
+        method.gaussian_optimizer.step()
+        method.global_optimizer.step()
+
+    return run
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--sizes", type=int, nargs="+", default=[128, 256])
+    parser.add_argument("--counts", type=int, nargs="+", default=[5_000, 20_000])
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--threads", type=int, default=2)
+    parser.add_argument("--no-shadow", action="store_true", help="composition without the shadow term")
+    args = parser.parse_args()
+    torch.set_num_threads(args.threads)
+    torch.set_flush_denormal(True)
+    efficiencies, rest_ratios = [], []
+    print(f"{'size':>5} {'N':>6} {'visible':>7} {'step':>8} {'mlp':>8} {'matmul':>8} {'raster':>8} {'shadow':>8} "
+          f"{'optim':>8} {'mlp_eff':>8} {'rest/rast':>9}")
+    for size in args.sizes:
+        for count in args.counts:
+            method = make_method(size, count, not args.no_shadow)
+            camera = method.views.cameras[0]
+            visible = torch.nonzero(project(method.model.means, method.model.quats, method.model.scales,
+                                            method.w2cs[0], method.Ks[0], camera.width, camera.height).radii > 0
+                                    ).squeeze(1)
+            step = timed(lambda m=method: m.train_step(ALL_ON_STEP), args.repeats)
+            mlp = timed(mlp_stage(method, visible), args.repeats)
+            matmul = timed(matmul_chain(method, int(visible.numel())), args.repeats)
+            raster = timed(raster_stage(method), args.repeats)
+            shadow = float("nan") if args.no_shadow else timed(shadow_stage(method), args.repeats)
+            optim = timed(optimizer_stage(method), args.repeats)
+            efficiency, rest = matmul / mlp, (step - mlp) / raster
+            efficiencies.append(efficiency)
+            rest_ratios.append(rest)
+            print(f"{size:>5} {count:>6} {visible.numel():>7} {step * 1e3:>7.1f}m {mlp * 1e3:>7.1f}m "
+                  f"{matmul * 1e3:>7.1f}m {raster * 1e3:>7.1f}m {shadow * 1e3:>7.1f}m {optim * 1e3:>7.1f}m "
+                  f"{efficiency:>8.2f} {rest:>9.2f}")
+    print(f"SUMMARY bench_ssdgs mlp_efficiency_min={min(efficiencies):.2f} (target>=0.7) "
+          f"rest_vs_raster_max={max(rest_ratios):.2f} (target<=1.5) shadow={'off' if args.no_shadow else 'on'} "
+          f"threads={args.threads}")
+
+
+if __name__ == "__main__":
+    main()
