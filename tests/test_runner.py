@@ -249,3 +249,27 @@ def test_a_job_running_elsewhere_is_skipped_not_touched(data, tmp_path):
     assert not (Path(job.folder) / "results.json").exists()
     assert run_job(job, progress=False).status == "done"
     assert job_state(job.folder, job.id).state == "done"
+
+
+def test_large_view_stacks_are_memory_mapped_with_the_same_result(data, tmp_path, monkeypatch):
+    import numpy as np
+
+    from olatbench.bench.execute import VIEWS_FILE, load_views
+    from olatbench.datasets import load_scene
+
+    in_ram = plan(data, tmp_path / "ram", scenes=["Beta"])[0]
+    mapped = plan(data, tmp_path / "mapped", scenes=["Beta"])[0]
+    frames = load_scene(data / "Beta").split("train")
+    reference = load_views(frames, in_ram)
+    monkeypatch.setenv("OLATBENCH_VIEWS_RAM_GB", "1e-6")
+    Path(mapped.folder).mkdir(parents=True)
+    views = load_views(frames, mapped)
+    assert isinstance(views.images, np.memmap) and (Path(mapped.folder) / VIEWS_FILE).is_file()
+    assert np.array_equal(views.images, reference.images) and not isinstance(reference.images, np.memmap)
+    del views
+    assert run_job(mapped, progress=False).status == "done"
+    assert not (Path(mapped.folder) / VIEWS_FILE).exists()
+    monkeypatch.delenv("OLATBENCH_VIEWS_RAM_GB")
+    assert run_job(in_ram, progress=False).status == "done"
+    results = [read_results(Path(job.folder) / "results.json")["metrics"] for job in (mapped, in_ram)]
+    assert results[0] == results[1]

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import platform
 import resource
 import sys
@@ -46,6 +47,8 @@ from olatbench.datasets.records import Frame
 from olatbench.methods.base import Method, Views
 
 LOG_FILE = "log.txt"
+VIEWS_FILE = ".views.f32"
+VIEWS_RAM_ENV = "OLATBENCH_VIEWS_RAM_GB"
 TRAIN_LOG_FILE = "train_log.jsonl"
 WARMUP_RENDERS = 1
 
@@ -96,6 +99,8 @@ def run_job(job: Job, progress: bool = True, position: int = 1) -> JobOutcome:
             log(f"FAILED: {type(error).__name__}: {error}")
             write_results(folder / RESULTS_FILE, _failed_results(job, error))
             return JobOutcome(job.id, job.label, str(folder), "failed", error=f"{type(error).__name__}: {error}")
+        finally:
+            (folder / VIEWS_FILE).unlink(missing_ok=True)
 
 
 def _run(job: Job, folder: Path, log: JobLog, progress: bool, position: int) -> JobOutcome:
@@ -138,7 +143,12 @@ def _run(job: Job, folder: Path, log: JobLog, progress: bool, position: int) -> 
 
 def load_views(frames: list[Frame], job: Job, progress: bool = False, position: int = 1) -> Views:
     """The frames' cameras, lights and images (composited on the official background, in the suite's
-    colour space, resized to ``job.resolution``), loaded with a few threads."""
+    colour space, resized to ``job.resolution``), loaded with a few threads into one preallocated array.
+
+    Image stacks larger than ``$OLATBENCH_VIEWS_RAM_GB`` (default 8 GiB; e.g. 2000 NRHints views at
+    1024² are 25 GB) live in a float32 memory-mapped file ``<job folder>/.views.f32`` instead of RAM;
+    it is deleted when the job ends.
+    """
     if not frames:
         raise ValueError(f"{job.scene_path}: split '{job.train_split}' has no frames")
     resolution = tuple(job.resolution) if job.resolution else None
@@ -146,14 +156,28 @@ def load_views(frames: list[Frame], job: Job, progress: bool = False, position: 
     def load(frame: Frame) -> np.ndarray:
         return frame.load(colourspace=job.colourspace, background="official", resolution=resolution).rgb
 
+    first_image = load(frames[0])
+    shape = (len(frames), *first_image.shape)
+    if math.prod(shape) * 4 > float(os.environ.get(VIEWS_RAM_ENV, "8")) * 2**30:
+        images = np.lib.format.open_memmap(Path(job.folder) / VIEWS_FILE, mode="w+", dtype=np.float32, shape=shape)
+    else:
+        images = np.empty(shape, dtype=np.float32)
+
+    def fill(index: int) -> None:
+        image = first_image if index == 0 else load(frames[index])
+        if image.shape != first_image.shape:
+            raise ValueError(f"{frames[index].frame_id}: image is {image.shape[1]}×{image.shape[0]}, the first view "
+                             f"is {first_image.shape[1]}×{first_image.shape[0]}; pass --resolution WxH")
+        images[index] = image
+
     with ThreadPoolExecutor(max_workers=4) as pool:
-        images = list(tqdm(pool.map(load, frames), total=len(frames), desc=f"{job.scene}: loading views",
-                           position=position, leave=False, disable=not progress))
+        list(tqdm(pool.map(fill, range(len(frames))), total=len(frames), desc=f"{job.scene}: loading views",
+                  position=position, leave=False, disable=not progress))
     first = frames[0]
     background = colour.convert_colourspace(np.asarray(first.background, np.float32), first.colourspace,
                                             job.colourspace)
     return Views(cameras=[_camera(frame, job) for frame in frames], lights=[frame.light for frame in frames],
-                 images=np.stack(images).astype(np.float32), frame_ids=[frame.frame_id for frame in frames],
+                 images=images, frame_ids=[frame.frame_id for frame in frames],
                  colourspace=job.colourspace, background=background, scene_name=job.scene)
 
 
