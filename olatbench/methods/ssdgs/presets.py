@@ -29,7 +29,7 @@ SUITE_PRESETS: dict[str, dict[str, Any]] = {
     # CPU-sized: the 60K schedule compressed 20× into 3000 steps, few Gaussians, small light-view pass.
     # Values below that are iteration counts are at the 60K reference (× 0.05 at run time).
     "mini": {"iterations": 3_000, "reference_iterations": 60_000, "background": None,
-             "num_init_gaussians": 2_000, "init_radius": None, "max_gaussians": 12_000,
+             "num_init_gaussians": 2_000, "init_radius": None, "max_gaussians": 5_000,
              "shadow_resolution": 96, "sss_hidden": 64, "num_asg": 4,
              "position_lr_max_steps": 60_000, "densify_from": 4_000, "densify_until": 44_000,
              "densify_interval": 100, "densify_grad_threshold": 2e-4, "opacity_reset_interval": 30_000,
