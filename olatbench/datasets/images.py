@@ -96,6 +96,7 @@ def write_image(path: str | Path, pixels: np.ndarray, bit_depth: BitDepth | None
     oiio = _oiio()
     height, width, channels = pixels.shape
     spec = oiio.ImageSpec(width, height, channels, _OIIO_TYPES[bit_depth])
+    spec.attribute("DateTime", "")  # no timestamp: the same pixels give the same bytes
     if suffix == ".exr":
         spec.attribute("compression", "zip")
     else:
