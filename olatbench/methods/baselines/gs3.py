@@ -30,14 +30,12 @@ from olatbench.methods.baselines.training import (
     TrainingViews,
     camera_centre,
     camera_tensors,
-    densifier_state,
-    initial_ball,
     light_tensors,
-    load_densifier_state,
     photometric_loss,
     psnr_of,
 )
 from olatbench.methods.baselines.triple_splat import triple_splat
+from olatbench.methods.initialisation import initial_ball
 
 if TYPE_CHECKING:
     from olatbench.datasets.records import Camera, PointLight
@@ -68,7 +66,7 @@ class GS3Config:
     fresnel_f0: float = 0.04
     shadow_resolution: int = 256
     num_init_gaussians: int = 10_000
-    init_radius: float | None = 1.0  # None: fitted to the cameras (see training.initial_ball)
+    init_radius: float | None = 1.0  # None: fitted to the cameras (see methods.initialisation.initial_ball)
     init_opacity: float = 0.1
     max_gaussians: int | None = 550_000
     # Loss and learning rates (Adam, eps 1e-15).
@@ -306,7 +304,7 @@ class GS3(Method):
                 "model": self.model.state_dict(), "shader": self.shader.state_dict(),
                 "gaussian_optimizer": self.gaussian_optimizer.state_dict(),
                 "global_optimizer": self.global_optimizer.state_dict(),
-                "densifier": densifier_state(self.densifier), "views": self.train_views.state_dict(),
+                "densifier": self.densifier.state_dict(), "views": self.train_views.state_dict(),
                 "torch_rng": torch.get_rng_state()}
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
@@ -322,7 +320,7 @@ class GS3(Method):
         self._build_optimisers()
         self.gaussian_optimizer.load_state_dict(state["gaussian_optimizer"])
         self.global_optimizer.load_state_dict(state["global_optimizer"])
-        load_densifier_state(self.densifier, state["densifier"])
+        self.densifier.load_state_dict(state["densifier"])
         self.train_views.load_state_dict(state["views"])
         torch.set_rng_state(state["torch_rng"])
         self.step = int(state["step"])

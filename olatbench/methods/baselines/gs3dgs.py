@@ -27,12 +27,10 @@ from olatbench.methods.baselines.training import (
     TrainingViews,
     camera_centre,
     camera_tensors,
-    densifier_state,
-    initial_ball,
-    load_densifier_state,
     photometric_loss,
     psnr_of,
 )
+from olatbench.methods.initialisation import initial_ball
 
 if TYPE_CHECKING:
     from olatbench.datasets.records import Camera, PointLight
@@ -50,7 +48,7 @@ class GS3DConfig:
     sh_degree: int = 3
     sh_increase_interval: int = 1_000
     num_init_gaussians: int = 10_000
-    init_radius: float | None = 1.0  # None: fitted to the cameras (see training.initial_ball)
+    init_radius: float | None = 1.0  # None: fitted to the cameras (see methods.initialisation.initial_ball)
     init_opacity: float = 0.1
     lambda_dssim: float = 0.2
     position_lr_init: float = 1.6e-4  # × scene extent
@@ -206,7 +204,7 @@ class GaussianSplatting3D(Method):
     def state_dict(self) -> dict[str, Any]:
         return {"format": STATE_FORMAT, "step": self.step, "config": self.config.to_dict(),
                 "model": self.model.state_dict(), "optimizer": self.optimizer.state_dict(),
-                "densifier": densifier_state(self.densifier), "views": self.train_views.state_dict(),
+                "densifier": self.densifier.state_dict(), "views": self.train_views.state_dict(),
                 "torch_rng": torch.get_rng_state()}
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
@@ -220,7 +218,7 @@ class GaussianSplatting3D(Method):
         self.model.load_state_dict(state["model"])
         self._build_optimizer()
         self.optimizer.load_state_dict(state["optimizer"])
-        load_densifier_state(self.densifier, state["densifier"])
+        self.densifier.load_state_dict(state["densifier"])
         self.train_views.load_state_dict(state["views"])
         torch.set_rng_state(state["torch_rng"])
         self.step = int(state["step"])

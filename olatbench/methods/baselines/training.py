@@ -12,15 +12,11 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import torch
 
-from olatbench.gaussians.densify import Densifier
 from olatbench.methods.base import Views
 from olatbench.metrics.ssim import ssim_loss
 
 if TYPE_CHECKING:
     from olatbench.datasets.records import Camera, PointLight
-
-_DENSIFIER_STATISTICS = ("grad_sum", "visible_count", "max_radii", "priority")
-
 
 class TrainingViews:
     """The training views on ``device``: ``Ks`` (N,3,3), ``w2cs`` (N,4,4), ``light_positions`` (N,3),
@@ -99,28 +95,3 @@ def psnr_of(image: torch.Tensor, target: torch.Tensor) -> float:
     return float(-10.0 * np.log10(max(mse, 1e-12)))
 
 
-def densifier_state(densifier: Densifier) -> dict[str, torch.Tensor | None]:
-    """A `Densifier`'s running statistics and RNG state (it has no ``state_dict`` of its own)."""
-    state: dict[str, torch.Tensor | None] = {name: getattr(densifier, name) for name in _DENSIFIER_STATISTICS}
-    state["generator"] = densifier.generator.get_state()
-    return state
-
-
-def load_densifier_state(densifier: Densifier, state: dict[str, torch.Tensor | None]) -> None:
-    """Inverse of `densifier_state`."""
-    for name in _DENSIFIER_STATISTICS:
-        value = state[name]
-        setattr(densifier, name, None if value is None else value.clone())
-    densifier.generator.set_state(state["generator"])
-
-
-def initial_ball(views: Views, radius: float | None) -> tuple[np.ndarray, float]:
-    """Centre and radius of the random initial Gaussians: the origin and ``radius``, or (``None``) the point
-    closest to all optical axes (least squares) and 0.55 × the median camera distance to it."""
-    if radius is not None:
-        return np.zeros(3), float(radius)
-    origins = np.stack([c.position for c in views.cameras])
-    axes = np.stack([c.c2w[:3, 2] / np.linalg.norm(c.c2w[:3, 2]) for c in views.cameras])
-    projector = np.eye(3)[None] - axes[:, :, None] * axes[:, None, :]  # (N, 3, 3) I - d dᵀ
-    centre = np.linalg.lstsq(projector.sum(0), (projector @ origins[:, :, None]).sum(0)[:, 0], rcond=None)[0]
-    return centre, 0.55 * float(np.median(np.linalg.norm(origins - centre, axis=1)))

@@ -22,6 +22,7 @@ from olatbench.gaussians.projection import project
 from olatbench.gaussians.rasterize import rasterize
 from olatbench.gaussians.refinement import LightRefinement, PoseRefinement
 from olatbench.methods.base import Method, Views
+from olatbench.methods.initialisation import initial_ball
 from olatbench.methods.ssdgs.config import SSDGSConfig
 from olatbench.methods.ssdgs.presets import PRESETS, resolve_presets
 from olatbench.methods.ssdgs.schedule import Schedule
@@ -87,7 +88,7 @@ class SSDGS(Method):
         self.view_order = torch.randperm(len(train), generator=self.generator)
         self.view_cursor = 0
 
-        centre, radius = _initial_sphere(train, cfg.init_radius)
+        centre, radius = initial_ball(train, cfg.init_radius)
         self.model = GaussianModel.random_in_sphere(
             cfg.num_init_gaussians, radius, attributes=self._initial_attributes(cfg.num_init_gaussians),
             seed=seed, device=self.device, center=tuple(centre.tolist()), opacity=cfg.init_opacity)
@@ -304,7 +305,7 @@ class SSDGS(Method):
             "model": self.model.state_dict(), "shader": self.shader.state_dict(),
             "gaussian_optimizer": self.gaussian_optimizer.state_dict(),
             "global_optimizer": self.global_optimizer.state_dict(),
-            "densifier": _densifier_state(self.densifier),
+            "densifier": self.densifier.state_dict(),
             "generator": self.generator.get_state(), "torch_rng": torch.get_rng_state(),
             "view_order": self.view_order.clone(), "view_cursor": self.view_cursor,
         }
@@ -331,7 +332,7 @@ class SSDGS(Method):
         self._build_optimisers()
         self.gaussian_optimizer.load_state_dict(state["gaussian_optimizer"])
         self.global_optimizer.load_state_dict(state["global_optimizer"])
-        _load_densifier_state(self.densifier, state["densifier"])
+        self.densifier.load_state_dict(state["densifier"])
         self.generator.set_state(state["generator"])
         torch.set_rng_state(state["torch_rng"])
         self.view_order = state["view_order"].clone()
@@ -339,38 +340,9 @@ class SSDGS(Method):
         self.step = int(state["step"])
 
 
-_DENSIFIER_STATISTICS = ("grad_sum", "visible_count", "max_radii", "priority")
-
-
-def _densifier_state(densifier: Densifier) -> dict[str, torch.Tensor | None]:
-    """The densifier's running statistics and RNG (it has no state_dict of its own)."""
-    state: dict[str, torch.Tensor | None] = {name: getattr(densifier, name) for name in _DENSIFIER_STATISTICS}
-    state["generator"] = densifier.generator.get_state()
-    return state
-
-
-def _load_densifier_state(densifier: Densifier, state: dict[str, torch.Tensor | None]) -> None:
-    for name in _DENSIFIER_STATISTICS:
-        value = state[name]
-        setattr(densifier, name, None if value is None else value.clone())
-    densifier.generator.set_state(state["generator"])
-
-
 def _view_key(camera: Camera, light: PointLight) -> bytes:
     """Exact identity of a (pose, light position) pair, to recognise training views at render time."""
     return np.asarray(camera.c2w, dtype=np.float64).tobytes() + np.asarray(light.position, dtype=np.float64).tobytes()
-
-
-def _initial_sphere(train: Views, radius: float | None) -> tuple[np.ndarray, float]:
-    """Centre and radius of the initial ball: the origin and ``radius``, or (``None``) the point closest to all
-    optical axes and 0.55 × the median camera distance to it."""
-    if radius is not None:
-        return np.zeros(3), float(radius)
-    origins = np.stack([c.position for c in train.cameras])
-    axes = np.stack([c.c2w[:3, 2] / np.linalg.norm(c.c2w[:3, 2]) for c in train.cameras])
-    projector = np.eye(3)[None] - axes[:, :, None] * axes[:, None, :]  # (N, 3, 3) I - d dᵀ
-    centre = np.linalg.lstsq(projector.sum(0), (projector @ origins[:, :, None]).sum(0)[:, 0], rcond=None)[0]
-    return centre, 0.55 * float(np.median(np.linalg.norm(origins - centre, axis=1)))
 
 
 __all__ = ["SSDGS"]
