@@ -168,3 +168,14 @@ def test_frame_pixels_is_linear_straight(tmp_path):
 
     np.testing.assert_allclose(rgba[..., :3], srgb_to_linear(stored[..., :3]), atol=1e-6)
     np.testing.assert_allclose(rgba[..., 3], stored[..., 3], atol=1e-6)
+
+
+def test_named_channels_round_trip(tmp_path):
+    from olatbench.datasets.images import read_channels, write_image
+
+    planes = np.random.default_rng(0).random((5, 7, 3)).astype(np.float32)
+    write_image(tmp_path / "aov.exr", planes, "float", channel_names=["A", "N.X", "Z"])
+    channels = read_channels(tmp_path / "aov.exr")
+    assert sorted(channels) == ["A", "N.X", "Z"]  # EXR stores channels in its own order: names are the contract
+    for index, name in enumerate(["A", "N.X", "Z"]):
+        np.testing.assert_array_equal(channels[name], planes[..., index])

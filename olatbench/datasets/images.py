@@ -7,6 +7,7 @@ first use so that ``import olatbench.datasets`` needs numpy alone.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Literal
 
@@ -35,7 +36,17 @@ def _read_config(oiio):
 
 def read_image(path: str | Path) -> np.ndarray:
     """Decode an image file to float32 (H, W, C); raise `DatasetError` naming the file on failure."""
-    path = Path(path)
+    return _decode(Path(path))[0]
+
+
+def read_channels(path: str | Path) -> dict[str, np.ndarray]:
+    """Decode an image file to {channel name: float32 (H, W)} (e.g. an EXR with named AOV channels)."""
+    pixels, names = _decode(Path(path))
+    return {name: pixels[..., i] for i, name in enumerate(names)}
+
+
+def _decode(path: Path) -> tuple[np.ndarray, list[str]]:
+    """Pixels (H, W, C) float32 and channel names of one image file."""
     if not path.is_file():
         raise DatasetError("image file not found", path=path)
     oiio = _oiio()
@@ -56,7 +67,7 @@ def read_image(path: str | Path) -> np.ndarray:
     if pixels.shape[:2] != (spec.height, spec.width):
         raise DatasetError(f"decoded size {pixels.shape[:2]} differs from header "
                            f"{(spec.height, spec.width)}", path=path)
-    return pixels
+    return pixels, list(spec.channelnames)
 
 
 def image_size(path: str | Path) -> tuple[int, int]:
@@ -76,7 +87,8 @@ def image_size(path: str | Path) -> tuple[int, int]:
 _OIIO_TYPES = {"uint8": "uint8", "uint16": "uint16", "half": "half", "float": "float"}
 
 
-def write_image(path: str | Path, pixels: np.ndarray, bit_depth: BitDepth | None = None) -> Path:
+def write_image(path: str | Path, pixels: np.ndarray, bit_depth: BitDepth | None = None,
+                channel_names: Sequence[str] | None = None) -> Path:
     """Write float (H, W, C) or (H, W) pixels atomically, as given; integer formats expect [0, 1] and round.
 
     The default bit depth is ``half`` for ``.exr``/``.hdr`` and ``uint8`` otherwise.
@@ -96,6 +108,10 @@ def write_image(path: str | Path, pixels: np.ndarray, bit_depth: BitDepth | None
     oiio = _oiio()
     height, width, channels = pixels.shape
     spec = oiio.ImageSpec(width, height, channels, _OIIO_TYPES[bit_depth])
+    if channel_names is not None:
+        if len(channel_names) != channels:
+            raise ValueError(f"{path}: {len(channel_names)} channel names for {channels} channels")
+        spec.channelnames = tuple(channel_names)
     spec.attribute("DateTime", "")  # no timestamp: the same pixels give the same bytes
     if suffix == ".exr":
         spec.attribute("compression", "zip")
