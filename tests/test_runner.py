@@ -273,3 +273,25 @@ def test_large_view_stacks_are_memory_mapped_with_the_same_result(data, tmp_path
     assert run_job(in_ram, progress=False).status == "done"
     results = [read_results(Path(job.folder) / "results.json")["metrics"] for job in (mapped, in_ram)]
     assert results[0] == results[1]
+
+
+def test_official_ground_truth_protocols_score_against_the_official_images(data, tmp_path, monkeypatch):
+    """A protocol whose ground truth is 'official' is scored against `Protocol.load_ground_truth`."""
+    from dataclasses import replace
+
+    from olatbench.metrics import protocols
+
+    official = replace(protocols.get_protocol(support.FAST_PROTOCOL), id="test-official", ground_truth="official")
+    monkeypatch.setitem(protocols._PROTOCOLS, "test-official", official)
+    calls = []
+    original = type(official).load_ground_truth
+
+    def spy(self, frame, scene_format, resolution=None):
+        calls.append((frame.frame_id, scene_format))
+        return original(self, frame, scene_format, resolution)
+
+    monkeypatch.setattr(type(official), "load_ground_truth", spy)
+    suite = support.tiny_suite(protocol="test-official")
+    job = make_plan("trivial", suite, tmp_path / "runs", data_root=data, scenes=["Beta"], progress=False)[0]
+    run_job(job, progress=False)
+    assert sorted(calls) == [(f, "nrhints") for f in ("000", "000", "001", "001", "002", "003")]

@@ -277,7 +277,8 @@ def evaluate_split(method: Method, frames: list[Frame], job: Job, folder: Path, 
     """Render every frame of a split, save ``renders/<split>/<frame_id>.png`` (8-bit sRGB) and score it.
 
     Scores are computed in the suite's evaluation space (``job.colourspace``: sRGB for PNG data,
-    gamma 2.2 for GS³ EXRs, as the official scripts display them). ``gt_images`` reuses already
+    gamma 2.2 for GS³ EXRs, as the official scripts display them), against the protocol's official ground
+    truth when it names one and the images are at native resolution. ``gt_images`` reuses already
     loaded views. Masked protocols get the ground truth's alpha as mask. Returns the metrics block
     ``{"mean": ..., "per_image": {frame_id: ...}}`` and the render FPS (renders only, after
     `WARMUP_RENDERS` warm-up renders; CUDA synchronised).
@@ -288,6 +289,9 @@ def evaluate_split(method: Method, frames: list[Frame], job: Job, folder: Path, 
     renders = folder / "renders" / split
     cuda = torch.device(job.device).type == "cuda"
     resolution = tuple(job.resolution) if job.resolution else None
+    # protocols that reproduce an official pipeline score against its ground truth (e.g. 8-bit truncated),
+    # which exists at the native resolution only
+    official_gt = protocol.ground_truth == "official" and resolution is None
     with torch.no_grad():
         for frame in frames[:WARMUP_RENDERS]:
             method.render(_camera(frame, job), frame.light)
@@ -303,7 +307,9 @@ def evaluate_split(method: Method, frames: list[Frame], job: Job, folder: Path, 
             render_seconds += time.perf_counter() - clock
             pred = np.clip(_to_numpy(output["rgb"]), 0.0, 1.0)
             mask = None
-            if gt_images is not None and not protocol.masked:
+            if official_gt:
+                gt, mask = protocol.load_ground_truth(frame, job.scene_format)
+            elif gt_images is not None and not protocol.masked:
                 gt = gt_images[index]
             else:
                 loaded = frame.load(colourspace=job.colourspace, background="official", resolution=resolution)
