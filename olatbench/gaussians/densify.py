@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, fields, replace
+from typing import Any
 
 import torch
 
@@ -148,6 +149,21 @@ class Densifier:
 
     # ------------------------------------------------------------------------------------------ control
     @torch.no_grad()
+    @torch.no_grad()
+    def observe_and_step(self, model: GaussianModel, optimizer: torch.optim.Optimizer | None, projected: Any,
+                         iteration: int, scene_extent: float, priority: torch.Tensor | None = None
+                         ) -> dict[str, int | bool]:
+        """After a training step: accumulate the view's 2D-mean gradients (and an optional per-Gaussian
+        ``priority`` such as the light-view weight), then run `step`. ``projected`` is the step's `Projected`
+        with ``means2d.retain_grad()`` called before backward."""
+        grad = projected.means2d.grad
+        if grad is not None and self.active(iteration):
+            self.accumulate(grad, projected.radii, projected.radii > 0, width=projected.width,
+                            height=projected.height)
+            if priority is not None:
+                self.accumulate_priority(priority)
+        return self.step(model, optimizer, iteration, scene_extent)
+
     def step(
         self, model: GaussianModel, optimizer: torch.optim.Optimizer | None, iteration: int, scene_extent: float
     ) -> dict[str, int | bool]:

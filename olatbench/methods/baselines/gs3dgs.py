@@ -177,13 +177,8 @@ class GaussianSplatting3D(Method):
         projected.means2d.retain_grad()
         loss.backward()
         self.optimizer.step()
-        with torch.no_grad():
-            grad = projected.means2d.grad
-            if grad is not None and self.densifier.active(step):
-                self.densifier.accumulate(grad, projected.radii, projected.radii > 0, width=projected.width,
-                                          height=projected.height)
-            self.optimizer.zero_grad(set_to_none=True)
-            self.densifier.step(self.model, self.optimizer, step, views.scene_extent)
+        self.optimizer.zero_grad(set_to_none=True)
+        self.densifier.observe_and_step(self.model, self.optimizer, projected, step, views.scene_extent)
         self.step = step + 1
         return {"loss": float(loss.detach()), "l1": float(l1.detach()), "psnr": psnr_of(image, target),
                 "num_gaussians": float(self.model.num_gaussians), "sh_degree": float(self.active_sh_degree(step))}

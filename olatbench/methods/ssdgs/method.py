@@ -264,14 +264,8 @@ class SSDGS(Method):
         self.global_optimizer.step()
         self.gaussian_optimizer.zero_grad(set_to_none=True)
         self.global_optimizer.zero_grad(set_to_none=True)
-        with torch.no_grad():
-            grad = projected.means2d.grad
-            if grad is not None and self.densifier.active(step):
-                self.densifier.accumulate(grad, projected.radii, projected.radii > 0, width=projected.width,
-                                          height=projected.height)
-                if light_weight is not None:
-                    self.densifier.accumulate_priority(light_weight)
-            self.densifier.step(self.model, self.gaussian_optimizer, step, self.scene_extent)
+        self.densifier.observe_and_step(self.model, self.gaussian_optimizer, projected, step, self.scene_extent,
+                                        priority=light_weight)
         self.step = step + 1
         result["num_gaussians"] = float(self.model.num_gaussians)
         return result
