@@ -32,42 +32,41 @@ def _safe_member_path(destination: Path, name: str, archive: Path) -> Path:
     return target
 
 
+def _open_archive(archive: Path) -> zipfile.ZipFile | tarfile.TarFile:
+    """The archive opened for reading, whichever of zip or tar it is."""
+    if zipfile.is_zipfile(archive):
+        return zipfile.ZipFile(archive)
+    if tarfile.is_tarfile(archive):
+        return tarfile.open(archive)
+    raise ValueError(f"{archive.name}: not a zip or tar archive")
+
+
+def _members(bundle: zipfile.ZipFile | tarfile.TarFile) -> list[tuple[str, str, object]]:
+    """(name, kind, handle) of every member; kind is ``file``, ``dir`` or ``link`` (links, devices, fifos)."""
+    if isinstance(bundle, zipfile.ZipFile):
+        return [(m.filename, "link" if stat.S_ISLNK(m.external_attr >> 16) else "dir" if m.is_dir() else "file", m)
+                for m in bundle.infolist()]
+    return [(m.name, "file" if m.isfile() else "dir" if m.isdir() else "link", m) for m in bundle.getmembers()]
+
+
 def extract(archive: Path, destination: Path) -> list[Path]:
     """Unpack a zip or tar archive into ``destination``; refuse unsafe members before writing anything."""
     destination.mkdir(parents=True, exist_ok=True)
     written: list[Path] = []
-    if zipfile.is_zipfile(archive):
-        with zipfile.ZipFile(archive) as bundle:
-            members = bundle.infolist()
-            for member in members:
-                _safe_member_path(destination, member.filename, archive)
-                if stat.S_ISLNK(member.external_attr >> 16):
-                    raise UnsafeArchiveError(f"{archive.name}: member '{member.filename}' is a symbolic link")
-            for member in members:
-                target = _safe_member_path(destination, member.filename, archive)
-                if member.is_dir():
-                    target.mkdir(parents=True, exist_ok=True)
-                    continue
-                target.parent.mkdir(parents=True, exist_ok=True)
-                with bundle.open(member) as source, open(target, "wb") as output:
-                    shutil.copyfileobj(source, output, 1 << 20)
-                written.append(target)
-        return written
-    if tarfile.is_tarfile(archive):
-        with tarfile.open(archive) as bundle:
-            members = bundle.getmembers()
-            for member in members:
-                _safe_member_path(destination, member.name, archive)
-                if not (member.isfile() or member.isdir()):
-                    raise UnsafeArchiveError(f"{archive.name}: member '{member.name}' is a link or device")
-            for member in members:
-                target = _safe_member_path(destination, member.name, archive)
-                if member.isdir():
-                    target.mkdir(parents=True, exist_ok=True)
-                    continue
-                target.parent.mkdir(parents=True, exist_ok=True)
-                with bundle.extractfile(member) as source, open(target, "wb") as output:
-                    shutil.copyfileobj(source, output, 1 << 20)
-                written.append(target)
-        return written
-    raise ValueError(f"{archive.name}: not a zip or tar archive")
+    with _open_archive(archive) as bundle:
+        members = _members(bundle)
+        for name, kind, _ in members:
+            _safe_member_path(destination, name, archive)
+            if kind == "link":
+                raise UnsafeArchiveError(f"{archive.name}: member '{name}' is a link or device")
+        for name, kind, member in members:
+            target = _safe_member_path(destination, name, archive)
+            if kind == "dir":
+                target.mkdir(parents=True, exist_ok=True)
+                continue
+            target.parent.mkdir(parents=True, exist_ok=True)
+            source = bundle.open(member) if isinstance(bundle, zipfile.ZipFile) else bundle.extractfile(member)
+            with source, open(target, "wb") as output:
+                shutil.copyfileobj(source, output, 1 << 20)
+            written.append(target)
+    return written
