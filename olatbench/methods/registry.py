@@ -27,5 +27,9 @@ def get_method(name: str) -> type[Method]:
         return _registered[name]
     for entry in entry_points(group=ENTRY_POINT_GROUP):
         if entry.name == name:
-            return entry.load()
+            try:
+                return entry.load()
+            except Exception as error:  # a broken plugin must say which one, not crash with its traceback
+                raise ImportError(f"method '{name}' (entry point '{entry.value}') could not be loaded: "
+                                  f"{type(error).__name__}: {error}") from error
     raise KeyError(f"unknown method '{name}'; known methods: {', '.join(method_names()) or 'none'}")
