@@ -1,0 +1,42 @@
+"""The HTML report opens in a real browser: headless Chromium renders it to a screenshot (slow; needs
+Debian's ``chromium``)."""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+from datasets_trees import write_nrhints_tree
+from test_report_snapshots import _job_folder
+
+from olatbench.cli import main
+from olatbench.datasets.images import read_image
+
+CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
+FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking"]
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(CHROMIUM is None, reason="needs Debian's chromium (apt-get install chromium)")
+def test_html_report_renders_tables_and_figures_in_chromium(tmp_path):
+    scene_root = tmp_path / "data" / "Toy"
+    write_nrhints_tree(scene_root, n_train=3, n_test=2, size=(16, 12))
+    runs = tmp_path / "runs"
+    _job_folder(runs, scene_root, "ssdgs", "nrhints", 0, 1.0)
+    _job_folder(runs, scene_root, "gs3", "default", 0, 0.8)
+    page = tmp_path / "report.html"
+    result = CliRunner().invoke(main, ["report", str(runs), "--suite", "nrhints", "-o", str(page)])
+    assert result.exit_code == 0, result.output
+
+    dom = subprocess.run([CHROMIUM, *FLAGS, "--dump-dom", page.as_uri()], capture_output=True, text=True,
+                         timeout=120).stdout
+    assert dom.count("<table") >= 1 and dom.count("<img") == 4
+    shot = tmp_path / "shot.png"
+    subprocess.run([CHROMIUM, *FLAGS, f"--screenshot={shot}", "--window-size=1400,2400", page.as_uri()],
+                   capture_output=True, timeout=120, check=True)
+    pixels = read_image(shot)[..., :3]
+    ink = np.mean(np.abs(pixels - 1.0).sum(axis=2) > 0.1)  # fraction of non-white pixels
+    assert 0.02 < ink < 0.95 and pixels.std() > 0.05
