@@ -134,3 +134,10 @@ def test_short_training_lowers_the_loss_and_beats_a_constant_predictor() -> None
                     for c, lt, img in zip(test.cameras, test.lights, test.images, strict=True)])
     baseline = np.mean([_psnr(np.broadcast_to(constant, img.shape), img) for img in test.images])
     assert ours > baseline + 3.0, (ours, baseline)
+
+
+def test_very_short_mini_runs_train(views) -> None:
+    """Scaled densification thresholds never round to 0 (a 5-iteration mini run used to be refused)."""
+    method = SSDGS(SSDGS.resolve_config("mini", iterations=5, num_init_gaussians=200))
+    method.setup(views, "cpu", 0)
+    assert all(np.isfinite(method.train_step(step)["loss"]) for step in range(5))

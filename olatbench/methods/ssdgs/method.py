@@ -100,7 +100,7 @@ class SSDGS(Method):
         self.light_refinement = LightRefinement(len(train), self.device) if cfg.refine_light else None
         self._build_optimisers()
         self.densifier = Densifier(DensifyConfig(
-            densify_from=cfg.steps(cfg.densify_from), densify_until=cfg.steps(cfg.densify_until),
+            densify_from=max(1, cfg.steps(cfg.densify_from)), densify_until=max(1, cfg.steps(cfg.densify_until)),
             densify_interval=cfg.densify_interval, grad_threshold=cfg.densify_grad_threshold,
             opacity_reset_interval=max(1, cfg.steps(cfg.opacity_reset_interval)), percent_dense=cfg.percent_dense,
             reset_opacity_at_start=bool(np.all(background == 1.0)), max_gaussians=cfg.max_gaussians), seed=seed)
