@@ -87,6 +87,8 @@ class LoadedImage:
     """Pixels of one frame: ``rgb`` (H, W, 3) float32 in ``colourspace``; ``alpha`` (H, W) or None.
 
     When a background was applied ``rgb`` is composited; otherwise it is straight (not premultiplied).
+    Both may be views of one decoded (H, W, 4) buffer (``rgb`` then has a row stride of 4 channels);
+    ``np.ascontiguousarray`` gives a packed copy where one is needed.
     """
 
     rgb: np.ndarray
@@ -139,12 +141,13 @@ class Frame:
                                frame=self.frame_id)
         if not np.all(np.isfinite(pixels)):
             raise DatasetError("image holds NaN or Inf pixels", path=self.image_path, frame=self.frame_id)
-        rgb = np.repeat(pixels, 3, axis=2) if channels == 1 else pixels[..., :3]
-        alpha = pixels[..., 3] if channels == 4 else None
+        # Work in place on the freshly decoded buffer: rgb stays a view of it (no extra full-size copies).
+        if channels == 1:
+            pixels = np.repeat(pixels, 3, axis=2)
         if resolution is not None:
-            stacked = rgb if alpha is None else np.concatenate([rgb, alpha[..., None]], axis=2)
-            stacked = resize_image(stacked, *resolution)
-            rgb, alpha = stacked[..., :3], (None if alpha is None else stacked[..., 3])
+            pixels = resize_image(pixels, *resolution)
+        rgb = pixels[..., :3]
+        alpha = pixels[..., 3].copy() if channels == 4 else None  # kept aside: the colour pass below spans all 4
         if isinstance(background, str):
             if background != "official":
                 raise ValueError(f"background must be 'official', a colour or None, not {background!r}")
@@ -152,10 +155,11 @@ class Frame:
         if background is not None and alpha is not None:
             stored_bg = colour.convert_colourspace(np.broadcast_to(np.asarray(background, np.float32), (3,)),
                                                    target, self.colourspace)
-            rgb = colour.composite(rgb, alpha, stored_bg, self.alpha_mode)
+            colour.composite(rgb, alpha, stored_bg, self.alpha_mode, out=rgb)
         elif alpha is not None and self.alpha_mode == "premultiplied":
-            rgb = colour.unpremultiply(rgb, alpha)
-        rgb = colour.convert_colourspace(rgb, self.colourspace, target)
+            rgb[...] = colour.unpremultiply(rgb, alpha)
+        # Element-wise, so converting the whole contiguous buffer (4th channel discarded) is the fast path.
+        colour.convert_colourspace(pixels, self.colourspace, target, out=pixels)
         return LoadedImage(rgb=rgb.astype(np.float32, copy=False), alpha=alpha, colourspace=target)
 
 
