@@ -1,25 +1,33 @@
-"""`olatbench datasets download`/`verify` against a local HTTP server on 127.0.0.1 serving archives
-built from small generated scenes (a Hugging Face-like tree API, a two-part archive, a path-escaping
-member, a dropped connection, a corrupted byte)."""
+"""`olatbench datasets download`/`verify` against a local HTTP server on 127.0.0.1 standing in for the
+official hosts (a Hugging Face-like tree API, the NRHints project's plain URLs): exact and pattern-matched
+files, a two-part archive, fallback between sources, a path-escaping member, a dropped connection, a
+corrupted byte. Nothing here touches the network."""
 
 from __future__ import annotations
 
 import hashlib
 import io
 import json
+import shutil
 import tarfile
 import zipfile
 from pathlib import Path
 
 import pytest
 from click.testing import CliRunner
-from datasets_trees import write_nrhints_tree
+from datasets_trees import write_nrhints_tree, write_sssgs_tree
 from http_fixture import LocalServer, ServerState
 
 from olatbench.cli import main
 from olatbench.datasets import load_scene
 from olatbench.datasets.download import archives, fetch, manifest, transfer
-from olatbench.datasets.download.sources import GS3_REPO
+from olatbench.datasets.download.sources import (
+    GS3_REPO,
+    GS3_REVISION,
+    NRHINTS_BASE_URL,
+    SSSGS_REPO,
+    sources_for,
+)
 
 
 def _zip_folder(folder: Path, arcname: str) -> bytes:
@@ -31,41 +39,128 @@ def _zip_folder(folder: Path, arcname: str) -> bytes:
     return buffer.getvalue()
 
 
+def _tar_folder(folder: Path, arcname: str) -> bytes:
+    buffer = io.BytesIO()
+    with tarfile.open(fileobj=buffer, mode="w") as bundle:
+        bundle.add(folder, arcname=arcname)
+    return buffer.getvalue()
+
+
+@pytest.fixture(scope="module")
+def nrhints_tree(tmp_path_factory) -> Path:
+    folder = tmp_path_factory.mktemp("nrhints") / "scene"
+    write_nrhints_tree(folder, n_train=3, n_test=1)
+    return folder
+
+
 @pytest.fixture()
-def scene_zip(tmp_path) -> bytes:
-    """A small NRHints scene zipped under the alias folder name of CatSmall."""
-    write_nrhints_tree(tmp_path / "src", n_train=3, n_test=1)
-    return _zip_folder(tmp_path / "src", "Cat_on_Decor")
+def scene_zip(nrhints_tree) -> bytes:
+    """A small NRHints scene zipped under the GS³ repack's folder name of CatSmall."""
+    return _zip_folder(nrhints_tree, "Cat_on_Decor")
 
 
-def _hf_state(files: dict[str, bytes], *, with_hashes: bool = True) -> ServerState:
-    state = ServerState()
+def _hub_state(files: dict[str, bytes], *, repo: str = GS3_REPO, revision: str = GS3_REVISION,
+               with_hashes: bool = True, state: ServerState | None = None) -> ServerState:
+    """A Hub stand-in: ``files`` (repository path -> bytes) under resolve/, listed by the tree API."""
+    state = state or ServerState()
     listing = []
     for name, data in files.items():
-        state.files[f"/datasets/{GS3_REPO}/resolve/main/{name}"] = data
+        state.files[f"/datasets/{repo}/resolve/{revision}/{name}"] = data
         entry = {"type": "file", "path": name, "size": len(data)}
         if with_hashes:
             entry["lfs"] = {"oid": hashlib.sha256(data).hexdigest(), "size": len(data)}
         listing.append(entry)
     listing.append({"type": "file", "path": "README.md", "size": 3})
-    state.listings[f"/api/datasets/{GS3_REPO}/tree/main"] = listing
+    state.listings[f"/api/datasets/{repo}/tree/{revision}"] = listing
     return state
 
 
-def test_hub_source_downloads_validates_and_normalises_the_alias(tmp_path, scene_zip):
-    state = _hf_state({"nrhints/Cat_on_Decor.zip": scene_zip})
+def test_hub_source_fetches_the_exact_file_validates_and_normalises_the_alias(tmp_path, scene_zip, nrhints_tree):
+    other = _zip_folder(nrhints_tree, "Cat")
+    state = _hub_state({"NRHints/Cat_on_Decor.zip": scene_zip, "NRHints/Cat.zip": other})
     with LocalServer(state) as server:
         folder = fetch.download_scene("nrhints", "CatSmall", tmp_path / "data", source="gs3-hf",
                                       mirror=server.url, progress=False)
-    assert folder == tmp_path / "data" / "CatSmall"
+        cat = fetch.download_scene("nrhints", "Cat", tmp_path / "data", source="gs3-hf", mirror=server.url,
+                                   progress=False)
+    assert folder == tmp_path / "data" / "CatSmall" and cat == tmp_path / "data" / "Cat"
     assert len(load_scene(folder).split("train")) == 3
     assert manifest.verify_folder(folder) == []
+    # 'Cat' shares its prefix with 'Cat_on_Decor': only the exact path is fetched for each scene
+    fetched = [path.rsplit("/", 1)[-1] for path, _ in state.requests if "/resolve/" in path]
+    assert sorted(fetched) == ["Cat.zip", "Cat_on_Decor.zip"]
+    assert json.loads((cat / manifest.MANIFEST_NAME).read_text())["archives"] == {
+        "Cat.zip": hashlib.sha256(other).hexdigest()}
     assert not [p for p in (tmp_path / "data").iterdir() if p.name.startswith(".unpack")]
 
 
+def test_url_source_downloads_unpacks_aliases_and_validates(tmp_path, nrhints_tree):
+    """The NRHints project's plain URLs, with --mirror pointing the base URL at the local server."""
+    data = _zip_folder(nrhints_tree, "Cluttered")  # an archive whose folder is an alias of FurScene
+    state = ServerState(files={"/FurScene.zip": data})
+    runner = CliRunner()
+    root = tmp_path / "data"
+    with LocalServer(state) as server:
+        result = runner.invoke(main, ["datasets", "download", "nrhints", "--scenes", "FurScene", "--root", str(root),
+                                      "--source", "nrhints-project", "--mirror", server.url])
+    assert result.exit_code == 0, result.output
+    assert [path for path, _ in state.requests] == ["/FurScene.zip"]
+    assert len(load_scene(root / "FurScene").split("train")) == 3
+    assert json.loads((root / "FurScene" / manifest.MANIFEST_NAME).read_text())["source"] == "nrhints-project"
+    assert runner.invoke(main, ["datasets", "verify", str(root)]).exit_code == 0
+
+
+def test_url_sources_default_to_the_official_locations():
+    """Without --mirror the NRHints files resolve to the project's host (no network needed to resolve)."""
+    for scene in ("Cat", "CatSmall", "Pikachu"):
+        (source,) = sources_for("nrhints", scene, "nrhints-project")
+        assert [f.url for f in fetch.resolve_files(source)] == [f"{NRHINTS_BASE_URL}/{scene}.zip"]
+
+
+def test_unusable_source_falls_back_to_the_next(tmp_path, scene_zip):
+    """nrhints-project answers 404, so the GS³ repack on the (stand-in) Hub is used instead."""
+    state = _hub_state({"NRHints/Cat_on_Decor.zip": scene_zip})
+    with LocalServer(state) as server:
+        folder = fetch.download_scene("nrhints", "CatSmall", tmp_path, mirror=server.url, progress=False)
+    assert json.loads((folder / manifest.MANIFEST_NAME).read_text())["source"] == "gs3-hf"
+    assert state.requests[0] == ("/CatSmall.zip", None)
+
+
+def test_missing_hub_file_names_what_the_repository_holds(tmp_path):
+    state = _hub_state({"Synthetic/Lego_v2.zip": b"x"})
+    with LocalServer(state) as server, pytest.raises(transfer.DownloadError) as error:
+        fetch.download_scene("gs3", "Lego", tmp_path, mirror=server.url, progress=False)
+    assert "Synthetic/Lego.zip not found" in str(error.value) and "Synthetic/Lego_v2.zip" in str(error.value)
+
+
+def test_pattern_matched_two_part_archive_is_joined_and_aliased(tmp_path):
+    """SSS-GS archives are matched by pattern (exact names unpublished); numbered parts are joined in order."""
+    write_sssgs_tree(tmp_path / "src")
+    data = _tar_folder(tmp_path / "src", "bunny_small")
+    half = len(data) // 2
+    parts = {"synthetic/bunny_small.tar.002": data[half:], "synthetic/bunny_small.tar.001": data[:half],
+             "synthetic/bunny_small/transforms_train.json": b"{}", "real_world/bunny.tar": b"x"}
+    state = _hub_state(parts, repo=SSSGS_REPO, revision="main")
+    with LocalServer(state) as server:
+        folder = fetch.download_scene("sssgs", "Bunny", tmp_path / "data", source="sssgs-hf", mirror=server.url,
+                                      progress=False)
+    assert folder == tmp_path / "data" / "Bunny"
+    assert len(load_scene(folder).split("test")) == 3
+    assert sorted(json.loads((folder / manifest.MANIFEST_NAME).read_text())["archives"]) == [
+        "bunny_small.tar.001", "bunny_small.tar.002"]
+
+
+def test_several_matching_archives_are_refused(tmp_path):
+    state = _hub_state({"synthetic/bunny_small.tar": b"a", "synthetic/bunny_small_hdr.zip": b"b"},
+                       repo=SSSGS_REPO, revision="main")
+    (source,) = sources_for("sssgs", "Bunny", "sssgs-hf")
+    with LocalServer(state) as server, pytest.raises(transfer.DownloadError, match="several archives match"):
+        fetch.resolve_files(source, server.url)
+
+
 def test_dropped_connection_resumes_with_a_range_request(tmp_path, scene_zip):
-    state = _hf_state({"Cat_on_Decor.zip": scene_zip})
-    path = f"/datasets/{GS3_REPO}/resolve/main/Cat_on_Decor.zip"
+    state = _hub_state({"NRHints/Cat_on_Decor.zip": scene_zip})
+    path = f"/datasets/{GS3_REPO}/resolve/{GS3_REVISION}/NRHints/Cat_on_Decor.zip"
     state.drop_after[path] = len(scene_zip) // 3
     with LocalServer(state) as server:
         fetch.download_scene("nrhints", "CatSmall", tmp_path, source="gs3-hf", mirror=server.url, progress=False)
@@ -74,12 +169,12 @@ def test_dropped_connection_resumes_with_a_range_request(tmp_path, scene_zip):
 
 
 def test_corrupted_byte_stops_with_both_hashes_and_installs_nothing(tmp_path, scene_zip):
-    state = _hf_state({"Cat_on_Decor.zip": scene_zip})
+    state = _hub_state({"NRHints/Cat_on_Decor.zip": scene_zip})
     corrupted = bytearray(scene_zip)
     corrupted[len(corrupted) // 2] ^= 0xFF
-    state.files[f"/datasets/{GS3_REPO}/resolve/main/Cat_on_Decor.zip"] = bytes(corrupted)
+    state.files[f"/datasets/{GS3_REPO}/resolve/{GS3_REVISION}/NRHints/Cat_on_Decor.zip"] = bytes(corrupted)
     with LocalServer(state) as server, pytest.raises(manifest.IntegrityError) as error:
-        fetch.download_scene("nrhints", "CatSmall", tmp_path, source="gs3-hf", mirror=server.url, progress=False)
+        fetch.download_scene("nrhints", "CatSmall", tmp_path, mirror=server.url, progress=False)
     message = str(error.value)
     assert "Cat_on_Decor.zip" in message
     assert hashlib.sha256(scene_zip).hexdigest() in message
@@ -87,35 +182,23 @@ def test_corrupted_byte_stops_with_both_hashes_and_installs_nothing(tmp_path, sc
     assert not (tmp_path / "CatSmall").exists()
 
 
-def test_mirror_hash_recorded_first_time_and_checked_later(tmp_path, scene_zip):
+def test_mirror_hash_recorded_first_time_and_checked_later(tmp_path, nrhints_tree):
+    data = _zip_folder(nrhints_tree, "CatSmall")
     mirror = tmp_path / "mirror"
     mirror.mkdir()
-    (mirror / "Cat_on_Decor.zip").write_bytes(scene_zip)
+    (mirror / "CatSmall.zip").write_bytes(data)
     root = tmp_path / "data"
     fetch.download_scene("nrhints", "CatSmall", root, source="nrhints-project", mirror=mirror.as_uri(),
                          progress=False)
     recorded = json.loads((root / fetch.KNOWN_HASHES).read_text())
-    assert recorded["Cat_on_Decor.zip"] == hashlib.sha256(scene_zip).hexdigest()
+    assert recorded == {"nrhints-project/CatSmall.zip": hashlib.sha256(data).hexdigest()}
     # the mirror changes under us: the next fresh download refuses it
-    (mirror / "Cat_on_Decor.zip").write_bytes(scene_zip[:-1] + bytes([scene_zip[-1] ^ 1]))
-    import shutil
+    (mirror / "CatSmall.zip").write_bytes(data[:-1] + bytes([data[-1] ^ 1]))
     shutil.rmtree(root / "CatSmall")
     shutil.rmtree(root / fetch.DOWNLOADS)
     with pytest.raises(manifest.IntegrityError):
         fetch.download_scene("nrhints", "CatSmall", root, source="nrhints-project", mirror=mirror.as_uri(),
                              progress=False)
-
-
-def test_two_part_archive_is_joined(tmp_path):
-    write_nrhints_tree(tmp_path / "src", n_train=2, n_test=1)
-    data = _zip_folder(tmp_path / "src", "Pikachu")
-    mirror = tmp_path / "mirror"
-    mirror.mkdir()
-    (mirror / "Pikachu.zip.001").write_bytes(data[: len(data) // 2])
-    (mirror / "Pikachu.zip.002").write_bytes(data[len(data) // 2:])
-    folder = fetch.download_scene("nrhints", "Pikachu", tmp_path / "data", source="nrhints-project",
-                                  mirror=mirror.as_uri(), progress=False)
-    assert len(load_scene(folder).split("test")) == 1
 
 
 def test_path_escaping_members_are_refused_before_writing(tmp_path):
@@ -150,16 +233,21 @@ def test_server_error_is_reported_with_the_url(tmp_path):
         transfer.download(f"{server.url}/missing.zip", tmp_path / "missing.zip", retries=1, backoff=0)
 
 
-def test_manual_source_prints_instructions_and_fails_cleanly(tmp_path):
-    result = CliRunner().invoke(main, ["datasets", "download", "sssgs", "--scenes", "Bunny", "--root", str(tmp_path)])
-    assert result.exit_code != 0
-    assert "--mirror" in result.output and "Traceback" not in result.output
+def test_unreachable_hub_then_manual_sources_fail_cleanly_with_instructions(tmp_path, monkeypatch):
+    """SSS-GS: the Hub (a local stand-in answering 404) fails, the mirror-only source prints how to use it."""
+    with LocalServer(ServerState()) as server:
+        monkeypatch.setattr(fetch, "HF_ENDPOINT", server.url)
+        result = CliRunner().invoke(main, ["datasets", "download", "sssgs", "--scenes", "Bunny",
+                                           "--root", str(tmp_path)])
+    assert result.exit_code != 0 and "Traceback" not in result.output
+    assert "[sssgs-hf]" in result.output and "404" in result.output
+    assert "--mirror" in result.output and "[ssdgs-converted]" in result.output
 
 
-def test_verify_reports_a_damaged_file(tmp_path, scene_zip):
+def test_verify_reports_a_damaged_file(tmp_path, nrhints_tree):
     mirror = tmp_path / "mirror"
     mirror.mkdir()
-    (mirror / "Cat_on_Decor.zip").write_bytes(scene_zip)
+    (mirror / "CatSmall.zip").write_bytes(_zip_folder(nrhints_tree, "CatSmall"))
     root = tmp_path / "data"
     runner = CliRunner()
     result = runner.invoke(main, ["datasets", "download", "nrhints", "--scenes", "CatSmall", "--root", str(root),

@@ -1,92 +1,117 @@
 """Where each suite's scenes are published, as data.
 
-A `Source` is either *hosted* on a Hugging Face dataset repository (its file list, sizes and
-sha256 come from the Hub's tree API at download time, so nothing is guessed here), served
-from a *mirror* folder the user names, or *manual* (printed instructions). Scene names are the
-suites' canonical names; ``archive_prefix`` selects the repository files of one scene.
+A `Source` is one way to obtain one scene:
+
+- ``"hf"``: a Hugging Face dataset repository at a fixed revision. The file list, sizes and sha256
+  come from the Hub's tree API at download time; ``files`` names the exact repository paths of the
+  scene's archive, or, where the exact names are not published, ``pattern`` (a glob) selects them.
+- ``"url"``: archives under ``base_url`` (``<base_url>/<file>``); no published hashes, so the sha256
+  is recorded the first time and checked on every later download. With an empty ``base_url`` the
+  files come only from a folder the user names with ``--mirror``.
+- ``"manual"``: printed ``instructions`` only.
+
+``--mirror`` replaces the host of any source (the Hub endpoint, or ``base_url``), so a local copy
+or a test server can stand in for it. Every location below was read in an official source, cited
+next to it; nothing here is a guessed URL.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Literal
+
+from olatbench.datasets.suites import SUITES
 
 HF_ENDPOINT = "https://huggingface.co"
 
 
 @dataclass(frozen=True)
 class Source:
-    """One way to obtain one scene.
+    """One way to obtain one scene (see the module docstring for the kinds).
 
-    ``kind``: ``"hf"`` (Hugging Face dataset ``repo``; files under ``prefix`` whose name starts
-    with ``archive_prefix``), ``"mirror"`` (files ``archives`` under a user-given ``--mirror`` URL),
-    or ``"manual"`` (``instructions`` only). ``archives`` lists archive names; several names that
-    end in ``.001``, ``.002``… are the parts of one archive, joined in order before unpacking.
+    ``files``: repository paths (``hf``) or names under ``base_url`` (``url``); several names ending
+    in ``.001``, ``.002``… are the parts of one archive, joined in order before unpacking.
     """
 
     name: str
-    kind: Literal["hf", "mirror", "manual"]
+    kind: Literal["hf", "url", "manual"]
+    files: tuple[str, ...] = ()
     repo: str = ""
-    prefix: str = ""
-    archive_prefix: str = ""
-    archives: tuple[str, ...] = ()
+    revision: str = "main"
+    pattern: str = ""
+    base_url: str = ""
     instructions: str = ""
-    folder_aliases: tuple[str, ...] = field(default_factory=tuple)
 
 
+# --- NRHints (Zeng et al., SIGGRAPH 2023): the authors' own per-scene zips -------------------------------
+# Read in iamNCJ/NRHints README.md ("Data and Models" table, commit cd406d699f21c0f3d027a3e9f39a7e268bc0ca24)
+# and scripts/download_data.sh (commit 06d0a89a467ace59771112931fa9972f60fd3350):
+#   https://igpublicshare.z20.web.core.windows.net/NRHints/Data/Real/<Scene>.zip
+# for Cat, FurScene, Pixiu, Fish, CatSmall, CupFabric and Pikachu (Pikachu is one zip there, not two parts).
+# Each zip unpacks to a folder of the same name (scripts/train_real.sh reads Real/<Scene>/).
+NRHINTS_BASE_URL = "https://igpublicshare.z20.web.core.windows.net/NRHints/Data/Real"
+
+# --- GS³ (Bi et al., SIGGRAPH Asia 2024): Hugging Face dataset gsrelight/gsrelight-data ----------------------
+# The repository is named by the GS³ README ("huggingface-cli download --repo-type dataset
+# gsrelight/gsrelight-data"). Its file names were read on the Hub's own pages: tree
+# huggingface.co/datasets/gsrelight/gsrelight-data/tree/78df91b8153db055a0119707f2b3c049cd316690/Synthetic
+# (commit f12915d "Upload 6 files": Synthetic/{AnisoMetal,Drums,FurBall,Hotdog,Lego,Translucent}.zip) and
+# .../tree/e855a9af9b855222894ee7a82098d518f6d5c6b1/NRHints (commit a6d7795 "Upload 7 files":
+# NRHints/{Cat,Cat_on_Decor,Cluttered,Cup-Fabric,Fish,Pikachu,Pixiu}.zip). The revision is pinned to
+# ac856efb0cf970f7fd4ea5fc490bd109122ffdb2 (main's history; later commits only edit README.md), so the sha256
+# the Hub reports for these files cannot change under a benchmark.
 GS3_REPO = "gsrelight/gsrelight-data"
+GS3_REVISION = "ac856efb0cf970f7fd4ea5fc490bd109122ffdb2"
+GS3_NRHINTS_FOLDERS = {"CatSmall": "Cat_on_Decor", "FurScene": "Cluttered", "CupFabric": "Cup-Fabric"}
 
-NRHINTS_PAGE = "https://nrhints.github.io/"
-NRHINTS_MANUAL = (
-    "The NRHints project publishes one zip per real scene (Pikachu in two parts) behind the 'Data' link of "
-    f"{NRHINTS_PAGE}. Download them into one folder and run: olatbench datasets download nrhints "
-    "--source nrhints-project --mirror file:///path/to/that/folder  (or serve the folder over HTTP and pass its URL)."
+# --- SSS-GS (Dihlmann et al., NeurIPS 2024): Hugging Face dataset CGTuebingen/SSS-GS -----------------------
+# The released cgtuebingen/SSS-GS README.md (section "Dataset") names the dataset
+# huggingface.co/datasets/CGTuebingen/SSS-GS and says to "unpack the tar files"; the dataset card
+# (huggingface.co/datasets/CGTuebingen/SSS-GS/blob/main/README.md, revision 355a987) lays the public
+# down-scaled synthetic scenes out as synthetic/<scene>_small/transforms_{train,test,eval}.json.
+# The exact archive names were NOT readable from here, so they are matched at download time (pattern),
+# and the Hub's answer decides: an unexpected layout stops with the list of files the repository holds.
+SSSGS_REPO = "CGTuebingen/SSS-GS"
+SSSGS_MIRROR = (
+    "Put the SSS-GS scene archives (from huggingface.co/datasets/CGTuebingen/SSS-GS, folder synthetic/) into one "
+    "folder, named <scene>_small.tar (e.g. bunny_small.tar), and run: olatbench datasets download sssgs "
+    "--source sssgs-mirror --mirror file:///path/to/that/folder  (or serve the folder over HTTP and pass its URL)."
 )
-SSSGS_MANUAL = (
-    "The SSS-GS synthetic scenes are published by the SSS-GS authors (Dihlmann et al., NeurIPS 2024) on their "
-    "project page. Download the scene archives into one folder and run: olatbench datasets download sssgs "
-    "--source sssgs-mirror --mirror file:///path/to/that/folder"
-)
+
+# --- SSD-GS (ICLR 2026): irisfreesiri/SSD-GS lists "Dataset Release" as still to come in its README.md --------
 SSDGS_MANUAL = (
-    "The SSD-GS authors' converted copies are shared on request through their project page; olatbench reads the "
-    "original formats directly, so use the 'gs3-hf' or 'nrhints-project' sources instead."
+    "The SSD-GS authors have not published their converted copies yet (github.com/irisfreesiri/SSD-GS lists "
+    "'Dataset Release' as upcoming); olatbench reads the original releases directly, so use the 'sssgs-hf' "
+    "source (or 'sssgs-mirror' with a local copy) instead."
 )
 
-NRHINTS_SCENES = ("Cat", "CatSmall", "CupFabric", "Fish", "FurScene", "Pikachu", "Pixiu")
-NRHINTS_FOLDERS = {"CatSmall": ("Cat_on_Decor",), "FurScene": ("Cluttered",), "CupFabric": ("Cup-Fabric",)}
-GS3_SCENES = ("Translucent", "AnisoMetal", "Drums", "FurBall", "Hotdog", "Lego")
-SSSGS_SCENES = ("Bunny", "Candle", "Dragon", "Soap", "Statue")
+
+def _nrhints_sources(scene: str) -> list[Source]:
+    gs3_name = GS3_NRHINTS_FOLDERS.get(scene, scene)
+    return [Source("nrhints-project", "url", files=(f"{scene}.zip",), base_url=NRHINTS_BASE_URL),
+            Source("gs3-hf", "hf", files=(f"NRHints/{gs3_name}.zip",), repo=GS3_REPO, revision=GS3_REVISION)]
 
 
-def _nrhints_archives(scene: str) -> tuple[str, ...]:
-    folder = NRHINTS_FOLDERS.get(scene, (scene,))[0]
-    return (f"{folder}.zip.001", f"{folder}.zip.002") if scene == "Pikachu" else (f"{folder}.zip",)
+def _sssgs_sources(scene: str) -> list[Source]:
+    small = f"{scene.lower()}_small"
+    return [Source("sssgs-hf", "hf", repo=SSSGS_REPO, pattern=f"synthetic/{small}*"),
+            Source("sssgs-mirror", "url", files=(f"{small}.tar",), instructions=SSSGS_MIRROR),
+            Source("ssdgs-converted", "manual", instructions=SSDGS_MANUAL)]
 
 
 SOURCES: dict[str, dict[str, list[Source]]] = {
-    "nrhints": {
-        scene: [
-            Source("gs3-hf", "hf", repo=GS3_REPO, prefix="", archive_prefix=NRHINTS_FOLDERS.get(scene, (scene,))[0],
-                   folder_aliases=NRHINTS_FOLDERS.get(scene, ())),
-            Source("nrhints-project", "mirror", archives=_nrhints_archives(scene), instructions=NRHINTS_MANUAL,
-                   folder_aliases=NRHINTS_FOLDERS.get(scene, ())),
-        ]
-        for scene in NRHINTS_SCENES
-    },
-    "gs3": {
-        scene: [Source("gs3-hf", "hf", repo=GS3_REPO, prefix="", archive_prefix=scene.lower())]
-        for scene in GS3_SCENES
-    },
-    "sssgs": {
-        scene: [Source("sssgs-mirror", "mirror", archives=(f"{scene.lower()}.zip",), instructions=SSSGS_MANUAL),
-                Source("ssdgs-converted", "manual", instructions=SSDGS_MANUAL)]
-        for scene in SSSGS_SCENES
-    },
+    "nrhints": {scene: _nrhints_sources(scene) for scene in SUITES["nrhints"].scenes},
+    "gs3": {scene: [Source("gs3-hf", "hf", files=(f"Synthetic/{scene}.zip",), repo=GS3_REPO, revision=GS3_REVISION)]
+            for scene in SUITES["gs3"].scenes},
+    "sssgs": {scene: _sssgs_sources(scene) for scene in SUITES["sssgs"].scenes},
 }
 
 
 def sources_for(suite: str, scene: str, source: str | None = None) -> list[Source]:
-    """The sources of one scene, the named one only when ``source`` is given; `KeyError` lists the choices."""
+    """The sources of one scene in the order they are tried, the named one only when ``source`` is given.
+
+    Raises `KeyError` listing the choices for an unknown suite, scene or source.
+    """
     if suite not in SOURCES:
         raise KeyError(f"no download sources for suite '{suite}'; known: {', '.join(sorted(SOURCES))}")
     scenes = SOURCES[suite]
