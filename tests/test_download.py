@@ -242,6 +242,15 @@ def test_unreachable_hub_then_manual_sources_fail_cleanly_with_instructions(tmp_
     assert result.exit_code != 0 and "Traceback" not in result.output
     assert "[sssgs-hf]" in result.output and "404" in result.output
     assert "--mirror" in result.output and "[ssdgs-converted]" in result.output
+    assert "rerun the same command to resume" in result.output  # the Hub failure was a download error
+
+
+def test_manual_only_sources_say_so_instead_of_suggesting_a_rerun(tmp_path):
+    result = CliRunner().invoke(main, ["datasets", "download", "sssgs", "--scenes", "Bunny", "--root", str(tmp_path),
+                                       "--source", "ssdgs-converted"])
+    assert result.exit_code != 0 and "Traceback" not in result.output
+    assert "NEEDS A MANUAL STEP" in result.output and "follow the instructions above" in result.output
+    assert "resume" not in result.output
 
 
 def test_verify_reports_a_damaged_file(tmp_path, nrhints_tree):

@@ -24,8 +24,8 @@ def default_data_root() -> Path:
 @click.option("--root", type=click.Path(file_okay=False, path_type=Path), default=None,
               help="Data root (default: $OLATBENCH_DATA or ./data). Scenes land in ROOT/<Scene>.")
 @click.option("--source", help="Use only this source (see the suite's sources in docs/downloads.md).")
-@click.option("--mirror", help="Base URL replacing the host: a folder URL (http:// or file://) for mirror "
-                               "sources, or a Hugging Face compatible endpoint for hub sources.")
+@click.option("--mirror", help="Base URL replacing the host: a folder URL (http:// or file://) for url "
+                               "sources, or a Hugging Face compatible endpoint for hf sources.")
 @click.option("--jobs", default=4, show_default=True, help="Files downloaded in parallel.")
 def download(suite: str, scenes: str | None, root: Path | None, source: str | None, mirror: str | None,
              jobs: int) -> None:
@@ -44,17 +44,21 @@ def download(suite: str, scenes: str | None, root: Path | None, source: str | No
     if unknown:
         raise click.BadParameter(f"unknown scenes {', '.join(unknown)}; {suite} has {', '.join(SOURCES[suite])}",
                                  param_hint="--scenes")
-    failed = 0
+    failed, manual = 0, 0
     for name in names:
         try:
             folder = fetch.download_scene(suite, name, root, source=source, mirror=mirror, jobs=jobs)
             click.echo(f"{suite}/{name}: ready at {folder}")
-        except (fetch.ManualStepRequired, transfer.DownloadError, manifest.IntegrityError, UnsafeArchiveError,
+        except fetch.ManualStepRequired as error:
+            failed, manual = failed + 1, manual + 1
+            click.echo(f"{suite}/{name}: NEEDS A MANUAL STEP\n  {error}", err=True)
+        except (transfer.DownloadError, manifest.IntegrityError, UnsafeArchiveError,
                 DatasetError, ValueError, KeyError) as error:
             failed += 1
             click.echo(f"{suite}/{name}: FAILED\n  {error}", err=True)
     if failed:
-        raise click.ClickException(f"{failed} of {len(names)} scenes failed; rerun the same command to resume")
+        hint = "follow the instructions above, then rerun" if manual == failed else "rerun the same command to resume"
+        raise click.ClickException(f"{failed} of {len(names)} scenes failed; {hint}")
     click.echo(f"Run on them with: olatbench run --suite {suite} --data-root {root}")
 
 
