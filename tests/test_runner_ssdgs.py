@@ -51,6 +51,24 @@ def test_ssdgs_runs_end_to_end_at_a_few_iterations(data, tmp_path):
     assert len(list((Path(job.folder) / "renders" / "test").glob("*.png"))) == 2
 
 
+def test_test_time_refinement_is_run_and_recorded(data, tmp_path):
+    """Each test view is refined before it is scored; results say so, per frame; off by default (null)."""
+    base = smaller(plan(data, tmp_path / "base", iterations=8)[0], num_init_gaussians=200, shadow_resolution=24)
+    refined_job = smaller(plan(data, tmp_path / "refined", iterations=8)[0], num_init_gaussians=200,
+                          shadow_resolution=24, refine_camera=True, test_time_refinement=True, test_time_steps=3)
+    assert refined_job.id != base.id  # a different, recorded configuration
+    for job in (base, refined_job):
+        assert run_job(job, progress=False).status == "done", (Path(job.folder) / "error.txt").read_text()
+    assert read_results(Path(base.folder) / "results.json")["evaluation"]["test_time_refinement"] is None
+    results = read_results(Path(refined_job.folder) / "results.json")
+    record = results["evaluation"]["test_time_refinement"]
+    assert record["split"] == "test" and record["seconds"] > 0
+    assert set(record["frames"]) == set(results["metrics"]["test"]["per_image"])
+    for summary in record["frames"].values():
+        assert summary["steps"] == 3 and summary["loss_after"] <= summary["loss_before"] + 1e-6
+    assert results["job"]["config"]["test_time_refinement"] is True
+
+
 @pytest.mark.slow
 def test_ssdgs_mini_preset_runs_end_to_end(data, tmp_path):
     job = plan(data, tmp_path / "runs", options=PlanOptions(save_components=True))[0]

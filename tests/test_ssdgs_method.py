@@ -141,3 +141,45 @@ def test_very_short_mini_runs_train(views) -> None:
     method = SSDGS(SSDGS.resolve_config("mini", iterations=5, num_init_gaussians=200))
     method.setup(views, "cpu", 0)
     assert all(np.isfinite(method.train_step(step)["loss"]) for step in range(5))
+
+
+def _pose_error_deg(camera, reference) -> float:
+    relative = camera.w2c() @ reference.c2w
+    return float(np.degrees(np.arccos(np.clip((np.trace(relative[:3, :3]) - 1) / 2, -1, 1))))
+
+
+def test_test_time_refinement_recovers_a_perturbed_pose_and_light_with_the_model_frozen() -> None:
+    """Target: the model's own render at the true pose/light; start 1.5° / 0.15 units off; model untouched."""
+    from dataclasses import replace
+
+    from olatbench.gaussians.refinement import so3_exp
+
+    views = sphere_views(6, size=32, seed=1)
+    method = make(views, refine_camera=True, refine_light=True, test_time_refinement=True, test_time_steps=100)
+    for step in range(40):
+        method.train_step(step)
+    camera, light = views.cameras[0], views.lights[0]
+    target = method.render(camera, light)["rgb"].numpy()
+    delta = np.eye(4)
+    delta[:3, :3] = so3_exp(torch.tensor([0.02, -0.015, 0.01], dtype=torch.float64)).numpy()
+    delta[:3, 3] = [0.03, -0.02, 0.02]
+    start_camera = replace(camera, c2w=np.linalg.inv(delta @ camera.w2c()))
+    start_light = replace(light, position=light.position + np.array([0.1, -0.1, 0.05]))
+    before = {k: v.detach().clone() for k, v in [*method.model.state_dict().items(),
+                                                  *method.shader.state_dict().items()]}
+    refined = method.refine_view(start_camera, start_light, target)
+    assert refined.summary["loss_after"] < 0.2 * refined.summary["loss_before"]
+    assert _pose_error_deg(refined.camera, camera) < 0.6 * _pose_error_deg(start_camera, camera)
+    assert (np.linalg.norm(refined.light.position - light.position)
+            < 0.6 * np.linalg.norm(start_light.position - light.position))
+    after = {**method.model.state_dict(), **method.shader.state_dict()}
+    assert all(torch.equal(before[k], after[k]) for k in before)
+    assert all(p.grad is None for p in [*method.model.parameters(), *method.shader.parameters()])
+
+
+def test_test_time_refinement_is_off_by_default_and_needs_a_refined_quantity(views) -> None:
+    method = make(views)
+    assert not method.refines_test_views
+    assert method.refine_view(views.cameras[0], views.lights[0], views.images[0]) is None
+    with pytest.raises(ValueError, match="refine_camera"):
+        SSDGS.resolve_config(None, test_time_refinement=True)

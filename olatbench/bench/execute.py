@@ -123,16 +123,18 @@ def _run(job: Job, folder: Path, log: JobLog, progress: bool, position: int) -> 
     train_seconds = _train(method, train_views, job, folder, log, progress, position)
 
     metrics: dict[str, Any] = {}
-    render_fps = None
+    render_fps, refinement = None, None
     for split, frames in ((job.train_split, scene.split(job.train_split)),
                           (job.test_split, scene.split(job.test_split))):
         gt_images = train_views.images if split == job.train_split else None
-        metrics[split], fps = evaluate_split(method, frames, job, folder, split, gt_images, progress, position)
+        metrics[split], fps, refined = evaluate_split(method, frames, job, folder, split, gt_images, progress,
+                                                      position)
         if split == job.test_split:
-            render_fps = fps
+            render_fps, refinement = fps, refined
         log(f"{split}: " + ", ".join(f"{k} {v:.4f}" for k, v in metrics[split]["mean"].items() if v is not None))
 
     results = _done_results(job, metrics, train_seconds, render_fps, method)
+    results["evaluation"]["test_time_refinement"] = refinement
     write_results(folder / RESULTS_FILE, results)
     prune_checkpoints(folder, keep=1)
     write_text(folder / DONE_FILE, job.id + "\n")
@@ -273,15 +275,18 @@ def _to_numpy(image: torch.Tensor) -> np.ndarray:
 
 
 def evaluate_split(method: Method, frames: list[Frame], job: Job, folder: Path, split: str,
-                   gt_images: np.ndarray | None, progress: bool, position: int) -> tuple[dict[str, Any], float]:
+                   gt_images: np.ndarray | None, progress: bool, position: int
+                   ) -> tuple[dict[str, Any], float | None, dict[str, Any] | None]:
     """Render every frame of a split, save ``renders/<split>/<frame_id>.png`` (8-bit sRGB) and score it.
 
     Scores are computed in the suite's evaluation space (``job.colourspace``: sRGB for PNG data,
     gamma 2.2 for GS³ EXRs, as the official scripts display them), against the protocol's official ground
     truth when it names one and the images are at native resolution. ``gt_images`` reuses already
     loaded views. Masked protocols get the ground truth's alpha as mask. Returns the metrics block
-    ``{"mean": ..., "per_image": {frame_id: ...}}`` and the render FPS (renders only, after
-    `WARMUP_RENDERS` warm-up renders; CUDA synchronised).
+    ``{"mean": ..., "per_image": {frame_id: ...}}``, the render FPS (renders only, after
+    `WARMUP_RENDERS` warm-up renders; CUDA synchronised) and, when the method refines test views
+    (`Method.refines_test_views`, test split only), ``{"split", "seconds", "frames": {frame_id: summary}}``:
+    each view's pose/light is then fitted to its image (training space) before the render that is scored.
     """
     from olatbench.metrics.protocols import get_protocol
 
@@ -296,12 +301,23 @@ def evaluate_split(method: Method, frames: list[Frame], job: Job, folder: Path, 
         for frame in frames[:WARMUP_RENDERS]:
             method.render(_camera(frame, job), frame.light)
         render_seconds, per_image = 0.0, {}
+        refine = split == job.test_split and method.refines_test_views
+        refinement: dict[str, Any] | None = {"split": split, "seconds": 0.0, "frames": {}} if refine else None
         for index, frame in enumerate(tqdm(frames, desc=f"{job.label}: {split}", position=position, leave=False,
                                            disable=not progress)):
+            camera, light = _camera(frame, job), frame.light
+            if refinement is not None:
+                clock = time.perf_counter()
+                target = frame.load(colourspace=job.colourspace, background="official", resolution=resolution).rgb
+                refined = method.refine_view(camera, light, target)
+                if refined is not None:
+                    camera, light = refined.camera, refined.light
+                    refinement["frames"][frame.frame_id] = {k: _finite(float(v)) for k, v in refined.summary.items()}
+                refinement["seconds"] += time.perf_counter() - clock
             if cuda:
                 torch.cuda.synchronize(job.device)
             clock = time.perf_counter()
-            output = method.render(_camera(frame, job), frame.light)
+            output = method.render(camera, light)
             if cuda:
                 torch.cuda.synchronize(job.device)
             render_seconds += time.perf_counter() - clock
@@ -321,7 +337,10 @@ def evaluate_split(method: Method, frames: list[Frame], job: Job, folder: Path, 
             if job.save_components and split == job.test_split:
                 _save_components(output, folder / "components" / split, stem, job.colourspace)
     mean = {key: _finite(value) for key, value in protocol.mean(list(per_image.values())).items()}
-    return {"mean": mean, "per_image": per_image}, len(frames) / render_seconds if render_seconds > 0 else None
+    if refinement is not None:
+        refinement["seconds"] = round(refinement["seconds"], 3)
+    fps = len(frames) / render_seconds if render_seconds > 0 else None
+    return {"mean": mean, "per_image": per_image}, fps, refinement
 
 
 def _save_components(output: dict[str, torch.Tensor], directory: Path, stem: str, colourspace: str) -> None:
@@ -370,6 +389,7 @@ def _base_results(job: Job, status: str) -> dict[str, Any]:
         "model": {"iterations": job.iterations, "num_gaussians": None},
         "versions": library_versions(),
         "hashes": {"data_manifest": job.data_manifest, "config": hash_json(job.config), "code": job.code},
+        "evaluation": {"test_time_refinement": None},
         "error": None,
     }
 

@@ -112,7 +112,7 @@ def resolve_data_root(suite: Suite, data_root: str | Path | None, scenes: Sequen
     if suite.generator is None:
         if root is None:
             raise PlanError(f"suite '{suite.name}' needs its data: pass --data-root or set {DATA_ENV}. "
-                            f"Try: olatbench datasets download --suite {suite.name}")
+                            f"Try: olatbench datasets download {suite.name}")
         return Path(root)
     if root is not None and _all_present(suite, Path(root), scenes):
         return Path(root)

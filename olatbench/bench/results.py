@@ -15,8 +15,14 @@ Schema version 1 (every key present; unknown values are ``null``)::
       "model": {"iterations": int, "num_gaussians": int | null},
       "versions": {"olatbench": str, "python": str, "numpy": str, "torch": str | null, ...},
       "hashes": {"data_manifest": str, "config": str, "code": str},
+      "evaluation": {"test_time_refinement": null | {"split": str, "seconds": float,
+                                                     "frames": {"<frame_id>": {"loss_before": ..., ...}}}},
       "error": null | {"type": str, "message": str}
     }
+
+``evaluation.test_time_refinement`` is set when the method fitted each test view's pose/light to its image
+before scoring it (e.g. SSD-GS ``test_time_refinement=true``); files written before it existed lack the key,
+which reads as ``null``.
 
 Metric keys: ``psnr`` (dB), ``ssim``, ``lpips`` (the protocol's primary network), and optionally
 ``lpips_alex`` / ``lpips_vgg``. Splits are ``train`` and ``test`` (and ``val`` when present).

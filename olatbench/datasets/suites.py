@@ -64,7 +64,7 @@ class Suite:
             if (data_root / name).is_dir():
                 return data_root / name
         raise DatasetError(f"scene '{canonical}' of suite '{self.name}' not found; looked for folders "
-                           f"{', '.join(candidates)}. Try: olatbench datasets download --suite {self.name}",
+                           f"{', '.join(candidates)}. Try: olatbench datasets download {self.name}",
                            path=data_root)
 
 

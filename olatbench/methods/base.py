@@ -39,6 +39,16 @@ class Views:
         return len(self.cameras)
 
 
+@dataclass
+class RefinedView:
+    """An evaluation view after test-time refinement: the ``camera`` and ``light`` to render with, and a
+    ``summary`` of plain floats for the results file (e.g. loss before/after, how far the pose moved)."""
+
+    camera: Camera
+    light: PointLight
+    summary: dict[str, float]
+
+
 class Method(ABC):
     """A trainable method. Subclasses set ``name``, ``config_class`` and ``presets``.
 
@@ -77,6 +87,20 @@ class Method(ABC):
     @abstractmethod
     def render(self, camera: Camera, light: PointLight) -> dict[str, torch.Tensor]:
         """Render one view: ``rgb`` (H, W, 3) plus named components (``diffuse``, ``shadow``, ...)."""
+
+    @property
+    def refines_test_views(self) -> bool:
+        """Whether `refine_view` should be called on each test view before it is rendered for scoring."""
+        return False
+
+    def refine_view(self, camera: Camera, light: PointLight, image: np.ndarray) -> RefinedView | None:
+        """Test-time refinement of an evaluation view's pose and/or light against its image.
+
+        ``image`` (H, W, 3) float32 is the ground truth in the training space and background. The model
+        stays frozen. Returns ``None`` when the method does not refine (the default); the runner then
+        renders the view as given, and records which views were refined and how far.
+        """
+        return None
 
     @abstractmethod
     def state_dict(self) -> dict[str, Any]:

@@ -95,7 +95,10 @@ class SSDGSConfig:
     light_lr_init: float = 1e-3
     light_lr_final: float = 5e-5
     refinement_lr_max_steps: int = 80_000
+    # Test-time refinement: fit each test view's pose / light (what refine_camera / refine_light switch on) to its
+    # image with the model frozen, Adam at camera_lr_init / light_lr_init, before rendering it for scoring.
     test_time_refinement: bool = False
+    test_time_steps: int = 100
 
     def __post_init__(self) -> None:
         for name, allowed in _CHOICES.items():
@@ -107,8 +110,11 @@ class SSDGSConfig:
             raise ValueError("SSD-GS config: iterations and reference_iterations must be positive")
         if self.background is not None:
             self.background = tuple(float(v) for v in self.background)  # type: ignore[assignment]
-        if self.test_time_refinement:
-            raise NotImplementedError("SSD-GS: test-time refinement of test poses/lights is not implemented")
+        if self.test_time_refinement and not (self.refine_camera or self.refine_light):
+            raise ValueError("SSD-GS config: test_time_refinement refines what refine_camera / refine_light switch "
+                             "on; enable at least one of them (the nrhints and sssgs presets do)")
+        if self.test_time_steps < 1:
+            raise ValueError("SSD-GS config: test_time_steps must be at least 1")
 
     def steps(self, value: int) -> int:
         """An iteration count given at ``reference_iterations``, scaled to ``iterations``."""

@@ -9,6 +9,8 @@ parameters in two optimisers so densification surgery only touches the former), 
 
 from __future__ import annotations
 
+import math
+from dataclasses import replace
 from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
@@ -21,7 +23,7 @@ from olatbench.gaussians.model import GaussianModel
 from olatbench.gaussians.projection import project
 from olatbench.gaussians.rasterize import rasterize
 from olatbench.gaussians.refinement import LightRefinement, PoseRefinement
-from olatbench.methods.base import Method, Views
+from olatbench.methods.base import Method, RefinedView, Views
 from olatbench.methods.initialisation import initial_ball
 from olatbench.methods.ssdgs.config import SSDGSConfig
 from olatbench.methods.ssdgs.presets import PRESETS, resolve_presets
@@ -227,7 +229,6 @@ class SSDGS(Method):
         """Forward + backward of one training view (no parameter update); frozen groups keep ``grad = None``.
 
         Returns the scalars of `train_step` plus ``projected`` and ``light_weight`` (densification statistics)."""
-        cfg = self.config
         index = self._next_view() if index is None else index
         camera = self.views.cameras[index]
         for p in self.frozen_parameters(step):
@@ -237,10 +238,8 @@ class SSDGS(Method):
             light = self._light(index, self.light_positions[index], step)
             out = self._forward(w2c, self.Ks[index], camera.width, camera.height, light,
                                 self.light_intensities[index], step, components=False)
-            image = out["image"].clamp(0.0, 1.0) if cfg.clamp_output else out["image"]
             target = torch.from_numpy(np.ascontiguousarray(self.views.images[index])).to(self.device, torch.float32)
-            l1 = (image - target).abs().mean()
-            loss = (1.0 - cfg.lambda_dssim) * l1 + cfg.lambda_dssim * ssim_loss(image, target, channels_last=True)
+            image, loss, l1 = self._photometric_loss(out["image"], target)
             out["projected"].means2d.retain_grad()
             loss.backward()
         finally:
@@ -251,6 +250,15 @@ class SSDGS(Method):
         psnr = float(-10.0 * np.log10(max(mse, 1e-12)))
         return {"loss": float(loss.detach()), "l1": float(l1.detach()), "psnr": psnr,
                 "projected": out["projected"], "light_weight": out["light_weight"]}
+
+    def _photometric_loss(self, render: torch.Tensor, target: torch.Tensor
+                          ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """(image, ``(1-λ)·L1 + λ·(1-SSIM)``, L1) of a render (H, W, 3) against its target, clamped per config."""
+        cfg = self.config
+        image = render.clamp(0.0, 1.0) if cfg.clamp_output else render
+        l1 = (image - target).abs().mean()
+        loss = (1.0 - cfg.lambda_dssim) * l1 + cfg.lambda_dssim * ssim_loss(image, target, channels_last=True)
+        return image, loss, l1
 
     def train_step(self, step: int) -> dict[str, float]:
         rates = self._learning_rates(step)
@@ -287,6 +295,61 @@ class SSDGS(Method):
             start += channels
         result["rgb"] = result["rgb"].clamp(0.0, 1.0)
         return result
+
+    @property
+    def refines_test_views(self) -> bool:
+        return bool(self.config.test_time_refinement)
+
+    def refine_view(self, camera: Camera, light: PointLight, image: np.ndarray) -> RefinedView | None:
+        """Test-time refinement (``test_time_refinement``): fit this view's pose and/or light to ``image``.
+
+        A fresh zero SO3×R3 pose delta and light offset (as in training, per ``refine_camera`` /
+        ``refine_light``) take ``test_time_steps`` Adam steps on the training loss at the training
+        refinement's initial rates, every other parameter frozen; the iterate with the lowest loss is kept.
+        Summary: ``loss_before``/``loss_after`` (of the returned view),
+        ``translation`` and ``light_offset`` (scene units), ``rotation_deg``.
+        """
+        cfg = self.config
+        if not cfg.test_time_refinement:
+            return None
+        f32 = dict(dtype=torch.float32, device=self.device)
+        w2c, K = torch.as_tensor(camera.w2c(), **f32), torch.as_tensor(camera.K, **f32)
+        position, intensity = torch.as_tensor(light.position, **f32), torch.as_tensor(light.intensity, **f32)
+        target = torch.as_tensor(np.ascontiguousarray(image), **f32)
+        pose = PoseRefinement(1, self.device) if cfg.refine_camera else None
+        offset = LightRefinement(1, self.device) if cfg.refine_light else None
+        groups = ([{"params": [pose.tangents], "lr": cfg.camera_lr_init}] if pose is not None else []) + \
+                 ([{"params": [offset.offsets], "lr": cfg.light_lr_init}] if offset is not None else [])
+        params = [p for group in groups for p in group["params"]]
+        optimizer = torch.optim.Adam(groups, eps=1e-15)
+        step = max(self.step - 1, 0)
+        losses, best = [], (math.inf, [p.detach().clone() for p in params])
+        with torch.enable_grad():
+            for _ in range(cfg.test_time_steps + 1):  # the last pass only measures the final loss
+                out = self._forward(pose.apply(0, w2c) if pose is not None else w2c, K, camera.width, camera.height,
+                                    offset.apply(0, position) if offset is not None else position, intensity, step,
+                                    components=False)
+                loss = self._photometric_loss(out["image"], target)[1]
+                losses.append(float(loss.detach()))
+                if losses[-1] < best[0]:
+                    best = (losses[-1], [p.detach().clone() for p in params])
+                if len(losses) > cfg.test_time_steps:
+                    break
+                for p, grad in zip(params, torch.autograd.grad(loss, params), strict=True):
+                    p.grad = grad  # only the view's own deltas: the model's parameters get no gradient
+                optimizer.step()
+        with torch.no_grad():  # the best iterate seen, so refinement never makes a view worse
+            for p, kept in zip(params, best[1], strict=True):
+                p.copy_(kept)
+        delta = (pose.delta(0).detach().double().cpu().numpy() if pose is not None else np.eye(4))
+        shift = offset.offsets[0].detach().double().cpu().numpy() if offset is not None else np.zeros(3)
+        refined_camera = replace(camera, c2w=np.linalg.inv(delta @ camera.w2c()))
+        refined_light = replace(light, position=np.asarray(light.position, dtype=np.float64) + shift)
+        angle = float(np.degrees(np.arccos(np.clip((np.trace(delta[:3, :3]) - 1.0) / 2.0, -1.0, 1.0))))
+        return RefinedView(refined_camera, refined_light, {
+            "steps": float(cfg.test_time_steps), "loss_before": losses[0], "loss_after": best[0],
+            "translation": float(np.linalg.norm(delta[:3, 3])), "rotation_deg": angle,
+            "light_offset": float(np.linalg.norm(shift))})
 
     @property
     def num_gaussians(self) -> int | None:

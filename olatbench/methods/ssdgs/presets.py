@@ -50,7 +50,11 @@ ABLATION_PRESETS: dict[str, dict[str, Any]] = {
 
 SCHEDULE_PRESETS: dict[str, dict[str, Any]] = {f"schedule-{name}": {"schedule": name} for name in "HIJK"}
 
-PRESETS: dict[str, dict[str, Any]] = {**SUITE_PRESETS, **ABLATION_PRESETS, **SCHEDULE_PRESETS}
+# Evaluation options: fit each test view's pose/light to its image before scoring (recorded in results.json).
+# Combine with a suite that refines cameras/lights, e.g. --variant test-time-refinement on nrhints.
+EVALUATION_PRESETS: dict[str, dict[str, Any]] = {"test-time-refinement": {"test_time_refinement": True}}
+
+PRESETS: dict[str, dict[str, Any]] = {**SUITE_PRESETS, **ABLATION_PRESETS, **SCHEDULE_PRESETS, **EVALUATION_PRESETS}
 
 
 def resolve_presets(spec: str | None) -> dict[str, Any]:
