@@ -119,11 +119,12 @@ def shadow_stage(method: SSDGS) -> Callable[[], None]:
     from olatbench.gaussians.shadow import shadow_gather
 
     model = method.model
+    camera = method.views.cameras[0]
 
     def run() -> None:
         with torch.no_grad():
             shadow_gather(model.means, model.quats, model.scales, model.opacities, method.light_positions[0],
-                          model.means.mean(0), resolution=method.config.shadow_resolution)
+                          model.means.mean(0), resolution=method.config.light_view_size(camera.width, camera.height))
 
     return run
 

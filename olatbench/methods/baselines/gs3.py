@@ -22,6 +22,7 @@ import torch
 from olatbench.gaussians.densify import Densifier, DensifyConfig
 from olatbench.gaussians.lr import exponential_lr
 from olatbench.gaussians.model import GaussianModel
+from olatbench.gaussians.optim import make_adam
 from olatbench.gaussians.projection import project
 from olatbench.gaussians.shadow import shadow_gather
 from olatbench.methods.base import Method, Views
@@ -162,12 +163,12 @@ class GS3(Method):
 
     def _build_optimisers(self) -> None:
         groups = [{"params": [p], "name": name, "lr": 0.0} for name, p in self.model.per_gaussian_parameters().items()]
-        self.gaussian_optimizer = torch.optim.Adam(groups, lr=0.0, eps=1e-15)
-        self.global_optimizer = torch.optim.Adam([
+        self.gaussian_optimizer = make_adam(groups)
+        self.global_optimizer = make_adam([
             {"params": list(self.shader.asg.parameters()), "name": "asg_lobes", "lr": 0.0},
             {"params": list(self.shader.shadow_net.parameters()), "name": "mlp", "lr": 0.0},
             {"params": list(self.shader.other_net.parameters()), "name": "mlp", "lr": 0.0},
-        ], lr=0.0, eps=1e-15)
+        ])
 
     # --------------------------------------------------------------------------------------- schedule
     def learning_rates(self, step: int) -> dict[str, float]:

@@ -19,6 +19,7 @@ import torch
 from olatbench.gaussians.densify import Densifier, DensifyConfig
 from olatbench.gaussians.lr import exponential_lr
 from olatbench.gaussians.model import GaussianModel
+from olatbench.gaussians.optim import make_adam
 from olatbench.gaussians.projection import project
 from olatbench.gaussians.rasterize import rasterize
 from olatbench.methods.base import Method, Views
@@ -134,7 +135,7 @@ class GaussianSplatting3D(Method):
 
     def _build_optimizer(self) -> None:
         groups = [{"params": [p], "name": name, "lr": 0.0} for name, p in self.model.per_gaussian_parameters().items()]
-        self.optimizer = torch.optim.Adam(groups, lr=0.0, eps=1e-15)
+        self.optimizer = make_adam(groups)
 
     def learning_rates(self, step: int) -> dict[str, float]:
         """Per parameter group at ``step``: exponential decay for positions, constants otherwise (3DGS)."""

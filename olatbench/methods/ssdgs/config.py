@@ -51,7 +51,7 @@ class SSDGSConfig:
     shadow_hidden: int = 32
     shadow_layers: int = 3
     shadow_freqs: int = 3
-    shadow_resolution: int = 256
+    shadow_resolution: int | None = None  # light-view size (px); None: the view's size, as the official code
     shadow_mode: str = "uniform"  # light-view average: "uniform" (fast C++), "density" (official), "footprint"
     shadow_depth_offset: float = 0.0  # the official kernel's self-shadow offset is 0.015 (squared distance)
     clamp_output: bool = True
@@ -115,6 +115,10 @@ class SSDGSConfig:
                              "on; enable at least one of them (the nrhints and sssgs presets do)")
         if self.test_time_steps < 1:
             raise ValueError("SSD-GS config: test_time_steps must be at least 1")
+
+    def light_view_size(self, width: int, height: int) -> int:
+        """Side (px) of the square light-view pass for a view of ``width`` × ``height``."""
+        return int(self.shadow_resolution or max(width, height))
 
     def steps(self, value: int) -> int:
         """An iteration count given at ``reference_iterations``, scaled to ``iterations``."""

@@ -20,6 +20,7 @@ import torch.nn.functional as F
 from olatbench.gaussians.densify import Densifier, DensifyConfig
 from olatbench.gaussians.lr import exponential_lr
 from olatbench.gaussians.model import GaussianModel
+from olatbench.gaussians.optim import make_adam
 from olatbench.gaussians.projection import project
 from olatbench.gaussians.rasterize import rasterize
 from olatbench.gaussians.refinement import LightRefinement, PoseRefinement
@@ -122,7 +123,7 @@ class SSDGS(Method):
     def _build_optimisers(self) -> None:
         cfg = self.config
         groups = [{"params": [p], "name": name, "lr": 0.0} for name, p in self.model.per_gaussian_parameters().items()]
-        self.gaussian_optimizer = torch.optim.Adam(groups, lr=0.0, eps=1e-15)
+        self.gaussian_optimizer = make_adam(groups)
         global_groups = [
             {"params": list(self.shader.asg.parameters()), "name": "asg_lobes", "lr": cfg.asg_lr_init},
             {"params": list(self.shader.sss_net.parameters()), "name": "sss_mlp", "lr": cfg.mlp_lr_init},
@@ -132,7 +133,7 @@ class SSDGS(Method):
             global_groups.append({"params": list(self.pose_refinement.parameters()), "name": "camera", "lr": 0.0})
         if self.light_refinement is not None:
             global_groups.append({"params": list(self.light_refinement.parameters()), "name": "light", "lr": 0.0})
-        self.global_optimizer = torch.optim.Adam(global_groups, lr=0.0, eps=1e-15)
+        self.global_optimizer = make_adam(global_groups)
 
     # --------------------------------------------------------------------------------------- schedules
     def _learning_rates(self, step: int) -> dict[str, float]:
@@ -192,14 +193,14 @@ class SSDGS(Method):
         visible = torch.nonzero(projected.radii > 0).squeeze(1)
         terms = self.active_terms(step)
         coarse, light_weight = None, None
-        if "shadow" in terms:
+        if "shadow" in terms:  # the light-view pass sees the model as it is: no gradient flows through it
             from olatbench.gaussians.shadow import shadow_gather  # the light-view pass (gaussians-support helper)
 
             with torch.no_grad():
                 gathered = shadow_gather(means.detach(), quats.detach(), scales.detach(), opacities.detach(),
                                          light_position.detach(), means.detach().mean(0),
-                                         resolution=self.config.shadow_resolution, mode=self.config.shadow_mode,
-                                         depth_offset=self.config.shadow_depth_offset)
+                                         resolution=self.config.light_view_size(width, height),
+                                         mode=self.config.shadow_mode, depth_offset=self.config.shadow_depth_offset)
             coarse, light_weight = gathered.visibility[visible], gathered.weight
         rotation_t = w2c[:3, :3].T
         camera_position = -rotation_t @ w2c[:3, 3]
@@ -321,7 +322,7 @@ class SSDGS(Method):
         groups = ([{"params": [pose.tangents], "lr": cfg.camera_lr_init}] if pose is not None else []) + \
                  ([{"params": [offset.offsets], "lr": cfg.light_lr_init}] if offset is not None else [])
         params = [p for group in groups for p in group["params"]]
-        optimizer = torch.optim.Adam(groups, eps=1e-15)
+        optimizer = make_adam(groups)
         step = max(self.step - 1, 0)
         losses, best = [], (math.inf, [p.detach().clone() for p in params])
         with torch.enable_grad():
