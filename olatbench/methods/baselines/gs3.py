@@ -16,27 +16,26 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass
 from typing import TYPE_CHECKING, Any, ClassVar
 
-import numpy as np
 import torch
 
-from olatbench.gaussians.densify import Densifier, DensifyConfig
 from olatbench.gaussians.lr import exponential_lr
-from olatbench.gaussians.model import GaussianModel
 from olatbench.gaussians.optim import make_adam
 from olatbench.gaussians.projection import project
 from olatbench.gaussians.shadow import shadow_gather
 from olatbench.methods.base import Method, Views
 from olatbench.methods.baselines.gs3_shading import GS3Components, GS3Shader
-from olatbench.methods.baselines.training import (
+from olatbench.methods.baselines.triple_splat import triple_splat
+from olatbench.methods.training import (
     TrainingViews,
     camera_centre,
     camera_tensors,
+    initial_model,
     light_tensors,
+    make_densifier,
+    per_gaussian_groups,
     photometric_loss,
     psnr_of,
 )
-from olatbench.methods.baselines.triple_splat import triple_splat
-from olatbench.methods.initialisation import initial_ball
 
 if TYPE_CHECKING:
     from olatbench.datasets.records import Camera, PointLight
@@ -141,29 +140,21 @@ class GS3(Method):
         self.device = torch.device(device)
         torch.manual_seed(seed)
         self.train_views = TrainingViews(train, self.device, seed)
-        centre, radius = initial_ball(train, cfg.init_radius)
         n = cfg.num_init_gaussians
         identity = torch.zeros(n, 4)
         identity[:, 0] = 1.0
         attributes = {"diffuse": torch.full((n, 3), 0.5), "specular": torch.full((n, 3), 0.5),
                       "asg_weights": torch.zeros(n, cfg.num_asg), "shading_quat": identity,
                       "material": torch.ones(n, cfg.material_dim)}
-        self.model = GaussianModel.random_in_sphere(n, radius, attributes=attributes, seed=seed, device=self.device,
-                                                    center=tuple(centre.tolist()), opacity=cfg.init_opacity)
+        self.model = initial_model(train, cfg, attributes, seed, self.device)
         self.shader = GS3Shader(cfg.num_asg, cfg.material_dim, cfg.shadow_hidden, cfg.shadow_layers, cfg.other_hidden,
                                 cfg.other_layers, cfg.num_freqs, cfg.fresnel_f0).to(self.device)
         self._build_optimisers()
-        white = bool(np.allclose(train.background, 1.0))
-        self.densifier = Densifier(DensifyConfig(
-            densify_from=max(1, cfg.steps(cfg.densify_from)), densify_until=max(1, cfg.steps(cfg.densify_until)),
-            densify_interval=cfg.densify_interval, grad_threshold=cfg.densify_grad_threshold,
-            opacity_reset_interval=max(1, cfg.steps(cfg.opacity_reset_interval)), percent_dense=cfg.percent_dense,
-            reset_opacity_at_start=white, max_gaussians=cfg.max_gaussians), seed=seed)
+        self.densifier = make_densifier(cfg, train.background, seed)
         self.step = 0
 
     def _build_optimisers(self) -> None:
-        groups = [{"params": [p], "name": name, "lr": 0.0} for name, p in self.model.per_gaussian_parameters().items()]
-        self.gaussian_optimizer = make_adam(groups)
+        self.gaussian_optimizer = make_adam(per_gaussian_groups(self.model))
         self.global_optimizer = make_adam([
             {"params": list(self.shader.asg.parameters()), "name": "asg_lobes", "lr": 0.0},
             {"params": list(self.shader.shadow_net.parameters()), "name": "mlp", "lr": 0.0},

@@ -13,25 +13,24 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass
 from typing import TYPE_CHECKING, Any, ClassVar
 
-import numpy as np
 import torch
 
-from olatbench.gaussians.densify import Densifier, DensifyConfig
 from olatbench.gaussians.lr import exponential_lr
-from olatbench.gaussians.model import GaussianModel
 from olatbench.gaussians.optim import make_adam
 from olatbench.gaussians.projection import project
 from olatbench.gaussians.rasterize import rasterize
 from olatbench.methods.base import Method, Views
 from olatbench.methods.baselines import sh
-from olatbench.methods.baselines.training import (
+from olatbench.methods.training import (
     TrainingViews,
     camera_centre,
     camera_tensors,
+    initial_model,
+    make_densifier,
+    per_gaussian_groups,
     photometric_loss,
     psnr_of,
 )
-from olatbench.methods.initialisation import initial_ball
 
 if TYPE_CHECKING:
     from olatbench.datasets.records import Camera, PointLight
@@ -118,24 +117,16 @@ class GaussianSplatting3D(Method):
         self.device = torch.device(device)
         torch.manual_seed(seed)
         self.train_views = TrainingViews(train, self.device, seed)
-        centre, radius = initial_ball(train, cfg.init_radius)
         n = cfg.num_init_gaussians
         rest = sh.num_coefficients(cfg.sh_degree) - 1
         attributes = {"sh_dc": torch.zeros(n, 1, 3), "sh_rest": torch.zeros(n, rest, 3)}
-        self.model = GaussianModel.random_in_sphere(n, radius, attributes=attributes, seed=seed, device=self.device,
-                                                    center=tuple(centre.tolist()), opacity=cfg.init_opacity)
+        self.model = initial_model(train, cfg, attributes, seed, self.device)
         self._build_optimizer()
-        white = bool(np.allclose(train.background, 1.0))
-        self.densifier = Densifier(DensifyConfig(
-            densify_from=max(1, cfg.steps(cfg.densify_from)), densify_until=max(1, cfg.steps(cfg.densify_until)),
-            densify_interval=cfg.densify_interval, grad_threshold=cfg.densify_grad_threshold,
-            opacity_reset_interval=max(1, cfg.steps(cfg.opacity_reset_interval)), percent_dense=cfg.percent_dense,
-            reset_opacity_at_start=white, max_gaussians=cfg.max_gaussians), seed=seed)
+        self.densifier = make_densifier(cfg, train.background, seed)
         self.step = 0
 
     def _build_optimizer(self) -> None:
-        groups = [{"params": [p], "name": name, "lr": 0.0} for name, p in self.model.per_gaussian_parameters().items()]
-        self.optimizer = make_adam(groups)
+        self.optimizer = make_adam(per_gaussian_groups(self.model))
 
     def learning_rates(self, step: int) -> dict[str, float]:
         """Per parameter group at ``step``: exponential decay for positions, constants otherwise (3DGS)."""

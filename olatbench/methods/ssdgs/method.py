@@ -17,20 +17,17 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
-from olatbench.gaussians.densify import Densifier, DensifyConfig
 from olatbench.gaussians.lr import exponential_lr
-from olatbench.gaussians.model import GaussianModel
 from olatbench.gaussians.optim import make_adam
 from olatbench.gaussians.projection import project
 from olatbench.gaussians.rasterize import rasterize
 from olatbench.gaussians.refinement import LightRefinement, PoseRefinement
 from olatbench.methods.base import Method, RefinedView, Views
-from olatbench.methods.initialisation import initial_ball
 from olatbench.methods.ssdgs.config import SSDGSConfig
 from olatbench.methods.ssdgs.presets import PRESETS, resolve_presets
 from olatbench.methods.ssdgs.schedule import Schedule
 from olatbench.methods.ssdgs.shader import Components, Shader
-from olatbench.metrics.ssim import ssim_loss
+from olatbench.methods.training import initial_model, make_densifier, per_gaussian_groups, photometric_loss, psnr_of
 
 if TYPE_CHECKING:
     from olatbench.datasets.records import Camera, PointLight
@@ -91,10 +88,7 @@ class SSDGS(Method):
         self.view_order = torch.randperm(len(train), generator=self.generator)
         self.view_cursor = 0
 
-        centre, radius = initial_ball(train, cfg.init_radius)
-        self.model = GaussianModel.random_in_sphere(
-            cfg.num_init_gaussians, radius, attributes=self._initial_attributes(cfg.num_init_gaussians),
-            seed=seed, device=self.device, center=tuple(centre.tolist()), opacity=cfg.init_opacity)
+        self.model = initial_model(train, cfg, self._initial_attributes(cfg.num_init_gaussians), seed, self.device)
         with torch.no_grad():  # random orientations: isotropic identity-rotated Gaussians would share one normal
             self.model.quats.copy_(F.normalize(torch.randn(self.model.num_gaussians, 4, generator=self.generator),
                                                dim=-1).to(self.device))
@@ -102,11 +96,7 @@ class SSDGS(Method):
         self.pose_refinement = PoseRefinement(len(train), self.device) if cfg.refine_camera else None
         self.light_refinement = LightRefinement(len(train), self.device) if cfg.refine_light else None
         self._build_optimisers()
-        self.densifier = Densifier(DensifyConfig(
-            densify_from=max(1, cfg.steps(cfg.densify_from)), densify_until=max(1, cfg.steps(cfg.densify_until)),
-            densify_interval=cfg.densify_interval, grad_threshold=cfg.densify_grad_threshold,
-            opacity_reset_interval=max(1, cfg.steps(cfg.opacity_reset_interval)), percent_dense=cfg.percent_dense,
-            reset_opacity_at_start=bool(np.all(background == 1.0)), max_gaussians=cfg.max_gaussians), seed=seed)
+        self.densifier = make_densifier(cfg, background, seed)
         self.step = 0
 
     def _initial_attributes(self, n: int) -> dict[str, torch.Tensor]:
@@ -122,8 +112,7 @@ class SSDGS(Method):
 
     def _build_optimisers(self) -> None:
         cfg = self.config
-        groups = [{"params": [p], "name": name, "lr": 0.0} for name, p in self.model.per_gaussian_parameters().items()]
-        self.gaussian_optimizer = make_adam(groups)
+        self.gaussian_optimizer = make_adam(per_gaussian_groups(self.model))
         global_groups = [
             {"params": list(self.shader.asg.parameters()), "name": "asg_lobes", "lr": cfg.asg_lr_init},
             {"params": list(self.shader.sss_net.parameters()), "name": "sss_mlp", "lr": cfg.mlp_lr_init},
@@ -247,19 +236,14 @@ class SSDGS(Method):
             for p in self.frozen_parameters(step):
                 p.requires_grad_(True)
                 p.grad = None
-        mse = float(((image.detach() - target) ** 2).mean())
-        psnr = float(-10.0 * np.log10(max(mse, 1e-12)))
-        return {"loss": float(loss.detach()), "l1": float(l1.detach()), "psnr": psnr,
+        return {"loss": float(loss.detach()), "l1": float(l1.detach()), "psnr": psnr_of(image, target),
                 "projected": out["projected"], "light_weight": out["light_weight"]}
 
     def _photometric_loss(self, render: torch.Tensor, target: torch.Tensor
                           ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """(image, ``(1-λ)·L1 + λ·(1-SSIM)``, L1) of a render (H, W, 3) against its target, clamped per config."""
-        cfg = self.config
-        image = render.clamp(0.0, 1.0) if cfg.clamp_output else render
-        l1 = (image - target).abs().mean()
-        loss = (1.0 - cfg.lambda_dssim) * l1 + cfg.lambda_dssim * ssim_loss(image, target, channels_last=True)
-        return image, loss, l1
+        image = render.clamp(0.0, 1.0) if self.config.clamp_output else render
+        return (image, *photometric_loss(image, target, self.config.lambda_dssim))
 
     def train_step(self, step: int) -> dict[str, float]:
         rates = self._learning_rates(step)

@@ -1,8 +1,10 @@
-"""Training plumbing shared by the in-process baselines (not by SSD-GS, which has its own).
+"""Training plumbing shared by the Gaussian methods (SSD-GS and the in-process baselines).
 
 `TrainingViews` holds the training cameras and lights as tensors and draws views as 3DGS does (a fresh random
-permutation per epoch); `photometric_loss` is the 3DGS loss ``(1 - λ) L1 + λ (1 - SSIM)``; `DensifierState`
-saves and restores a `Densifier`'s running statistics for checkpoints.
+permutation per epoch); `photometric_loss` is the 3DGS loss ``(1 - λ) L1 + λ (1 - SSIM)``; `initial_model`,
+`per_gaussian_groups` and `make_densifier` build the model, its optimiser groups and its density control from
+the config fields every method shares (``num_init_gaussians``, ``init_radius``, ``init_opacity``, the
+``densify_*`` windows given at ``reference_iterations`` and scaled by the config's ``steps``).
 """
 
 from __future__ import annotations
@@ -12,7 +14,10 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import torch
 
+from olatbench.gaussians.densify import Densifier, DensifyConfig
+from olatbench.gaussians.model import GaussianModel
 from olatbench.methods.base import Views
+from olatbench.methods.initialisation import initial_ball
 from olatbench.metrics.ssim import ssim_loss
 
 if TYPE_CHECKING:
@@ -95,3 +100,29 @@ def psnr_of(image: torch.Tensor, target: torch.Tensor) -> float:
     return float(-10.0 * np.log10(max(mse, 1e-12)))
 
 
+
+
+def initial_model(views: Views, config: Any, attributes: dict[str, torch.Tensor], seed: int,
+                  device: torch.device) -> GaussianModel:
+    """``config.num_init_gaussians`` Gaussians uniform in `initial_ball` (``config.init_radius``) with opacity
+    ``config.init_opacity`` and the given per-Gaussian ``attributes`` (each (num_init_gaussians, ...))."""
+    centre, radius = initial_ball(views, config.init_radius)
+    return GaussianModel.random_in_sphere(config.num_init_gaussians, radius, attributes=attributes, seed=seed,
+                                          device=device, center=tuple(centre.tolist()), opacity=config.init_opacity)
+
+
+def per_gaussian_groups(model: GaussianModel) -> list[dict[str, Any]]:
+    """One optimiser group per per-Gaussian parameter, named as `GaussianModel.per_gaussian_parameters`
+    (rates are set every step); the `Densifier` finds the groups it must resize by these names."""
+    return [{"params": [p], "name": name, "lr": 0.0} for name, p in model.per_gaussian_parameters().items()]
+
+
+def make_densifier(config: Any, background: np.ndarray, seed: int) -> Densifier:
+    """3DGS density control from the config's windows (scaled to the run, at least 1 step each); opacities
+    are also reset at the start on white backgrounds, as the official scripts do."""
+    steps = config.steps
+    return Densifier(DensifyConfig(
+        densify_from=max(1, steps(config.densify_from)), densify_until=max(1, steps(config.densify_until)),
+        densify_interval=config.densify_interval, grad_threshold=config.densify_grad_threshold,
+        opacity_reset_interval=max(1, steps(config.opacity_reset_interval)), percent_dense=config.percent_dense,
+        reset_opacity_at_start=bool(np.allclose(background, 1.0)), max_gaussians=config.max_gaussians), seed=seed)
