@@ -61,8 +61,7 @@ def test_ids_change_with_every_result_deciding_input(data, tmp_path):
         "iterations": plan(data, tmp_path / "runs", iterations=7)[0],
         "resolution": plan(data, tmp_path / "runs", resolution=(32, 24))[0],
         "protocol": plan(data, tmp_path / "runs", suite=support.tiny_suite(protocol="olatbench-v1"))[0],
-        "colourspace": plan(data, tmp_path / "runs",
-                            suite=dataclasses.replace(support.tiny_suite(), colourspace="linear"))[0],
+        "colourspace": dataclasses.replace(base, colourspace="linear").with_id(),
         "protocol version": dataclasses.replace(base, protocol_version=2).with_id(),
         "code": dataclasses.replace(base, code="0" * 64).with_id(),
     }

@@ -167,5 +167,9 @@ def test_ssdgs_on_gs3_scores_in_the_official_gamma22_space(tmp_path):
     assert result["metrics"]["test"]["mean"]["psnr"] == 100.0
     as_srgb = evaluate_folder(tmp_path / "pred", tmp_path / "Lego", "test", get_protocol("ssdgs"))
     assert as_srgb["metrics"]["test"]["mean"]["psnr"] < 60  # the same files read as sRGB are other values
-    v1 = evaluate_folder(tmp_path / "pred", tmp_path / "Lego", "test", get_protocol("olatbench-v1"))
-    assert v1["colourspace"] == "srgb" and v1["metrics"]["test"]["mean"]["psnr"] < 60  # other space, other truth
+    # every protocol scores GS³ data in its display space (the runner does too); olatbench-v1's ground truth is
+    # the float composite without the official loader's alpha quirk and 8-bit rounding: close, not equal
+    v1 = evaluate_folder(tmp_path / "pred", tmp_path / "Lego", "test", get_protocol("olatbench-v1"),
+                         png_space="gamma22")
+    assert v1["colourspace"] == "gamma22"
+    assert 30 < v1["metrics"]["test"]["mean"]["psnr"] < 100, v1["metrics"]["test"]["mean"]

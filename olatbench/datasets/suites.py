@@ -39,12 +39,18 @@ class Suite:
     aliases: dict[str, str] = field(default_factory=dict)  # folder name -> canonical scene name
     background: tuple[float, float, float] = (0.0, 0.0, 0.0)
     resolution: tuple[int, int] | None = None  # (width, height) or native
-    colourspace: str = "srgb"  # space the method is trained and scored in
     iterations: int = 100_000
     protocol: str = "ssdgs"
     train_split: str = "train"
     test_split: str = "test"
     generator: str | None = None  # "module:function" creating the data on first use
+
+    @property
+    def colourspace(self) -> str:
+        """The space methods are trained and scored in: the format's (`formats.display_colourspace`)."""
+        from olatbench.datasets.formats import display_colourspace
+
+        return display_colourspace(self.format)
 
     def canonical(self, folder: str) -> str | None:
         """The canonical scene name of a folder name, or None when it is not in this suite."""
@@ -81,7 +87,7 @@ SUITES: dict[str, Suite] = {
         background=(0.0, 0.0, 0.0), resolution=None, iterations=100_000, protocol="ssdgs"),
     "gs3": Suite(
         name="gs3", format="gs3", scenes=_GS3_SCENES, aliases=_default_aliases(_GS3_SCENES),
-        background=(1.0, 1.0, 1.0), resolution=(512, 512), colourspace="gamma22", iterations=100_000,
+        background=(1.0, 1.0, 1.0), resolution=(512, 512), iterations=100_000,
         protocol="ssdgs"),
     "sssgs": Suite(
         name="sssgs", format="sssgs", scenes=_SSSGS_SCENES,

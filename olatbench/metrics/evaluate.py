@@ -20,6 +20,7 @@ import olatbench
 from olatbench.atomic import write_json
 from olatbench.datasets import colour
 from olatbench.datasets.errors import DatasetError
+from olatbench.datasets.formats import display_colourspace
 from olatbench.metrics.protocols import Protocol
 
 IMAGE_SUFFIXES = (".png", ".exr", ".jpg", ".jpeg", ".tif", ".tiff", ".hdr")
@@ -27,7 +28,6 @@ LINEAR_SUFFIXES = (".exr", ".hdr")
 RESULT_SCHEMA = "olatbench-evaluate/1"
 # The space the official pipelines train and score in (see olatbench.datasets.official): protocols with
 # ground_truth="official" score in it.
-OFFICIAL_SPACE = {"nrhints": "srgb", "gs3": "gamma22", "sssgs": "srgb"}
 
 
 class EvaluationError(ValueError):
@@ -116,15 +116,15 @@ def package_versions() -> dict[str, str | None]:
 def evaluate_matched(protocol: Protocol, matched: Mapping[str, Path],
                      ground_truth: Callable[[str], tuple[np.ndarray, np.ndarray | None, Path | None]],
                      background: np.ndarray, progress: bool = False, batch_size: int = 4,
-                     colourspace: str | None = None, png_space: str = "srgb"
+                     colourspace: str = "srgb", png_space: str = "srgb"
                      ) -> tuple[dict[str, dict], dict[str, dict]]:
     """Score predictions given as frame id -> file against ``ground_truth(frame_id) -> (rgb, mask, file)``.
 
-    ``colourspace``: the space predictions are scored in (default: the protocol's); ``png_space``: how 8-bit
+    ``colourspace``: the space predictions are scored in (the data's display space); ``png_space``: how 8-bit
     prediction files are encoded (``srgb``: the runner's renders).
     Returns (per_image metrics by frame id, inputs with paths and sha256 by frame id).
     """
-    space = colourspace or protocol.colourspace
+    space = colourspace
     ids = list(matched)
     inputs: dict[str, dict] = {}
 
@@ -168,7 +168,7 @@ def evaluate_folder(pred_dir: str | Path, scene_dir: str | Path, split: str = "t
     if not frames:
         raise EvaluationError(f"{scene_dir}: split '{split}' has no ground-truth images")
     matched = match_predictions(Path(pred_dir), list(frames), allow_extra)
-    space = OFFICIAL_SPACE.get(scene.format, "srgb") if protocol.ground_truth == "official" else protocol.colourspace
+    space = display_colourspace(scene.format)
     background = colour.convert_colourspace(np.asarray(scene.background, np.float32),
                                             next(iter(frames.values())).colourspace, space)
 

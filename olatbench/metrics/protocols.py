@@ -24,6 +24,7 @@ from tqdm import tqdm
 
 from olatbench.datasets.colour import dequantize_8bit, quantize_8bit
 from olatbench.datasets.errors import DatasetError
+from olatbench.datasets.formats import display_colourspace
 from olatbench.datasets.official import official_ground_truth
 from olatbench.datasets.records import Frame
 from olatbench.metrics.lpips import get_runner, lpips_nchw
@@ -37,20 +38,21 @@ _WARNED: set[str] = set()
 
 @dataclass(frozen=True)
 class Protocol:
-    """One metric recipe. ``evaluate`` takes float (H, W, 3) images in ``colourspace`` with values in [0, 1]."""
+    """One metric recipe. ``evaluate`` takes float (H, W, 3) images with values in [0, 1], both in the colour
+    space of the data (`olatbench.datasets.formats.display_colourspace`: sRGB, or gamma 2.2 for GS³ EXRs);
+    the space is the data's, not the protocol's, so the runner and ``olatbench evaluate`` always agree."""
 
     id: str
     version: int
     description: str
     reproduces: str
-    colourspace: str = "srgb"
     quantize: str | None = "round"          # "round" | "truncate" | None (float images)
     ssim_variant: str = "wang"               # see olatbench.metrics.ssim
     lpips_nets: tuple[str, ...] = ("alex", "vgg")
     lpips_primary: str = "alex"
     lpips_unit_range_compat: bool = False    # True: feed [0, 1] to the [-1, 1] network (3DGS mistake)
     masked: bool = False
-    ground_truth: str = "frame"              # "frame": Frame.load(colourspace, official background);
+    ground_truth: str = "frame"              # "frame": Frame.load(data's space, official background);
     #                                          "official": the official loader's image (olatbench.datasets.official)
     steps: tuple[str, ...] = field(default=())
     lpips_backend: str = field(default="auto", compare=False)  # execution only: values agree to ~1e-7
@@ -88,13 +90,15 @@ class Protocol:
 
     def load_ground_truth(self, frame: Frame, scene_format: str,
                           resolution: tuple[int, int] | None = None) -> tuple[np.ndarray, np.ndarray | None]:
-        """Ground truth of ``frame`` as this protocol scores it: (rgb (H, W, 3) float32, mask (H, W) or None).
+        """Ground truth of ``frame`` as this protocol scores it: (rgb (H, W, 3) float32, mask (H, W) or None),
+        in the format's display space (`olatbench.datasets.formats.display_colourspace`).
 
         ``resolution`` (width, height) resizes with area averaging (not with ``ground_truth="official"``).
         """
+        space = display_colourspace(scene_format)
         mask = None
         if self.masked:
-            mask = frame.load(colourspace=self.colourspace, background=None, resolution=resolution).alpha
+            mask = frame.load(colourspace=space, background=None, resolution=resolution).alpha
             if mask is None:
                 raise DatasetError(f"protocol {self.id} needs an alpha mask but the image has none",
                                    path=frame.image_path, frame=frame.frame_id)
@@ -102,7 +106,7 @@ class Protocol:
             if resolution is not None:
                 raise ValueError(f"protocol {self.id} scores the official ground truth at its native resolution")
             return official_ground_truth(frame, scene_format), mask
-        return frame.load(colourspace=self.colourspace, background="official", resolution=resolution).rgb, mask
+        return frame.load(colourspace=space, background="official", resolution=resolution).rgb, mask
 
     # --- evaluation ----------------------------------------------------------------------------------------------
     def lpips_available(self) -> bool:
@@ -171,7 +175,7 @@ class Protocol:
 
     def evaluate(self, pred: np.ndarray, gt: np.ndarray, mask: np.ndarray | None = None,
                  device: str = "cpu") -> dict[str, float | None]:
-        """Metrics of one image pair: float32 (H, W, 3) in [0, 1] in ``colourspace``; mask (H, W) if masked."""
+        """Metrics of one image pair: float32 (H, W, 3) in [0, 1] in the data's space; mask (H, W) if masked."""
         return self.evaluate_many([(pred, gt, mask)], device=device)[0]
 
     def evaluate_many(self, pairs: Iterable[Sequence], progress: bool = False, batch_size: int = 4,

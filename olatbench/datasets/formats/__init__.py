@@ -1,7 +1,8 @@
 """Format readers and writers, one module per format, and auto-detection.
 
-Each module has ``FORMAT_NAME``, ``detect(root) -> bool``, ``read_scene(root, errors=None) -> Scene``
-and ``write_scene(scene, out_dir, pixels) -> Path``.
+Each module has ``FORMAT_NAME``, ``DISPLAY_COLOURSPACE`` (the space the format's official code trains and
+scores in), ``detect(root) -> bool``, ``read_scene(root, errors=None) -> Scene`` and
+``write_scene(scene, out_dir, pixels) -> Path``.
 """
 
 from __future__ import annotations
@@ -21,6 +22,12 @@ def format_module(name: str) -> ModuleType:
         return FORMATS[name]
     except KeyError:
         raise DatasetError(f"unknown format '{name}'; known formats: {', '.join(FORMATS)}") from None
+
+
+def display_colourspace(name: str) -> str:
+    """The colour space format ``name`` is trained and scored in (``gamma22`` for GS³, ``srgb`` otherwise):
+    the one source for suites, the runner and ``olatbench evaluate``."""
+    return format_module(name).DISPLAY_COLOURSPACE
 
 
 def detect_format(root: str | Path) -> str:

@@ -22,6 +22,8 @@ from olatbench.datasets.records import Frame, Scene
 from olatbench.datasets.suites import canonical_scene_name
 
 FORMAT_NAME = "gs3"
+# Trained and scored in: the official GS³/SSD-GS code shows its linear EXRs with a pure 2.2 gamma.
+DISPLAY_COLOURSPACE = "gamma22"
 FLAVOUR = NerfFlavour(format_name=FORMAT_NAME, default_ext=".exr", colourspace="linear",
                       alpha_mode="premultiplied", background=(1.0, 1.0, 1.0))
 

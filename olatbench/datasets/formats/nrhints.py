@@ -21,6 +21,7 @@ from olatbench.datasets.records import Frame, Scene
 from olatbench.datasets.suites import canonical_scene_name
 
 FORMAT_NAME = "nrhints"
+DISPLAY_COLOURSPACE = "srgb"  # trained and scored in: 8-bit sRGB PNGs, used as stored
 FLAVOUR = NerfFlavour(format_name=FORMAT_NAME, default_ext=".png", colourspace="srgb", alpha_mode="straight",
                       background=(0.0, 0.0, 0.0))
 

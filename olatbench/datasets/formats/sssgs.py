@@ -27,6 +27,7 @@ from olatbench.datasets.records import Camera, Frame, PointLight, Scene
 from olatbench.datasets.suites import canonical_scene_name
 
 FORMAT_NAME = "sssgs"
+DISPLAY_COLOURSPACE = "srgb"  # trained and scored in: 8-bit sRGB PNGs, used as stored
 SPLIT_FILES = {"train": "transforms_train.json", "val": "transforms_val.json", "test": "transforms_test.json"}
 EXCLUDE_FILE = "exclude_list.txt"
 DEFAULT_EXT = ".png"
