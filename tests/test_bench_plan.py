@@ -83,8 +83,8 @@ def test_missing_data_root_suggests_the_download(monkeypatch):
 def test_generator_suites_create_their_data_once(tmp_path, monkeypatch):
     calls = []
 
-    def generate(root, progress=True):
-        calls.append(root)
+    def generate(root, progress=True, scenes=None):
+        calls.append((root, scenes))
         return support.write_tiny_data(tmp_path / "generated")
 
     monkeypatch.setattr(support, "fake_generator", generate, raising=False)
@@ -93,11 +93,11 @@ def test_generator_suites_create_their_data_once(tmp_path, monkeypatch):
     assert calls == []
     assert resolve_data_root(suite, None, ["Alpha"]) == tmp_path / "generated"
     assert resolve_data_root(suite, tmp_path / "generated", ["Alpha"]) == tmp_path / "generated"
-    assert calls == [None]  # present data is used as is
+    assert calls == [(None, ["Alpha"])]  # only the requested scenes; present data is used as is
 
 
 def test_dry_plan_without_data_has_no_ids(tmp_path, monkeypatch):
-    monkeypatch.setattr(support, "fake_generator", lambda root, progress=True: 1 / 0, raising=False)
+    monkeypatch.setattr(support, "fake_generator", lambda root, progress=True, scenes=None: 1 / 0, raising=False)
     suite = dataclasses.replace(support.tiny_suite(), generator="test_runner_support:fake_generator")
     jobs = make_plan("trivial", suite, tmp_path, generate=False, progress=False)
     assert [job.id for job in jobs] == ["", ""]

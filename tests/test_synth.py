@@ -202,6 +202,11 @@ def test_mini_cache_reuses_verifies_and_rerenders(tmp_path, monkeypatch):
     assert not scene_is_valid(scene, changed["one"])[0]
     ensure_mini_suite(root, progress=False, recipes=changed)
     assert len(calls) == 2 and (scene / MANIFEST).is_file()
+    two = {**changed, "two": tiny("diffuse_shadow", train=2, test=1, resolution=(16, 16))}
+    ensure_mini_suite(root, progress=False, recipes=two, scenes=["one"])  # only what a run asks for
+    assert len(calls) == 2 and not (root / "two").exists()
+    with pytest.raises(KeyError, match="no scene nope"):
+        ensure_mini_suite(root, progress=False, recipes=two, scenes=["nope"])
 
 
 def test_mini_default_root_follows_xdg_cache_home(tmp_path, monkeypatch):

@@ -103,7 +103,8 @@ def resolve_data_root(suite: Suite, data_root: str | Path | None, scenes: Sequen
 
     Suites without a generator use ``data_root``, else ``$OLATBENCH_DATA``. A suite with a
     ``generator`` (``mini``) ignores ``$OLATBENCH_DATA`` (which points at real data) and creates its
-    data on first use in ``data_root`` when given, else in the generator's default cache. Returns
+    data on first use in ``data_root`` when given, else in the generator's default cache (only the
+    requested ``scenes``: the generator is called as ``generator(root, progress=..., scenes=[...])``). Returns
     None when the data is missing and ``generate`` is False (dry runs).
     """
     root = data_root
@@ -118,7 +119,8 @@ def resolve_data_root(suite: Suite, data_root: str | Path | None, scenes: Sequen
         return Path(root)
     if not generate:
         return None
-    return Path(_import_callable(suite.generator)(None if root is None else Path(root), progress=progress))
+    return Path(_import_callable(suite.generator)(None if root is None else Path(root), progress=progress,
+                                                  scenes=list(scenes)))
 
 
 def _all_present(suite: Suite, root: Path, scenes: Sequence[str]) -> bool:

@@ -16,7 +16,7 @@ import json
 import logging
 import os
 import shutil
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -104,14 +104,19 @@ def render_mini_scene(root: Path, name: str, recipe: Recipe, progress: bool = Tr
 
 
 def ensure_mini_suite(root: Path | None = None, progress: bool = True,
-                      recipes: dict[str, Recipe] | None = None) -> Path:
+                      recipes: dict[str, Recipe] | None = None, scenes: Sequence[str] | None = None) -> Path:
     """Make sure the mini suite exists and is intact below ``root`` (default `default_root`); return ``root``.
 
-    ``recipes`` replaces the suite's recipes (tests use tiny ones); scenes are re-rendered when missing,
-    changed or corrupt.
+    ``scenes``: only these (default: all), so a run on one scene renders one. ``recipes`` replaces the
+    suite's recipes (tests use tiny ones); scenes are re-rendered when missing, changed or corrupt.
     """
     root = Path(root) if root is not None else default_root()
     recipes = mini_recipes() if recipes is None else recipes
+    if scenes is not None:
+        unknown = sorted(set(scenes) - set(recipes))
+        if unknown:
+            raise KeyError(f"the mini suite has no scene {', '.join(unknown)}; scenes: {', '.join(recipes)}")
+        recipes = {name: recipe for name, recipe in recipes.items() if name in scenes}
     with _locked(root):
         for name, recipe in recipes.items():
             valid, reason = scene_is_valid(root / name, recipe)
