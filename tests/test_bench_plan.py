@@ -106,3 +106,35 @@ def test_dry_plan_without_data_has_no_ids(tmp_path, monkeypatch):
 def test_unknown_method_names_the_known_ones(tmp_path):
     with pytest.raises(PlanError, match=r"unknown method 'nope'.*trivial.*olatbench methods list"):
         make_plan("nope", support.tiny_suite(), tmp_path, data_root=tmp_path)
+
+
+def test_set_overrides_reach_the_config_label_folder_and_id(tmp_path):
+    from olatbench.bench.plan import parse_overrides
+
+    data = support.write_tiny_data(tmp_path / "data")
+    overrides = parse_overrides(["lr=0.5", "noise=1e-3", "fail_at_step=-1"])
+    assert overrides == {"lr": 0.5, "noise": 0.001, "fail_at_step": -1}
+    base = make_plan("trivial", support.tiny_suite(), tmp_path / "runs", data_root=data, progress=False)[0]
+    job = make_plan("trivial", support.tiny_suite(), tmp_path / "runs", data_root=data, progress=False,
+                    variants=["ablation-B"], iterations=5, overrides=overrides)[0]
+    assert job.config["lr"] == 0.5 and job.config["noise"] == 0.001  # after the variant preset
+    assert job.config["iterations"] == 5  # --iterations still wins
+    assert job.variant == "ablation-B~fail_at_step=-1,lr=0.5,noise=0.001"
+    assert job.folder == str(job_folder(tmp_path / "runs", "tiny", "trivial", job.variant, job.scene, 0))
+    assert job.id != base.id
+    assert parse_overrides(["shadow_mode=density", "background=[1, 1, 1]", "flag=true"]) == {
+        "shadow_mode": "density", "background": [1, 1, 1], "flag": True}
+
+
+def test_bad_overrides_are_one_clear_error(tmp_path):
+    from olatbench.bench.plan import parse_overrides
+
+    with pytest.raises(PlanError, match="KEY=VALUE"):
+        parse_overrides(["lr"])
+    data = support.write_tiny_data(tmp_path / "data")
+    with pytest.raises(PlanError, match=r"no config field nope; its fields: .*lr"):
+        make_plan("trivial", support.tiny_suite(), tmp_path, data_root=data, progress=False, overrides={"nope": 1})
+    pytest.importorskip("olatbench.methods.ssdgs")
+    with pytest.raises(PlanError, match="refine_camera"):  # the method's own validation, named
+        make_plan("ssdgs", "mini", tmp_path, data_root=data, progress=False, generate=False,
+                  overrides={"test_time_refinement": True})

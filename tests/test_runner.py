@@ -210,6 +210,17 @@ def test_cli_errors_are_one_line_with_a_next_step(data, tmp_path, cli_suite):
     assert result.exit_code == 2 and "WIDTHxHEIGHT" in result.output
     result = runner.invoke(main, ["status", str(tmp_path)])
     assert result.exit_code == 1 and "olatbench run" in result.output
+    result = runner.invoke(main, ["run", "-m", "trivial", "-s", "tiny", "--data-root", str(data), "--set", "lr"])
+    assert result.exit_code == 1 and "KEY=VALUE" in result.output and "Traceback" not in result.output
+    result = runner.invoke(main, ["run", "-m", "trivial", "-s", "tiny", "--data-root", str(data), "--set", "x=1"])
+    assert result.exit_code == 1 and "no config field x" in result.output
+
+
+def test_cli_set_overrides_show_in_the_plan(data, tmp_path, cli_suite):
+    result = CliRunner().invoke(main, ["run", "-m", "trivial", "-s", "tiny", "--data-root", str(data), "--out",
+                                       str(tmp_path / "runs"), "--set", "lr=0.5", "--dry-run"])
+    assert result.exit_code == 0, result.output
+    assert "default~lr=0.5" in result.output
 
 
 def test_status_shows_partial_and_pending_jobs(data, tmp_path, cli_suite):

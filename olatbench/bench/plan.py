@@ -2,12 +2,14 @@
 
 Config resolution order for one job (later wins): the method config's defaults, the suite's
 ``iterations``, the method's preset named after the suite (when it has one), the variant's preset,
-then explicit overrides (``--iterations``). The variant ``default`` applies no variant preset; a variant
-``a+b`` applies the presets ``a`` then ``b``.
+then explicit overrides (``--set KEY=VALUE``, then ``--iterations``). The variant ``default`` applies no
+variant preset; a variant ``a+b`` applies the presets ``a`` then ``b``. Overrides are part of the job's
+variant label (``default~test_time_steps=50``), so they get their own folders and report columns.
 """
 
 from __future__ import annotations
 
+import json
 import os
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, fields
@@ -68,9 +70,13 @@ def expand_variants(method_class: type[Method], variants: Sequence[str] = (), ab
 
 
 def resolve_config(method_class: type[Method], suite: Suite, variant: str = DEFAULT_VARIANT,
-                   iterations: int | None = None) -> Any:
+                   iterations: int | None = None, overrides: dict[str, Any] | None = None) -> Any:
     """The method's config for one suite and variant (resolution order in the module docstring)."""
     field_names = {f.name for f in fields(method_class.config_class)}
+    unknown = sorted(set(overrides or {}) - field_names)
+    if unknown:
+        raise PlanError(f"method '{method_class.name}' has no config field {', '.join(unknown)}; its fields: "
+                        f"{', '.join(sorted(field_names))}. See: olatbench methods show {method_class.name}")
     values: dict[str, Any] = {}
     if "iterations" in field_names:
         values["iterations"] = suite.iterations
@@ -79,9 +85,38 @@ def resolve_config(method_class: type[Method], suite: Suite, variant: str = DEFA
     if variant != DEFAULT_VARIANT:
         for part in variant.split("+"):
             values.update(method_class.presets[part])
+    values.update(overrides or {})
     if iterations is not None:
         values["iterations"] = int(iterations)
-    return method_class.resolve_config(None, **values)
+    try:
+        return method_class.resolve_config(None, **values)
+    except (TypeError, ValueError, NotImplementedError) as error:
+        raise PlanError(f"method '{method_class.name}', variant '{variant}': {error}") from None
+
+
+def parse_overrides(items: Sequence[str]) -> dict[str, Any]:
+    """``["key=value", ...]`` -> {key: value}; values are read as JSON (``true``, ``50``, ``[1, 1, 1]``),
+    anything that is not JSON stays a string (``shadow_mode=density``)."""
+    overrides: dict[str, Any] = {}
+    for item in items:
+        key, sep, text = item.partition("=")
+        if not sep or not key.strip():
+            raise PlanError(f"--set expects KEY=VALUE (e.g. test_time_steps=50), not {item!r}")
+        try:
+            value = json.loads(text)
+        except json.JSONDecodeError:
+            value = text
+        overrides[key.strip()] = value
+    return overrides
+
+
+def variant_label(variant: str, overrides: dict[str, Any] | None) -> str:
+    """The variant's name with its overrides: ``default~shadow_mode=density,test_time_steps=50``."""
+    if not overrides:
+        return variant
+    parts = ",".join(f"{key}={json.dumps(value, separators=(',', ':')).strip(chr(34))}"
+                     for key, value in sorted(overrides.items()))
+    return f"{variant}~{parts}".replace("/", "_").replace(" ", "")  # one folder name
 
 
 def resolve_scenes(suite: Suite, scenes: Sequence[str] = ()) -> list[str]:
@@ -159,11 +194,12 @@ def make_plan(method: str, suite: str | Suite, out: str | Path, scenes: Sequence
               variants: Sequence[str] = (), ablation: str | None = None, seeds: int = 1,
               iterations: int | None = None, resolution: tuple[int, int] | None = None,
               data_root: str | Path | None = None, options: PlanOptions | None = None,
-              generate: bool = True, progress: bool = True) -> list[Job]:
+              generate: bool = True, progress: bool = True, overrides: dict[str, Any] | None = None) -> list[Job]:
     """Expand one method on one suite into jobs (scene-major, then variant, then seed).
 
-    ``resolution`` (width, height) overrides the suite's. ``generate=False`` (dry runs) never creates
-    a generator suite's data: when it is missing, jobs have ``data_manifest=None`` and no id.
+    ``resolution`` (width, height) overrides the suite's; ``overrides`` are config values applied to every
+    variant (and named in its label). ``generate=False`` (dry runs) never creates a generator suite's data:
+    when it is missing, jobs have ``data_manifest=None`` and no id.
     """
     options = options or PlanOptions()
     suite = get_suite(suite) if isinstance(suite, str) else suite
@@ -180,7 +216,7 @@ def make_plan(method: str, suite: str | Suite, out: str | Path, scenes: Sequence
     scene_names = resolve_scenes(suite, scenes)
     root = resolve_data_root(suite, data_root, scene_names, generate=generate, progress=progress)
     code = code_hash(method_class)
-    configs = {variant: config_to_dict(resolve_config(method_class, suite, variant, iterations))
+    configs = {variant: config_to_dict(resolve_config(method_class, suite, variant, iterations, overrides))
                for variant in variant_names}
     jobs = []
     for scene in scene_names:
@@ -188,13 +224,14 @@ def make_plan(method: str, suite: str | Suite, out: str | Path, scenes: Sequence
         manifest = data_manifest_hash(scene_path) if scene_path is not None else None
         for variant in variant_names:
             for seed in range(seeds):
+                label = variant_label(variant, overrides)
                 job = Job(method=method, method_ref=method_reference(method_class), suite=suite.name, scene=scene,
-                          variant=variant, seed=seed, config=configs[variant],
+                          variant=label, seed=seed, config=configs[variant],
                           scene_path=str(scene_path) if scene_path else "", scene_format=suite.format,
                           colourspace=suite.colourspace, resolution=resolution or suite.resolution,
                           train_split=suite.train_split, test_split=suite.test_split,
                           protocol=protocol.id, protocol_version=int(protocol.version), data_manifest=manifest,
-                          code=code, folder=str(job_folder(out, suite.name, method, variant, scene, seed)),
+                          code=code, folder=str(job_folder(out, suite.name, method, label, scene, seed)),
                           device=options.device, checkpoint_every=options.checkpoint_every,
                           checkpoint_minutes=options.checkpoint_minutes, keep_checkpoints=options.keep_checkpoints,
                           save_components=options.save_components)

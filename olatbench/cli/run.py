@@ -80,6 +80,10 @@ def _metric(metrics: dict, key: str) -> str:
                    "shadow-on-sss = default + shadow-on-sss.")
 @click.option("--seeds", default=1, show_default=True, help="Seeds 0…N-1 per scene and variant.")
 @click.option("--iterations", type=int, help="Training iterations (the method scales its schedule).")
+@click.option("--set", "overrides", multiple=True, metavar="KEY=VALUE",
+              help="Override one config field of every job (repeatable; JSON values: true, 50, [1,1,1]). "
+                   "The overrides join the variant's name, so such runs get their own folders. Fields: "
+                   "olatbench methods show METHOD.")
 @click.option("--resolution", help="Image size WIDTHxHEIGHT (default: the suite's, else native).")
 @click.option("--data-root", type=click.Path(file_okay=False, path_type=Path),
               help="Folder holding the suite's scene folders (default: $OLATBENCH_DATA; mini: its cache).")
@@ -106,7 +110,8 @@ def _metric(metrics: dict, key: str) -> str:
 @click.option("--wait/--no-wait", default=False, show_default=True,
               help="With --executor slurm: wait for the array and print the summary.")
 @click.option("--quiet", "-q", is_flag=True, help="No progress bars.")
-def run(method, suite, scenes, variants, ablation, seeds, iterations, resolution, data_root, out, device, executor,
+def run(method, suite, scenes, variants, ablation, seeds, iterations, overrides, resolution, data_root, out, device,
+        executor,
         workers, dry_run, force, checkpoint_every, save_components, slurm_partition, slurm_time, slurm_gpus,
         slurm_cpus, slurm_array_parallelism, wait, quiet) -> None:
     """Train and evaluate METHOD on every scene of SUITE; rerunning skips finished jobs and resumes
@@ -121,9 +126,10 @@ def run(method, suite, scenes, variants, ablation, seeds, iterations, resolution
       olatbench run --method ssdgs --suite mini
       olatbench run -m ssdgs -s nrhints --scenes Pixiu,Fish --data-root /data/nrhints
       olatbench run -m ssdgs -s nrhints --scenes Pixiu --ablation components --dry-run
+      olatbench run -m ssdgs -s mini --scenes translucent --set shadow_mode=density --set num_asg=8
       olatbench run -m ssdgs -s gs3 --seeds 3 --executor slurm --slurm-partition gpu --slurm-gpus 1
     """
-    from olatbench.bench.plan import PlanOptions, make_plan
+    from olatbench.bench.plan import PlanOptions, make_plan, parse_overrides
     from olatbench.bench.store import job_state
     from olatbench.datasets.errors import DatasetError
 
@@ -135,7 +141,7 @@ def run(method, suite, scenes, variants, ablation, seeds, iterations, resolution
         jobs = make_plan(method, suite, out, scenes=_split_names(scenes), variants=_split_names(variants),
                          ablation=ablation, seeds=seeds, iterations=iterations,
                          resolution=_parse_resolution(resolution), data_root=data_root, options=options,
-                         generate=not dry_run, progress=progress)
+                         generate=not dry_run, progress=progress, overrides=parse_overrides(overrides))
     except (PlanError, DatasetError, KeyError, FileNotFoundError) as error:
         raise click.ClickException(str(error.args[0] if isinstance(error, KeyError) else error)) from None
 
