@@ -9,8 +9,10 @@ import pytest
 import torch
 
 from olatbench.gaussians.backends import cpu_backend_status
+from olatbench.gaussians.backends.cpu import shadow_gather_cpu
 from olatbench.gaussians.projection import quat_to_rotmat
 from olatbench.gaussians.shadow import OFFICIAL_KERNEL, light_camera, shadow_gather
+from olatbench.gaussians.tiles import bin_gaussians
 
 IDENTITY = [1.0, 0.0, 0.0, 0.0]
 
@@ -174,15 +176,146 @@ def test_torch_reference_equals_cpp_kernel():
     assert torch.equal(ref.seen, cpp.seen) and bool(ref.seen.any()) and 0.05 < float(ref.visibility.mean()) < 0.95
     torch.testing.assert_close(ref.visibility, cpp.visibility, atol=2e-5, rtol=0)
     torch.testing.assert_close(ref.weight, cpp.weight, atol=1e-3, rtol=1e-4)
-    # official options are torch-only: auto falls back, an explicit cpu request is refused
+    # the official options (density mode) are torch-only: auto falls back, an explicit cpu request is refused;
+    # a depth offset alone stays on the C++ kernel
     assert shadow_gather(*args, resolution=32, **OFFICIAL_KERNEL).backend == "torch"
+    assert shadow_gather(*args, resolution=32, depth_offset=0.015).backend == "cpu"
     with pytest.raises(ValueError, match="C\\+\\+ light pass implements"):
         shadow_gather(*args, resolution=32, backend="cpu", **OFFICIAL_KERNEL)
+
+
+def _layered_scene(seed: int, dtype: torch.dtype):
+    """Random Gaussians in a slab facing the light: many overlap nearly coplanar neighbours (offsets matter)."""
+    g = torch.Generator().manual_seed(seed)
+    n = 300
+    means = torch.rand(n, 3, generator=g, dtype=torch.float64) * torch.tensor([1.6, 0.3, 1.6]) - 0.8
+    quats = torch.randn(n, 4, generator=g, dtype=torch.float64)
+    scales = torch.rand(n, 3, generator=g, dtype=torch.float64) * 0.1 + 0.01
+    opacities = torch.rand(n, generator=g, dtype=torch.float64) * 0.8 + 0.1
+    light = torch.tensor([0.3, -3.0, 0.4], dtype=torch.float64)
+    return tuple(t.to(dtype) for t in (means, quats, scales, opacities, light, torch.zeros(3)))
+
+
+@pytest.mark.skipif(not cpu_backend_status()[0], reason="C++ backend unavailable")
+@pytest.mark.parametrize("dtype", [torch.float64, torch.float32])
+def test_cpp_kernel_with_depth_offset_equals_torch_reference(dtype):
+    args = _layered_scene(3, dtype)
+    plain = shadow_gather(*args, resolution=64, backend="cpu")
+    atol = 1e-6 if dtype == torch.float64 else 2e-5
+    for offset in (0.0, 0.015, 0.3, 3.0):
+        cpp = shadow_gather(*args, resolution=64, depth_offset=offset)  # auto picks the C++ kernel
+        ref = shadow_gather(*args, resolution=64, backend="torch", depth_offset=offset)
+        assert cpp.backend == "cpu" and ref.backend == "torch"
+        assert torch.equal(cpp.seen, ref.seen) and int(cpp.seen.sum()) > 250
+        torch.testing.assert_close(cpp.visibility, ref.visibility, atol=atol, rtol=0, msg=f"offset {offset}")
+        torch.testing.assert_close(cpp.weight, plain.weight, atol=0, rtol=0)  # the weight ignores the offset
+        changed = (cpp.visibility - plain.visibility).abs()
+        if offset == 0.0:
+            assert torch.equal(cpp.visibility, plain.visibility)
+        else:  # the offset genuinely changes the hint (more light reaches near-coplanar receivers)
+            assert int((changed > 1e-3).sum()) >= 5 and bool((cpp.visibility >= plain.visibility - atol).all())
+    assert float(changed.mean()) > 0.1  # offset 3.0 removes most occluders
+    # An offset below float32 resolution excludes nothing more (no equal keys here): the lagging transmittance
+    # replays the main one bit for bit.
+    tiny = shadow_gather(*args, resolution=64, backend="cpu", depth_offset=1e-30)
+    assert torch.equal(tiny.visibility, plain.visibility)
+
+
+def _per_pixel_gather(means2d, conics, opacities, keys, bins, offset, radius=2.0):
+    """Python loop over pixels: for each Gaussian g near a pixel, replay g's tile list up to g keeping only the
+    Gaussians j with float32(key_j) < float32(key_g - offset) (all of them when offset = 0)."""
+    n = means2d.shape[0]
+    vis, cnt = [0.0] * n, [0] * n
+    m, con, op, key = means2d.tolist(), conics.tolist(), opacities.tolist(), keys.tolist()
+
+    def alpha_at(j, x, y):
+        dx, dy = m[j][0] - x - 0.5, m[j][1] - y - 0.5
+        power = -0.5 * (con[j][0] * dx * dx + con[j][2] * dy * dy) - con[j][1] * dx * dy
+        alpha = 0.0 if power > 0 else min(0.99, op[j] * math.exp(power))
+        return alpha if alpha >= 1 / 255 else 0.0
+
+    for t in range(bins.num_tiles):
+        ids = bins.gaussian_ids[bins.offsets[t] : bins.offsets[t + 1]].tolist()
+        tx, ty = t % bins.tiles_x, t // bins.tiles_x
+        for y in range(ty * 16, min(bins.height, ty * 16 + 16)):
+            for x in range(tx * 16, min(bins.width, tx * 16 + 16)):
+                for position, g in enumerate(ids):
+                    if (m[g][0] - x - 0.5) ** 2 + (m[g][1] - y - 0.5) ** 2 > radius * radius:
+                        continue
+                    threshold = np.float32(key[g] - offset)
+                    T = 1.0
+                    for j in ids[:position]:
+                        if offset > 0 and not np.float32(key[j]) < threshold:
+                            continue
+                        alpha = alpha_at(j, x, y)
+                        if T * (1 - alpha) < 1e-4:
+                            T = 0.0
+                            break
+                        T *= 1 - alpha
+                    vis[g] += T
+                    cnt[g] += 1
+    return torch.tensor(vis, dtype=torch.float64), torch.tensor(cnt, dtype=torch.int32)
+
+
+def _non_monotone_stack_keys(offset: float) -> list[float]:
+    """Keys of M, L, a, b (list order): float32(key_a) = float32(key_b) = 1, but key_a's threshold
+    float32(key_a - offset) is above key_b's, and float32(key_L) equals key_b's: L is in front of a, not of b."""
+    same = [x for x in (1.0 + j * 2.0**-28 for j in range(-8, 17)) if np.float32(x) == 1.0]
+    a = max(same, key=lambda x: np.float32(x - offset))
+    b = min(same, key=lambda x: np.float32(x - offset))
+    assert np.float32(a - offset) > np.float32(b - offset)
+    return [0.1, float(np.float32(b - offset)), a, b]
+
+
+@pytest.mark.skipif(not cpu_backend_status()[0], reason="C++ backend unavailable")
+@pytest.mark.parametrize("offset", [0.0, 0.125, 0.3])
+def test_cpp_depth_offset_matches_per_pixel_loop(offset):
+    """Keys on a 1/16 grid (exact in float32) with float64 jitter below float32 resolution: offset 1/8 puts
+    thresholds exactly on other keys (strict comparison). A stack of 4 Gaussians at one spot has keys whose
+    thresholds are not monotone along the list (equal float32 keys, the later one's threshold lower), which the
+    kernel handles by replaying its lagging transmittance."""
+    g = torch.Generator().manual_seed(7)
+    n = 40
+    means2d = torch.rand(n, 2, generator=g, dtype=torch.float64) * torch.tensor([30.0, 32.0])
+    sigma = torch.rand(n, 2, generator=g, dtype=torch.float64) * 3.0 + 0.6
+    corr = torch.rand(n, generator=g, dtype=torch.float64) * 1.2 - 0.6
+    cov = torch.stack([sigma[:, 0] ** 2, corr * sigma[:, 0] * sigma[:, 1], sigma[:, 1] ** 2], dim=1)
+    opacities = torch.rand(n, generator=g, dtype=torch.float64) * 0.9 + 0.05
+    jitter = (torch.rand(n, generator=g, dtype=torch.float64) * 2 - 1) * 2.0**-30
+    keys = 1.0 + torch.randint(0, 16, (n,), generator=g).double() / 16 + jitter
+    stack_keys = torch.tensor(_non_monotone_stack_keys(offset or 0.125), dtype=torch.float64)
+    means2d = torch.cat([means2d, torch.tensor([[40.0, 8.0]] * 4, dtype=torch.float64)])
+    cov = torch.cat([cov, torch.tensor([[9.0, 0.0, 9.0]] * 4, dtype=torch.float64)])
+    opacities = torch.cat([opacities, torch.tensor([0.5, 0.6, 0.7, 0.8], dtype=torch.float64)])
+    keys = torch.cat([keys, stack_keys])
+    det = cov[:, 0] * cov[:, 2] - cov[:, 1] ** 2
+    conics = torch.stack([cov[:, 2] / det, -cov[:, 1] / det, cov[:, 0] / det], dim=1)
+    radii = torch.ceil(3 * torch.sqrt(torch.maximum(cov[:, 0], cov[:, 2]))).long()
+    bins = bin_gaussians(means2d, radii, keys, 48, 32)
+
+    got = shadow_gather_cpu(means2d, conics, opacities, bins, sort_keys=keys, depth_offset=offset, threads=2)
+    serial = shadow_gather_cpu(means2d, conics, opacities, bins, sort_keys=keys, depth_offset=offset, threads=1)
+    assert torch.equal(got.vis_sum, serial.vis_sum)  # deterministic across thread counts
+    vis, cnt = _per_pixel_gather(means2d, conics, opacities, keys, bins, offset)
+    assert torch.equal(got.count, cnt) and int((cnt > 0).sum()) == n + 4
+    torch.testing.assert_close(got.vis_sum, vis, rtol=1e-10, atol=1e-12)
+    stack = (got.vis_sum / got.count)[n:]
+    if offset > 0:  # b sees only M; a sees M and L
+        assert float(stack[3]) > float(stack[2]) + 0.2 and float(stack[0]) == 1.0
+    plain = shadow_gather_cpu(means2d, conics, opacities, bins)
+    assert torch.equal(got.weight, plain.weight)
 
 
 def test_bad_arguments():
     scene = _occluder_scene()
     with pytest.raises(ValueError, match="unknown shadow mode"):
         shadow_gather(*scene, LIGHT, TARGET, mode="paper")
+    with pytest.raises(ValueError, match="depth_offset must be"):
+        shadow_gather(*scene, LIGHT, TARGET, depth_offset=float("nan"))
+    if cpu_backend_status()[0]:
+        flat = torch.zeros(2, 2, dtype=torch.float64)
+        bins = bin_gaussians(flat, torch.ones(2, dtype=torch.int64), torch.ones(2, dtype=torch.float64), 8, 8)
+        with pytest.raises(ValueError, match="needs sort_keys"):
+            shadow_gather_cpu(flat, torch.ones(2, 3, dtype=torch.float64), torch.ones(2), bins, depth_offset=0.1)
     with pytest.raises(ValueError, match="coincides with the target"):
         shadow_gather(*scene, TARGET, TARGET)

@@ -18,12 +18,13 @@ For each Gaussian g this yields:
 
   "In front of" always excludes g itself; with ``depth_offset`` > 0 it also excludes every Gaussian whose
   squared distance to the light is within ``depth_offset`` of g's (the official self-shadow offset, 0.015 in
-  squared-distance units, i.e. the sort key's units). ``OFFICIAL_KERNEL`` = ``{"mode": "density",
-  "depth_offset": 0.015}`` reproduces the official kernel's arithmetic, except that its lagging pointer also
-  counts the first Gaussian inside the offset band for later Gaussians at the same pixel (an order-dependent
-  artefact we do not copy) and it never stops a pixel at T < 1e-4. Gaussians the light camera does not see
-  (behind it, outside its frustum, culled, or with no pixel to average over) get visibility 0 ("hint 0") and
-  ``seen = False``.
+  squared-distance units, i.e. the sort key's units): only Gaussians j with key_j < key_g − depth_offset remain,
+  both sides rounded to float32 like the tile sort (so they are a prefix of g's tile list).
+  ``OFFICIAL_KERNEL`` = ``{"mode": "density", "depth_offset": 0.015}`` reproduces the official kernel's
+  arithmetic, except that its lagging pointer also counts the first Gaussian inside the offset band for later
+  Gaussians at the same pixel (an order-dependent artefact we do not copy) and it never stops a pixel at
+  T < 1e-4. Gaussians the light camera does not see (behind it, outside its frustum, culled, or with no pixel to
+  average over) get visibility 0 ("hint 0") and ``seen = False``.
 - ``weight`` (N,): g's accumulated blending weight Σ_pixels T·α in the light view (how much of the light g
   intercepts; SSD-GS uses it to cap the number of Gaussians).
 - ``seen`` (N,) bool.
@@ -36,8 +37,9 @@ looks at the mean of the Gaussian centres (with the viewing image size); callers
 ``target`` and that focal length as ``focal_px``.
 
 Backends: ``"torch"`` (reference, any device) implements every option; ``"cpu"`` (the C++ kernel of
-:mod:`olatbench.gaussians.backends.cpu`) implements ``mode="uniform"`` with ``depth_offset=0``; ``"auto"``
-uses the C++ kernel for CPU tensors whenever the options allow it and torch otherwise.
+:mod:`olatbench.gaussians.backends.cpu`) implements ``mode="uniform"`` with any ``depth_offset`` (a lagging
+second transmittance per pixel for offsets > 0); ``"auto"`` uses the C++ kernel for CPU tensors whenever the
+mode allows it and torch otherwise.
 """
 
 from __future__ import annotations
@@ -56,7 +58,7 @@ from olatbench.gaussians.tiles import TileBins, bin_gaussians, float_order_key
 ShadowMode = Literal["uniform", "density", "footprint"]
 MODES = ("uniform", "density", "footprint")
 OFFICIAL_DEPTH_OFFSET = 0.015  # squared-distance units (the official kernel's `offset`)
-# Options reproducing the official SSD-GS light kernel (torch backend unless the C++ kernel grows them).
+# Options reproducing the official SSD-GS light kernel (torch backend: the C++ kernel has no "density" mode).
 OFFICIAL_KERNEL = {"mode": "density", "depth_offset": OFFICIAL_DEPTH_OFFSET}
 MAX_FOV_DEGREES = 120.0
 # Compositing constants of the rasterizer (kept identical to backends/csrc/rasterize.cpp).
@@ -143,7 +145,7 @@ def shadow_gather(
     """
     if mode not in MODES:
         raise ValueError(f"unknown shadow mode {mode!r}; choose one of {', '.join(MODES)}")
-    if depth_offset < 0:
+    if not depth_offset >= 0:
         raise ValueError(f"depth_offset must be ≥ 0, got {depth_offset}")
     n = means.shape[0]
     dtype = means.dtype if means.dtype in (torch.float32, torch.float64) else torch.float32
@@ -152,7 +154,7 @@ def shadow_gather(
     if scene_radius is None:
         scene_radius = float((means - target).norm(dim=1).max()) if n > 0 else 1.0
     w2c, K, width, height = light_camera(light, target, scene_radius, resolution, focal_px=focal_px)
-    chosen = _choose_backend(backend, means.device, dtype, mode, depth_offset)
+    chosen = _choose_backend(backend, means.device, dtype, mode)
     zeros = torch.zeros(n, device=means.device, dtype=dtype)
     if n == 0:
         return ShadowResult(zeros, zeros.clone(), torch.zeros(0, dtype=torch.bool, device=means.device), chosen)
@@ -164,7 +166,8 @@ def shadow_gather(
     if chosen == "cpu":
         from olatbench.gaussians.backends.cpu import shadow_gather_cpu
 
-        sums = shadow_gather_cpu(projected.means2d, projected.conics, opacities, bins, radius_px=radius_px)
+        sums = shadow_gather_cpu(projected.means2d, projected.conics, opacities, bins, radius_px=radius_px,
+                                 sort_keys=keys, depth_offset=depth_offset)  # fmt: skip
         vis_sum, norm, weight = sums.vis_sum, sums.count.to(dtype), sums.weight
         vis_sum, norm, weight = (t.to(means.device) for t in (vis_sum, norm, weight))
     else:
@@ -176,15 +179,14 @@ def shadow_gather(
     return ShadowResult(visibility=visibility, weight=weight, seen=seen, backend=chosen)
 
 
-def _choose_backend(backend: str, device: torch.device, dtype: torch.dtype, mode: str, depth_offset: float) -> str:
-    cpp_ok = mode == "uniform" and depth_offset == 0.0
+def _choose_backend(backend: str, device: torch.device, dtype: torch.dtype, mode: str) -> str:
+    cpp_ok = mode == "uniform"
     if backend == "torch":
         return "torch"
     if backend == "cpu":
         if not cpp_ok:
             raise ValueError(
-                "the C++ light pass implements mode='uniform' with depth_offset=0 only; "
-                f"got mode={mode!r}, depth_offset={depth_offset} (use backend='torch' or 'auto')"
+                f"the C++ light pass implements mode='uniform' only, got mode={mode!r} (use 'torch' or 'auto')"
             )
         if device.type != "cpu":
             raise ValueError(f"backend='cpu' needs CPU tensors, got {device}")

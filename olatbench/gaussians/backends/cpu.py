@@ -119,6 +119,9 @@ def shadow_gather_cpu(
     bins: TileBins,
     radius_px: float = 2.0,
     threads: int | None = None,
+    *,
+    sort_keys: torch.Tensor | None = None,
+    depth_offset: float = 0.0,
 ) -> ShadowGather:
     """Light-view visibility sums (forward only) for Gaussians binned front to back from the light.
 
@@ -129,18 +132,34 @@ def shadow_gather_cpu(
     within ``radius_px`` (Euclidean, inclusive) of a Gaussian's 2D mean adds the transmittance *in front of*
     that Gaussian to its ``vis_sum`` and 1 to its ``count``; the mean visibility is ``vis_sum / count`` where
     ``count > 0``. Only pixels in tiles the Gaussian is binned to are seen (always the case for
-    ``radius_px`` ≤ its radius). Results are on the CPU in the dtype of ``means2d`` (float32/float64)."""
+    ``radius_px`` ≤ its radius). Results are on the CPU in the dtype of ``means2d`` (float32/float64).
+
+    ``depth_offset`` > 0 (sort-key units; needs ``sort_keys`` (N,), the keys ``bins`` was sorted by) narrows
+    "in front of g" to the Gaussians j of the tile list with ``key_j < key_g - depth_offset``, both sides rounded
+    to float32 as in the tile sort (``tiles.float_order_key``; the subtraction is done in float64): Gaussians
+    whose key is within the offset of g's do not shadow g. ``weight`` is unaffected. ``depth_offset = 0`` is the
+    plain "every Gaussian before g" (``sort_keys`` unused)."""
     dtype = means2d.dtype
     suffix = _suffix(dtype)
-    means2d, conics, opacities = _prepare([means2d, conics, opacities], dtype)
-    offsets, ids = (t.to(device="cpu", dtype=torch.int64).contiguous() for t in (bins.offsets, bins.gaussian_ids))
+    depth_offset = float(depth_offset)
+    if not depth_offset >= 0.0:
+        raise ValueError(f"depth_offset must be ≥ 0, got {depth_offset}")
     n = means2d.shape[0]
+    means2d, conics, opacities = _prepare([means2d, conics, opacities], dtype)
+    keys = None
+    if depth_offset > 0.0:
+        if sort_keys is None or sort_keys.shape != (n,):
+            got = "none" if sort_keys is None else f"shape {tuple(sort_keys.shape)}"
+            raise ValueError(f"depth_offset > 0 needs sort_keys of shape ({n},) (the binning keys), got {got}")
+        (keys,) = _prepare([sort_keys], dtype)
+    offsets, ids = (t.to(device="cpu", dtype=torch.int64).contiguous() for t in (bins.offsets, bins.gaussian_ids))
     vis_sum = torch.empty(n, dtype=dtype)
     count = torch.empty(n, dtype=torch.int32)
     weight = torch.empty(n, dtype=dtype)
     c_float = ctypes.c_float if dtype == torch.float32 else ctypes.c_double
     getattr(build.load(), f"olatbench_shadow_gather_{suffix}")(
-        _ptr(means2d), _ptr(conics), _ptr(opacities), _ptr(offsets), _ptr(ids), *_grid(bins),
+        _ptr(means2d), _ptr(conics), _ptr(opacities), ctypes.c_void_p(None) if keys is None else _ptr(keys),
+        ctypes.c_double(depth_offset), _ptr(offsets), _ptr(ids), *_grid(bins),
         c_float(radius_px), ctypes.c_int(_threads(threads)), ctypes.c_int64(n),
         _ptr(vis_sum), _ptr(count), _ptr(weight),
     )  # fmt: skip

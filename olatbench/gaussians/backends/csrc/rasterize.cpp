@@ -259,25 +259,56 @@ void backward_impl(const F* means2d, const F* conics, const F* opac, const F* fe
   }
 }
 
+// Composites Gaussian k of the tile into the per-pixel state (T, done) of the pixels in box b, with the same
+// arithmetic and decisions as the main loop of shadow_gather_impl (used to replay the tile's list for T_lag).
+template <typename F>
+inline void composite_into(const TileData<F>& td, int64_t k, const Box& b, F* T, char* done) {
+  const int sx = td.size_x;
+  for (int ly = b.y0; ly < b.y1; ++ly) {
+    for (int lx = b.x0; lx < b.x1; ++lx) {
+      const int p = ly * sx + lx;
+      if (done[p]) continue;
+      F dx, dy;
+      const F pw = td.power(k, lx, ly, dx, dy);
+      if (td.negligible(k, pw)) continue;
+      const F alpha = std::min(F(kAlphaMax), td.op[k] * std::exp(pw));
+      if (alpha < F(kAlphaMin)) continue;
+      const F t_next = T[p] * (F(1) - alpha);
+      if (t_next < F(kTMin)) { done[p] = 1; continue; }
+      T[p] = t_next;
+    }
+  }
+}
+
 // Light-view pass. Per Gaussian g: vis_sum[g] = sum of the transmittance in front of g over the pixels whose
 // centre lies within `radius_px` of g's 2D mean (count[g] of them), and weight[g] = sum over all pixels of
 // g's blending weight T*alpha. Compositing rules are the forward's; once a pixel terminates (T would drop
 // below 1e-4) the Gaussians behind it see transmittance 0 there.
+// depth_offset > 0 (needs keys, the per-Gaussian sort keys): "in front of g" keeps only the Gaussians L with
+// float(key[L]) < float(double(key[g]) - depth_offset), compared in float32 like the tile sort
+// (tiles.float_order_key), so they form a prefix of g's tile list. A second per-pixel state (T_lag, done_lag)
+// replays the list up to that prefix, advanced by a lagging pointer; vis_sum reads it instead of T. The
+// threshold is non-decreasing along the list except among Gaussians with equal float32 keys (the list is
+// sorted by float32 key, the threshold computed from the full key); when the prefix shrinks, T_lag is
+// replayed from the tile start (exact, and rare). depth_offset == 0 skips all of this (keys may be null).
 template <typename F>
-void shadow_gather_impl(const F* means2d, const F* conics, const F* opac, const int64_t* offsets,
-                        const int64_t* ids, Grid grid, F radius_px, int threads, int64_t num_gaussians,
-                        F* vis_sum, int32_t* count, F* weight) {
+void shadow_gather_impl(const F* means2d, const F* conics, const F* opac, const F* keys, double depth_offset,
+                        const int64_t* offsets, const int64_t* ids, Grid grid, F radius_px, int threads,
+                        int64_t num_gaussians, F* vis_sum, int32_t* count, F* weight) {
   const int64_t num_tiles = grid.num_tiles();
   const int64_t num_pairs = offsets[num_tiles];
   const int area = grid.tile * grid.tile;
+  const bool lagged = depth_offset > 0.0;
   std::vector<F> pair_vis(num_pairs, F(0)), pair_weight(num_pairs, F(0));
   std::vector<int32_t> pair_count(num_pairs, 0);
   const F r2 = radius_px * radius_px;
+  const double min_half = double(radius_px) + kBoxSlack;
 #pragma omp parallel num_threads(threads)
   {
     TileData<F> td;
-    std::vector<F> T(area);
-    std::vector<char> done(area);
+    std::vector<F> T(area), T_lag(lagged ? area : 0);
+    std::vector<char> done(area), done_lag(lagged ? area : 0);
+    std::vector<float> key32, threshold32;
 #pragma omp for schedule(dynamic, 1)
     for (int64_t tile = 0; tile < num_tiles; ++tile) {
       const int64_t start = offsets[tile];
@@ -285,9 +316,37 @@ void shadow_gather_impl(const F* means2d, const F* conics, const F* opac, const 
       const int sx = td.size_x;
       std::fill(T.begin(), T.end(), F(1));
       std::fill(done.begin(), done.end(), 0);
+      // With an offset, vis reads the lagging state; without, the main one (identical to the plain kernel).
+      F* T_front = T.data();
+      char* done_front = done.data();
+      int64_t lag = 0;  // Gaussians [0, lag) of the tile are composited into T_lag
+      if (lagged) {
+        std::fill(T_lag.begin(), T_lag.end(), F(1));
+        std::fill(done_lag.begin(), done_lag.end(), 0);
+        T_front = T_lag.data();
+        done_front = done_lag.data();
+        key32.resize(td.n);
+        threshold32.resize(td.n);
+        for (int64_t k = 0; k < td.n; ++k) {
+          const int64_t g = ids[start + k];
+          key32[k] = float(keys[g]);
+          threshold32[k] = float(double(keys[g]) - depth_offset);
+        }
+      }
       Box b;
       for (int64_t k = 0; k < td.n; ++k) {
-        if (!td.box(k, double(radius_px) + kBoxSlack, b)) continue;
+        if (lagged) {
+          const float threshold = threshold32[k];
+          if (lag > 0 && !(key32[lag - 1] < threshold)) {  // the prefix shrank: replay from the tile start
+            std::fill(T_lag.begin(), T_lag.end(), F(1));
+            std::fill(done_lag.begin(), done_lag.end(), 0);
+            lag = 0;
+          }
+          for (; lag < k && key32[lag] < threshold; ++lag) {
+            if (td.box(lag, min_half, b)) composite_into(td, lag, b, T_lag.data(), done_lag.data());
+          }
+        }
+        if (!td.box(k, min_half, b)) continue;
         F vis = F(0), wsum = F(0);
         int32_t cnt = 0;
         for (int ly = b.y0; ly < b.y1; ++ly) {
@@ -296,7 +355,7 @@ void shadow_gather_impl(const F* means2d, const F* conics, const F* opac, const 
             F dx, dy;
             const F pw = td.power(k, lx, ly, dx, dy);
             if (dx * dx + dy * dy <= r2) {
-              vis += done[p] ? F(0) : T[p];
+              vis += done_front[p] ? F(0) : T_front[p];
               cnt += 1;
             }
             if (done[p] || td.negligible(k, pw)) continue;
@@ -347,11 +406,13 @@ void shadow_gather_impl(const F* means2d, const F* conics, const F* opac, const 
                      grad_t, num_gaussians, grad_means2d, grad_conics, grad_opac, grad_features);           \
   }                                                                                                         \
   OLATBENCH_EXPORT void olatbench_shadow_gather_##SUFFIX(                                                   \
-      const F* means2d, const F* conics, const F* opac, const int64_t* offsets, const int64_t* ids,         \
-      int width, int height, int tile, int tiles_x, int tiles_y, F radius_px, int threads,                  \
-      int64_t num_gaussians, F* vis_sum, int32_t* count, F* weight) {                                       \
-    shadow_gather_impl<F>(means2d, conics, opac, offsets, ids, Grid{width, height, tile, tiles_x, tiles_y}, \
-                          radius_px, threads, num_gaussians, vis_sum, count, weight);                       \
+      const F* means2d, const F* conics, const F* opac, const F* keys, double depth_offset,                 \
+      const int64_t* offsets, const int64_t* ids, int width, int height, int tile, int tiles_x,             \
+      int tiles_y, F radius_px, int threads, int64_t num_gaussians, F* vis_sum, int32_t* count,             \
+      F* weight) {                                                                                          \
+    shadow_gather_impl<F>(means2d, conics, opac, keys, depth_offset, offsets, ids,                          \
+                          Grid{width, height, tile, tiles_x, tiles_y}, radius_px, threads, num_gaussians,   \
+                          vis_sum, count, weight);                                                          \
   }
 
 OLATBENCH_DEFINE(float, f32)
