@@ -283,11 +283,14 @@ def test_cpp_depth_offset_matches_per_pixel_loop(offset):
     opacities = torch.rand(n, generator=g, dtype=torch.float64) * 0.9 + 0.05
     jitter = (torch.rand(n, generator=g, dtype=torch.float64) * 2 - 1) * 2.0**-30
     keys = 1.0 + torch.randint(0, 16, (n,), generator=g).double() / 16 + jitter
-    stack_keys = torch.tensor(_non_monotone_stack_keys(offset or 0.125), dtype=torch.float64)
-    means2d = torch.cat([means2d, torch.tensor([[40.0, 8.0]] * 4, dtype=torch.float64)])
-    cov = torch.cat([cov, torch.tensor([[9.0, 0.0, 9.0]] * 4, dtype=torch.float64)])
-    opacities = torch.cat([opacities, torch.tensor([0.5, 0.6, 0.7, 0.8], dtype=torch.float64)])
-    keys = torch.cat([keys, stack_keys])
+    stack_keys = _non_monotone_stack_keys(offset or 0.125)
+    # A second stack: 5 opaque occluders in front of a receiver (keys far apart): pixels near its centre stop
+    # (T < 1e-4) inside the receiver's front prefix, so the lagging state must stop there too.
+    means2d = torch.cat([means2d, torch.tensor([[40.0, 8.0]] * 4 + [[40.0, 24.0]] * 6, dtype=torch.float64)])
+    cov = torch.cat([cov, torch.tensor([[9.0, 0.0, 9.0]] * 10, dtype=torch.float64)])
+    stack_opacities = [0.5, 0.6, 0.7, 0.8] + [0.99] * 5 + [0.9]
+    opacities = torch.cat([opacities, torch.tensor(stack_opacities, dtype=torch.float64)])
+    keys = torch.cat([keys, torch.tensor([*stack_keys, 0.02, 0.03, 0.04, 0.05, 0.06, 1.9], dtype=torch.float64)])
     det = cov[:, 0] * cov[:, 2] - cov[:, 1] ** 2
     conics = torch.stack([cov[:, 2] / det, -cov[:, 1] / det, cov[:, 0] / det], dim=1)
     radii = torch.ceil(3 * torch.sqrt(torch.maximum(cov[:, 0], cov[:, 2]))).long()
@@ -297,11 +300,12 @@ def test_cpp_depth_offset_matches_per_pixel_loop(offset):
     serial = shadow_gather_cpu(means2d, conics, opacities, bins, sort_keys=keys, depth_offset=offset, threads=1)
     assert torch.equal(got.vis_sum, serial.vis_sum)  # deterministic across thread counts
     vis, cnt = _per_pixel_gather(means2d, conics, opacities, keys, bins, offset)
-    assert torch.equal(got.count, cnt) and int((cnt > 0).sum()) == n + 4
+    assert torch.equal(got.count, cnt) and int((cnt > 0).sum()) == n + 10
     torch.testing.assert_close(got.vis_sum, vis, rtol=1e-10, atol=1e-12)
     stack = (got.vis_sum / got.count)[n:]
     if offset > 0:  # b sees only M; a sees M and L
         assert float(stack[3]) > float(stack[2]) + 0.2 and float(stack[0]) == 1.0
+    assert float(stack[9]) < 1e-3  # the receiver behind the opaque stack: its pixels stopped (T < 1e-4)
     plain = shadow_gather_cpu(means2d, conics, opacities, bins)
     assert torch.equal(got.weight, plain.weight)
 

@@ -259,56 +259,25 @@ void backward_impl(const F* means2d, const F* conics, const F* opac, const F* fe
   }
 }
 
-// Composites Gaussian k of the tile into the per-pixel state (T, done) of the pixels in box b, with the same
-// arithmetic and decisions as the main loop of shadow_gather_impl (used to replay the tile's list for T_lag).
-template <typename F>
-inline void composite_into(const TileData<F>& td, int64_t k, const Box& b, F* T, char* done) {
-  const int sx = td.size_x;
-  for (int ly = b.y0; ly < b.y1; ++ly) {
-    for (int lx = b.x0; lx < b.x1; ++lx) {
-      const int p = ly * sx + lx;
-      if (done[p]) continue;
-      F dx, dy;
-      const F pw = td.power(k, lx, ly, dx, dy);
-      if (td.negligible(k, pw)) continue;
-      const F alpha = std::min(F(kAlphaMax), td.op[k] * std::exp(pw));
-      if (alpha < F(kAlphaMin)) continue;
-      const F t_next = T[p] * (F(1) - alpha);
-      if (t_next < F(kTMin)) { done[p] = 1; continue; }
-      T[p] = t_next;
-    }
-  }
-}
-
-// Light-view pass. Per Gaussian g: vis_sum[g] = sum of the transmittance in front of g over the pixels whose
-// centre lies within `radius_px` of g's 2D mean (count[g] of them), and weight[g] = sum over all pixels of
-// g's blending weight T*alpha. Compositing rules are the forward's; once a pixel terminates (T would drop
-// below 1e-4) the Gaussians behind it see transmittance 0 there.
-// depth_offset > 0 (needs keys, the per-Gaussian sort keys): "in front of g" keeps only the Gaussians L with
-// float(key[L]) < float(double(key[g]) - depth_offset), compared in float32 like the tile sort
-// (tiles.float_order_key), so they form a prefix of g's tile list. A second per-pixel state (T_lag, done_lag)
-// replays the list up to that prefix, advanced by a lagging pointer; vis_sum reads it instead of T. The
-// threshold is non-decreasing along the list except among Gaussians with equal float32 keys (the list is
-// sorted by float32 key, the threshold computed from the full key); when the prefix shrinks, T_lag is
-// replayed from the tile start (exact, and rare). depth_offset == 0 skips all of this (keys may be null).
-template <typename F>
-void shadow_gather_impl(const F* means2d, const F* conics, const F* opac, const F* keys, double depth_offset,
-                        const int64_t* offsets, const int64_t* ids, Grid grid, F radius_px, int threads,
-                        int64_t num_gaussians, F* vis_sum, int32_t* count, F* weight) {
+// Light-view pass over all tiles, writing per (tile, Gaussian) pair sums. kLagged: see shadow_gather_impl.
+template <typename F, bool kLagged>
+void shadow_gather_tiles(const F* means2d, const F* conics, const F* opac, const F* keys, double depth_offset,
+                         const int64_t* offsets, const int64_t* ids, Grid grid, F radius_px, int threads,
+                         F* pair_vis, int32_t* pair_count, F* pair_weight) {
   const int64_t num_tiles = grid.num_tiles();
-  const int64_t num_pairs = offsets[num_tiles];
   const int area = grid.tile * grid.tile;
-  const bool lagged = depth_offset > 0.0;
-  std::vector<F> pair_vis(num_pairs, F(0)), pair_weight(num_pairs, F(0));
-  std::vector<int32_t> pair_count(num_pairs, 0);
   const F r2 = radius_px * radius_px;
-  const double min_half = double(radius_px) + kBoxSlack;
 #pragma omp parallel num_threads(threads)
   {
     TileData<F> td;
-    std::vector<F> T(area), T_lag(lagged ? area : 0);
-    std::vector<char> done(area), done_lag(lagged ? area : 0);
+    std::vector<F> T(area), T_lag(kLagged ? area : 0);
+    std::vector<char> done(area), done_lag(kLagged ? area : 0);
+    // kLagged: the thresholds, and what the main pass did to each pixel: Gaussian k's events are
+    // [event_start[k], event_start[k + 1]), each (pixel, factor 1 - alpha it multiplied T by, or 0 = terminated).
     std::vector<float> key32, threshold32;
+    std::vector<int64_t> event_start;
+    std::vector<int32_t> event_pixel;
+    std::vector<F> event_factor;
 #pragma omp for schedule(dynamic, 1)
     for (int64_t tile = 0; tile < num_tiles; ++tile) {
       const int64_t start = offsets[tile];
@@ -316,37 +285,43 @@ void shadow_gather_impl(const F* means2d, const F* conics, const F* opac, const 
       const int sx = td.size_x;
       std::fill(T.begin(), T.end(), F(1));
       std::fill(done.begin(), done.end(), 0);
-      // With an offset, vis reads the lagging state; without, the main one (identical to the plain kernel).
-      F* T_front = T.data();
-      char* done_front = done.data();
       int64_t lag = 0;  // Gaussians [0, lag) of the tile are composited into T_lag
-      if (lagged) {
+      if constexpr (kLagged) {
         std::fill(T_lag.begin(), T_lag.end(), F(1));
         std::fill(done_lag.begin(), done_lag.end(), 0);
-        T_front = T_lag.data();
-        done_front = done_lag.data();
         key32.resize(td.n);
         threshold32.resize(td.n);
+        event_start.resize(td.n + 1);
+        event_pixel.clear();
+        event_factor.clear();
         for (int64_t k = 0; k < td.n; ++k) {
           const int64_t g = ids[start + k];
           key32[k] = float(keys[g]);
           threshold32[k] = float(double(keys[g]) - depth_offset);
         }
       }
+      const F* T_front = kLagged ? T_lag.data() : T.data();
+      const char* done_front = kLagged ? done_lag.data() : done.data();
       Box b;
       for (int64_t k = 0; k < td.n; ++k) {
-        if (lagged) {
+        if constexpr (kLagged) {
+          event_start[k] = int64_t(event_pixel.size());
           const float threshold = threshold32[k];
           if (lag > 0 && !(key32[lag - 1] < threshold)) {  // the prefix shrank: replay from the tile start
             std::fill(T_lag.begin(), T_lag.end(), F(1));
             std::fill(done_lag.begin(), done_lag.end(), 0);
             lag = 0;
           }
+          // Replaying the recorded events reproduces T bit for bit (same products in the same order).
           for (; lag < k && key32[lag] < threshold; ++lag) {
-            if (td.box(lag, min_half, b)) composite_into(td, lag, b, T_lag.data(), done_lag.data());
+            for (int64_t e = event_start[lag]; e < event_start[lag + 1]; ++e) {
+              const int32_t p = event_pixel[e];
+              if (event_factor[e] == F(0)) done_lag[p] = 1;
+              else T_lag[p] = T_lag[p] * event_factor[e];
+            }
           }
         }
-        if (!td.box(k, min_half, b)) continue;
+        if (!td.box(k, double(radius_px) + kBoxSlack, b)) continue;
         F vis = F(0), wsum = F(0);
         int32_t cnt = 0;
         for (int ly = b.y0; ly < b.y1; ++ly) {
@@ -361,17 +336,52 @@ void shadow_gather_impl(const F* means2d, const F* conics, const F* opac, const 
             if (done[p] || td.negligible(k, pw)) continue;
             const F alpha = std::min(F(kAlphaMax), td.op[k] * std::exp(pw));
             if (alpha < F(kAlphaMin)) continue;
-            const F t_next = T[p] * (F(1) - alpha);
-            if (t_next < F(kTMin)) { done[p] = 1; continue; }
+            const F keep = F(1) - alpha;
+            const F t_next = T[p] * keep;
+            if (t_next < F(kTMin)) {
+              done[p] = 1;
+              if constexpr (kLagged) { event_pixel.push_back(p); event_factor.push_back(F(0)); }
+              continue;
+            }
             wsum += alpha * T[p];
             T[p] = t_next;
+            if constexpr (kLagged) { event_pixel.push_back(p); event_factor.push_back(keep); }
           }
         }
         pair_vis[start + k] = vis;
         pair_count[start + k] = cnt;
         pair_weight[start + k] = wsum;
       }
+      if constexpr (kLagged) event_start[td.n] = int64_t(event_pixel.size());
     }
+  }
+}
+
+// Light-view pass. Per Gaussian g: vis_sum[g] = sum of the transmittance in front of g over the pixels whose
+// centre lies within `radius_px` of g's 2D mean (count[g] of them), and weight[g] = sum over all pixels of
+// g's blending weight T*alpha. Compositing rules are the forward's; once a pixel terminates (T would drop
+// below 1e-4) the Gaussians behind it see transmittance 0 there.
+// depth_offset > 0 (needs keys, the per-Gaussian sort keys): "in front of g" keeps only the Gaussians L with
+// float(key[L]) < float(double(key[g]) - depth_offset), compared in float32 like the tile sort
+// (tiles.float_order_key), so they form a prefix of g's tile list. A second per-pixel state (T_lag, done_lag),
+// advanced by a lagging pointer, replays the main pass's recorded per-pixel factors up to that prefix; vis_sum
+// reads it instead of T (weight still uses T). The threshold is non-decreasing along the list except among
+// Gaussians with equal float32 keys (the list is sorted by float32 key, the threshold computed from the full
+// key); when the prefix shrinks, T_lag is replayed from the tile start (exact, and rare).
+// depth_offset == 0 runs the plain loop without any of this (keys may be null).
+template <typename F>
+void shadow_gather_impl(const F* means2d, const F* conics, const F* opac, const F* keys, double depth_offset,
+                        const int64_t* offsets, const int64_t* ids, Grid grid, F radius_px, int threads,
+                        int64_t num_gaussians, F* vis_sum, int32_t* count, F* weight) {
+  const int64_t num_pairs = offsets[grid.num_tiles()];
+  std::vector<F> pair_vis(num_pairs, F(0)), pair_weight(num_pairs, F(0));
+  std::vector<int32_t> pair_count(num_pairs, 0);
+  if (depth_offset > 0.0) {
+    shadow_gather_tiles<F, true>(means2d, conics, opac, keys, depth_offset, offsets, ids, grid, radius_px, threads,
+                                 pair_vis.data(), pair_count.data(), pair_weight.data());
+  } else {
+    shadow_gather_tiles<F, false>(means2d, conics, opac, keys, depth_offset, offsets, ids, grid, radius_px,
+                                  threads, pair_vis.data(), pair_count.data(), pair_weight.data());
   }
   std::fill(vis_sum, vis_sum + num_gaussians, F(0));
   std::fill(count, count + num_gaussians, 0);
