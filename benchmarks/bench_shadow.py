@@ -3,15 +3,18 @@
 Scene: 20 000 Gaussians uniformly in the unit ball with 3DGS-like scales (log-uniform 0.005–0.04) and random
 opacities; a point light at distance 4 looking at the centre; light camera 256² fitted to the ball. Both
 backends run the same full call (light camera, projection, binning by squared distance, compositing,
-per-Gaussian reductions) with the default options (``mode="uniform"``, ``depth_offset=0``, the ones the C++
-kernel implements) and must agree; the official-kernel options (``OFFICIAL_KERNEL``, torch only) are timed
-once for reference. Target: C++ light pass ≤ 60 ms at 256² with 20 000 Gaussians.
+per-Gaussian reductions) with the default options (``mode="uniform"``, ``depth_offset=0``) and must agree;
+then both run ``mode="uniform"`` with the self-shadow offset ``--offset`` (default the official 0.015; the C++
+kernel's lagging second transmittance) and the C++ time is compared with torch and with C++ at offset 0. The
+official-kernel options (``OFFICIAL_KERNEL``: density mode, torch only) are timed once for reference.
+Target: C++ light pass ≤ 60 ms at 256² with 20 000 Gaussians (offset 0).
 
 Timings on a machine shared with other jobs are noisy; the median of ``--repeats`` calls is reported.
 Set ``OMP_WAIT_POLICY=PASSIVE`` on oversubscribed machines (spinning OpenMP workers inflate torch's small ops).
 Ends with one ``RESULT key=value ...`` line.
 
-Usage: ``python benchmarks/bench_shadow.py [--gaussians 20000] [--size 256] [--threads 2] [--repeats 5]``
+Usage: ``python benchmarks/bench_shadow.py [--gaussians 20000] [--size 256] [--threads 2] [--repeats 5]
+[--offset 0.015]``
 """
 
 from __future__ import annotations
@@ -24,7 +27,7 @@ import time
 import torch
 
 from olatbench.gaussians.backends import cpu_backend_status
-from olatbench.gaussians.shadow import OFFICIAL_KERNEL, shadow_gather
+from olatbench.gaussians.shadow import OFFICIAL_DEPTH_OFFSET, OFFICIAL_KERNEL, shadow_gather
 
 TARGET_MS = 60.0
 
@@ -52,7 +55,7 @@ def median_ms(fn, repeats: int, clock=time.perf_counter) -> float:
     return statistics.median(times)
 
 
-def _kernel_only_ms(scene: tuple[torch.Tensor, ...], size: int, repeats: int) -> float:
+def _kernel_only_ms(scene: tuple[torch.Tensor, ...], size: int, repeats: int, depth_offset: float = 0.0) -> float:
     """Time of ``shadow_gather_cpu`` alone on the same projected, binned scene."""
     from olatbench.gaussians.backends.cpu import shadow_gather_cpu
     from olatbench.gaussians.projection import project
@@ -62,8 +65,14 @@ def _kernel_only_ms(scene: tuple[torch.Tensor, ...], size: int, repeats: int) ->
     means, quats, scales, opacities, light, target = scene
     w2c, K, width, height = light_camera(light, target, float((means - target).norm(dim=1).max()), size)
     projected = project(means, quats, scales, w2c, K, width, height)
-    bins = bin_gaussians(projected.means2d, projected.radii, ((means - light) ** 2).sum(-1), width, height)
-    return median_ms(lambda: shadow_gather_cpu(projected.means2d, projected.conics, opacities, bins), repeats)
+    keys = ((means - light) ** 2).sum(-1)
+    bins = bin_gaussians(projected.means2d, projected.radii, keys, width, height)
+    return median_ms(
+        lambda: shadow_gather_cpu(
+            projected.means2d, projected.conics, opacities, bins, sort_keys=keys, depth_offset=depth_offset
+        ),
+        repeats,
+    )
 
 
 def main() -> None:
@@ -72,6 +81,8 @@ def main() -> None:
     parser.add_argument("--size", type=int, default=256)
     parser.add_argument("--threads", type=int, default=2)
     parser.add_argument("--repeats", type=int, default=5)
+    parser.add_argument("--offset", type=float, default=OFFICIAL_DEPTH_OFFSET,
+                        help="depth_offset (squared-distance units) of the offset rows (> 0)")  # fmt: skip
     args = parser.parse_args()
     torch.set_num_threads(args.threads)
     scene = make_scene(args.gaussians)
@@ -84,12 +95,16 @@ def main() -> None:
 
     reference = run("torch")
     torch_ms = median_ms(lambda: run("torch"), max(1, args.repeats // 2))
+    offset_reference = run("torch", depth_offset=args.offset)
+    torch_offset_ms = median_ms(lambda: run("torch", depth_offset=args.offset), max(1, args.repeats // 2))
     official_ms = median_ms(lambda: run("torch", **OFFICIAL_KERNEL), 1)
     print(f"scene: {args.gaussians} Gaussians, light camera {args.size}², {args.threads} threads; "
           f"seen {int(reference.seen.sum())}, mean visibility {float(reference.visibility[reference.seen].mean()):.3f}")
     print(f"torch reference (uniform, offset 0):   {torch_ms:9.1f} ms")
+    print(f"torch reference (uniform, offset {args.offset:g}): {torch_offset_ms:9.1f} ms")
     print(f"torch official kernel options:         {official_ms:9.1f} ms")
     cpu_ms = kernel_ms = cpu_time_ms = agree = float("nan")
+    cpu_offset_ms = kernel_offset_ms = cpu_offset_time_ms = offset_agree = float("nan")
     if ok:
         run("cpu")  # warm-up (library load)
         cpu_ms = median_ms(lambda: run("cpu"), args.repeats)
@@ -102,12 +117,31 @@ def main() -> None:
         print(f"  of which the C++ compositing kernel alone: {kernel_ms:9.1f} ms (rest: projection + binning)")
         same_seen = torch.equal(result.seen, reference.seen)
         print(f"max |visibility C++ - torch| = {agree:.2e}; seen flags equal: {same_seen}")
+        cpu_offset_ms = median_ms(lambda: run("cpu", depth_offset=args.offset), args.repeats)
+        cpu_offset_time_ms = median_ms(lambda: run("cpu", depth_offset=args.offset), args.repeats, time.process_time)
+        kernel_offset_ms = _kernel_only_ms(scene, args.size, args.repeats, args.offset)
+        offset_result = run("cpu", depth_offset=args.offset)
+        offset_agree = float((offset_result.visibility - offset_reference.visibility).abs().max())
+        changed = float((offset_result.visibility - result.visibility).abs().mean())
+        print(f"C++ kernel (uniform, offset {args.offset:g}):    {cpu_offset_ms:9.1f} ms   "
+              f"(x{torch_offset_ms / cpu_offset_ms:.1f} vs torch with the offset; "
+              f"x{cpu_offset_ms / cpu_ms:.2f} the time of C++ at offset 0; {cpu_offset_time_ms:.1f} ms CPU time, "
+              f"x{cpu_offset_time_ms / cpu_time_ms:.2f})")
+        print(f"  of which the C++ compositing kernel alone: {kernel_offset_ms:9.1f} ms "
+              f"(x{kernel_offset_ms / kernel_ms:.2f} the kernel at offset 0)")
+        print(f"max |visibility C++ - torch| with the offset = {offset_agree:.2e}; "
+              f"mean |change| from offset 0 = {changed:.3f}")
     passed = ok and cpu_ms <= TARGET_MS
     print(
         f"RESULT bench=shadow gaussians={args.gaussians} size={args.size} threads={args.threads} "
         f"cpu_ms={cpu_ms:.1f} cpu_kernel_ms={kernel_ms:.1f} torch_ms={torch_ms:.1f} "
         f"official_torch_ms={official_ms:.1f} cpu_process_ms={cpu_time_ms:.1f} "
-        f"speedup={torch_ms / cpu_ms:.1f} max_abs_diff={agree:.2e} target_ms={TARGET_MS:.0f} pass={passed}"
+        f"speedup={torch_ms / cpu_ms:.1f} max_abs_diff={agree:.2e} offset={args.offset:g} "
+        f"cpu_offset_ms={cpu_offset_ms:.1f} cpu_kernel_offset_ms={kernel_offset_ms:.1f} "
+        f"cpu_offset_process_ms={cpu_offset_time_ms:.1f} "
+        f"torch_offset_ms={torch_offset_ms:.1f} offset_speedup={torch_offset_ms / cpu_offset_ms:.1f} "
+        f"offset_cost={cpu_offset_ms / cpu_ms:.2f} offset_max_abs_diff={offset_agree:.2e} "
+        f"target_ms={TARGET_MS:.0f} pass={passed}"
     )
 
 
