@@ -129,12 +129,12 @@ def matmul_chain(method: SSDGS, k: int) -> Callable[[], None]:
 
 
 def raster_stage(method: SSDGS) -> Callable[[], None]:
-    model = method.model
-    camera = method.views.cameras[0]
+    model, views = method.model, method.train_views
+    camera = views.views.cameras[0]
     features = torch.rand(model.num_gaussians, 3, requires_grad=True)
 
     def run() -> None:
-        projected = project(model.means, model.quats, model.scales, method.w2cs[0], method.Ks[0], camera.width,
+        projected = project(model.means, model.quats, model.scales, views.w2cs[0], views.Ks[0], camera.width,
                             camera.height)
         out = rasterize(projected, model.opacities, features, method.background)
         out.image.sum().backward()
@@ -145,12 +145,12 @@ def raster_stage(method: SSDGS) -> Callable[[], None]:
 def shadow_stage(method: SSDGS) -> Callable[[], None]:
     from olatbench.gaussians.shadow import shadow_gather
 
-    model = method.model
-    camera = method.views.cameras[0]
+    model, views = method.model, method.train_views
+    camera = views.views.cameras[0]
 
     def run() -> None:
         with torch.no_grad():
-            shadow_gather(model.means, model.quats, model.scales, model.opacities, method.light_positions[0],
+            shadow_gather(model.means, model.quats, model.scales, model.opacities, views.light_positions[0],
                           model.means.mean(0), resolution=method.config.light_view_size(camera.width, camera.height))
 
     return run
@@ -183,9 +183,10 @@ def main() -> None:
     for size in args.sizes:
         for count in args.counts:
             method = make_method(size, count, not args.no_shadow)
-            camera = method.views.cameras[0]
+            views = method.train_views
+            camera = views.views.cameras[0]
             visible = torch.nonzero(project(method.model.means, method.model.quats, method.model.scales,
-                                            method.w2cs[0], method.Ks[0], camera.width, camera.height).radii > 0
+                                            views.w2cs[0], views.Ks[0], camera.width, camera.height).radii > 0
                                     ).squeeze(1)
             step = timed(lambda m=method: m.train_step(ALL_ON_STEP), args.repeats)
             rest_time = timed(rest_stage(method), args.repeats)

@@ -27,12 +27,19 @@ from olatbench.methods.ssdgs.config import SSDGSConfig
 from olatbench.methods.ssdgs.presets import PRESETS, resolve_presets
 from olatbench.methods.ssdgs.schedule import Schedule
 from olatbench.methods.ssdgs.shader import Components, Shader
-from olatbench.methods.training import initial_model, make_densifier, per_gaussian_groups, photometric_loss, psnr_of
+from olatbench.methods.training import (
+    TrainingViews,
+    initial_model,
+    make_densifier,
+    per_gaussian_groups,
+    photometric_loss,
+    psnr_of,
+)
 
 if TYPE_CHECKING:
     from olatbench.datasets.records import Camera, PointLight
 
-STATE_FORMAT = "olatbench.methods.ssdgs/1"
+STATE_FORMAT = "olatbench.methods.ssdgs/2"  # 2: view order kept by TrainingViews
 COMPONENT_CHANNELS = (("rgb", 3), ("diffuse", 3), ("specular", 3), ("sss", 3), ("shadow", 1), ("shadow_coarse", 1))
 
 
@@ -63,7 +70,6 @@ class SSDGS(Method):
         if len(train) == 0:
             raise ValueError("SSD-GS: no training views")
         self.device = torch.device(device)
-        self.views = train
         background = np.asarray(train.background, dtype=np.float32).reshape(3)
         if cfg.background is not None and not np.allclose(cfg.background, background, atol=1e-3):
             raise ValueError(f"SSD-GS: the config's background {tuple(cfg.background)} differs from the training "
@@ -73,25 +79,15 @@ class SSDGS(Method):
         self.terms_in_model = frozenset(
             t for t, on in (("shadow", cfg.use_shadow), ("sss", cfg.use_sss), ("specular", cfg.use_specular)) if on)
 
-        f32 = dict(dtype=torch.float32, device=self.device)
-        self.Ks = torch.as_tensor(np.stack([c.K for c in train.cameras]), **f32)
-        self.w2cs = torch.as_tensor(np.stack([c.w2c() for c in train.cameras]), **f32)
-        self.light_positions = torch.as_tensor(np.stack([lt.position for lt in train.lights]), **f32)
-        self.light_intensities = torch.as_tensor(np.stack([lt.intensity for lt in train.lights]), **f32)
+        torch.manual_seed(seed)
+        self.train_views = TrainingViews(train, self.device, seed)  # tensors, scene extent, epoch-wise view order
         pairs = zip(train.cameras, train.lights, strict=True)
         self._train_keys = {_view_key(c, lt): i for i, (c, lt) in enumerate(pairs)}
-        centres = np.stack([c.position for c in train.cameras])
-        self.scene_extent = float(1.1 * np.linalg.norm(centres - centres.mean(0), axis=1).max())
-
-        torch.manual_seed(seed)
-        self.generator = torch.Generator().manual_seed(seed)
-        self.view_order = torch.randperm(len(train), generator=self.generator)
-        self.view_cursor = 0
 
         self.model = initial_model(train, cfg, self._initial_attributes(cfg.num_init_gaussians), seed, self.device)
         with torch.no_grad():  # random orientations: isotropic identity-rotated Gaussians would share one normal
-            self.model.quats.copy_(F.normalize(torch.randn(self.model.num_gaussians, 4, generator=self.generator),
-                                               dim=-1).to(self.device))
+            random = torch.randn(self.model.num_gaussians, 4, generator=self.train_views.generator)
+            self.model.quats.copy_(F.normalize(random, dim=-1).to(self.device))
         self.shader = Shader(cfg).to(self.device)
         self.pose_refinement = PoseRefinement(len(train), self.device) if cfg.refine_camera else None
         self.light_refinement = LightRefinement(len(train), self.device) if cfg.refine_light else None
@@ -135,8 +131,9 @@ class SSDGS(Method):
         mlp = decayed(cfg.mlp_lr_init, cfg.mlp_lr_final, cfg.mlp_lr_decay_from, cfg.mlp_lr_max_steps)
         refine_length = max(1, s(cfg.refinement_lr_max_steps))
         return {
-            "means": exponential_lr(step, cfg.position_lr_init * self.scene_extent,
-                                    cfg.position_lr_final * self.scene_extent, max(1, s(cfg.position_lr_max_steps))),
+            "means": exponential_lr(step, cfg.position_lr_init * self.train_views.scene_extent,
+                                    cfg.position_lr_final * self.train_views.scene_extent,
+                                    max(1, s(cfg.position_lr_max_steps))),
             "log_scales": cfg.scaling_lr, "quats": cfg.rotation_lr, "opacity_logits": cfg.opacity_lr,
             "attributes.diffuse": cfg.colour_lr, "attributes.specular": cfg.colour_lr, "attributes.sss": cfg.colour_lr,
             "attributes.asg_weights": asg, "attributes.shading_quat": asg, "attributes.material": mlp,
@@ -207,28 +204,21 @@ class SSDGS(Method):
         return {"image": out.image, "projected": projected, "terms": terms, "light_weight": light_weight}
 
     # ------------------------------------------------------------------------------------------ training
-    def _next_view(self) -> int:
-        if self.view_cursor >= len(self.view_order):
-            self.view_order = torch.randperm(len(self.views), generator=self.generator)
-            self.view_cursor = 0
-        index = int(self.view_order[self.view_cursor])
-        self.view_cursor += 1
-        return index
-
     def compute_gradients(self, step: int, index: int | None = None) -> dict[str, Any]:
         """Forward + backward of one training view (no parameter update); frozen groups keep ``grad = None``.
 
         Returns the scalars of `train_step` plus ``projected`` and ``light_weight`` (densification statistics)."""
-        index = self._next_view() if index is None else index
-        camera = self.views.cameras[index]
+        views = self.train_views
+        index = views.next_index() if index is None else index
+        camera = views.views.cameras[index]
         for p in self.frozen_parameters(step):
             p.requires_grad_(False)
         try:
-            w2c = self._camera(index, self.w2cs[index], step)
-            light = self._light(index, self.light_positions[index], step)
-            out = self._forward(w2c, self.Ks[index], camera.width, camera.height, light,
-                                self.light_intensities[index], step, components=False)
-            target = torch.from_numpy(np.ascontiguousarray(self.views.images[index])).to(self.device, torch.float32)
+            w2c = self._camera(index, views.w2cs[index], step)
+            light = self._light(index, views.light_positions[index], step)
+            out = self._forward(w2c, views.Ks[index], camera.width, camera.height, light,
+                                views.light_intensities[index], step, components=False)
+            target = views.image(index)
             image, loss, l1 = self._photometric_loss(out["image"], target)
             out["projected"].means2d.retain_grad()
             loss.backward()
@@ -257,7 +247,8 @@ class SSDGS(Method):
         self.global_optimizer.step()
         self.gaussian_optimizer.zero_grad(set_to_none=True)
         self.global_optimizer.zero_grad(set_to_none=True)
-        self.densifier.observe_and_step(self.model, self.gaussian_optimizer, projected, step, self.scene_extent,
+        self.densifier.observe_and_step(self.model, self.gaussian_optimizer, projected, step,
+                                        self.train_views.scene_extent,
                                         priority=light_weight)
         self.step = step + 1
         result["num_gaussians"] = float(self.model.num_gaussians)
@@ -348,8 +339,7 @@ class SSDGS(Method):
             "gaussian_optimizer": self.gaussian_optimizer.state_dict(),
             "global_optimizer": self.global_optimizer.state_dict(),
             "densifier": self.densifier.state_dict(),
-            "generator": self.generator.get_state(), "torch_rng": torch.get_rng_state(),
-            "view_order": self.view_order.clone(), "view_cursor": self.view_cursor,
+            "views": self.train_views.state_dict(), "torch_rng": torch.get_rng_state(),
         }
         if self.pose_refinement is not None:
             state["pose_refinement"] = self.pose_refinement.state_dict()
@@ -375,10 +365,8 @@ class SSDGS(Method):
         self.gaussian_optimizer.load_state_dict(state["gaussian_optimizer"])
         self.global_optimizer.load_state_dict(state["global_optimizer"])
         self.densifier.load_state_dict(state["densifier"])
-        self.generator.set_state(state["generator"])
+        self.train_views.load_state_dict(state["views"])
         torch.set_rng_state(state["torch_rng"])
-        self.view_order = state["view_order"].clone()
-        self.view_cursor = int(state["view_cursor"])
         self.step = int(state["step"])
 
 
