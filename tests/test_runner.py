@@ -98,7 +98,10 @@ def _weights(folder):
 def _start_job(job, tmp_path):
     job_file = tmp_path / f"job-{time.monotonic_ns()}.pkl"
     job_file.write_bytes(pickle.dumps(job))
-    script = (f"import pickle, sys; sys.path.insert(0, {str(support.TESTS)!r}); import test_runner_support; "
+    # SIGINT as a terminal's Ctrl-C delivers it: a test run started in the background (e.g. `pytest &`) would
+    # otherwise hand the child an ignored SIGINT, and the interruption would never happen
+    script = (f"import pickle, signal, sys; signal.signal(signal.SIGINT, signal.default_int_handler); "
+              f"sys.path.insert(0, {str(support.TESTS)!r}); import test_runner_support; "
               f"from olatbench.bench.execute import run_job; "
               f"run_job(pickle.load(open({str(job_file)!r}, 'rb')), progress=False)")
     return subprocess.Popen([sys.executable, "-c", script])
