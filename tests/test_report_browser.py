@@ -9,8 +9,7 @@ import subprocess
 import numpy as np
 import pytest
 from click.testing import CliRunner
-from datasets_trees import write_nrhints_tree
-from test_report_snapshots import _job_folder
+from test_report_snapshots import toy_runs
 
 from olatbench.cli import main
 from olatbench.datasets.images import read_image
@@ -22,11 +21,7 @@ FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-background-ne
 @pytest.mark.slow
 @pytest.mark.skipif(CHROMIUM is None, reason="needs Debian's chromium (apt-get install chromium)")
 def test_html_report_renders_tables_and_figures_in_chromium(tmp_path):
-    scene_root = tmp_path / "data" / "Toy"
-    write_nrhints_tree(scene_root, n_train=3, n_test=2, size=(16, 12))
-    runs = tmp_path / "runs"
-    _job_folder(runs, scene_root, "ssdgs", "nrhints", 0, 1.0)
-    _job_folder(runs, scene_root, "gs3", "default", 0, 0.8)
+    runs = toy_runs(tmp_path)
     page = tmp_path / "report.html"
     result = CliRunner().invoke(main, ["report", str(runs), "--suite", "nrhints", "-o", str(page)])
     assert result.exit_code == 0, result.output

@@ -101,12 +101,18 @@ def _job_folder(root: Path, scene_root: Path, method: str, variant: str, seed: i
     return folder
 
 
-def test_html_report_embeds_comparison_decomposition_and_curves(tmp_path):
+def toy_runs(tmp_path: Path) -> Path:
+    """A run folder with an SSD-GS and a GS³ job on a tiny NRHints scene (renders, components, curves)."""
     scene_root = tmp_path / "data" / "Toy"
     write_nrhints_tree(scene_root, n_train=3, n_test=2, size=(16, 12))
     runs = tmp_path / "runs"
     _job_folder(runs, scene_root, "ssdgs", "nrhints", 0, 1.0)
     _job_folder(runs, scene_root, "gs3", "default", 0, 0.8)
+    return runs
+
+
+def test_html_report_embeds_comparison_decomposition_and_curves(tmp_path):
+    runs = toy_runs(tmp_path)
     figures, notes = report_figures(collect(runs))
     titles = [title for title, _ in figures]
     assert titles[0] == "nrhints/Toy: ground truth, renders and error maps"
