@@ -305,11 +305,11 @@ def evaluate_split(method: Method, frames: list[Frame], job: Job, folder: Path, 
         refinement: dict[str, Any] | None = {"split": split, "seconds": 0.0, "frames": {}} if refine else None
         for index, frame in enumerate(tqdm(frames, desc=f"{job.label}: {split}", position=position, leave=False,
                                            disable=not progress)):
-            camera, light = _camera(frame, job), frame.light
+            camera, light, loaded = _camera(frame, job), frame.light, None
             if refinement is not None:
                 clock = time.perf_counter()
-                target = frame.load(colourspace=job.colourspace, background="official", resolution=resolution).rgb
-                refined = method.refine_view(camera, light, target)
+                loaded = frame.load(colourspace=job.colourspace, background="official", resolution=resolution)
+                refined = method.refine_view(camera, light, loaded.rgb)
                 if refined is not None:
                     camera, light = refined.camera, refined.light
                     refinement["frames"][frame.frame_id] = {k: _finite(float(v)) for k, v in refined.summary.items()}
@@ -327,8 +327,8 @@ def evaluate_split(method: Method, frames: list[Frame], job: Job, folder: Path, 
                 gt, mask = protocol.load_ground_truth(frame, job.scene_format)
             elif gt_images is not None and not protocol.masked:
                 gt = gt_images[index]
-            else:
-                loaded = frame.load(colourspace=job.colourspace, background="official", resolution=resolution)
+            else:  # the image refine_view was given, when it was loaded for it
+                loaded = loaded or frame.load(colourspace=job.colourspace, background="official", resolution=resolution)
                 gt, mask = loaded.rgb, (loaded.alpha if protocol.masked else None)
             scores = protocol.evaluate(pred, np.clip(gt, 0.0, 1.0), mask, device=str(job.device))
             per_image[frame.frame_id] = {key: _finite(value) for key, value in scores.items()}

@@ -66,6 +66,7 @@ def gamma_decode(x: np.ndarray, gamma: float = 2.2, out: np.ndarray | None = Non
 
 
 def _identity(x: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+    """``x`` as float32 (no copy when it already is), or copied into ``out`` (nothing to do if it is ``x``)."""
     if out is None:
         return np.asarray(x, dtype=np.float32)
     if out is not x:
