@@ -90,7 +90,7 @@ def resolve_config(method_class: type[Method], suite: Suite, variant: str = DEFA
         values["iterations"] = int(iterations)
     try:
         return method_class.resolve_config(None, **values)
-    except (TypeError, ValueError, NotImplementedError) as error:
+    except (TypeError, ValueError) as error:
         raise PlanError(f"method '{method_class.name}', variant '{variant}': {error}") from None
 
 
