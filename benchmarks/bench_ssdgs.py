@@ -1,6 +1,17 @@
 """SSD-GS training-step speed on CPU: one full iteration split by stage, with two ratios from the same run.
 
-For each (resolution, Gaussian count) the script times, median of ``--repeats`` runs after a warm-up:
+For each model state, resolution and Gaussian count the script times every stage below (fastest of
+``--repeats`` rounds after a warm-up, the stages taking turns within each round) on one fixed model: the
+learning rates are zeroed, so Adam does all its work but no stage changes the Gaussians another stage sees
+(left free, the opacity reset due at the measured step made every Gaussian nearly transparent and the
+rasterizer 2–3× faster from the second stage on). ``--states`` picks the models:
+
+* ``initial``: SSD-GS's initialisation, N Gaussians uniform in the unit ball, opacity 0.1 (the start of
+  training: much blending, few pixels terminate);
+* ``surface``: a trained-looking object, N flat Gaussians (normal axis 0.1× the tangent ones) covering a sphere
+  of radius 0.8 with opacity 0.9 (most pixels terminate after a few Gaussians).
+
+Stages:
 
 * ``step``: one complete `SSDGS.train_step` with every term on and nothing frozen (densification off);
 * ``rest``: the same step with the two networks swapped for free stand-ins (a constant that keeps the autograd
@@ -19,11 +30,14 @@ computes the coarse visibility every iteration gets below it. The last line is a
 
     python benchmarks/bench_ssdgs.py --repeats 3
     python benchmarks/bench_ssdgs.py --sizes 128 --counts 5000 --no-shadow   # without the light-view pass
+    python benchmarks/bench_ssdgs.py --states surface --sizes 256
 """
 
 from __future__ import annotations
 
 import argparse
+import itertools
+import math
 import time
 from collections.abc import Callable
 
@@ -40,19 +54,24 @@ from olatbench.methods.ssdgs import SSDGS
 ALL_ON_STEP = 30_000  # Schedule I at 100K: every term on, nothing frozen
 
 
-def timed(fn: Callable[[], object], repeats: int) -> float:
-    """The fastest of ``repeats`` runs after a warm-up: ratios of differences (step − mlp) need the least
-    disturbed sample of each term, and the minimum is the most repeatable one on a shared machine."""
-    fn()  # warm-up
-    samples = []
+def timed(stages: dict[str, Callable[[], object]], repeats: int) -> dict[str, float]:
+    """Seconds per stage: the fastest of ``repeats`` runs after a warm-up, the stages taking turns within each
+    round so that every ratio compares samples taken under the same load (this machine is shared), and the
+    minimum being the least disturbed sample of each."""
+    for fn in stages.values():
+        fn()  # warm-up
+    samples: dict[str, list[float]] = {name: [] for name in stages}
     for _ in range(repeats):
-        start = time.perf_counter()
-        fn()
-        samples.append(time.perf_counter() - start)
-    return min(samples)
+        for name, fn in stages.items():
+            start = time.perf_counter()
+            fn()
+            samples[name].append(time.perf_counter() - start)
+    return {name: min(values) for name, values in samples.items()}
 
 
-def make_method(size: int, count: int, use_shadow: bool) -> SSDGS:
+def make_method(size: int, count: int, use_shadow: bool, state: str) -> SSDGS:
+    """SSD-GS set up on one random view, its model put in ``state``, learning rates zeroed (the model stays
+    fixed while Adam still does all its work), densification and opacity resets off."""
     camera = Camera(K=intrinsics_from_fov(np.radians(45.0), size, size), c2w=look_at(np.array([0.0, -3.0, 1.0]),
                     np.zeros(3)), width=size, height=size)
     light = PointLight(position=np.array([2.0, -3.0, 3.0]), intensity=np.full(3, 16.0), intensity_known=True)
@@ -60,10 +79,35 @@ def make_method(size: int, count: int, use_shadow: bool) -> SSDGS:
     views = Views(cameras=[camera], lights=[light], images=rng.random((1, size, size, 3), dtype=np.float32),
                   frame_ids=["0"])
     config = SSDGS.resolve_config(None, num_init_gaussians=count, init_radius=1.0, max_gaussians=None,
-                                  densify_from=200_000, densify_until=200_000, use_shadow=use_shadow)
+                                  densify_from=200_000, densify_until=200_000, opacity_reset_interval=1_000_000,
+                                  use_shadow=use_shadow)
     method = SSDGS(config)
     method.setup(views, "cpu", 0)
+    if state == "surface":
+        put_on_sphere(method, radius=0.8, opacity=0.9)
+    elif state != "initial":
+        raise ValueError(f"unknown state {state!r}")
+    rates = method._learning_rates
+    method._learning_rates = lambda step: dict.fromkeys(rates(step), 0.0)
     return method
+
+
+def put_on_sphere(method: SSDGS, radius: float, opacity: float) -> None:
+    """Make the model a closed surface: Gaussians at uniform points of a sphere, their third axis (scale 0.1×
+    the tangent scale √(area / N)) along the normal."""
+    model = method.model
+    n = model.num_gaussians
+    generator = torch.Generator().manual_seed(0)
+    normals = torch.nn.functional.normalize(torch.randn(n, 3, generator=generator), dim=-1)
+    tangent_scale = math.sqrt(4.0 * math.pi * radius**2 / n)
+    # the rotation taking +z to the normal: axis z × n, angle acos(z·n), as a wxyz quaternion
+    half = torch.nn.functional.normalize(normals + torch.tensor([0.0, 0.0, 1.0]), dim=-1)
+    quats = torch.cat([half[:, 2:3], torch.linalg.cross(torch.tensor([[0.0, 0.0, 1.0]]).expand(n, 3), half)], dim=1)
+    with torch.no_grad():
+        model.means.copy_(normals * radius)
+        model.quats.copy_(quats)
+        model.log_scales.copy_(torch.log(torch.tensor([tangent_scale, tangent_scale, 0.1 * tangent_scale])))
+        model.opacity_logits.fill_(math.log(opacity / (1.0 - opacity)))
 
 
 class FreeNetwork(torch.nn.Module):
@@ -157,12 +201,26 @@ def shadow_stage(method: SSDGS) -> Callable[[], None]:
 
 
 def optimizer_stage(method: SSDGS) -> Callable[[], None]:
-    for p in [*method.model.parameters(), *method.shader.parameters()]:
-        p.grad = torch.zeros_like(p)
+    params = [*method.model.parameters(), *method.shader.parameters()]
+    grads = [torch.zeros_like(p) for p in params]
 
     def run() -> None:
+        for p, grad in zip(params, grads, strict=True):  # every parameter takes part, as in an all-on step
+            p.grad = grad
         method.gaussian_optimizer.step()
         method.global_optimizer.step()
+
+    return run
+
+
+def starting_clean(method: SSDGS, stage: Callable[[], None]) -> Callable[[], None]:
+    """``stage`` after dropping every gradient a previous stage left behind (backward allocates, not adds)."""
+    modules = (method.model, method.shader)
+
+    def run() -> None:
+        for module in modules:
+            module.zero_grad(set_to_none=True)
+        stage()
 
     return run
 
@@ -173,36 +231,39 @@ def main() -> None:
     parser.add_argument("--counts", type=int, nargs="+", default=[5_000, 20_000])
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--threads", type=int, default=2)
+    parser.add_argument("--states", nargs="+", choices=["initial", "surface"], default=["initial", "surface"],
+                        help="model states to measure (see above)")
     parser.add_argument("--no-shadow", action="store_true", help="composition without the shadow term")
     args = parser.parse_args()
     torch.set_num_threads(args.threads)
     torch.set_flush_denormal(True)
     efficiencies, rest_ratios, floors = [], [], []
-    print(f"{'size':>5} {'N':>6} {'visible':>7} {'step':>8} {'rest':>8} {'mlp':>8} {'matmul':>8} {'raster':>8} "
-          f"{'shadow':>8} {'optim':>8} {'mlp_eff':>8} {'rest/rast':>9} {'floor':>6}")
-    for size in args.sizes:
-        for count in args.counts:
-            method = make_method(size, count, not args.no_shadow)
-            views = method.train_views
-            camera = views.views.cameras[0]
-            visible = torch.nonzero(project(method.model.means, method.model.quats, method.model.scales,
-                                            views.w2cs[0], views.Ks[0], camera.width, camera.height).radii > 0
-                                    ).squeeze(1)
-            step = timed(lambda m=method: m.train_step(ALL_ON_STEP), args.repeats)
-            rest_time = timed(rest_stage(method), args.repeats)
-            mlp = timed(mlp_stage(method, visible), args.repeats)
-            matmul = timed(matmul_chain(method, int(visible.numel())), args.repeats)
-            raster = timed(raster_stage(method), args.repeats)
-            shadow = float("nan") if args.no_shadow else timed(shadow_stage(method), args.repeats)
-            optim = timed(optimizer_stage(method), args.repeats)
-            efficiency, rest = matmul / mlp, rest_time / raster
-            efficiencies.append(efficiency)
-            rest_ratios.append(rest)
-            floors.append((raster + (0.0 if args.no_shadow else shadow)) / raster)
-            print(f"{size:>5} {count:>6} {visible.numel():>7} {step * 1e3:>7.1f}m {rest_time * 1e3:>7.1f}m "
-                  f"{mlp * 1e3:>7.1f}m {matmul * 1e3:>7.1f}m {raster * 1e3:>7.1f}m {shadow * 1e3:>7.1f}m "
-                  f"{optim * 1e3:>7.1f}m "
-                  f"{efficiency:>8.2f} {rest:>9.2f} {floors[-1]:>6.2f}")
+    print(f"{'state':>8} {'size':>5} {'N':>6} {'visible':>7} {'step':>8} {'rest':>8} {'mlp':>8} {'matmul':>8} "
+          f"{'raster':>8} {'shadow':>8} {'optim':>8} {'mlp_eff':>8} {'rest/rast':>9} {'floor':>6}")
+    for state, size, count in itertools.product(args.states, args.sizes, args.counts):
+        method = make_method(size, count, not args.no_shadow, state)
+        views = method.train_views
+        camera = views.views.cameras[0]
+        visible = torch.nonzero(project(method.model.means, method.model.quats, method.model.scales,
+                                        views.w2cs[0], views.Ks[0], camera.width, camera.height).radii > 0
+                                ).squeeze(1)
+        stages = {"step": lambda m=method: m.train_step(ALL_ON_STEP), "rest": rest_stage(method),
+                  "mlp": mlp_stage(method, visible), "matmul": matmul_chain(method, int(visible.numel())),
+                  "raster": raster_stage(method), "optim": optimizer_stage(method)}
+        if not args.no_shadow:
+            stages["shadow"] = shadow_stage(method)
+        times = timed({name: starting_clean(method, fn) for name, fn in stages.items()}, args.repeats)
+        step, rest_time, mlp, matmul, raster, optim = (times[k] for k in ("step", "rest", "mlp", "matmul", "raster",
+                                                                          "optim"))
+        shadow = times.get("shadow", float("nan"))
+        efficiency, rest = matmul / mlp, rest_time / raster
+        efficiencies.append(efficiency)
+        rest_ratios.append(rest)
+        floors.append((raster + (0.0 if args.no_shadow else shadow)) / raster)
+        print(f"{state:>8} {size:>5} {count:>6} {visible.numel():>7} {step * 1e3:>7.1f}m {rest_time * 1e3:>7.1f}m "
+              f"{mlp * 1e3:>7.1f}m {matmul * 1e3:>7.1f}m {raster * 1e3:>7.1f}m {shadow * 1e3:>7.1f}m "
+              f"{optim * 1e3:>7.1f}m "
+              f"{efficiency:>8.2f} {rest:>9.2f} {floors[-1]:>6.2f}")
     print(f"SUMMARY bench_ssdgs mlp_efficiency_min={min(efficiencies):.2f} (target>=0.7) "
           f"rest_vs_raster_max={max(rest_ratios):.2f} (target<=1.5; floor {max(floors):.2f}) "
           f"shadow={'off' if args.no_shadow else 'on'} threads={args.threads}")
