@@ -160,3 +160,37 @@ def test_torch_reference_is_chunk_independent(monkeypatch):
     chunked = values_and_grads(rasterize_torch, leaves, bins)
     for a, b in zip(chunked, values_and_grads(rasterize_cpu, leaves, bins), strict=True):
         torch.testing.assert_close(a, b, rtol=1e-9, atol=1e-11)
+
+
+def _binning_inputs(n: int, width: int, height: int, dtype: torch.dtype, seed: int):
+    """Means partly off-image (and a few non-finite), radii 0..11, sort keys with ties, negatives, -0 and NaN."""
+    g = torch.Generator().manual_seed(seed)
+    size = torch.tensor([width, height], dtype=torch.float64)
+    means = (torch.rand(n, 2, generator=g, dtype=torch.float64) * 1.4 - 0.2) * size
+    radii = torch.randint(0, 12, (n,), generator=g)
+    keys = torch.randint(0, 5, (n,), generator=g).to(torch.float64) * 0.5 - 1.0
+    if n >= 4:
+        means[0, 0], means[1, 1], keys[2], keys[3] = float("nan"), float("inf"), float("nan"), -0.0
+    return means.to(dtype), radii, keys.to(dtype)
+
+
+@pytest.mark.parametrize("dtype", [torch.float32, torch.float64])
+@pytest.mark.parametrize(("n", "width", "height"), [(0, 8, 8), (1, 8, 8), (300, 37, 23), (5000, 128, 96)])
+def test_cpp_binning_is_identical_to_torch(dtype, n, width, height):
+    means, radii, keys = _binning_inputs(n, width, height, dtype, seed=n)
+    ref = bin_gaussians(means, radii, keys, width, height, backend="torch")
+    got = bin_gaussians(means, radii, keys, width, height, backend="cpu")
+    assert torch.equal(got.offsets, ref.offsets)
+    assert torch.equal(got.gaussian_ids, ref.gaussian_ids)
+    assert (got.tiles_x, got.tiles_y, got.tile_size) == (ref.tiles_x, ref.tiles_y, ref.tile_size)
+
+
+def test_cpp_binning_handles_huge_and_fractional_coordinates():
+    """Coordinates beyond 2^23 (float32 integers) and just around pixel-centre boundaries."""
+    means = torch.tensor([[3e9, 4.0], [-3e9, 4.0], [7.5, 7.5], [8.4999, 0.5], [15.5000, 15.5], [-0.49, 2.0]])
+    radii = torch.tensor([5, 5, 1, 1, 1, 1])
+    keys = torch.arange(6, dtype=torch.float32)
+    for dtype in (torch.float32, torch.float64):
+        ref = bin_gaussians(means.to(dtype), radii, keys, 32, 16, backend="torch")
+        got = bin_gaussians(means.to(dtype), radii, keys, 32, 16, backend="cpu")
+        assert torch.equal(got.offsets, ref.offsets) and torch.equal(got.gaussian_ids, ref.gaussian_ids)

@@ -87,7 +87,8 @@ def rasterize(
     dtype = projected.means2d.dtype
     name = resolve_backend(backend, projected.means2d.device, dtype)
     if bins is None:
-        bins = bin_gaussians(projected.means2d, projected.radii, projected.depths, projected.width, projected.height)
+        bins = bin_gaussians(projected.means2d, projected.radii, projected.depths, projected.width, projected.height,
+                             backend="cpu" if name == "cpu" else "torch")
     feats = features.to(dtype)
     if return_depth:
         feats = torch.cat([feats, projected.depths.to(dtype)[:, None]], dim=1)

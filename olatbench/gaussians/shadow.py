@@ -161,7 +161,8 @@ def shadow_gather(
     projected = project(means.to(dtype), quats.to(dtype), scales.to(dtype), w2c.to(dtype), K.to(dtype),
                         width, height, near=near)  # fmt: skip
     keys = ((means.to(dtype) - light) ** 2).sum(-1)
-    bins = bin_gaussians(projected.means2d, projected.radii, keys, width, height)
+    bins = bin_gaussians(projected.means2d, projected.radii, keys, width, height,
+                         backend="cpu" if chosen == "cpu" else "torch")
     opacities = opacities.to(dtype).reshape(n)
     if chosen == "cpu":
         from olatbench.gaussians.backends.cpu import shadow_gather_cpu

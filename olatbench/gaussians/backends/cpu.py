@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import torch
 
-from ..tiles import TileBins
+from ..tiles import TILE_SIZE, TileBins
 from . import build
 
 _FLOAT_TYPES = {torch.float32: "f32", torch.float64: "f64"}
@@ -98,6 +98,41 @@ def rasterize_cpu(
         means2d, conics, opacities, features, bins.offsets, bins.gaussian_ids, bins, _threads(threads)
     )
     return colour, final_t
+
+
+@torch.no_grad()
+def bin_gaussians_cpu(
+    means2d: torch.Tensor,
+    radii: torch.Tensor,
+    sort_keys: torch.Tensor,
+    width: int,
+    height: int,
+    tile_size: int = TILE_SIZE,
+    threads: int | None = None,
+) -> TileBins:
+    """``tiles.bin_gaussians`` in C++ (identical bins): CPU float32/float64 ``means2d`` (N, 2), ``radii`` (N,),
+    ``sort_keys`` (N,) (compared as float32, like the torch version)."""
+    if means2d.device.type != "cpu":
+        raise ValueError(f"the C++ binning needs CPU tensors, got {means2d.device}")
+    lib, dtype = build.load(), means2d.dtype
+    suffix = _suffix(dtype)
+    tiles_x, tiles_y = (width + tile_size - 1) // tile_size, (height + tile_size - 1) // tile_size
+    (means2d, keys), n = _prepare([means2d, sort_keys], dtype), means2d.shape[0]
+    radii = radii.detach().to(dtype=torch.int64).contiguous()
+    grid = [ctypes.c_int(v) for v in (width, height, tile_size, tiles_x, tiles_y)]
+    if n >= 2**32:
+        raise ValueError(f"the C++ binning packs Gaussian indices in 32 bits; got {n} Gaussians")
+    offsets = torch.empty(tiles_x * tiles_y + 1, dtype=torch.int64)
+    ranges = torch.empty(n, 4, dtype=torch.int64)
+    count = getattr(lib, f"olatbench_bin_count_{suffix}")
+    count.restype = ctypes.c_int64
+    total = count(_ptr(means2d), _ptr(radii), ctypes.c_int64(n), *grid, _ptr(ranges), _ptr(offsets))
+    ids = torch.empty(total, dtype=torch.int64)
+    getattr(lib, f"olatbench_bin_fill_{suffix}")(
+        _ptr(ranges), _ptr(keys), ctypes.c_int64(n), *grid, ctypes.c_int(_threads(threads)), _ptr(offsets),
+        _ptr(ids))
+    return TileBins(offsets=offsets, gaussian_ids=ids, tile_size=tile_size, tiles_x=tiles_x, tiles_y=tiles_y,
+                    width=int(width), height=int(height))
 
 
 @dataclass

@@ -14,6 +14,8 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstring>
+#include <limits>
 #include <vector>
 
 namespace {
@@ -394,6 +396,88 @@ void shadow_gather_impl(const F* means2d, const F* conics, const F* opac, const 
   }
 }
 
+// Tile binning (tiles.bin_gaussians, bit for bit). Gaussian g covers the pixels whose centres lie in
+// [m - r, m + r]: x0 = ceil(m - r - 0.5), x1 = floor(m + r - 0.5) in F arithmetic, as the torch code.
+struct TileRange {
+  int64_t tx0, tx1, ty0, ty1;  // [tx0, tx1) x [ty0, ty1); empty when the Gaussian is culled or off-image
+};
+
+// std::floor / std::ceil without a libm call (baseline x86-64 has no rounding instruction): exact for every
+// finite value, since floats at or above 2^(mantissa bits) are integers already; NaN passes through.
+template <typename F>
+inline F floor_exact(F v) {
+  if (!(std::fabs(v) < F(int64_t(1) << std::numeric_limits<F>::digits))) return v;
+  const F i = F(int64_t(v));
+  return i > v ? i - F(1) : i;
+}
+template <typename F>
+inline F ceil_exact(F v) {
+  if (!(std::fabs(v) < F(int64_t(1) << std::numeric_limits<F>::digits))) return v;
+  const F i = F(int64_t(v));
+  return i < v ? i + F(1) : i;
+}
+
+template <typename F>
+TileRange tile_range(const F* means2d, const int64_t* radii, int64_t g, const Grid& grid) {
+  const F mx = means2d[2 * g], my = means2d[2 * g + 1], r = F(radii[g]);
+  const F x0 = ceil_exact(mx - r - F(0.5)), x1 = floor_exact(mx + r - F(0.5));
+  const F y0 = ceil_exact(my - r - F(0.5)), y1 = floor_exact(my + r - F(0.5));
+  const bool inside = radii[g] > 0 && x0 <= x1 && y0 <= y1 && x1 >= F(0) && x0 <= F(grid.width - 1) &&
+                      y1 >= F(0) && y0 <= F(grid.height - 1) && std::isfinite(mx) && std::isfinite(my);
+  if (!inside) return {0, 0, 0, 0};
+  auto clip = [](F v, int hi) { return int64_t(std::min(std::max(v, F(0)), F(hi))); };
+  return {clip(x0, grid.width - 1) / grid.tile, clip(x1, grid.width - 1) / grid.tile + 1,
+          clip(y0, grid.height - 1) / grid.tile, clip(y1, grid.height - 1) / grid.tile + 1};
+}
+
+// tiles.float_order_key: float32 -> uint32 with the same order.
+inline uint32_t float_order(float v) {
+  int32_t bits;
+  std::memcpy(&bits, &v, sizeof bits);
+  if (bits < 0) bits ^= 0x7FFFFFFF;
+  return uint32_t(int64_t(bits) + (int64_t(1) << 31));
+}
+
+// Pass 1: each Gaussian's tile range into `ranges` (N, 4) int64 (tx0, tx1, ty0, ty1) and offsets (T + 1,) =
+// exclusive prefix sum of the pairs per tile; returns the number of pairs.
+template <typename F>
+int64_t bin_count_impl(const F* means2d, const int64_t* radii, int64_t n, Grid grid, int64_t* ranges,
+                       int64_t* offsets) {
+  const int64_t num_tiles = grid.num_tiles();
+  std::fill(offsets, offsets + num_tiles + 1, int64_t(0));
+  for (int64_t g = 0; g < n; ++g) {
+    const TileRange t = tile_range(means2d, radii, g, grid);
+    int64_t* r = ranges + 4 * g;
+    r[0] = t.tx0; r[1] = t.tx1; r[2] = t.ty0; r[3] = t.ty1;
+    for (int64_t ty = t.ty0; ty < t.ty1; ++ty)
+      for (int64_t tx = t.tx0; tx < t.tx1; ++tx) ++offsets[ty * grid.tiles_x + tx + 1];
+  }
+  for (int64_t t = 0; t < num_tiles; ++t) offsets[t + 1] += offsets[t];
+  return offsets[num_tiles];
+}
+
+// Pass 2: each tile's list sorted by (float_order(float(key)), Gaussian index): one packed 64-bit sort per tile,
+// the same order as the torch version's stable sort. Needs N < 2^32.
+template <typename F>
+void bin_fill_impl(const int64_t* ranges, const F* keys, int64_t n, Grid grid, int threads, const int64_t* offsets,
+                   int64_t* ids) {
+  const int64_t num_tiles = grid.num_tiles();
+  std::vector<uint64_t> packed(offsets[num_tiles]);
+  std::vector<int64_t> cursor(offsets, offsets + num_tiles);
+  for (int64_t g = 0; g < n; ++g) {
+    const int64_t* r = ranges + 4 * g;
+    if (r[0] == r[1]) continue;
+    const uint64_t entry = (uint64_t(float_order(float(keys[g]))) << 32) | uint64_t(g);
+    for (int64_t ty = r[2]; ty < r[3]; ++ty)
+      for (int64_t tx = r[0]; tx < r[1]; ++tx) packed[cursor[ty * grid.tiles_x + tx]++] = entry;
+  }
+#pragma omp parallel for num_threads(threads) schedule(dynamic, 4)
+  for (int64_t t = 0; t < num_tiles; ++t) {
+    std::sort(packed.begin() + offsets[t], packed.begin() + offsets[t + 1]);
+    for (int64_t m = offsets[t]; m < offsets[t + 1]; ++m) ids[m] = int64_t(packed[m] & 0xFFFFFFFFu);
+  }
+}
+
 }  // namespace
 
 #define OLATBENCH_EXPORT extern "C" __attribute__((visibility("default")))
@@ -423,9 +507,20 @@ void shadow_gather_impl(const F* means2d, const F* conics, const F* opac, const 
     shadow_gather_impl<F>(means2d, conics, opac, keys, depth_offset, offsets, ids,                          \
                           Grid{width, height, tile, tiles_x, tiles_y}, radius_px, threads, num_gaussians,   \
                           vis_sum, count, weight);                                                          \
+  }                                                                                                         \
+  OLATBENCH_EXPORT int64_t olatbench_bin_count_##SUFFIX(                                                   \
+      const F* means2d, const int64_t* radii, int64_t n, int width, int height, int tile, int tiles_x,       \
+      int tiles_y, int64_t* ranges, int64_t* offsets) {                                                     \
+    return bin_count_impl<F>(means2d, radii, n, Grid{width, height, tile, tiles_x, tiles_y}, ranges,       \
+                             offsets);                                                                      \
+  }                                                                                                         \
+  OLATBENCH_EXPORT void olatbench_bin_fill_##SUFFIX(                                                        \
+      const int64_t* ranges, const F* keys, int64_t n, int width, int height, int tile, int tiles_x,         \
+      int tiles_y, int threads, const int64_t* offsets, int64_t* ids) {                                     \
+    bin_fill_impl<F>(ranges, keys, n, Grid{width, height, tile, tiles_x, tiles_y}, threads, offsets, ids);  \
   }
 
 OLATBENCH_DEFINE(float, f32)
 OLATBENCH_DEFINE(double, f64)
 
-OLATBENCH_EXPORT int olatbench_abi_version() { return 1; }
+OLATBENCH_EXPORT int olatbench_abi_version() { return 2; }
