@@ -194,3 +194,58 @@ def test_cpp_binning_handles_huge_and_fractional_coordinates():
         ref = bin_gaussians(means.to(dtype), radii, keys, 32, 16, backend="torch")
         got = bin_gaussians(means.to(dtype), radii, keys, 32, 16, backend="cpu")
         assert torch.equal(got.offsets, ref.offsets) and torch.equal(got.gaussian_ids, ref.gaussian_ids)
+
+
+def _projection_outputs(backend: str, dtype: torch.dtype, name: str, quat_scale: float = 1.7, seed: int = 3):
+    """project() values and the gradients of a random linear loss w.r.t. means, quats, scales and w2c."""
+    cfg = dict(SCENES[name])
+    n, (W, H) = cfg.pop("n"), cfg.pop("size")
+    cfg.pop("channels", None)
+    cfg.pop("opacity", None)
+    w2c, K = camera(W, H)
+    s = scene(n, **cfg)
+    leaves = [t.to(dtype).clone().requires_grad_() for t in (s["means"], s["quats"] * quat_scale, s["scales"], w2c)]
+    p = project(*leaves, K.to(dtype), W, H, backend=backend)
+    g = torch.Generator().manual_seed(seed)
+    outputs = (p.means2d, p.conics, p.depths)
+    loss = sum((t * torch.randn(t.shape, generator=g, dtype=D).to(dtype)).sum() for t in outputs)
+    loss.backward()
+    return {"means2d": p.means2d.detach(), "conics": p.conics.detach(), "radii": p.radii, "depths": p.depths.detach(),
+            **{f"grad_{k}": t.grad for k, t in zip(("means", "quats", "scales", "w2c"), leaves, strict=True)}}
+
+
+@pytest.mark.parametrize("name", ["normal", "dense", "offscreen_and_behind", "degenerate_scales"])
+def test_cpp_projection_matches_torch_in_float64(name):
+    """Values, radii and every gradient (unnormalised quaternions, culled and off-screen Gaussians included)."""
+    ref = _projection_outputs("torch", D, name)
+    got = _projection_outputs("cpu", D, name)
+    assert torch.equal(got["radii"], ref["radii"])
+    for key in ref:
+        torch.testing.assert_close(got[key], ref[key], rtol=1e-9, atol=1e-12, msg=lambda m, key=key: f"{key}: {m}")
+
+
+def test_cpp_projection_matches_torch_in_float32():
+    ref = _projection_outputs("torch", torch.float32, "dense")
+    got = _projection_outputs("cpu", torch.float32, "dense")
+    assert (got["radii"] - ref["radii"]).abs().max() <= 1  # a ceil within float32 rounding of an integer
+    assert (got["radii"] != ref["radii"]).float().mean() < 0.02
+    for key in ("means2d", "conics", "depths", "grad_means", "grad_quats", "grad_scales", "grad_w2c"):
+        scale = ref[key].abs().max()
+        torch.testing.assert_close(got[key], ref[key], rtol=1e-4, atol=1e-5 * float(scale),
+                                   msg=lambda m, key=key: f"{key}: {m}")
+
+
+def test_projection_auto_backend_choice():
+    """auto = C++ on CPU tensors; a K that needs a gradient (unsupported in C++) takes the torch path."""
+    W, H = 37, 23
+    w2c, K = camera(W, H)
+    s = scene(20)
+    auto = project(s["means"], s["quats"], s["scales"], w2c, K, W, H)
+    cpp = project(s["means"], s["quats"], s["scales"], w2c, K, W, H, backend="cpu")
+    assert torch.equal(auto.means2d, cpp.means2d) and torch.equal(auto.conics, cpp.conics)
+    K_grad = K.clone().requires_grad_()
+    p = project(s["means"], s["quats"], s["scales"], w2c, K_grad, W, H)
+    p.means2d.sum().backward()
+    assert K_grad.grad is not None
+    with pytest.raises(ValueError, match="projection backend"):
+        project(s["means"], s["quats"], s["scales"], w2c, K, W, H, backend="gpu")

@@ -30,8 +30,10 @@ def render(
 
     Returns ``image`` (H,W,C), ``alpha`` (H,W), ``depth`` (H,W) or None, ``means2d`` (N,2) (non-leaf: call
     ``.retain_grad()`` on it before backward to get the screen-space gradient used by densification),
-    ``radii`` (N,) int and ``visible`` (N,) bool (radius > 0)."""
-    projected = project(means, quats, scales, w2c, K, width, height, near=near, far=far)
+    ``radii`` (N,) int and ``visible`` (N,) bool (radius > 0). ``backend="torch"`` also projects in torch (the
+    reference end to end); otherwise the projection takes its "auto" choice."""
+    projected = project(means, quats, scales, w2c, K, width, height, near=near, far=far,
+                        backend="torch" if backend == "torch" else "auto")
     out = rasterize(projected, opacities, features, background, backend=backend, return_depth=return_depth,
                     threads=threads)
     return {

@@ -100,6 +100,69 @@ def rasterize_cpu(
     return colour, final_t
 
 
+class _ProjectCPU(torch.autograd.Function):
+    """``projection.project`` in C++: (means, quats, scales, w2c) -> (means2d, conics, radii, depths)."""
+
+    @staticmethod
+    def forward(ctx, means, quats, scales, w2c, camera, width, height, threads):
+        dtype, n = means.dtype, means.shape[0]
+        means, quats, scales = _prepare([means, quats, scales], dtype)
+        means2d, conics = torch.empty(n, 2, dtype=dtype), torch.empty(n, 3, dtype=dtype)
+        radii, depths = torch.empty(n, dtype=torch.int64), torch.empty(n, dtype=dtype)
+        getattr(build.load(), f"olatbench_project_forward_{_suffix(dtype)}")(
+            _ptr(means), _ptr(quats), _ptr(scales), _ptr(camera), ctypes.c_int64(n), ctypes.c_int(width),
+            ctypes.c_int(height), ctypes.c_int(threads), _ptr(means2d), _ptr(conics), _ptr(radii), _ptr(depths))
+        ctx.save_for_backward(means, quats, scales, camera)
+        ctx.threads, ctx.w2c_dtype = threads, w2c.dtype
+        ctx.mark_non_differentiable(radii)
+        return means2d, conics, radii, depths
+
+    @staticmethod
+    def backward(ctx, grad_means2d, grad_conics, _grad_radii, grad_depths):
+        means, quats, scales, camera = ctx.saved_tensors
+        dtype, n = means.dtype, means.shape[0]
+        grads = _prepare([torch.zeros(n, k, dtype=dtype) if g is None else g.reshape(n, k)
+                          for g, k in ((grad_means2d, 2), (grad_conics, 3), (grad_depths, 1))], dtype)
+        out = [torch.empty_like(t) for t in (means, quats, scales)]
+        grad_w2c = torch.empty(4, 4, dtype=dtype) if ctx.needs_input_grad[3] else None
+        getattr(build.load(), f"olatbench_project_backward_{_suffix(dtype)}")(
+            _ptr(means), _ptr(quats), _ptr(scales), _ptr(camera), ctypes.c_int64(n), ctypes.c_int(ctx.threads),
+            *(_ptr(g) for g in grads), *(_ptr(t) for t in out),
+            _ptr(grad_w2c) if grad_w2c is not None else ctypes.c_void_p(None))
+        if grad_w2c is not None:
+            grad_w2c = grad_w2c.to(ctx.w2c_dtype)
+        return (*out, grad_w2c, None, None, None, None)
+
+
+def project_cpu(
+    means: torch.Tensor,
+    quats: torch.Tensor,
+    scales: torch.Tensor,
+    w2c: torch.Tensor,
+    K: torch.Tensor,
+    width: int,
+    height: int,
+    clamp: tuple[float, float, float, float],
+    near: float,
+    far: float,
+    low_pass: float,
+    radius_sigmas: float,
+    threads: int | None = None,
+) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
+    """``projection.project`` on CPU float32/float64 tensors: (means2d (N, 2), conics (N, 3), radii (N,) int64,
+    depths (N,)), differentiable w.r.t. means, quats, scales and w2c. ``clamp`` = (u_lo, u_hi, v_lo, v_hi), the
+    range of x/z and y/z the Jacobian is evaluated in."""
+    if means.device.type != "cpu":
+        raise ValueError(f"the C++ projection needs CPU tensors, got {means.device}")
+    _suffix(means.dtype)
+    pose = w2c.detach().to(dtype=means.dtype).double().reshape(16)  # rounded to the tensors' precision first
+    intrinsics = K.detach().double()
+    camera = torch.cat([pose, torch.stack([intrinsics[0, 0], intrinsics[1, 1], intrinsics[0, 2], intrinsics[1, 2]]),
+                        torch.tensor([*clamp, near, far, low_pass, radius_sigmas], dtype=torch.float64)])
+    return _ProjectCPU.apply(means, quats, scales, w2c, camera.contiguous(), int(width), int(height),
+                             _threads(threads))
+
+
 @torch.no_grad()
 def bin_gaussians_cpu(
     means2d: torch.Tensor,

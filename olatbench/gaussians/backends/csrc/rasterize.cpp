@@ -478,6 +478,211 @@ void bin_fill_impl(const int64_t* ranges, const F* keys, int64_t n, Grid grid, i
   }
 }
 
+// ---------------------------------------------------------------------------------------------------------
+// Projection (projection.project, same formulas, evaluated in double whatever F is). `camera` holds the w2c
+// matrix (16, row-major), then fx, fy, cx, cy, the clamp bounds of x/z and y/z (u_lo, u_hi, v_lo, v_hi),
+// near, far, the low-pass term and the radius in sigmas: 28 doubles.
+struct ProjectCamera {
+  double R[3][3], t[3], fx, fy, cx, cy, u_lo, u_hi, v_lo, v_hi, near, far, low_pass, sigmas;
+  explicit ProjectCamera(const double* c) {
+    for (int i = 0; i < 3; ++i) {
+      for (int j = 0; j < 3; ++j) R[i][j] = c[4 * i + j];
+      t[i] = c[4 * i + 3];
+    }
+    fx = c[16]; fy = c[17]; cx = c[18]; cy = c[19];
+    u_lo = c[20]; u_hi = c[21]; v_lo = c[22]; v_hi = c[23];
+    near = c[24]; far = c[25]; low_pass = c[26]; sigmas = c[27];
+  }
+};
+
+// Everything the backward needs of one Gaussian's forward.
+struct ProjectState {
+  double m[3], c[3], zs, u, v, uc, vc, J00, J02, J11, J12;
+  double qn[4], qnorm, Rq[3][3], s[3], Sigma[3][3], SigmaC[3][3], a, b, cc, det, ds;
+  bool in_range, ok;
+};
+
+template <typename F>
+void project_state(const F* means, const F* quats, const F* scales, int64_t g, const ProjectCamera& cam,
+                   ProjectState& st) {
+  for (int i = 0; i < 3; ++i) { st.m[i] = double(means[3 * g + i]); st.s[i] = double(scales[3 * g + i]); }
+  for (int i = 0; i < 3; ++i)
+    st.c[i] = cam.R[i][0] * st.m[0] + cam.R[i][1] * st.m[1] + cam.R[i][2] * st.m[2] + cam.t[i];
+  const double z = st.c[2];
+  st.in_range = z > cam.near && z < cam.far;
+  st.zs = st.in_range ? z : 1.0;
+  st.u = st.c[0] / st.zs;
+  st.v = st.c[1] / st.zs;
+  st.uc = std::min(std::max(st.u, cam.u_lo), cam.u_hi);
+  st.vc = std::min(std::max(st.v, cam.v_lo), cam.v_hi);
+  st.J00 = cam.fx / st.zs; st.J02 = -cam.fx * st.uc / st.zs;
+  st.J11 = cam.fy / st.zs; st.J12 = -cam.fy * st.vc / st.zs;
+  double q[4];
+  for (int i = 0; i < 4; ++i) q[i] = double(quats[4 * g + i]);
+  st.qnorm = std::sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
+  for (int i = 0; i < 4; ++i) st.qn[i] = q[i] / st.qnorm;
+  const double w = st.qn[0], x = st.qn[1], y = st.qn[2], zq = st.qn[3];
+  const double Rq[3][3] = {{1 - 2 * (y * y + zq * zq), 2 * (x * y - w * zq), 2 * (x * zq + w * y)},
+                           {2 * (x * y + w * zq), 1 - 2 * (x * x + zq * zq), 2 * (y * zq - w * x)},
+                           {2 * (x * zq - w * y), 2 * (y * zq + w * x), 1 - 2 * (x * x + y * y)}};
+  double M[3][3];
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) { st.Rq[i][j] = Rq[i][j]; M[i][j] = Rq[i][j] * st.s[j]; }
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) st.Sigma[i][j] = M[i][0] * M[j][0] + M[i][1] * M[j][1] + M[i][2] * M[j][2];
+  double RS[3][3];  // R Sigma
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j)
+      RS[i][j] = cam.R[i][0] * st.Sigma[0][j] + cam.R[i][1] * st.Sigma[1][j] + cam.R[i][2] * st.Sigma[2][j];
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j)
+      st.SigmaC[i][j] = RS[i][0] * cam.R[j][0] + RS[i][1] * cam.R[j][1] + RS[i][2] * cam.R[j][2];
+  const double (*C)[3] = st.SigmaC;
+  // cov2d = J SigmaC J^T with J = [[J00, 0, J02], [0, J11, J12]]
+  st.a = st.J00 * (st.J00 * C[0][0] + st.J02 * C[2][0]) + st.J02 * (st.J00 * C[0][2] + st.J02 * C[2][2]) +
+         cam.low_pass;
+  st.b = st.J00 * (st.J11 * C[0][1] + st.J12 * C[0][2]) + st.J02 * (st.J11 * C[2][1] + st.J12 * C[2][2]);
+  st.cc = st.J11 * (st.J11 * C[1][1] + st.J12 * C[2][1]) + st.J12 * (st.J11 * C[1][2] + st.J12 * C[2][2]) +
+          cam.low_pass;
+  st.det = st.a * st.cc - st.b * st.b;
+  st.ok = st.in_range && st.det > 0.0;
+  st.ds = st.ok ? st.det : 1.0;
+}
+
+template <typename F>
+void project_forward_impl(const F* means, const F* quats, const F* scales, const double* camera, int64_t n,
+                          int width, int height, int threads, F* means2d, F* conics, int64_t* radii, F* depths) {
+  const ProjectCamera cam(camera);
+#pragma omp parallel for num_threads(threads) schedule(static)
+  for (int64_t g = 0; g < n; ++g) {
+    ProjectState st;
+    project_state(means, quats, scales, g, cam, st);
+    const double mx = cam.fx * st.u + cam.cx, my = cam.fy * st.v + cam.cy;
+    means2d[2 * g] = F(mx);
+    means2d[2 * g + 1] = F(my);
+    conics[3 * g] = F(st.cc / st.ds);
+    conics[3 * g + 1] = F(-st.b / st.ds);
+    conics[3 * g + 2] = F(st.a / st.ds);
+    depths[g] = F(st.c[2]);
+    const double mid = 0.5 * (st.a + st.cc);
+    const double lam = mid + std::sqrt(std::max(mid * mid - st.det, 0.0));
+    const double radius = std::ceil(cam.sigmas * std::sqrt(std::max(lam, 0.0)));
+    const bool on_screen = mx + radius > 0 && mx - radius < width && my + radius > 0 && my - radius < height;
+    radii[g] = (st.ok && on_screen && std::isfinite(radius)) ? int64_t(radius) : 0;
+  }
+}
+
+// Backward: gradients of means (N,3), quats (N,4), scales (N,3) and, if grad_w2c is not null, of the w2c
+// matrix (4x4, row-major; row 3 stays 0), summed over Gaussians in index order (deterministic).
+template <typename F>
+void project_backward_impl(const F* means, const F* quats, const F* scales, const double* camera, int64_t n,
+                           int threads, const F* grad_means2d, const F* grad_conics, const F* grad_depths,
+                           F* grad_means, F* grad_quats, F* grad_scales, F* grad_w2c) {
+  const ProjectCamera cam(camera);
+  std::vector<double> pose(grad_w2c ? size_t(n) * 12 : 0);
+#pragma omp parallel for num_threads(threads) schedule(static)
+  for (int64_t g = 0; g < n; ++g) {
+    ProjectState st;
+    project_state(means, quats, scales, g, cam, st);
+    const double gc0 = double(grad_conics[3 * g]), gc1 = double(grad_conics[3 * g + 1]);
+    const double gc2 = double(grad_conics[3 * g + 2]);
+    // conics = (c, -b, a) / ds, ds = det where ok
+    const double inv = 1.0 / st.ds;
+    const double d_ds = st.ok ? -(gc0 * st.cc - gc1 * st.b + gc2 * st.a) * inv * inv : 0.0;
+    const double ga = gc2 * inv + d_ds * st.cc, gb = -gc1 * inv - 2.0 * d_ds * st.b;
+    const double gcc = gc0 * inv + d_ds * st.a;
+    // cov2d = J SigmaC J^T, gradient E on its (0,0), (0,1), (1,1) entries.
+    const double J[2][3] = {{st.J00, 0.0, st.J02}, {0.0, st.J11, st.J12}};
+    const double E[2][2] = {{ga, gb}, {0.0, gcc}};
+    double JC[2][3];  // J SigmaC
+    for (int i = 0; i < 2; ++i)
+      for (int j = 0; j < 3; ++j)
+        JC[i][j] = J[i][0] * st.SigmaC[0][j] + J[i][1] * st.SigmaC[1][j] + J[i][2] * st.SigmaC[2][j];
+    // dJ = (E + E^T) J SigmaC
+    const double S[2][2] = {{2.0 * ga, gb}, {gb, 2.0 * gcc}};
+    double dJ[2][3];
+    for (int i = 0; i < 2; ++i)
+      for (int j = 0; j < 3; ++j) dJ[i][j] = S[i][0] * JC[0][j] + S[i][1] * JC[1][j];
+    // dSigmaC = J^T E J
+    double EJ[2][3];
+    for (int i = 0; i < 2; ++i)
+      for (int j = 0; j < 3; ++j) EJ[i][j] = E[i][0] * J[0][j] + E[i][1] * J[1][j];
+    double G[3][3];
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j) G[i][j] = J[0][i] * EJ[0][j] + J[1][i] * EJ[1][j];
+    // SigmaC = R Sigma R^T: dSigma = R^T G R, dR = (G + G^T) R Sigma
+    double GR[3][3], dSigma[3][3], dR[3][3] = {};
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j) GR[i][j] = G[i][0] * cam.R[0][j] + G[i][1] * cam.R[1][j] + G[i][2] * cam.R[2][j];
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j)
+        dSigma[i][j] = cam.R[0][i] * GR[0][j] + cam.R[1][i] * GR[1][j] + cam.R[2][i] * GR[2][j];
+    if (grad_w2c) {
+      double RSig[3][3];
+      for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j)
+          RSig[i][j] = cam.R[i][0] * st.Sigma[0][j] + cam.R[i][1] * st.Sigma[1][j] + cam.R[i][2] * st.Sigma[2][j];
+      for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) {
+          double acc = 0.0;
+          for (int k = 0; k < 3; ++k) acc += (G[i][k] + G[k][i]) * RSig[k][j];
+          dR[i][j] = acc;
+        }
+    }
+    // Sigma = M M^T, M = Rq diag(s): dM = (dSigma + dSigma^T) M
+    double dRq[3][3];
+    for (int j = 0; j < 3; ++j) {
+      double ds_j = 0.0;
+      for (int i = 0; i < 3; ++i) {
+        double dM = 0.0;
+        for (int k = 0; k < 3; ++k) dM += (dSigma[i][k] + dSigma[k][i]) * st.Rq[k][j] * st.s[j];
+        dRq[i][j] = dM * st.s[j];
+        ds_j += dM * st.Rq[i][j];
+      }
+      grad_scales[3 * g + j] = F(ds_j);
+    }
+    const double w = st.qn[0], x = st.qn[1], y = st.qn[2], z = st.qn[3];
+    const double (*d)[3] = dRq;
+    double gq[4];
+    gq[0] = 2.0 * (-z * d[0][1] + y * d[0][2] + z * d[1][0] - x * d[1][2] - y * d[2][0] + x * d[2][1]);
+    gq[1] = 2.0 * (y * d[0][1] + z * d[0][2] + y * d[1][0] - 2.0 * x * d[1][1] - w * d[1][2] + z * d[2][0] +
+                   w * d[2][1] - 2.0 * x * d[2][2]);
+    gq[2] = 2.0 * (-2.0 * y * d[0][0] + x * d[0][1] + w * d[0][2] + x * d[1][0] + z * d[1][2] - w * d[2][0] +
+                   z * d[2][1] - 2.0 * y * d[2][2]);
+    gq[3] = 2.0 * (-2.0 * z * d[0][0] - w * d[0][1] + x * d[0][2] + w * d[1][0] - 2.0 * z * d[1][1] +
+                   y * d[1][2] + x * d[2][0] + y * d[2][1]);
+    const double dot = gq[0] * w + gq[1] * x + gq[2] * y + gq[3] * z;
+    for (int i = 0; i < 4; ++i) grad_quats[4 * g + i] = F((gq[i] - st.qn[i] * dot) / st.qnorm);
+    // J entries -> zs and the clamped u, v; means2d -> u, v; u = x / zs, v = y / zs
+    const double zs2 = st.zs * st.zs;
+    double d_zs = -dJ[0][0] * cam.fx / zs2 + dJ[0][2] * cam.fx * st.uc / zs2 - dJ[1][1] * cam.fy / zs2 +
+                  dJ[1][2] * cam.fy * st.vc / zs2;
+    double du = double(grad_means2d[2 * g]) * cam.fx, dv = double(grad_means2d[2 * g + 1]) * cam.fy;
+    if (st.u >= cam.u_lo && st.u <= cam.u_hi) du += -dJ[0][2] * cam.fx / st.zs;
+    if (st.v >= cam.v_lo && st.v <= cam.v_hi) dv += -dJ[1][2] * cam.fy / st.zs;
+    const double dcx = du / st.zs, dcy = dv / st.zs;
+    d_zs += -du * st.c[0] / zs2 - dv * st.c[1] / zs2;
+    const double dcz = (st.in_range ? d_zs : 0.0) + double(grad_depths[g]);
+    const double dc[3] = {dcx, dcy, dcz};
+    for (int i = 0; i < 3; ++i)
+      grad_means[3 * g + i] = F(cam.R[0][i] * dc[0] + cam.R[1][i] * dc[1] + cam.R[2][i] * dc[2]);
+    if (grad_w2c) {
+      double* p = &pose[size_t(g) * 12];
+      for (int i = 0; i < 3; ++i) {
+        for (int j = 0; j < 3; ++j) p[4 * i + j] = dR[i][j] + dc[i] * st.m[j];
+        p[4 * i + 3] = dc[i];
+      }
+    }
+  }
+  if (grad_w2c) {
+    double total[12] = {0.0};
+    for (int64_t g = 0; g < n; ++g)
+      for (int k = 0; k < 12; ++k) total[k] += pose[size_t(g) * 12 + k];
+    for (int k = 0; k < 12; ++k) grad_w2c[k] = F(total[k]);
+    for (int k = 12; k < 16; ++k) grad_w2c[k] = F(0);
+  }
+}
+
 }  // namespace
 
 #define OLATBENCH_EXPORT extern "C" __attribute__((visibility("default")))
@@ -518,6 +723,19 @@ void bin_fill_impl(const int64_t* ranges, const F* keys, int64_t n, Grid grid, i
       const int64_t* ranges, const F* keys, int64_t n, int width, int height, int tile, int tiles_x,         \
       int tiles_y, int threads, const int64_t* offsets, int64_t* ids) {                                     \
     bin_fill_impl<F>(ranges, keys, n, Grid{width, height, tile, tiles_x, tiles_y}, threads, offsets, ids);  \
+  }                                                                                                         \
+  OLATBENCH_EXPORT void olatbench_project_forward_##SUFFIX(                                                 \
+      const F* means, const F* quats, const F* scales, const double* camera, int64_t n, int width,          \
+      int height, int threads, F* means2d, F* conics, int64_t* radii, F* depths) {                          \
+    project_forward_impl<F>(means, quats, scales, camera, n, width, height, threads, means2d, conics, radii, \
+                            depths);                                                                        \
+  }                                                                                                         \
+  OLATBENCH_EXPORT void olatbench_project_backward_##SUFFIX(                                                \
+      const F* means, const F* quats, const F* scales, const double* camera, int64_t n, int threads,        \
+      const F* grad_means2d, const F* grad_conics, const F* grad_depths, F* grad_means, F* grad_quats,      \
+      F* grad_scales, F* grad_w2c) {                                                                        \
+    project_backward_impl<F>(means, quats, scales, camera, n, threads, grad_means2d, grad_conics,           \
+                             grad_depths, grad_means, grad_quats, grad_scales, grad_w2c);                   \
   }
 
 OLATBENCH_DEFINE(float, f32)
