@@ -12,10 +12,10 @@ Conventions (shared by the whole Gaussian core):
 Gradients reach ``means``, ``quats``, ``scales`` and ``w2c`` (the camera pose); ``K`` is treated as a
 constant. Two implementations of the same formulas: plain differentiable torch (the reference; any device and
 dtype) and the C++ kernel of :mod:`olatbench.gaussians.backends.cpu` (forward and hand-written backward in
-float64 arithmetic whatever the tensors' dtype; ≈ 10× faster on the CPU). ``backend="auto"`` uses the C++ one
-wherever the C++ rasterizer runs (CPU float32/float64 tensors, ``K`` without gradient). Its float32 results
-differ from torch's float32 ones by rounding, so a radius ``ceil(3·sqrt(λ_max))`` that lands within rounding
-of an integer can differ by one pixel.
+float64 arithmetic whatever the tensors' dtype; ≈ 4× faster forward+backward on the CPU). ``backend="auto"``
+uses the C++ one wherever the C++ rasterizer runs (CPU float32/float64 tensors, ``K`` without gradient). Its
+float32 results differ from torch's float32 ones by rounding, so a radius ``ceil(3·sqrt(λ_max))`` that lands
+within rounding of an integer can differ by one pixel.
 """
 
 from __future__ import annotations
@@ -111,10 +111,8 @@ def project(
     if backend == "cpu":
         from .backends.cpu import project_cpu
 
-        K = K.detach().to(dtype=means.dtype)  # the bounds from K in the tensors' precision, as the torch path
-        clamp = frustum_clamp_bounds(K, width, height)
-        means2d, conics, radii, depths = project_cpu(means, quats, scales, w2c, K, width, height, clamp, near,
-                                                     far, low_pass, RADIUS_SIGMAS)
+        means2d, conics, radii, depths = project_cpu(means, quats, scales, w2c, K, width, height, near, far,
+                                                     low_pass)
         return Projected(means2d=means2d, conics=conics, radii=radii, depths=depths, width=int(width),
                          height=int(height))
     if backend != "torch":

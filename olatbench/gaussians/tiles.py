@@ -7,8 +7,8 @@ Gaussian index order, so the binning is deterministic). ``offsets[t]:offsets[t+1
 slice of ``gaussian_ids``. Both the torch reference and the C++ backend consume these bins.
 
 Two implementations give identical bins: the torch one below (any device; the reference) and the C++ one of
-:mod:`olatbench.gaussians.backends.cpu` (per-tile counting, then a stable sort of each tile's list; several
-times faster on the CPU). ``backend="auto"`` uses the C++ one whenever the rasterizer would.
+:mod:`olatbench.gaussians.backends.cpu` (per-tile counting, then one sort of packed (key, index) pairs per
+tile; 1.5–3.5× faster on the CPU). ``backend="auto"`` uses the C++ one whenever the rasterizer would.
 
 A Gaussian with 2D mean m and radius r covers the pixels whose centres (x + 0.5) lie in [m - r, m + r].
 """

@@ -142,23 +142,25 @@ def project_cpu(
     K: torch.Tensor,
     width: int,
     height: int,
-    clamp: tuple[float, float, float, float],
     near: float,
     far: float,
     low_pass: float,
-    radius_sigmas: float,
     threads: int | None = None,
 ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
     """``projection.project`` on CPU float32/float64 tensors: (means2d (N, 2), conics (N, 3), radii (N,) int64,
-    depths (N,)), differentiable w.r.t. means, quats, scales and w2c. ``clamp`` = (u_lo, u_hi, v_lo, v_hi), the
-    range of x/z and y/z the Jacobian is evaluated in."""
+    depths (N,)), differentiable w.r.t. means, quats, scales and w2c (``K`` is a constant)."""
+    from ..projection import RADIUS_SIGMAS, frustum_clamp_bounds
+
     if means.device.type != "cpu":
         raise ValueError(f"the C++ projection needs CPU tensors, got {means.device}")
     _suffix(means.dtype)
-    pose = w2c.detach().to(dtype=means.dtype).double().reshape(16)  # rounded to the tensors' precision first
-    intrinsics = K.detach().double()
+    # Pose and intrinsics rounded to the tensors' precision first, as the torch path uses them.
+    pose = w2c.detach().to(dtype=means.dtype).double().reshape(16)
+    K = K.detach().to(dtype=means.dtype)
+    intrinsics = K.double()
+    scalars = [*frustum_clamp_bounds(K, width, height), near, far, low_pass, RADIUS_SIGMAS]
     camera = torch.cat([pose, torch.stack([intrinsics[0, 0], intrinsics[1, 1], intrinsics[0, 2], intrinsics[1, 2]]),
-                        torch.tensor([*clamp, near, far, low_pass, radius_sigmas], dtype=torch.float64)])
+                        torch.tensor(scalars, dtype=torch.float64)])
     return _ProjectCPU.apply(means, quats, scales, w2c, camera.contiguous(), int(width), int(height),
                              _threads(threads))
 
