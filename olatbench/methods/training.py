@@ -23,6 +23,30 @@ from olatbench.metrics.ssim import ssim_loss
 if TYPE_CHECKING:
     from olatbench.datasets.records import Camera, PointLight
 
+
+class VisibleSubset:
+    """The Gaussians one view sees (projected radius > 0), for per-Gaussian work on those only.
+
+    ``pick`` selects their rows of an (N, ...) tensor and ``scatter`` puts (K, C) values back into (N, C) rows
+    (zeros for the unseen). When the view sees every Gaussian (common for an object in frame) both are the
+    identity: no gather, no scatter, no copies in the autograd graph.
+    """
+
+    def __init__(self, radii: torch.Tensor) -> None:
+        self.total = int(radii.shape[0])
+        self.indices = torch.nonzero(radii > 0).squeeze(1)
+        self.everything = int(self.indices.numel()) == self.total
+
+    def pick(self, values: torch.Tensor) -> torch.Tensor:
+        """(N, ...) -> (K, ...) rows of the visible Gaussians."""
+        return values if self.everything else values[self.indices]
+
+    def scatter(self, values: torch.Tensor) -> torch.Tensor:
+        """(K, C) -> (N, C), zero rows for the Gaussians the view does not see."""
+        if self.everything:
+            return values
+        return values.new_zeros(self.total, values.shape[1]).index_copy(0, self.indices, values)
+
 class TrainingViews:
     """The training views on ``device``: ``Ks`` (N,3,3), ``w2cs`` (N,4,4), ``light_positions`` (N,3),
     ``light_intensities`` (N,3) and the images (N,H,W,3) in [0,1], plus the epoch-wise view order."""

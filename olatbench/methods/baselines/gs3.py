@@ -27,6 +27,7 @@ from olatbench.methods.baselines.gs3_shading import GS3Components, GS3Shader
 from olatbench.methods.baselines.triple_splat import triple_splat
 from olatbench.methods.training import (
     TrainingViews,
+    VisibleSubset,
     camera_centre,
     camera_tensors,
     initial_model,
@@ -205,7 +206,7 @@ class GS3(Method):
         model = self.model
         means, opacities = model.means, model.opacities
         projected = project(means, model.quats, model.scales, w2c, K, width, height)
-        visible = torch.nonzero(projected.radii > 0).squeeze(1)
+        visible = VisibleSubset(projected.radii)
         hint, light_weight = None, None
         if self.shadow_on(step):
             with torch.no_grad():
@@ -213,13 +214,12 @@ class GS3(Method):
                                          opacities.detach(), light_position.detach(), means.detach().mean(0),
                                          resolution=self.config.shadow_resolution,
                                          depth_offset=self.config.shadow_depth_offset)
-            hint, light_weight = gathered.visibility[visible], gathered.weight
-        attributes = {name: value[visible] for name, value in model.attributes.items()}
-        shaded: GS3Components = self.shader(means[visible], attributes, camera_centre(w2c), light_position,
+            hint, light_weight = visible.pick(gathered.visibility), gathered.weight
+        attributes = {name: visible.pick(value) for name, value in model.attributes.items()}
+        shaded: GS3Components = self.shader(visible.pick(means), attributes, camera_centre(w2c), light_position,
                                             intensity, self.specular_on(step), hint)
 
-        def scatter(values: torch.Tensor) -> torch.Tensor:
-            return values.new_zeros(means.shape[0], values.shape[1]).index_copy(0, visible, values)
+        scatter = visible.scatter
 
         extras = None
         if components:

@@ -29,6 +29,8 @@ from olatbench.methods.ssdgs.schedule import Schedule
 from olatbench.methods.ssdgs.shader import Components, Shader
 from olatbench.methods.training import (
     TrainingViews,
+    VisibleSubset,
+    camera_centre,
     initial_model,
     make_densifier,
     per_gaussian_groups,
@@ -176,7 +178,8 @@ class SSDGS(Method):
         model = self.model
         means, quats, scales, opacities = model.means, model.quats, model.scales, model.opacities
         projected = project(means, quats, scales, w2c, K, width, height)
-        visible = torch.nonzero(projected.radii > 0).squeeze(1)
+        visible = VisibleSubset(projected.radii)
+        pick = visible.pick
         terms = self.active_terms(step)
         coarse, light_weight = None, None
         if "shadow" in terms:  # the light-view pass sees the model as it is: no gradient flows through it
@@ -187,20 +190,18 @@ class SSDGS(Method):
                                          light_position.detach(), means.detach().mean(0),
                                          resolution=self.config.light_view_size(width, height),
                                          mode=self.config.shadow_mode, depth_offset=self.config.shadow_depth_offset)
-            coarse, light_weight = gathered.visibility[visible], gathered.weight
-        rotation_t = w2c[:3, :3].T
-        camera_position = -rotation_t @ w2c[:3, 3]
-        attributes = {name: value[visible] for name, value in model.attributes.items()}
-        shaded: Components = self.shader(means[visible], quats[visible], scales[visible], attributes,
-                                         camera_position, light_position, intensity, terms, coarse)
+            coarse, light_weight = pick(gathered.visibility), gathered.weight
+        camera_position = camera_centre(w2c)
+        attributes = {name: pick(value) for name, value in model.attributes.items()}
+        shaded: Components = self.shader(pick(means), pick(quats), pick(scales), attributes, camera_position,
+                                         light_position, intensity, terms, coarse)
         if components:
             per_gaussian = torch.cat([shaded.colour, shaded.diffuse, shaded.specular, shaded.sss, shaded.shadow,
                                       shaded.shadow_coarse], dim=1)
             background = torch.cat([self.background, self.background.new_zeros(per_gaussian.shape[1] - 3)])
         else:
             per_gaussian, background = shaded.colour, self.background
-        features = per_gaussian.new_zeros(means.shape[0], per_gaussian.shape[1]).index_copy(0, visible, per_gaussian)
-        out = rasterize(projected, opacities, features, background)
+        out = rasterize(projected, opacities, visible.scatter(per_gaussian), background)
         return {"image": out.image, "projected": projected, "terms": terms, "light_weight": light_weight}
 
     # ------------------------------------------------------------------------------------------ training
