@@ -5,7 +5,8 @@
 >>> from olatbench.metrics.protocols import get_protocol
 >>> get_protocol("olatbench-v1").evaluate(pred, gt)
 
-Training losses: `olatbench.metrics.ssim.ssim_torch` (differentiable) and `ssim_loss` (1 - SSIM).
+Training losses: `olatbench.metrics.ssim.ssim_torch` (differentiable) and `ssim_loss` (1 - SSIM; a C++
+forward/backward for CPU tensors, `olatbench.metrics.ssim_cpu`).
 """
 
 from olatbench.metrics.lpips import lpips

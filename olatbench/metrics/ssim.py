@@ -11,11 +11,15 @@ Two variants, both with K1 = 0.01, K2 = 0.03, data range 1 and population (biase
   window applied with *zero padding* of 5 pixels, mean over the full map (borders included).
 
 ``ssim_torch`` is differentiable and accepts channel-first or channel-last tensors; ``ssim_loss`` is the
-``1 - SSIM`` training loss of 3DGS-style methods.
+``1 - SSIM`` training loss of 3DGS-style methods. ``ssim_loss(backend="auto")`` (the default) computes the
+``"3dgs"`` variant with the C++ kernel of ``ssim_cpu`` (hand-written backward, several times faster) when the
+images are CPU float32/float64 tensors of one dtype, at least 11×11, and ``gt`` does not require grad; any
+other call uses the torch code here. See ``resolve_ssim_backend``.
 """
 
 from __future__ import annotations
 
+import warnings
 from typing import Literal
 
 import numpy as np
@@ -23,9 +27,12 @@ import torch
 import torch.nn.functional as F
 
 from olatbench.metrics._inputs import ArrayLike, check_same_shape, mask_to_n1hw, to_nchw, to_output
+from olatbench.metrics.ssim_cpu import ssim_cpu_status, ssim_loss_cpu, unsupported_reason
 
 SSIMVariant = Literal["wang", "3dgs"]
 SSIM_VARIANTS: tuple[str, ...] = ("wang", "3dgs")
+SSIMBackend = Literal["auto", "torch", "cpu"]
+SSIM_BACKENDS: tuple[str, ...] = ("auto", "torch", "cpu")
 WINDOW_SIZE = 11
 SIGMA = 1.5
 K1, K2 = 0.01, 0.03
@@ -51,8 +58,7 @@ def _blur(stack: torch.Tensor, taps: torch.Tensor, padding: int) -> torch.Tensor
 def ssim_map_torch(pred: torch.Tensor, gt: torch.Tensor, variant: SSIMVariant = "wang",
                    data_range: float = 1.0) -> torch.Tensor:
     """SSIM map of (B, C, H, W) tensors: (B, C, H-10, W-10) for ``wang`` (valid), (B, C, H, W) for ``3dgs``."""
-    if variant not in SSIM_VARIANTS:
-        raise ValueError(f"unknown SSIM variant {variant!r}; expected one of {SSIM_VARIANTS}")
+    _check_variant(variant)
     if min(pred.shape[-2:]) < WINDOW_SIZE:
         raise ValueError(f"SSIM needs images of at least {WINDOW_SIZE}×{WINDOW_SIZE} pixels, found "
                          f"{tuple(pred.shape[-2:])}")
@@ -89,6 +95,21 @@ def ssim_nchw(pred: torch.Tensor, gt: torch.Tensor, variant: SSIMVariant = "wang
     return (ssim_map * m).flatten(1).sum(1) / weight
 
 
+def _check_variant(variant: str) -> None:
+    if variant not in SSIM_VARIANTS:
+        raise ValueError(f"unknown SSIM variant {variant!r}; expected one of {SSIM_VARIANTS}")
+
+
+def _batched_nchw(pred: torch.Tensor, gt: torch.Tensor, channels_last: bool) -> tuple[torch.Tensor, torch.Tensor]:
+    """(C, H, W) / (B, C, H, W), or channel-last with ``channels_last=True`` -> (B, C, H, W) views."""
+    if channels_last:
+        pred, gt = pred.movedim(-1, -3), gt.movedim(-1, -3)
+    if pred.ndim == 3:
+        pred, gt = pred.unsqueeze(0), gt.unsqueeze(0)
+    check_same_shape(pred, gt)
+    return pred, gt
+
+
 def ssim_torch(pred: torch.Tensor, gt: torch.Tensor, variant: SSIMVariant = "3dgs", channels_last: bool = False,
                mask: torch.Tensor | None = None) -> torch.Tensor:
     """Differentiable SSIM of torch images -> (B,) (or a 0-dim tensor for an unbatched input).
@@ -97,19 +118,65 @@ def ssim_torch(pred: torch.Tensor, gt: torch.Tensor, variant: SSIMVariant = "3dg
     Default variant ``3dgs`` (zero padding) as used in 3DGS-style training losses.
     """
     batched = pred.ndim == 4
-    if channels_last:
-        pred, gt = pred.movedim(-1, -3), gt.movedim(-1, -3)
-    if not batched:
-        pred, gt = pred.unsqueeze(0), gt.unsqueeze(0)
-    check_same_shape(pred, gt)
-    values = ssim_nchw(pred, gt, variant, mask)
+    values = ssim_nchw(*_batched_nchw(pred, gt, channels_last), variant, mask)
     return values if batched else values[0]
 
 
-def ssim_loss(pred: torch.Tensor, gt: torch.Tensor, variant: SSIMVariant = "3dgs",
-              channels_last: bool = False) -> torch.Tensor:
-    """``1 - SSIM`` averaged over the batch: a differentiable scalar training loss (3DGS D-SSIM term)."""
-    return 1.0 - ssim_torch(pred, gt, variant, channels_last).mean()
+_warned_fallback = False
+
+
+def resolve_ssim_backend(pred: torch.Tensor, gt: torch.Tensor, variant: SSIMVariant = "3dgs",
+                         backend: SSIMBackend = "auto") -> Literal["torch", "cpu"]:
+    """The backend ``ssim_loss`` uses for (B, C, H, W) ``pred``/``gt``: ``"torch"`` or ``"cpu"`` (C++ kernel).
+
+    ``"cpu"`` handles the ``"3dgs"`` variant of CPU float32/float64 tensors of one dtype, at least 11×11, whose
+    ``gt`` does not require grad. ``backend="auto"`` picks it for such inputs when the C++ library builds and
+    otherwise ``"torch"``; like the rasterizer's ``resolve_backend``, a failed build falls back to torch with
+    one RuntimeWarning saying why. ``backend="cpu"`` raises ValueError for other inputs and
+    ``olatbench.gaussians.backends.build.BuildError`` when the library cannot be built; ``"torch"`` always
+    uses the torch code."""
+    global _warned_fallback
+    if backend not in SSIM_BACKENDS:
+        raise ValueError(f"unknown SSIM backend {backend!r}; expected one of {SSIM_BACKENDS}")
+    _check_variant(variant)
+    if backend == "torch":
+        return "torch"
+    if variant != "3dgs":
+        reason = f"it implements only the '3dgs' variant, not {variant!r}"
+    elif min(pred.shape[-2:]) < WINDOW_SIZE:
+        reason = f"it needs images of at least {WINDOW_SIZE}×{WINDOW_SIZE} pixels, found {tuple(pred.shape[-2:])}"
+    else:
+        reason = unsupported_reason(pred, gt)
+    if backend == "cpu":
+        if reason is not None:
+            raise ValueError(f"SSIM backend 'cpu' cannot compute this loss: {reason}; use 'auto' or 'torch'")
+        return "cpu"
+    if reason is not None:
+        return "torch"
+    ok, detail = ssim_cpu_status()
+    if ok:
+        return "cpu"
+    if not _warned_fallback:
+        _warned_fallback = True
+        warnings.warn(
+            "olatbench: the C++ SSIM loss is unavailable, falling back to the slower torch SSIM. Reason: "
+            f"{detail}\nInstall a C++ compiler with OpenMP (e.g. `apt install g++`) or point OLATBENCH_CXX at one.",
+            RuntimeWarning,
+            stacklevel=3,
+        )
+    return "torch"
+
+
+def ssim_loss(pred: torch.Tensor, gt: torch.Tensor, variant: SSIMVariant = "3dgs", channels_last: bool = False,
+              backend: SSIMBackend = "auto") -> torch.Tensor:
+    """``1 - SSIM`` averaged over the batch: a differentiable 0-dim training loss (3DGS D-SSIM term).
+
+    Layout as ``ssim_torch``; ``backend`` as ``resolve_ssim_backend`` (the C++ kernel differentiates ``pred``
+    only, so a ``gt`` that requires grad goes to torch under "auto"). The backends agree up to rounding."""
+    pred, gt = _batched_nchw(pred, gt, channels_last)
+    if resolve_ssim_backend(pred, gt, variant, backend) == "cpu":
+        return ssim_loss_cpu(pred, gt)
+    return 1.0 - ssim_nchw(pred, gt, variant).mean()
 
 
 def ssim(pred: ArrayLike, gt: ArrayLike, variant: SSIMVariant = "wang",

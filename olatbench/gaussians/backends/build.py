@@ -1,10 +1,13 @@
-"""Build-on-first-use of the C++ rasterizer (``csrc/rasterize.cpp``) into a per-user cache, loaded with ctypes.
+"""Build-on-first-use of the C++ kernels into a per-user cache, loaded with ctypes.
 
-The shared library lives in ``$XDG_CACHE_HOME/olatbench/ext/<hash>/`` (default ``~/.cache``), where
-``<hash>`` covers the source bytes, the compiler command and the flags, so an edited source or another
-compiler gets a fresh build. The compiler is ``$OLATBENCH_CXX``, else ``$CXX``, else ``g++``. Builds are
-atomic: compile to a unique temporary name in the same folder, then ``os.replace`` it into place, so several
-processes may build concurrently and none ever loads a half-written file.
+``SOURCES`` (``csrc/rasterize.cpp``: rasterizer, projection, binning, shadow gather; ``csrc/ssim.cpp``: the
+SSIM training loss) are compiled by one compiler command
+into one shared library. It lives in
+``$XDG_CACHE_HOME/olatbench/ext/<hash>/`` (default ``~/.cache``), where ``<hash>`` covers the name and bytes of
+every source file, the compiler command and the flags, so an edited source or another compiler gets a fresh
+build. The compiler is ``$OLATBENCH_CXX``, else ``$CXX``, else ``g++``. Builds are atomic: compile to a unique
+temporary name in the same folder, then ``os.replace`` it into place, so several processes may build
+concurrently and none ever loads a half-written file.
 
 Flags: ``-O3 -fopenmp -shared -fPIC -std=c++17 -ffp-contract=off``. Deliberately no ``-march=native`` (the
 cache may be shared between machines) and no ``-ffast-math`` (the backward must reproduce the forward's
@@ -24,7 +27,7 @@ import tempfile
 import threading
 from pathlib import Path
 
-SOURCE = Path(__file__).with_name("csrc") / "rasterize.cpp"
+SOURCES = tuple(Path(__file__).with_name("csrc") / name for name in ("rasterize.cpp", "ssim.cpp"))
 BASE_FLAGS = ("-O3", "-shared", "-fPIC", "-std=c++17", "-ffp-contract=off")
 # Build variants in order of preference.
 VARIANTS = {"openmp": (*BASE_FLAGS, "-fopenmp"), "serial": BASE_FLAGS}
@@ -33,7 +36,7 @@ ABI_VERSION = 2
 
 
 class BuildError(RuntimeError):
-    """The C++ rasterizer could not be compiled or loaded (message says why and what to do)."""
+    """The C++ kernel library could not be compiled or loaded (message says why and what to do)."""
 
 
 def compiler() -> list[str]:
@@ -47,7 +50,11 @@ def cache_root() -> Path:
 
 
 def build_hash(variant: str = "openmp") -> str:
-    digest = hashlib.sha256(SOURCE.read_bytes())
+    digest = hashlib.sha256()
+    for source in SOURCES:  # name and length delimit each file's bytes
+        data = source.read_bytes()
+        digest.update(f"{source.name}\0{len(data)}\0".encode())
+        digest.update(data)
     digest.update("\0".join([*compiler(), *VARIANTS[variant]]).encode())
     return digest.hexdigest()[:16]
 
@@ -69,7 +76,7 @@ def compile_variant(variant: str) -> Path:
             f"cannot write the build cache {target.parent}: {error}; point XDG_CACHE_HOME at a writable folder"
         ) from error
     os.close(fd)
-    command = [*compiler(), *VARIANTS[variant], str(SOURCE), "-o", tmp_name]
+    command = [*compiler(), *VARIANTS[variant], *map(str, SOURCES), "-o", tmp_name]
     try:
         result = subprocess.run(command, capture_output=True, text=True, timeout=300)
     except (OSError, subprocess.SubprocessError) as error:
@@ -120,7 +127,7 @@ def load() -> ctypes.CDLL:
             except BuildError as error:
                 _error = error
             except OSError as error:
-                _error = BuildError(f"could not load the C++ rasterizer library: {error}")
+                _error = BuildError(f"could not load the C++ kernel library: {error}")
         if _error is not None:
             raise _error
         return _library

@@ -1,0 +1,106 @@
+"""C++ forward and backward of the "3dgs" SSIM training loss (``csrc/ssim.cpp``), called through ctypes.
+
+Computes ``ssim_loss(pred, gt, variant="3dgs")`` of ``olatbench.metrics.ssim`` (11-tap Gaussian window, σ = 1.5,
+zero padding of 5 px, mean over every pixel and channel; the same value up to rounding) for CPU float32/float64
+(B, C, H, W) tensors of any strides (NCHW, and channels-last views such as ``movedim(-1, -3)`` of (H, W, C)
+images, are read in place), with a hand-written backward for ``pred`` only (``gt`` is a constant target). The
+kernel is compiled into the C++ rasterizer's library (``olatbench.gaussians.backends.build``, built on first
+use) and gives the same result for any thread count. ``ssim.ssim_loss`` dispatches here by default (and leaves
+images smaller than 11×11, which this kernel would accept, to the torch code's error); call it rather than
+this module.
+"""
+
+from __future__ import annotations
+
+import ctypes
+
+import torch
+from torch.autograd.function import once_differentiable
+
+from olatbench.gaussians.backends import build, cpu_backend_status
+
+_FLOAT_TYPES = {torch.float32: "f32", torch.float64: "f64"}
+_DERIVATIVES = 3  # per-pixel maps saved for the backward: dSSIM/dmu_p, dSSIM/dE_pp, dSSIM/dE_pg
+
+
+def _ptr(t: torch.Tensor) -> ctypes.c_void_p:
+    return ctypes.c_void_p(t.data_ptr())
+
+
+def ssim_cpu_status() -> tuple[bool, str]:
+    """(ok, detail): whether the C++ library (rasterizer and SSIM kernels) loads, building it if needed;
+    ``detail`` is the library path or the reason it is unavailable."""
+    return cpu_backend_status()
+
+
+def _strides(t: torch.Tensor) -> ctypes.Array:
+    return (ctypes.c_int64 * 4)(*t.stride())
+
+
+def _dense(t: torch.Tensor) -> torch.Tensor:
+    """``t`` if contiguous or channels-last (a layout ``empty_strided`` can give its gradient), else a copy."""
+    if t.is_contiguous() or t.is_contiguous(memory_format=torch.channels_last):
+        return t
+    return t.contiguous()
+
+
+class _SSIMLossCPU(torch.autograd.Function):
+    """(pred, gt (B, C, H, W), threads, keep) -> 0-dim ``1 - mean SSIM``; gradient for ``pred`` only, which needs
+    ``keep`` (save the per-pixel derivatives) to be true. Images are read in their own layout (no copy for
+    NCHW or channels-last); the gradient has pred's strides."""
+
+    @staticmethod
+    def forward(ctx, pred: torch.Tensor, gt: torch.Tensor, threads: int, keep: bool) -> torch.Tensor:
+        dtype = pred.dtype
+        pred, gt = _dense(pred.detach()), gt.detach()
+        batch, channels, height, width = pred.shape
+        derivatives = torch.empty(_DERIVATIVES, batch * channels, height, width, dtype=dtype) if keep else None
+        ssim_sum = ctypes.c_double()
+        getattr(build.load(), f"olatbench_ssim_loss_forward_{_FLOAT_TYPES[dtype]}")(
+            _ptr(pred), _strides(pred), _ptr(gt), _strides(gt), ctypes.c_int64(batch), ctypes.c_int64(channels),
+            ctypes.c_int64(height), ctypes.c_int64(width), ctypes.c_int(threads),
+            ctypes.c_void_p(None) if derivatives is None else _ptr(derivatives), ctypes.byref(ssim_sum),
+        )  # fmt: skip
+        if derivatives is not None:
+            ctx.save_for_backward(pred, gt, derivatives)
+        ctx.threads = threads
+        return torch.tensor(1.0 - ssim_sum.value / pred.numel(), dtype=dtype)
+
+    @staticmethod
+    @once_differentiable
+    def backward(ctx, grad_loss: torch.Tensor) -> tuple[torch.Tensor, None, None, None]:
+        pred, gt, derivatives = ctx.saved_tensors
+        batch, channels, height, width = pred.shape
+        grad_pred = torch.empty_strided(pred.shape, pred.stride(), dtype=pred.dtype)
+        getattr(build.load(), f"olatbench_ssim_loss_backward_{_FLOAT_TYPES[pred.dtype]}")(
+            _ptr(pred), _strides(pred), _ptr(gt), _strides(gt), _ptr(derivatives), ctypes.c_int64(batch),
+            ctypes.c_int64(channels), ctypes.c_int64(height), ctypes.c_int64(width), ctypes.c_int(ctx.threads),
+            ctypes.c_double(-float(grad_loss) / pred.numel()), _ptr(grad_pred),
+        )  # fmt: skip
+        return grad_pred, None, None, None
+
+
+def unsupported_reason(pred: torch.Tensor, gt: torch.Tensor) -> str | None:
+    """Why ``ssim_loss_cpu`` cannot take these tensors, or None when it can."""
+    if pred.device.type != "cpu" or gt.device.type != "cpu":
+        return f"it needs CPU tensors, got {pred.device} and {gt.device}"
+    if pred.dtype not in _FLOAT_TYPES or gt.dtype != pred.dtype:
+        return f"it needs float32 or float64 tensors of one dtype, got {pred.dtype} and {gt.dtype}"
+    if pred.ndim != 4 or pred.shape != gt.shape or pred.numel() == 0:
+        return f"it needs non-empty (B, C, H, W) tensors of one shape, got {tuple(pred.shape)} and {tuple(gt.shape)}"
+    if gt.requires_grad and torch.is_grad_enabled():
+        return "it has no gradient for gt, which requires grad (detach it or use the torch backend)"
+    return None
+
+
+def ssim_loss_cpu(pred: torch.Tensor, gt: torch.Tensor, threads: int | None = None) -> torch.Tensor:
+    """``1 - SSIM`` ("3dgs" variant) of CPU (B, C, H, W) tensors of one dtype (float32 or float64): a 0-dim
+    tensor, differentiable w.r.t. ``pred`` only. ``threads`` defaults to ``torch.get_num_threads()``.
+
+    Raises ValueError for other inputs (see ``unsupported_reason``) and ``build.BuildError`` if the kernel
+    cannot be built."""
+    reason = unsupported_reason(pred, gt)
+    if reason is not None:
+        raise ValueError(f"ssim_loss_cpu: {reason}")
+    threads = max(1, int(threads if threads is not None else torch.get_num_threads()))
+    return _SSIMLossCPU.apply(pred, gt, threads, torch.is_grad_enabled() and pred.requires_grad)
