@@ -1,7 +1,7 @@
 """Build-on-first-use of the C++ kernels into a per-user cache, loaded with ctypes.
 
 ``SOURCES`` (``csrc/rasterize.cpp``: rasterizer, projection, binning, shadow gather; ``csrc/ssim.cpp``: the
-SSIM training loss) are compiled by one compiler command
+SSIM training loss; ``csrc/shading.cpp``: SSD-GS's per-Gaussian shading) are compiled by one compiler command
 into one shared library. It lives in
 ``$XDG_CACHE_HOME/olatbench/ext/<hash>/`` (default ``~/.cache``), where ``<hash>`` covers the name and bytes of
 every source file, the compiler command and the flags, so an edited source or another compiler gets a fresh
@@ -27,7 +27,7 @@ import tempfile
 import threading
 from pathlib import Path
 
-SOURCES = tuple(Path(__file__).with_name("csrc") / name for name in ("rasterize.cpp", "ssim.cpp"))
+SOURCES = tuple(Path(__file__).with_name("csrc") / name for name in ("rasterize.cpp", "ssim.cpp", "shading.cpp"))
 BASE_FLAGS = ("-O3", "-shared", "-fPIC", "-std=c++17", "-ffp-contract=off")
 # Build variants in order of preference.
 VARIANTS = {"openmp": (*BASE_FLAGS, "-fopenmp"), "serial": BASE_FLAGS}

@@ -5,6 +5,13 @@ attributes of the visible Gaussians into colour components; the method splats th
 Per-Gaussian attributes (raw, activations applied here): ``diffuse`` (K, 3) and ``specular`` (K, 3) and
 ``sss`` (K, 3) colours through softplus, ``asg_weights`` (K, N) through softplus, ``material`` (K, M) as
 is, optionally ``shading_quat`` (K, 4) for the official code's learned shading frame.
+
+Backends (`Shader.backend`): ``"torch"`` evaluates everything with torch ops (the reference); ``"cpu"`` runs the
+closed-form parts as the two fused C++ kernels of `shading_cpu` (hand-written backwards; the two networks stay
+torch modules called between them) and raises ValueError when it cannot (tensors not on the CPU, not one
+float32/float64 dtype, ``asg_form`` "official" — the kernels implement the "xu" ASG only — or no C++ build);
+``"auto"`` (default) uses ``"cpu"`` when it can and ``"torch"`` otherwise. Both give the same components and
+gradients up to rounding.
 """
 
 from __future__ import annotations
@@ -26,6 +33,12 @@ from olatbench.methods.ssdgs.shading import (
     safe_normalize,
     schlick_fresnel,
 )
+from olatbench.methods.ssdgs.shading_cpu import (
+    rotations_cpu,
+    shading_combine,
+    shading_cpu_status,
+    shading_geometry,
+)
 from olatbench.methods.ssdgs.shadow_mlp import ShadowNetwork
 from olatbench.methods.ssdgs.specular import ASGMixture
 from olatbench.methods.ssdgs.sss import SSSNetwork
@@ -46,12 +59,18 @@ class Components:
     shadow_coarse: torch.Tensor
 
 
-class Shader(nn.Module):
-    """The global networks of SSD-GS and the per-Gaussian shading function."""
+BACKENDS = ("auto", "torch", "cpu")
 
-    def __init__(self, config: SSDGSConfig) -> None:
+
+class Shader(nn.Module):
+    """The global networks of SSD-GS and the per-Gaussian shading function; ``backend`` as in the module doc."""
+
+    def __init__(self, config: SSDGSConfig, backend: str = "auto") -> None:
         super().__init__()
+        if backend not in BACKENDS:
+            raise ValueError(f"Shader backend must be one of {BACKENDS}, not {backend!r}")
         self.config = config
+        self.backend = backend
         self.asg = ASGMixture(config.num_asg, config.asg_form)
         self.sss_net = SSSNetwork(config.material_dim, config.sss_hidden, config.sss_layers, config.sss_freqs,
                                   config.dipole_eta, config.dipole_virtual_factor)
@@ -76,6 +95,17 @@ class Shader(nn.Module):
         ``terms`` ⊆ {"specular", "sss", "shadow"} are switched on (diffuse always is); ``coarse_visibility``
         (K,) is required when "shadow" is on.
         """
+        if self.backend != "torch":
+            tensors = [positions, quats, scales, camera_position, light_position, intensity,
+                       *(attributes[name] for name in self._attribute_names(terms))]
+            if "specular" in terms:
+                tensors += list(self.asg.parameters())
+            reason = self.cpu_unsupported(tensors)
+            if reason is None:
+                return self._forward_cpu(positions, quats, scales, attributes, camera_position, light_position,
+                                         intensity, terms, coarse_visibility)
+            if self.backend == "cpu":
+                raise ValueError(f"Shader backend 'cpu' cannot shade these inputs: {reason}; use 'auto' or 'torch'")
         wi, incident = inverse_square_irradiance(positions, light_position, intensity)
         wo = safe_normalize(camera_position[None, :] - positions)
         frames = self.frames(attributes, quats, scales, wo)
@@ -105,4 +135,64 @@ class Shader(nn.Module):
             colour = (diffuse + specular + sss) * shadow
         else:
             colour = (diffuse + specular) * shadow + sss
+        return Components(colour, diffuse, specular, sss, shadow, coarse)
+
+    def _attribute_names(self, terms: frozenset[str]) -> list[str]:
+        """The per-Gaussian attributes shading with ``terms`` reads."""
+        names = ["diffuse"]
+        if self.config.shading_frame == "learned":
+            names.append("shading_quat")
+        if "specular" in terms:
+            names += ["specular", "asg_weights"]
+        if "sss" in terms:
+            names.append("sss")
+        if "sss" in terms or "shadow" in terms:
+            names.append("material")
+        return names
+
+    def cpu_unsupported(self, tensors: list[torch.Tensor]) -> str | None:
+        """Why the fused C++ kernels cannot shade with these input ``tensors`` and this config (None: they can)."""
+        if self.config.asg_form != "xu":
+            return f"asg_form {self.config.asg_form!r} (the C++ kernels implement the 'xu' ASG form only)"
+        dtype = tensors[0].dtype
+        if dtype not in (torch.float32, torch.float64):
+            return f"dtype {dtype} (the C++ kernels support float32 and float64)"
+        if any(t.device.type != "cpu" for t in tensors):
+            return "tensors not on the CPU"
+        if any(t.dtype != dtype for t in tensors):
+            return "inputs of different dtypes"
+        ok, detail = shading_cpu_status()
+        return None if ok else f"the C++ kernels are unavailable ({detail})"
+
+    def _forward_cpu(self, positions: torch.Tensor, quats: torch.Tensor, scales: torch.Tensor,
+                     attributes: dict[str, torch.Tensor], camera_position: torch.Tensor,
+                     light_position: torch.Tensor, intensity: torch.Tensor, terms: frozenset[str],
+                     coarse_visibility: torch.Tensor | None) -> Components:
+        """`forward` with the fused C++ kernels: geometry, then the two networks (torch), then the combination."""
+        if "shadow" in terms and coarse_visibility is None:
+            raise ValueError("the shadow term needs the coarse light-view visibility")
+        cfg = self.config
+        learned = cfg.shading_frame == "learned"
+        wi, wo, frames, inv_dist2 = shading_geometry(
+            positions, attributes["shading_quat"] if learned else quats, None if learned else scales, camera_position,
+            light_position, cfg.orient_normals)
+        ones = positions.new_ones(positions.shape[0], 1)
+        inputs: dict[str, torch.Tensor] = {}
+        if "specular" in terms:
+            # The lobe frames are ASGMixture.frames() = quat_to_rotmat(rotation), here in C++ as one autograd node
+            # (the reference's ~60 tiny ops on 8 quaternions cost more than all the per-Gaussian shading).
+            lam, mu = self.asg.log_sharpness.exp().unbind(-1)
+            inputs.update(specular=attributes["specular"], asg_weights=attributes["asg_weights"],
+                          lobe_axes=rotations_cpu(self.asg.rotation), lam=lam, mu=mu)
+        if "sss" in terms:
+            profile = self.sss_net(positions, wo, wi, frames[:, :, 2], attributes["material"])
+            inputs.update(sss=attributes["sss"], profile=profile)
+        shadow, coarse = ones, ones
+        if "shadow" in terms:
+            coarse = coarse_visibility[:, None].to(positions.dtype)
+            shadow = self.shadow_net(positions, wi, coarse, attributes["material"])
+            inputs["shadow"] = shadow
+        colour, diffuse, specular, sss = shading_combine(
+            wi, wo, frames, inv_dist2, intensity, attributes["diffuse"], **inputs, diffuse_cosine=cfg.diffuse_cosine,
+            fresnel_f0=cfg.fresnel_f0, shadow_on_sss=cfg.shadow_on_sss)
         return Components(colour, diffuse, specular, sss, shadow, coarse)
