@@ -195,3 +195,13 @@ def test_build_hash_covers_every_source(monkeypatch, tmp_path):
     ssim_copy = copies[names.index("ssim.cpp")]
     ssim_copy.write_text(ssim_copy.read_text() + "\n// edited\n")
     assert build.build_hash() != before
+
+
+def test_build_hash_covers_the_shared_header(monkeypatch, tmp_path):
+    assert [header.name for header in build.HEADERS] == ["simd.h"]
+    copy = tmp_path / "simd.h"
+    shutil.copyfile(build.HEADERS[0], copy)
+    monkeypatch.setattr(build, "HEADERS", (copy,))
+    before = build.build_hash()
+    copy.write_text(copy.read_text() + "\n// edited\n")
+    assert build.build_hash() != before

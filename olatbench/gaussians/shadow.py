@@ -38,8 +38,9 @@ looks at the mean of the Gaussian centres (with the viewing image size); callers
 
 Backends: ``"torch"`` (reference, any device) implements every option; ``"cpu"`` (the C++ kernel of
 :mod:`olatbench.gaussians.backends.cpu`) implements ``mode="uniform"`` with any ``depth_offset`` (a lagging
-second transmittance per pixel for offsets > 0); ``"auto"`` uses the C++ kernel for CPU tensors whenever the
-mode allows it and torch otherwise.
+second transmittance per pixel for offsets > 0; its compositing runs 4–8 pixels at a time with a polynomial exp
+within a few ulp of libm's, so it matches torch up to rounding); ``"auto"`` uses the C++ kernel for CPU tensors
+whenever the mode allows it and torch otherwise.
 """
 
 from __future__ import annotations

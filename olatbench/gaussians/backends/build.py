@@ -1,19 +1,18 @@
 """Build-on-first-use of the C++ kernels into a per-user cache, loaded with ctypes.
 
-``SOURCES`` (``csrc/rasterize.cpp``: rasterizer, projection, binning, shadow gather; ``csrc/ssim.cpp``: the
-SSIM training loss; ``csrc/shading.cpp``: SSD-GS's per-Gaussian shading) are compiled by one compiler command
-into one shared library. It lives in
-``$XDG_CACHE_HOME/olatbench/ext/<hash>/`` (default ``~/.cache``), where ``<hash>`` covers the name and bytes of
-every source file, the compiler command and the flags, so an edited source or another compiler gets a fresh
-build. The compiler is ``$OLATBENCH_CXX``, else ``$CXX``, else ``g++``. Builds are atomic: compile to a unique
-temporary name in the same folder, then ``os.replace`` it into place, so several processes may build
-concurrently and none ever loads a half-written file.
+``SOURCES`` (``csrc/rasterize.cpp``: rasterizer, projection, binning, light pass; ``csrc/ssim.cpp``: the SSIM
+training loss; ``csrc/shading.cpp``: SSD-GS's per-Gaussian shading; all include ``csrc/simd.h``) are compiled by
+one compiler command into one shared library. It lives in ``$XDG_CACHE_HOME/olatbench/ext/<hash>/`` (default
+``~/.cache``), where ``<hash>`` covers the name and bytes of every source file and header, the compiler command and
+the flags, so an edited source or another compiler gets a fresh build. The compiler is ``$OLATBENCH_CXX``, else
+``$CXX``, else ``g++``. Builds are atomic: compile to a unique temporary name in the same folder, then
+``os.replace`` it into place, so several processes may build concurrently and none ever loads a half-written file.
 
 Flags: ``-O3 -fopenmp -shared -fPIC -std=c++17 -ffp-contract=off``. Deliberately no ``-march=native`` (the
 cache may be shared between machines) and no ``-ffast-math`` (the backward must reproduce the forward's
 floating-point decisions exactly). If the OpenMP build fails (e.g. Apple clang without libomp), a
-single-threaded build without ``-fopenmp`` is tried next (``loaded_path()`` and ``cpu_backend_status()`` say so); once a
-single-threaded library is cached it is used without retrying OpenMP (delete the cache to retry).
+single-threaded build without ``-fopenmp`` is tried next (``loaded_path()`` and ``cpu_backend_status()`` say
+so); once a single-threaded library is cached it is used without retrying OpenMP (delete the cache to retry).
 """
 
 from __future__ import annotations
@@ -28,6 +27,7 @@ import threading
 from pathlib import Path
 
 SOURCES = tuple(Path(__file__).with_name("csrc") / name for name in ("rasterize.cpp", "ssim.cpp", "shading.cpp"))
+HEADERS = (Path(__file__).with_name("csrc") / "simd.h",)  # included by the sources: part of the build hash
 BASE_FLAGS = ("-O3", "-shared", "-fPIC", "-std=c++17", "-ffp-contract=off")
 # Build variants in order of preference.
 VARIANTS = {"openmp": (*BASE_FLAGS, "-fopenmp"), "serial": BASE_FLAGS}
@@ -51,7 +51,7 @@ def cache_root() -> Path:
 
 def build_hash(variant: str = "openmp") -> str:
     digest = hashlib.sha256()
-    for source in SOURCES:  # name and length delimit each file's bytes
+    for source in (*SOURCES, *HEADERS):  # name and length delimit each file's bytes
         data = source.read_bytes()
         digest.update(f"{source.name}\0{len(data)}\0".encode())
         digest.update(data)

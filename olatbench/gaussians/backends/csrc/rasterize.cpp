@@ -18,6 +18,8 @@
 #include <limits>
 #include <vector>
 
+#include "simd.h"
+
 namespace {
 
 constexpr double kAlphaMax = 0.99;
@@ -82,8 +84,9 @@ struct TileData {
     }
   }
   // Tile pixels whose centres may lie within Gaussian k's box widened to at least `min_half` px; false if none.
-  bool box(int64_t k, double min_half, Box& b) const {
-    const double wx = std::max(hx[k], min_half), wy = std::max(hy[k], min_half);
+  // With `exact`, the half-width is `min_half` itself (a square around the mean, whatever Gaussian k's extent).
+  bool box(int64_t k, double min_half, Box& b, bool exact = false) const {
+    const double wx = exact ? min_half : std::max(hx[k], min_half), wy = exact ? min_half : std::max(hy[k], min_half);
     if (wx < 0.0) return false;
     const double cx = double(mx[k]) - origin_x - 0.5, cy = double(my[k]) - origin_y - 0.5;
     b.x0 = int(std::max(0.0, std::ceil(std::max(cx - wx, -1.0))));
@@ -261,7 +264,67 @@ void backward_impl(const F* means2d, const F* conics, const F* opac, const F* fe
   }
 }
 
+// One box row of the light pass: composite Gaussian (mx, my, conic ca cb cc, opacity o) into the row's
+// transmittance t_row and stop flags d_row (0 or 1) over local x in [x0, x1), W / sizeof(F) pixels at a time
+// (the rows are padded so whole vectors can be read and written back; lanes past x1 keep their values). Each
+// pixel's weight alpha T goes to weights[lx - x0] (0 where nothing was composited) so the caller sums them in
+// pixel order, whatever the vector width. rec (the lagged pass's record, or null) gets the factor the pixel's T
+// was multiplied by: 1 - alpha, 0 where the pixel stopped, 1 where it was left alone.
+template <typename F, int W>
+OLATBENCH_SIMD void composite_row(F* t_row, F* d_row, int x0, int x1, int origin_x, F mx, F dy, F ca, F cb, F cc,
+                                  F o, F* weights, F* rec) {
+  using S = Simd<F, W>;
+  using V = typename S::V;
+  using I = typename S::I;
+  V lane;
+  for (int i = 0; i < S::kLanes; ++i) lane[i] = F(i);
+  const V zero = splat<F, W>(F(0)), one = splat<F, W>(F(1));
+  for (int lx = x0; lx < x1; lx += S::kLanes) {
+    V t, d;
+    std::memcpy(&t, t_row + lx, sizeof(V));
+    std::memcpy(&d, d_row + lx, sizeof(V));
+    const I open = ((lane + F(lx)) < F(x1)) & (d == zero);  // inside the box and not stopped yet
+    const V px = splat<F, W>(F(origin_x + lx)) + lane;  // exact integers, as F(origin_x + lx) per pixel
+    const V dx = mx - (px + F(0.5));
+    const V pw = F(-0.5) * (ca * dx * dx + cc * dy * dy) - cb * dx * dy;  // as TileData::power
+    const I positive = pw > zero;
+    const V g = exp_nonpositive<F, W>(select<F, W>(positive, zero, pw));
+    const V scaled = o * g;
+    const V alpha = select<F, W>(scaled > splat<F, W>(F(kAlphaMax)), splat<F, W>(F(kAlphaMax)), scaled);
+    const V keep = one - alpha;
+    const V t_next = t * keep;
+    const I live = open & ~positive & (alpha >= splat<F, W>(F(kAlphaMin)));
+    const I stop = live & (t_next < splat<F, W>(F(kTMin)));
+    const I update = live & ~stop;
+    const V w = select<F, W>(update, alpha * t, zero);
+    t = select<F, W>(update, t_next, t);
+    d = select<F, W>(stop, one, d);
+    std::memcpy(t_row + lx, &t, sizeof(V));
+    std::memcpy(d_row + lx, &d, sizeof(V));
+    store<F, W>(weights + (lx - x0), x1 - lx, w);
+    if (rec) store<F, W>(rec + (lx - x0), x1 - lx, select<F, W>(update, keep, select<F, W>(stop, zero, one)));
+  }
+}
+
+template <typename F>
+void composite_row_sse(F* t_row, F* d_row, int x0, int x1, int origin_x, F mx, F dy, F ca, F cb, F cc, F o,
+                       F* weights, F* rec) {
+  composite_row<F, 16>(t_row, d_row, x0, x1, origin_x, mx, dy, ca, cb, cc, o, weights, rec);
+}
+#ifdef OLATBENCH_SIMD_AVX2
+template <typename F>
+__attribute__((target("avx2"))) void composite_row_avx2(F* t_row, F* d_row, int x0, int x1, int origin_x, F mx,
+                                                        F dy, F ca, F cb, F cc, F o, F* weights, F* rec) {
+  composite_row<F, 32>(t_row, d_row, x0, x1, origin_x, mx, dy, ca, cb, cc, o, weights, rec);
+}
+#endif
+// Vector lanes of padding after the per-pixel rows (the widest vector: 32 bytes).
+constexpr int kRowPad = 32;
+
 // Light-view pass over all tiles, writing per (tile, Gaussian) pair sums. kLagged: see shadow_gather_impl.
+// Per Gaussian k of a tile (front to back): first its sampling disc reads the transmittance in front of it,
+// then it is composited over its box. The compositing loop is branch-free over each box row (pixels are
+// independent), so it vectorises; per-pixel state is kept as F arrays (T, and done = 0 or 1).
 template <typename F, bool kLagged>
 void shadow_gather_tiles(const F* means2d, const F* conics, const F* opac, const F* keys, double depth_offset,
                          const int64_t* offsets, const int64_t* ids, Grid grid, F radius_px, int threads,
@@ -269,33 +332,38 @@ void shadow_gather_tiles(const F* means2d, const F* conics, const F* opac, const
   const int64_t num_tiles = grid.num_tiles();
   const int area = grid.tile * grid.tile;
   const F r2 = radius_px * radius_px;
+  auto composite = composite_row_sse<F>;
+#ifdef OLATBENCH_SIMD_AVX2
+  if (have_avx2()) composite = composite_row_avx2<F>;
+#endif
 #pragma omp parallel num_threads(threads)
   {
     TileData<F> td;
-    std::vector<F> T(area), T_lag(kLagged ? area : 0);
-    std::vector<char> done(area), done_lag(kLagged ? area : 0);
-    // kLagged: the thresholds, and what the main pass did to each pixel: Gaussian k's events are
-    // [event_start[k], event_start[k + 1]), each (pixel, factor 1 - alpha it multiplied T by, or 0 = terminated).
+    // Rows padded by kRowPad so composite_row may read and write back whole vectors past a row's end.
+    std::vector<F> T(area + kRowPad), done(area + kRowPad), weights(grid.tile + kRowPad);
+    std::vector<F> T_lag(kLagged ? area : 0), done_lag(kLagged ? area : 0);
+    // kLagged: what the main pass did to each pixel of each Gaussian's box, row-major from record_start[k]:
+    // the factor 1 - alpha it multiplied T by, 0 where it stopped the pixel, 1 where it left it alone.
     std::vector<float> key32, threshold32;
-    std::vector<int64_t> event_start;
-    std::vector<int32_t> event_pixel;
-    std::vector<F> event_factor;
+    std::vector<Box> boxes;
+    std::vector<int64_t> record_start;
+    std::vector<F> record;
 #pragma omp for schedule(dynamic, 1)
     for (int64_t tile = 0; tile < num_tiles; ++tile) {
       const int64_t start = offsets[tile];
       td.load(means2d, conics, opac, nullptr, 0, ids, start, offsets[tile + 1], grid, tile);
       const int sx = td.size_x;
       std::fill(T.begin(), T.end(), F(1));
-      std::fill(done.begin(), done.end(), 0);
+      std::fill(done.begin(), done.end(), F(0));
       int64_t lag = 0;  // Gaussians [0, lag) of the tile are composited into T_lag
       if constexpr (kLagged) {
         std::fill(T_lag.begin(), T_lag.end(), F(1));
-        std::fill(done_lag.begin(), done_lag.end(), 0);
+        std::fill(done_lag.begin(), done_lag.end(), F(0));
         key32.resize(td.n);
         threshold32.resize(td.n);
-        event_start.resize(td.n + 1);
-        event_pixel.clear();
-        event_factor.clear();
+        boxes.assign(td.n, Box{0, 0, 0, 0});
+        record_start.resize(td.n + 1);
+        record.clear();
         for (int64_t k = 0; k < td.n; ++k) {
           const int64_t g = ids[start + k];
           key32[k] = float(keys[g]);
@@ -303,58 +371,72 @@ void shadow_gather_tiles(const F* means2d, const F* conics, const F* opac, const
         }
       }
       const F* T_front = kLagged ? T_lag.data() : T.data();
-      const char* done_front = kLagged ? done_lag.data() : done.data();
-      Box b;
+      const F* done_front = kLagged ? done_lag.data() : done.data();
       for (int64_t k = 0; k < td.n; ++k) {
         if constexpr (kLagged) {
-          event_start[k] = int64_t(event_pixel.size());
+          record_start[k] = int64_t(record.size());
           const float threshold = threshold32[k];
           if (lag > 0 && !(key32[lag - 1] < threshold)) {  // the prefix shrank: replay from the tile start
             std::fill(T_lag.begin(), T_lag.end(), F(1));
-            std::fill(done_lag.begin(), done_lag.end(), 0);
+            std::fill(done_lag.begin(), done_lag.end(), F(0));
             lag = 0;
           }
-          // Replaying the recorded events reproduces T bit for bit (same products in the same order).
+          // Replaying the recorded factors reproduces T bit for bit (same products in the same order; x * 1 = x).
           for (; lag < k && key32[lag] < threshold; ++lag) {
-            for (int64_t e = event_start[lag]; e < event_start[lag + 1]; ++e) {
-              const int32_t p = event_pixel[e];
-              if (event_factor[e] == F(0)) done_lag[p] = 1;
-              else T_lag[p] = T_lag[p] * event_factor[e];
+            const Box& lb = boxes[lag];
+            const F* f = record.data() + record_start[lag];
+            for (int ly = lb.y0; ly < lb.y1; ++ly) {
+              F* t_row = T_lag.data() + ly * sx;
+              F* d_row = done_lag.data() + ly * sx;
+              for (int lx = lb.x0; lx < lb.x1; ++lx, ++f) {
+                const bool stop = *f == F(0);
+                d_row[lx] = stop ? F(1) : d_row[lx];
+                t_row[lx] = stop ? t_row[lx] : t_row[lx] * *f;
+              }
             }
           }
         }
-        if (!td.box(k, double(radius_px) + kBoxSlack, b)) continue;
-        F vis = F(0), wsum = F(0);
-        int32_t cnt = 0;
+        pair_vis[start + k] = F(0);
+        pair_count[start + k] = 0;
+        pair_weight[start + k] = F(0);
+        Box b;
+        // The sampling disc: pixel centres within radius_px of the mean, reading T before k is composited.
+        if (td.box(k, double(radius_px) + kBoxSlack, b, true)) {
+          F vis = F(0);
+          int32_t cnt = 0;
+          for (int ly = b.y0; ly < b.y1; ++ly) {
+            for (int lx = b.x0; lx < b.x1; ++lx) {
+              F dx, dy;
+              td.power(k, lx, ly, dx, dy);
+              if (dx * dx + dy * dy <= r2) {
+                const int p = ly * sx + lx;
+                vis += done_front[p] != F(0) ? F(0) : T_front[p];
+                cnt += 1;
+              }
+            }
+          }
+          pair_vis[start + k] = vis;
+          pair_count[start + k] = cnt;
+        }
+        if (td.hx[k] < 0.0 || !td.box(k, 0.0, b)) continue;  // opacity below 1/255: never composited
+        if constexpr (kLagged) {
+          boxes[k] = b;
+          record.resize(record.size() + size_t(b.x1 - b.x0) * size_t(b.y1 - b.y0));
+        }
+        F* rec = kLagged ? record.data() + record_start[k] : nullptr;
+        const F mx = td.mx[k], my = td.my[k], ca = td.ca[k], cb = td.cb[k], cc = td.cc[k], o = td.op[k];
+        const int row_width = b.x1 - b.x0;
+        F wsum = F(0);
         for (int ly = b.y0; ly < b.y1; ++ly) {
-          for (int lx = b.x0; lx < b.x1; ++lx) {
-            const int p = ly * sx + lx;
-            F dx, dy;
-            const F pw = td.power(k, lx, ly, dx, dy);
-            if (dx * dx + dy * dy <= r2) {
-              vis += done_front[p] ? F(0) : T_front[p];
-              cnt += 1;
-            }
-            if (done[p] || td.negligible(k, pw)) continue;
-            const F alpha = std::min(F(kAlphaMax), td.op[k] * std::exp(pw));
-            if (alpha < F(kAlphaMin)) continue;
-            const F keep = F(1) - alpha;
-            const F t_next = T[p] * keep;
-            if (t_next < F(kTMin)) {
-              done[p] = 1;
-              if constexpr (kLagged) { event_pixel.push_back(p); event_factor.push_back(F(0)); }
-              continue;
-            }
-            wsum += alpha * T[p];
-            T[p] = t_next;
-            if constexpr (kLagged) { event_pixel.push_back(p); event_factor.push_back(keep); }
-          }
+          const F dy = my - (F(td.origin_y + ly) + F(0.5));
+          F* row_rec = kLagged ? rec + (ly - b.y0) * row_width : nullptr;
+          composite(T.data() + ly * sx, done.data() + ly * sx, b.x0, b.x1, td.origin_x, mx, dy, ca, cb, cc, o,
+                    weights.data(), row_rec);
+          for (int i = 0; i < row_width; ++i) wsum += weights[i];  // pixel order, as a scalar loop would add
         }
-        pair_vis[start + k] = vis;
-        pair_count[start + k] = cnt;
         pair_weight[start + k] = wsum;
       }
-      if constexpr (kLagged) event_start[td.n] = int64_t(event_pixel.size());
+      if constexpr (kLagged) record_start[td.n] = int64_t(record.size());
     }
   }
 }
