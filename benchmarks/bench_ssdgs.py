@@ -30,6 +30,7 @@ computes the coarse visibility every iteration gets below it. The last line is a
 
     python benchmarks/bench_ssdgs.py --repeats 3
     python benchmarks/bench_ssdgs.py --sizes 128 --counts 5000 --no-shadow   # without the light-view pass
+    python benchmarks/bench_ssdgs.py --light-view-scale 0.5                    # light view at half the size
     python benchmarks/bench_ssdgs.py --states surface --sizes 256
 """
 
@@ -69,9 +70,10 @@ def timed(stages: dict[str, Callable[[], object]], repeats: int) -> dict[str, fl
     return {name: min(values) for name, values in samples.items()}
 
 
-def make_method(size: int, count: int, use_shadow: bool, state: str) -> SSDGS:
+def make_method(size: int, count: int, use_shadow: bool, state: str, light_view_scale: float = 1.0) -> SSDGS:
     """SSD-GS set up on one random view, its model put in ``state``, learning rates zeroed (the model stays
-    fixed while Adam still does all its work), densification and opacity resets off."""
+    fixed while Adam still does all its work), densification and opacity resets off; the light-view pass at
+    ``light_view_scale`` × the view's size (1: the paper's setting)."""
     camera = Camera(K=intrinsics_from_fov(np.radians(45.0), size, size), c2w=look_at(np.array([0.0, -3.0, 1.0]),
                     np.zeros(3)), width=size, height=size)
     light = PointLight(position=np.array([2.0, -3.0, 3.0]), intensity=np.full(3, 16.0), intensity_known=True)
@@ -80,7 +82,7 @@ def make_method(size: int, count: int, use_shadow: bool, state: str) -> SSDGS:
                   frame_ids=["0"])
     config = SSDGS.resolve_config(None, num_init_gaussians=count, init_radius=1.0, max_gaussians=None,
                                   densify_from=200_000, densify_until=200_000, opacity_reset_interval=1_000_000,
-                                  use_shadow=use_shadow)
+                                  use_shadow=use_shadow, shadow_resolution=round(size * light_view_scale))
     method = SSDGS(config)
     method.setup(views, "cpu", 0)
     if state == "surface":
@@ -234,6 +236,8 @@ def main() -> None:
     parser.add_argument("--states", nargs="+", choices=["initial", "surface"], default=["initial", "surface"],
                         help="model states to measure (see above)")
     parser.add_argument("--no-shadow", action="store_true", help="composition without the shadow term")
+    parser.add_argument("--light-view-scale", type=float, default=1.0,
+                        help="light-view pass size relative to the view (default 1: the view's size, as the paper)")
     args = parser.parse_args()
     torch.set_num_threads(args.threads)
     torch.set_flush_denormal(True)
@@ -241,7 +245,7 @@ def main() -> None:
     print(f"{'state':>8} {'size':>5} {'N':>6} {'visible':>7} {'step':>8} {'rest':>8} {'mlp':>8} {'matmul':>8} "
           f"{'raster':>8} {'shadow':>8} {'optim':>8} {'mlp_eff':>8} {'rest/rast':>9} {'floor':>6}")
     for state, size, count in itertools.product(args.states, args.sizes, args.counts):
-        method = make_method(size, count, not args.no_shadow, state)
+        method = make_method(size, count, not args.no_shadow, state, args.light_view_scale)
         views = method.train_views
         camera = views.views.cameras[0]
         visible = torch.nonzero(project(method.model.means, method.model.quats, method.model.scales,
@@ -266,7 +270,8 @@ def main() -> None:
               f"{efficiency:>8.2f} {rest:>9.2f} {floors[-1]:>6.2f}")
     print(f"SUMMARY bench_ssdgs mlp_efficiency_min={min(efficiencies):.2f} (target>=0.7) "
           f"rest_vs_raster_max={max(rest_ratios):.2f} (target<=1.5; floor {max(floors):.2f}) "
-          f"shadow={'off' if args.no_shadow else 'on'} threads={args.threads}")
+          f"shadow={'off' if args.no_shadow else 'on'} light_view_scale={args.light_view_scale:g} "
+          f"threads={args.threads}")
 
 
 if __name__ == "__main__":
