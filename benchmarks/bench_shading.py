@@ -16,16 +16,15 @@ from __future__ import annotations
 
 import argparse
 import math
-import time
 from collections.abc import Callable
 
 import torch
+from backend_speedup import BACKENDS, SpeedupTable
 from bench_ssdgs import FreeNetwork
 
 from olatbench.methods.ssdgs.config import SSDGSConfig
 from olatbench.methods.ssdgs.shader import Shader
 
-BACKENDS = ("torch", "cpu")
 TERMS = frozenset({"specular", "sss", "shadow"})
 TARGET = 4.0
 
@@ -73,19 +72,6 @@ def step(shader: Shader, scene: Scene, backend: str, backward: bool) -> Callable
     return run
 
 
-def fastest_ms(runs: dict[str, Callable[[], None]], repeats: int) -> dict[str, float]:
-    """Fastest wall-clock ms of each callable over ``repeats`` rounds (one call of each per round)."""
-    best = dict.fromkeys(runs, float("inf"))
-    for fn in runs.values():  # warm-up
-        fn()
-    for _ in range(repeats):
-        for name, fn in runs.items():
-            start = time.perf_counter()
-            fn()
-            best[name] = min(best[name], (time.perf_counter() - start) * 1e3)
-    return best
-
-
 def max_differences(shader: Shader, scene: Scene) -> tuple[float, float]:
     """Max |Δ colour| / max |colour| and the largest max |Δ grad| / max |grad| over the leaves and the shader's
     parameters, between the backends."""
@@ -116,29 +102,16 @@ def main() -> None:
     torch.set_num_threads(args.threads)
 
     print(f"Shader float32, all terms, stand-in networks, {args.threads} threads, fastest of {args.repeats} (ms)")
-    print(f"{'K':>6} {'backend':>8} {'fwd':>8} {'fwd+bwd':>8}")
     shader = make_shader()
-    summary: dict[str, float] = {}
-    agree = True
+    table = SpeedupTable("K")
     for count in args.counts:
         scene = Scene(count)
-        runs = {f"{b}_{kind}": step(shader, scene, b, kind == "fwdbwd") for b in BACKENDS for kind in ("fwd", "fwdbwd")}
-        best = fastest_ms(runs, args.repeats)
-        for backend in BACKENDS:
-            fwd, fwdbwd = best[f"{backend}_fwd"], best[f"{backend}_fwdbwd"]
-            print(f"{count:>6} {backend:>8} {fwd:>8.3f} {fwdbwd:>8.3f}")
-            summary[f"{backend}_fwd_{count}_ms"], summary[f"{backend}_fwdbwd_{count}_ms"] = fwd, fwdbwd
-        for kind in ("fwd", "fwdbwd"):
-            summary[f"speedup_{kind}_{count}"] = best[f"torch_{kind}"] / best[f"cpu_{kind}"]
+        speedups = table.measure(count, lambda backend, backward, sc=scene: step(shader, sc, backend, backward),
+                                 args.repeats)
         d_colour, d_grad = max_differences(shader, scene)
-        agree = agree and d_colour < 1e-5 and d_grad < 1e-4
-        print(f"{count:>6} cpu/torch speed-up: fwd {summary[f'speedup_fwd_{count}']:.1f}x, "
-              f"fwd+bwd {summary[f'speedup_fwdbwd_{count}']:.1f}x; relative max |Δ colour| {d_colour:.1e}, "
-              f"|Δ grad| {d_grad:.1e}")
-    met = min(summary[f"speedup_fwdbwd_{count}"] for count in args.counts) >= TARGET
-    fields = " ".join(f"{k}={v:.3f}" for k, v in summary.items())
-    print(f"SUMMARY bench_shading threads={args.threads} {fields} target={TARGET} "
-          f"values_agree={'yes' if agree else 'NO'} status={'ok' if met and agree else 'below-target'}")
+        table.agree = table.agree and d_colour < 1e-5 and d_grad < 1e-4
+        print(f"{count:>6} {speedups}; relative max |Δ colour| {d_colour:.1e}, |Δ grad| {d_grad:.1e}")
+    print(table.summary("bench_shading", args.threads, TARGET))
 
 
 if __name__ == "__main__":

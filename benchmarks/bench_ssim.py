@@ -13,14 +13,13 @@ Usage: ``python benchmarks/bench_ssim.py [--sizes 128 256] [--threads 2] [--repe
 from __future__ import annotations
 
 import argparse
-import time
 from collections.abc import Callable
 
 import torch
+from backend_speedup import BACKENDS, SpeedupTable
 
 from olatbench.metrics.ssim import ssim_loss
 
-BACKENDS = ("torch", "cpu")
 TARGET = 5.0
 
 
@@ -41,19 +40,6 @@ def step(pred: torch.Tensor, gt: torch.Tensor, backend: str, backward: bool) -> 
             loss.backward()
 
     return run
-
-
-def fastest_ms(runs: dict[str, Callable[[], None]], repeats: int) -> dict[str, float]:
-    """Fastest wall-clock ms of each callable over ``repeats`` rounds (one call of each per round)."""
-    best = dict.fromkeys(runs, float("inf"))
-    for fn in runs.values():  # warm-up
-        fn()
-    for _ in range(repeats):
-        for name, fn in runs.items():
-            start = time.perf_counter()
-            fn()
-            best[name] = min(best[name], (time.perf_counter() - start) * 1e3)
-    return best
 
 
 def max_differences(pred: torch.Tensor, gt: torch.Tensor) -> tuple[float, float]:
@@ -77,28 +63,15 @@ def main() -> None:
     torch.set_num_threads(args.threads)
 
     print(f"ssim_loss float32 (H, W, 3), channels_last, {args.threads} threads, fastest of {args.repeats} (ms)")
-    print(f"{'size':>5} {'backend':>8} {'fwd':>8} {'fwd+bwd':>8}")
-    summary: dict[str, float] = {}
-    agree = True
+    table = SpeedupTable("size")
     for size in args.sizes:
         pred, gt = images(size)
-        runs = {f"{b}_{kind}": step(pred, gt, b, kind == "fwdbwd") for b in BACKENDS for kind in ("fwd", "fwdbwd")}
-        best = fastest_ms(runs, args.repeats)
-        for backend in BACKENDS:
-            fwd, fwdbwd = best[f"{backend}_fwd"], best[f"{backend}_fwdbwd"]
-            print(f"{size:>5} {backend:>8} {fwd:>8.3f} {fwdbwd:>8.3f}")
-            summary[f"{backend}_fwd_{size}_ms"], summary[f"{backend}_fwdbwd_{size}_ms"] = fwd, fwdbwd
-        for kind in ("fwd", "fwdbwd"):
-            summary[f"speedup_{kind}_{size}"] = best[f"torch_{kind}"] / best[f"cpu_{kind}"]
+        speedups = table.measure(size, lambda backend, backward, p=pred, g=gt: step(p, g, backend, backward),
+                                 args.repeats)
         d_loss, d_grad = max_differences(pred, gt)
-        agree = agree and d_loss < 1e-5 and d_grad < 1e-4
-        print(f"{size:>5} cpu/torch speed-up: fwd {summary[f'speedup_fwd_{size}']:.1f}x, "
-              f"fwd+bwd {summary[f'speedup_fwdbwd_{size}']:.1f}x; |Δ loss| {d_loss:.1e}, "
-              f"relative max |Δ grad| {d_grad:.1e}")
-    met = min(summary[f"speedup_fwdbwd_{size}"] for size in args.sizes) >= TARGET
-    fields = " ".join(f"{k}={v:.3f}" for k, v in summary.items())
-    print(f"SUMMARY bench_ssim threads={args.threads} {fields} target={TARGET} "
-          f"values_agree={'yes' if agree else 'NO'} status={'ok' if met and agree else 'below-target'}")
+        table.agree = table.agree and d_loss < 1e-5 and d_grad < 1e-4
+        print(f"{size:>6} {speedups}; |Δ loss| {d_loss:.1e}, relative max |Δ grad| {d_grad:.1e}")
+    print(table.summary("bench_ssim", args.threads, TARGET))
 
 
 if __name__ == "__main__":
