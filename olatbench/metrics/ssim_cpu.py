@@ -18,13 +18,9 @@ import torch
 from torch.autograd.function import once_differentiable
 
 from olatbench.gaussians.backends import build, cpu_backend_status
+from olatbench.gaussians.backends.kernel_args import FLOAT_SUFFIXES, float_suffix, pointer
 
-_FLOAT_TYPES = {torch.float32: "f32", torch.float64: "f64"}
 _DERIVATIVES = 3  # per-pixel maps saved for the backward: dSSIM/dmu_p, dSSIM/dE_pp, dSSIM/dE_pg
-
-
-def _ptr(t: torch.Tensor) -> ctypes.c_void_p:
-    return ctypes.c_void_p(t.data_ptr())
 
 
 def ssim_cpu_status() -> tuple[bool, str]:
@@ -56,10 +52,10 @@ class _SSIMLossCPU(torch.autograd.Function):
         batch, channels, height, width = pred.shape
         derivatives = torch.empty(_DERIVATIVES, batch * channels, height, width, dtype=dtype) if keep else None
         ssim_sum = ctypes.c_double()
-        getattr(build.load(), f"olatbench_ssim_loss_forward_{_FLOAT_TYPES[dtype]}")(
-            _ptr(pred), _strides(pred), _ptr(gt), _strides(gt), ctypes.c_int64(batch), ctypes.c_int64(channels),
+        getattr(build.load(), f"olatbench_ssim_loss_forward_{float_suffix(dtype, 'the cpu SSIM kernels')}")(
+            pointer(pred), _strides(pred), pointer(gt), _strides(gt), ctypes.c_int64(batch), ctypes.c_int64(channels),
             ctypes.c_int64(height), ctypes.c_int64(width), ctypes.c_int(threads),
-            ctypes.c_void_p(None) if derivatives is None else _ptr(derivatives), ctypes.byref(ssim_sum),
+            pointer(derivatives), ctypes.byref(ssim_sum),
         )  # fmt: skip
         if derivatives is not None:
             ctx.save_for_backward(pred, gt, derivatives)
@@ -72,10 +68,10 @@ class _SSIMLossCPU(torch.autograd.Function):
         pred, gt, derivatives = ctx.saved_tensors
         batch, channels, height, width = pred.shape
         grad_pred = torch.empty_strided(pred.shape, pred.stride(), dtype=pred.dtype)
-        getattr(build.load(), f"olatbench_ssim_loss_backward_{_FLOAT_TYPES[pred.dtype]}")(
-            _ptr(pred), _strides(pred), _ptr(gt), _strides(gt), _ptr(derivatives), ctypes.c_int64(batch),
+        getattr(build.load(), f"olatbench_ssim_loss_backward_{float_suffix(pred.dtype, 'the cpu SSIM kernels')}")(
+            pointer(pred), _strides(pred), pointer(gt), _strides(gt), pointer(derivatives), ctypes.c_int64(batch),
             ctypes.c_int64(channels), ctypes.c_int64(height), ctypes.c_int64(width), ctypes.c_int(ctx.threads),
-            ctypes.c_double(-float(grad_loss) / pred.numel()), _ptr(grad_pred),
+            ctypes.c_double(-float(grad_loss) / pred.numel()), pointer(grad_pred),
         )  # fmt: skip
         return grad_pred, None, None, None
 
@@ -84,7 +80,7 @@ def unsupported_reason(pred: torch.Tensor, gt: torch.Tensor) -> str | None:
     """Why ``ssim_loss_cpu`` cannot take these tensors, or None when it can."""
     if pred.device.type != "cpu" or gt.device.type != "cpu":
         return f"it needs CPU tensors, got {pred.device} and {gt.device}"
-    if pred.dtype not in _FLOAT_TYPES or gt.dtype != pred.dtype:
+    if pred.dtype not in FLOAT_SUFFIXES or gt.dtype != pred.dtype:
         return f"it needs float32 or float64 tensors of one dtype, got {pred.dtype} and {gt.dtype}"
     if pred.ndim != 4 or pred.shape != gt.shape or pred.numel() == 0:
         return f"it needs non-empty (B, C, H, W) tensors of one shape, got {tuple(pred.shape)} and {tuple(gt.shape)}"

@@ -14,12 +14,7 @@ import torch
 
 from ..tiles import TILE_SIZE, TileBins
 from . import build
-
-_FLOAT_TYPES = {torch.float32: "f32", torch.float64: "f64"}
-
-
-def _ptr(t: torch.Tensor) -> ctypes.c_void_p:
-    return ctypes.c_void_p(t.data_ptr())
+from .kernel_args import float_suffix, pointer
 
 
 def _threads(threads: int | None) -> int:
@@ -35,9 +30,7 @@ def _grid(bins: TileBins) -> list[ctypes.c_int]:
 
 
 def _suffix(dtype: torch.dtype) -> str:
-    if dtype not in _FLOAT_TYPES:
-        raise TypeError(f"the cpu rasterizer supports float32 and float64, not {dtype}")
-    return _FLOAT_TYPES[dtype]
+    return float_suffix(dtype, "the cpu rasterizer kernels")
 
 
 class _RasterizeCPU(torch.autograd.Function):
@@ -53,9 +46,9 @@ class _RasterizeCPU(torch.autograd.Function):
         final_t = torch.empty(bins.height, bins.width, dtype=dtype)
         counts = torch.empty(bins.height, bins.width, dtype=torch.int32)
         getattr(lib, f"olatbench_forward_{suffix}")(
-            _ptr(means2d), _ptr(conics), _ptr(opacities), _ptr(features), ctypes.c_int(channels),
-            _ptr(offsets), _ptr(ids), *_grid(bins), ctypes.c_int(threads),
-            _ptr(colour), _ptr(final_t), _ptr(counts),
+            pointer(means2d), pointer(conics), pointer(opacities), pointer(features), ctypes.c_int(channels),
+            pointer(offsets), pointer(ids), *_grid(bins), ctypes.c_int(threads),
+            pointer(colour), pointer(final_t), pointer(counts),
         )  # fmt: skip
         ctx.save_for_backward(means2d, conics, opacities, features, offsets, ids, final_t, counts)
         ctx.bins, ctx.threads = bins, threads
@@ -73,10 +66,10 @@ class _RasterizeCPU(torch.autograd.Function):
         grad_colour, grad_t = _prepare([grad_colour, grad_t], dtype)
         out = [torch.empty_like(t) for t in (means2d, conics, opacities, features)]
         getattr(build.load(), f"olatbench_backward_{_suffix(dtype)}")(
-            _ptr(means2d), _ptr(conics), _ptr(opacities), _ptr(features), ctypes.c_int(features.shape[1]),
-            _ptr(offsets), _ptr(ids), *_grid(ctx.bins), ctypes.c_int(ctx.threads),
-            _ptr(final_t), _ptr(counts), _ptr(grad_colour), _ptr(grad_t), ctypes.c_int64(n),
-            *(_ptr(t) for t in out),
+            pointer(means2d), pointer(conics), pointer(opacities), pointer(features), ctypes.c_int(features.shape[1]),
+            pointer(offsets), pointer(ids), *_grid(ctx.bins), ctypes.c_int(ctx.threads),
+            pointer(final_t), pointer(counts), pointer(grad_colour), pointer(grad_t), ctypes.c_int64(n),
+            *(pointer(t) for t in out),
         )  # fmt: skip
         return (*out, None, None, None, None)
 
@@ -110,8 +103,9 @@ class _ProjectCPU(torch.autograd.Function):
         means2d, conics = torch.empty(n, 2, dtype=dtype), torch.empty(n, 3, dtype=dtype)
         radii, depths = torch.empty(n, dtype=torch.int64), torch.empty(n, dtype=dtype)
         getattr(build.load(), f"olatbench_project_forward_{_suffix(dtype)}")(
-            _ptr(means), _ptr(quats), _ptr(scales), _ptr(camera), ctypes.c_int64(n), ctypes.c_int(width),
-            ctypes.c_int(height), ctypes.c_int(threads), _ptr(means2d), _ptr(conics), _ptr(radii), _ptr(depths))
+            pointer(means), pointer(quats), pointer(scales), pointer(camera), ctypes.c_int64(n),
+            ctypes.c_int(width), ctypes.c_int(height), ctypes.c_int(threads), pointer(means2d), pointer(conics),
+            pointer(radii), pointer(depths))
         ctx.save_for_backward(means, quats, scales, camera)
         ctx.threads, ctx.w2c_dtype = threads, w2c.dtype
         ctx.mark_non_differentiable(radii)
@@ -126,9 +120,8 @@ class _ProjectCPU(torch.autograd.Function):
         out = [torch.empty_like(t) for t in (means, quats, scales)]
         grad_w2c = torch.empty(4, 4, dtype=dtype) if ctx.needs_input_grad[3] else None
         getattr(build.load(), f"olatbench_project_backward_{_suffix(dtype)}")(
-            _ptr(means), _ptr(quats), _ptr(scales), _ptr(camera), ctypes.c_int64(n), ctypes.c_int(ctx.threads),
-            *(_ptr(g) for g in grads), *(_ptr(t) for t in out),
-            _ptr(grad_w2c) if grad_w2c is not None else ctypes.c_void_p(None))
+            pointer(means), pointer(quats), pointer(scales), pointer(camera), ctypes.c_int64(n),
+            ctypes.c_int(ctx.threads), *(pointer(g) for g in grads), *(pointer(t) for t in out), pointer(grad_w2c))
         if grad_w2c is not None:
             grad_w2c = grad_w2c.to(ctx.w2c_dtype)
         return (*out, grad_w2c, None, None, None, None)
@@ -191,11 +184,11 @@ def bin_gaussians_cpu(
     ranges = torch.empty(n, 4, dtype=torch.int64)
     count = getattr(lib, f"olatbench_bin_count_{suffix}")
     count.restype = ctypes.c_int64
-    total = count(_ptr(means2d), _ptr(radii), ctypes.c_int64(n), *grid, _ptr(ranges), _ptr(offsets))
+    total = count(pointer(means2d), pointer(radii), ctypes.c_int64(n), *grid, pointer(ranges), pointer(offsets))
     ids = torch.empty(total, dtype=torch.int64)
     getattr(lib, f"olatbench_bin_fill_{suffix}")(
-        _ptr(ranges), _ptr(keys), ctypes.c_int64(n), *grid, ctypes.c_int(_threads(threads)), _ptr(offsets),
-        _ptr(ids))
+        pointer(ranges), pointer(keys), ctypes.c_int64(n), *grid, ctypes.c_int(_threads(threads)), pointer(offsets),
+        pointer(ids))
     return TileBins(offsets=offsets, gaussian_ids=ids, tile_size=tile_size, tiles_x=tiles_x, tiles_y=tiles_y,
                     width=int(width), height=int(height))
 
@@ -258,10 +251,10 @@ def shadow_gather_cpu(
     weight = torch.empty(n, dtype=dtype)
     c_float = ctypes.c_float if dtype == torch.float32 else ctypes.c_double
     getattr(build.load(), f"olatbench_shadow_gather_{suffix}")(
-        _ptr(means2d), _ptr(conics), _ptr(opacities), ctypes.c_void_p(None) if keys is None else _ptr(keys),
-        ctypes.c_double(depth_offset), _ptr(offsets), _ptr(ids), *_grid(bins),
+        pointer(means2d), pointer(conics), pointer(opacities), pointer(keys),
+        ctypes.c_double(depth_offset), pointer(offsets), pointer(ids), *_grid(bins),
         c_float(radius_px), ctypes.c_int(_threads(threads)), ctypes.c_int64(n),
-        _ptr(vis_sum), _ptr(count), _ptr(weight),
+        pointer(vis_sum), pointer(count), pointer(weight),
     )  # fmt: skip
     return ShadowGather(vis_sum=vis_sum, count=count, weight=weight)
 

@@ -23,19 +23,11 @@ import torch
 from torch.autograd.function import once_differentiable
 
 from olatbench.gaussians.backends import build
-
-_FLOAT_TYPES = {torch.float32: "f32", torch.float64: "f64"}
-_NULL = ctypes.c_void_p(None)
-
-
-def _ptr(t: torch.Tensor | None) -> ctypes.c_void_p:
-    return _NULL if t is None else ctypes.c_void_p(t.data_ptr())
+from olatbench.gaussians.backends.kernel_args import float_suffix, pointer
 
 
 def _suffix(dtype: torch.dtype) -> str:
-    if dtype not in _FLOAT_TYPES:
-        raise TypeError(f"the cpu shading kernels support float32 and float64, not {dtype}")
-    return _FLOAT_TYPES[dtype]
+    return float_suffix(dtype, "the cpu shading kernels")
 
 
 def _contiguous(t: torch.Tensor | None) -> torch.Tensor | None:
@@ -68,8 +60,8 @@ class _GeometryCPU(torch.autograd.Function):
         wi, wo = torch.empty(n, 3, dtype=dtype), torch.empty(n, 3, dtype=dtype)
         frames, inv_dist2 = torch.empty(n, 3, 3, dtype=dtype), torch.empty(n, 1, dtype=dtype)
         getattr(build.load(), f"olatbench_shading_geometry_forward_{suffix}")(
-            *map(_ptr, inputs), ctypes.c_int64(n), ctypes.c_int(int(orient)), ctypes.c_int(threads),
-            _ptr(wi), _ptr(wo), _ptr(frames), _ptr(inv_dist2),
+            *map(pointer, inputs), ctypes.c_int64(n), ctypes.c_int(int(orient)), ctypes.c_int(threads),
+            pointer(wi), pointer(wo), pointer(frames), pointer(inv_dist2),
         )  # fmt: skip
         ctx.save_for_backward(*inputs)
         ctx.orient, ctx.threads = orient, threads
@@ -86,8 +78,8 @@ class _GeometryCPU(torch.autograd.Function):
         out = [torch.empty_like(positions), torch.empty_like(frame_quats), torch.empty(3, dtype=dtype),
                torch.empty(3, dtype=dtype)]
         getattr(build.load(), f"olatbench_shading_geometry_backward_{_suffix(dtype)}")(
-            *map(_ptr, inputs), ctypes.c_int64(n), ctypes.c_int(int(ctx.orient)), ctypes.c_int(ctx.threads),
-            *map(_ptr, grads), *map(_ptr, out),
+            *map(pointer, inputs), ctypes.c_int64(n), ctypes.c_int(int(ctx.orient)), ctypes.c_int(ctx.threads),
+            *map(pointer, grads), *map(pointer, out),
         )  # fmt: skip
         grad_positions, grad_quats, grad_camera, grad_light = out
         # No gradient (None, as autograd gives) where none can flow: the camera reaches the outputs only through
@@ -105,7 +97,7 @@ class _RotationsCPU(torch.autograd.Function):
         quats = quats.contiguous()
         out = torch.empty(quats.shape[0], 3, 3, dtype=quats.dtype)
         getattr(build.load(), f"olatbench_shading_rotations_forward_{_suffix(quats.dtype)}")(
-            _ptr(quats), ctypes.c_int64(quats.shape[0]), _ptr(out))
+            pointer(quats), ctypes.c_int64(quats.shape[0]), pointer(out))
         ctx.save_for_backward(quats)
         return out
 
@@ -115,7 +107,7 @@ class _RotationsCPU(torch.autograd.Function):
         (quats,) = ctx.saved_tensors
         grad = torch.empty_like(quats)
         getattr(build.load(), f"olatbench_shading_rotations_backward_{_suffix(quats.dtype)}")(
-            _ptr(quats), ctypes.c_int64(quats.shape[0]), _ptr(grad_out.contiguous()), _ptr(grad))
+            pointer(quats), ctypes.c_int64(quats.shape[0]), pointer(grad_out.contiguous()), pointer(grad))
         return grad
 
 
@@ -141,7 +133,7 @@ class _CombineCPU(torch.autograd.Function):
         # Softplus values and derivatives and the lobe exponentials, saved for the backward (csrc CacheLayout).
         cache = torch.empty(n * (18 + 3 * ctx.scalars["num_lobes"].value), dtype=dtype)
         getattr(build.load(), f"olatbench_shading_combine_forward_{suffix}")(
-            *_combine_arguments(tensors, ctx.scalars), *map(_ptr, out), _ptr(cache))
+            *_combine_arguments(tensors, ctx.scalars), *map(pointer, out), pointer(cache))
         ctx.save_for_backward(cache, *tensors)
         ctx.set_materialize_grads(False)  # unused outputs get None gradients (passed to the kernel as null)
         return tuple(out)
@@ -155,7 +147,7 @@ class _CombineCPU(torch.autograd.Function):
         # Gradient buffers shaped like each present input (the kernel writes all of them).
         out = [None if t is None else torch.empty_like(t) for t in tensors]
         getattr(build.load(), f"olatbench_shading_combine_backward_{_suffix(dtype)}")(
-            *_combine_arguments(tensors, ctx.scalars), _ptr(cache), *map(_ptr, grads_in), *map(_ptr, out))
+            *_combine_arguments(tensors, ctx.scalars), pointer(cache), *map(pointer, grads_in), *map(pointer, out))
         if tensors[_COMBINE_TENSORS.index("specular")] is None:
             out[_COMBINE_TENSORS.index("wo")] = None
         return (*out, None, None, None, None)
@@ -179,7 +171,7 @@ def _combine_scalars(tensors: list[torch.Tensor | None], n: int, smooth_cosine: 
 
 def _combine_arguments(tensors: list[torch.Tensor | None], scalars: dict[str, _Scalar]) -> list[object]:
     """The shared leading arguments of the combine forward and backward (OLATBENCH_SHADING_COMBINE_ARGS)."""
-    p = [_ptr(t) for t in tensors]
+    p = [pointer(t) for t in tensors]
     s = scalars
     return [*p[:11], s["num_lobes"], p[11], p[12], s["profile_channels"], p[13], s["n"], s["smooth_cosine"],
             s["shadow_on_sss"], s["f0"], s["threads"]]

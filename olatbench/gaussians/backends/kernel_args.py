@@ -1,0 +1,22 @@
+"""Arguments of the compiled library's C functions (``build.load()``): tensor pointers and the dtype suffix that
+picks a function's float (``_f32``) or double (``_f64``) version."""
+
+from __future__ import annotations
+
+import ctypes
+
+import torch
+
+FLOAT_SUFFIXES = {torch.float32: "f32", torch.float64: "f64"}
+
+
+def pointer(t: torch.Tensor | None) -> ctypes.c_void_p:
+    """The address of ``t``'s data (a C-contiguous CPU tensor), or NULL for None."""
+    return ctypes.c_void_p(None) if t is None else ctypes.c_void_p(t.data_ptr())
+
+
+def float_suffix(dtype: torch.dtype, kernels: str) -> str:
+    """``"f32"`` / ``"f64"`` for float32 / float64; TypeError naming ``kernels`` for any other dtype."""
+    if dtype not in FLOAT_SUFFIXES:
+        raise TypeError(f"{kernels} support float32 and float64, not {dtype}")
+    return FLOAT_SUFFIXES[dtype]
