@@ -267,13 +267,18 @@ void backward_impl(const F* means2d, const F* conics, const F* opac, const F* fe
 // One box row of the light pass: composite Gaussian (mx, my, conic ca cb cc, opacity o) into the row's
 // transmittance t_row and stop flags d_row (0 or 1) over local x in [x0, x1), W / sizeof(F) pixels at a time
 // (the rows are padded so whole vectors can be read and written back; lanes past x1 keep their values). Each
-// pixel's weight alpha T goes to weights[lx - x0] (0 where nothing was composited) so the caller sums them in
-// pixel order, whatever the vector width. rec (the lagged pass's record, or null) gets the factor the pixel's T
-// was multiplied by: 1 - alpha, 0 where the pixel stopped, 1 where it was left alone.
+// pixel's weight alpha T (0 where nothing was composited) is added to partial[(lx - x0) % kWeightLanes]: the
+// same kWeightLanes running sums, in the same order, whatever the vector width (which divides kWeightLanes), so
+// the total is width-independent without a serial chain of additions. rec (the lagged pass's record, or null)
+// gets the factor the pixel's T was multiplied by: 1 - alpha, 0 where the pixel stopped, 1 where it was left
+// alone.
+constexpr int kWeightLanes = 8;
+
 template <typename F, int W>
 OLATBENCH_SIMD void composite_row(F* t_row, F* d_row, int x0, int x1, int origin_x, F mx, F dy, F ca, F cb, F cc,
-                                  F o, F* weights, F* rec) {
+                                  F o, F* partial, F* rec) {
   using S = Simd<F, W>;
+  static_assert(kWeightLanes % S::kLanes == 0, "the vector width must divide kWeightLanes");
   using V = typename S::V;
   using I = typename S::I;
   V lane;
@@ -301,21 +306,25 @@ OLATBENCH_SIMD void composite_row(F* t_row, F* d_row, int x0, int x1, int origin
     d = select<F, W>(stop, one, d);
     std::memcpy(t_row + lx, &t, sizeof(V));
     std::memcpy(d_row + lx, &d, sizeof(V));
-    store<F, W>(weights + (lx - x0), x1 - lx, w);
+    F* sums = partial + (lx - x0) % kWeightLanes;
+    V running;
+    std::memcpy(&running, sums, sizeof(V));
+    running += w;
+    std::memcpy(sums, &running, sizeof(V));
     if (rec) store<F, W>(rec + (lx - x0), x1 - lx, select<F, W>(update, keep, select<F, W>(stop, zero, one)));
   }
 }
 
 template <typename F>
 void composite_row_sse(F* t_row, F* d_row, int x0, int x1, int origin_x, F mx, F dy, F ca, F cb, F cc, F o,
-                       F* weights, F* rec) {
-  composite_row<F, 16>(t_row, d_row, x0, x1, origin_x, mx, dy, ca, cb, cc, o, weights, rec);
+                       F* partial, F* rec) {
+  composite_row<F, 16>(t_row, d_row, x0, x1, origin_x, mx, dy, ca, cb, cc, o, partial, rec);
 }
 #ifdef OLATBENCH_SIMD_AVX2
 template <typename F>
 __attribute__((target("avx2"))) void composite_row_avx2(F* t_row, F* d_row, int x0, int x1, int origin_x, F mx,
-                                                        F dy, F ca, F cb, F cc, F o, F* weights, F* rec) {
-  composite_row<F, 32>(t_row, d_row, x0, x1, origin_x, mx, dy, ca, cb, cc, o, weights, rec);
+                                                        F dy, F ca, F cb, F cc, F o, F* partial, F* rec) {
+  composite_row<F, 32>(t_row, d_row, x0, x1, origin_x, mx, dy, ca, cb, cc, o, partial, rec);
 }
 #endif
 // Vector lanes of padding after the per-pixel rows (the widest vector: 32 bytes).
@@ -340,7 +349,7 @@ void shadow_gather_tiles(const F* means2d, const F* conics, const F* opac, const
   {
     TileData<F> td;
     // Rows padded by kRowPad so composite_row may read and write back whole vectors past a row's end.
-    std::vector<F> T(area + kRowPad), done(area + kRowPad), weights(grid.tile + kRowPad);
+    std::vector<F> T(area + kRowPad), done(area + kRowPad);
     std::vector<F> T_lag(kLagged ? area : 0), done_lag(kLagged ? area : 0);
     // kLagged: what the main pass did to each pixel of each Gaussian's box, row-major from record_start[k]:
     // the factor 1 - alpha it multiplied T by, 0 where it stopped the pixel, 1 where it left it alone.
@@ -426,15 +435,15 @@ void shadow_gather_tiles(const F* means2d, const F* conics, const F* opac, const
         F* rec = kLagged ? record.data() + record_start[k] : nullptr;
         const F mx = td.mx[k], my = td.my[k], ca = td.ca[k], cb = td.cb[k], cc = td.cc[k], o = td.op[k];
         const int row_width = b.x1 - b.x0;
-        F wsum = F(0);
+        F partial[kWeightLanes] = {};
         for (int ly = b.y0; ly < b.y1; ++ly) {
           const F dy = my - (F(td.origin_y + ly) + F(0.5));
           F* row_rec = kLagged ? rec + (ly - b.y0) * row_width : nullptr;
           composite(T.data() + ly * sx, done.data() + ly * sx, b.x0, b.x1, td.origin_x, mx, dy, ca, cb, cc, o,
-                    weights.data(), row_rec);
-          for (int i = 0; i < row_width; ++i) wsum += weights[i];  // pixel order, as a scalar loop would add
+                    partial, row_rec);
         }
-        pair_weight[start + k] = wsum;
+        pair_weight[start + k] = ((partial[0] + partial[1]) + (partial[2] + partial[3])) +
+                                 ((partial[4] + partial[5]) + (partial[6] + partial[7]));
       }
       if constexpr (kLagged) record_start[td.n] = int64_t(record.size());
     }
