@@ -9,11 +9,12 @@ import math
 import pytest
 import torch
 
+from olatbench.gaussians.backends import cpu_backend_status
 from olatbench.methods.ssdgs.config import SSDGSConfig
 from olatbench.methods.ssdgs.shader import Components, Shader
-from olatbench.methods.ssdgs.shading_cpu import rotations_cpu, shading_combine, shading_cpu_status, shading_geometry
+from olatbench.methods.ssdgs.shading_cpu import rotations_cpu, shading_combine, shading_geometry
 
-_STATUS = shading_cpu_status()
+_STATUS = cpu_backend_status()
 pytestmark = pytest.mark.skipif(not _STATUS[0], reason=f"C++ shading kernels unavailable: {_STATUS[1]}")
 
 D = torch.float64

@@ -9,13 +9,13 @@ import warnings
 import pytest
 import torch
 
-from olatbench.gaussians.backends import build
+from olatbench.gaussians.backends import build, cpu_backend_status
 from olatbench.methods.training import photometric_loss
 from olatbench.metrics.ssim import resolve_ssim_backend, ssim_loss
-from olatbench.metrics.ssim_cpu import ssim_cpu_status, ssim_loss_cpu
+from olatbench.metrics.ssim_cpu import ssim_loss_cpu
 
 ssim_module = importlib.import_module("olatbench.metrics.ssim")  # the package re-exports a function `ssim`
-_STATUS = ssim_cpu_status()
+_STATUS = cpu_backend_status()
 pytestmark = pytest.mark.skipif(not _STATUS[0], reason=f"C++ SSIM kernel unavailable: {_STATUS[1]}")
 
 

@@ -26,8 +26,9 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
+from olatbench.gaussians.backends import cpu_backend_status
 from olatbench.metrics._inputs import ArrayLike, check_same_shape, mask_to_n1hw, to_nchw, to_output
-from olatbench.metrics.ssim_cpu import ssim_cpu_status, ssim_loss_cpu, unsupported_reason
+from olatbench.metrics.ssim_cpu import ssim_loss_cpu, unsupported_reason
 
 SSIMVariant = Literal["wang", "3dgs"]
 SSIM_VARIANTS: tuple[str, ...] = ("wang", "3dgs")
@@ -153,7 +154,7 @@ def resolve_ssim_backend(pred: torch.Tensor, gt: torch.Tensor, variant: SSIMVari
         return "cpu"
     if reason is not None:
         return "torch"
-    ok, detail = ssim_cpu_status()
+    ok, detail = cpu_backend_status()
     if ok:
         return "cpu"
     if not _warned_fallback:

@@ -17,16 +17,10 @@ import ctypes
 import torch
 from torch.autograd.function import once_differentiable
 
-from olatbench.gaussians.backends import build, cpu_backend_status
-from olatbench.gaussians.backends.kernel_args import FLOAT_SUFFIXES, float_suffix, pointer
+from olatbench.gaussians.backends import build
+from olatbench.gaussians.backends.kernel_args import FLOAT_SUFFIXES, float_suffix, pointer, thread_count
 
 _DERIVATIVES = 3  # per-pixel maps saved for the backward: dSSIM/dmu_p, dSSIM/dE_pp, dSSIM/dE_pg
-
-
-def ssim_cpu_status() -> tuple[bool, str]:
-    """(ok, detail): whether the C++ library (rasterizer and SSIM kernels) loads, building it if needed;
-    ``detail`` is the library path or the reason it is unavailable."""
-    return cpu_backend_status()
 
 
 def _strides(t: torch.Tensor) -> ctypes.Array:
@@ -98,5 +92,5 @@ def ssim_loss_cpu(pred: torch.Tensor, gt: torch.Tensor, threads: int | None = No
     reason = unsupported_reason(pred, gt)
     if reason is not None:
         raise ValueError(f"ssim_loss_cpu: {reason}")
-    threads = max(1, int(threads if threads is not None else torch.get_num_threads()))
+    threads = thread_count(threads)
     return _SSIMLossCPU.apply(pred, gt, threads, torch.is_grad_enabled() and pred.requires_grad)

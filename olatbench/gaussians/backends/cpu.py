@@ -14,11 +14,7 @@ import torch
 
 from ..tiles import TILE_SIZE, TileBins
 from . import build
-from .kernel_args import float_suffix, pointer
-
-
-def _threads(threads: int | None) -> int:
-    return max(1, int(threads if threads is not None else torch.get_num_threads()))
+from .kernel_args import float_suffix, pointer, thread_count
 
 
 def _prepare(tensors: list[torch.Tensor], dtype: torch.dtype) -> list[torch.Tensor]:
@@ -88,7 +84,7 @@ def rasterize_cpu(
     ``threads`` defaults to ``torch.get_num_threads()``. Raises ``build.BuildError`` if the kernel cannot be
     built."""
     colour, final_t, _ = _RasterizeCPU.apply(
-        means2d, conics, opacities, features, bins.offsets, bins.gaussian_ids, bins, _threads(threads)
+        means2d, conics, opacities, features, bins.offsets, bins.gaussian_ids, bins, thread_count(threads)
     )
     return colour, final_t
 
@@ -155,7 +151,7 @@ def project_cpu(
     camera = torch.cat([pose, torch.stack([intrinsics[0, 0], intrinsics[1, 1], intrinsics[0, 2], intrinsics[1, 2]]),
                         torch.tensor(scalars, dtype=torch.float64)])
     return _ProjectCPU.apply(means, quats, scales, w2c, camera.contiguous(), int(width), int(height),
-                             _threads(threads))
+                             thread_count(threads))
 
 
 @torch.no_grad()
@@ -187,7 +183,7 @@ def bin_gaussians_cpu(
     total = count(pointer(means2d), pointer(radii), ctypes.c_int64(n), *grid, pointer(ranges), pointer(offsets))
     ids = torch.empty(total, dtype=torch.int64)
     getattr(lib, f"olatbench_bin_fill_{suffix}")(
-        pointer(ranges), pointer(keys), ctypes.c_int64(n), *grid, ctypes.c_int(_threads(threads)), pointer(offsets),
+        pointer(ranges), pointer(keys), ctypes.c_int64(n), *grid, ctypes.c_int(thread_count(threads)), pointer(offsets),
         pointer(ids))
     return TileBins(offsets=offsets, gaussian_ids=ids, tile_size=tile_size, tiles_x=tiles_x, tiles_y=tiles_y,
                     width=int(width), height=int(height))
@@ -253,7 +249,7 @@ def shadow_gather_cpu(
     getattr(build.load(), f"olatbench_shadow_gather_{suffix}")(
         pointer(means2d), pointer(conics), pointer(opacities), pointer(keys),
         ctypes.c_double(depth_offset), pointer(offsets), pointer(ids), *_grid(bins),
-        c_float(radius_px), ctypes.c_int(_threads(threads)), ctypes.c_int64(n),
+        c_float(radius_px), ctypes.c_int(thread_count(threads)), ctypes.c_int64(n),
         pointer(vis_sum), pointer(count), pointer(weight),
     )  # fmt: skip
     return ShadowGather(vis_sum=vis_sum, count=count, weight=weight)

@@ -1,5 +1,5 @@
-"""Arguments of the compiled library's C functions (``build.load()``): tensor pointers and the dtype suffix that
-picks a function's float (``_f32``) or double (``_f64``) version."""
+"""Arguments of the compiled library's C functions (``build.load()``): tensor pointers, the dtype suffix that
+picks a function's float (``_f32``) or double (``_f64``) version, and the OpenMP thread count."""
 
 from __future__ import annotations
 
@@ -13,6 +13,11 @@ FLOAT_SUFFIXES = {torch.float32: "f32", torch.float64: "f64"}
 def pointer(t: torch.Tensor | None) -> ctypes.c_void_p:
     """The address of ``t``'s data (a C-contiguous CPU tensor), or NULL for None."""
     return ctypes.c_void_p(None) if t is None else ctypes.c_void_p(t.data_ptr())
+
+
+def thread_count(threads: int | None) -> int:
+    """``threads`` (at least 1), or torch's intra-op thread count when None."""
+    return max(1, int(threads if threads is not None else torch.get_num_threads()))
 
 
 def float_suffix(dtype: torch.dtype, kernels: str) -> str:

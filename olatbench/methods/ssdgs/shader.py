@@ -23,6 +23,7 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
+from olatbench.gaussians.backends import cpu_backend_status
 from olatbench.gaussians.projection import quat_to_rotmat
 from olatbench.methods.ssdgs.config import SSDGSConfig
 from olatbench.methods.ssdgs.shading import (
@@ -36,7 +37,6 @@ from olatbench.methods.ssdgs.shading import (
 from olatbench.methods.ssdgs.shading_cpu import (
     rotations_cpu,
     shading_combine,
-    shading_cpu_status,
     shading_geometry,
 )
 from olatbench.methods.ssdgs.shadow_mlp import ShadowNetwork
@@ -161,7 +161,7 @@ class Shader(nn.Module):
             return "tensors not on the CPU"
         if any(t.dtype != dtype for t in tensors):
             return "inputs of different dtypes"
-        ok, detail = shading_cpu_status()
+        ok, detail = cpu_backend_status()
         return None if ok else f"the C++ kernels are unavailable ({detail})"
 
     def _forward_cpu(self, positions: torch.Tensor, quats: torch.Tensor, scales: torch.Tensor,

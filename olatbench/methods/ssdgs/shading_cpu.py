@@ -23,7 +23,7 @@ import torch
 from torch.autograd.function import once_differentiable
 
 from olatbench.gaussians.backends import build
-from olatbench.gaussians.backends.kernel_args import float_suffix, pointer
+from olatbench.gaussians.backends.kernel_args import float_suffix, pointer, thread_count
 
 
 def _suffix(dtype: torch.dtype) -> str:
@@ -33,19 +33,6 @@ def _suffix(dtype: torch.dtype) -> str:
 def _contiguous(t: torch.Tensor | None) -> torch.Tensor | None:
     """C-contiguous (device and dtype are checked by the public functions; output gradients share them)."""
     return None if t is None else t.contiguous()
-
-
-def shading_cpu_status() -> tuple[bool, str]:
-    """(ok, detail): whether the C++ shading kernels load (building the library if needed); ``detail`` is the
-    library path or the reason they are unavailable."""
-    try:
-        lib = build.load()
-    except build.BuildError as error:
-        return False, str(error)
-    path, _ = build.loaded_path()
-    if not hasattr(lib, "olatbench_shading_combine_forward_f32"):
-        return False, f"{path} has no shading kernels"
-    return True, str(path)
 
 
 class _GeometryCPU(torch.autograd.Function):
@@ -177,10 +164,6 @@ def _combine_arguments(tensors: list[torch.Tensor | None], scalars: dict[str, _S
             s["shadow_on_sss"], s["f0"], s["threads"]]
 
 
-def _threads(threads: int | None) -> int:
-    return max(1, int(threads if threads is not None else torch.get_num_threads()))
-
-
 def _check(tensors: dict[str, tuple[torch.Tensor | None, tuple[int, ...]]], dtype: torch.dtype) -> None:
     """Each given (tensor, expected shape) is a CPU tensor of ``dtype`` and that shape (the kernels index by it)."""
     _suffix(dtype)
@@ -218,7 +201,7 @@ def shading_geometry(
             "camera_position": (camera_position, (3,)), "light_position": (light_position, (3,))},
            positions.dtype)  # fmt: skip
     return _GeometryCPU.apply(positions, frame_quats, scales, camera_position, light_position, bool(orient_normals),
-                              _threads(threads))
+                              thread_count(threads))
 
 
 def rotations_cpu(quats: torch.Tensor) -> torch.Tensor:
@@ -278,7 +261,7 @@ def shading_combine(
               (n_lobes,), (k, 3), (k, channels), (k, 1))
     _check(dict(zip(_COMBINE_TENSORS, zip(tensors, shapes, strict=True), strict=True)), wi.dtype)
     return _CombineCPU.apply(*tensors, diffuse_cosine == "smooth", float(fresnel_f0), bool(shadow_on_sss),
-                             _threads(threads))
+                             thread_count(threads))
 
 
-__all__ = ["rotations_cpu", "shading_combine", "shading_cpu_status", "shading_geometry"]
+__all__ = ["rotations_cpu", "shading_combine", "shading_geometry"]
