@@ -187,3 +187,17 @@ def test_densifier_state_roundtrip_reproduces_splits():
     first.densify_and_prune(model_a, optimizer_a, EXTENT, None)
     second.densify_and_prune(model_b, optimizer_b, EXTENT, None)
     assert torch.equal(model_a.means, model_b.means) and model_a.num_gaussians == 8
+
+
+def test_accumulate_updates_only_the_visible_gaussians():
+    """Statistics of Gaussians outside the view stay untouched, even when their gradient is NaN."""
+    densifier = Densifier(DensifyConfig(), seed=0)
+    visible = torch.tensor([True, False, True, False])
+    grads = torch.tensor([[0.03, 0.04], [float("nan"), 1.0], [0.0, 0.02], [5.0, 5.0]])  # px units
+    for radii in (torch.tensor([4, 9, 2, 7]), torch.tensor([3, 9, 6, 7])):
+        densifier.accumulate(grads, radii, visible, width=200, height=100)
+    # NDC norm = |(gx · 100, gy · 50)|: 3.6056 and 1.0 per view for the two visible Gaussians
+    expected = torch.tensor([2 * math.hypot(3.0, 2.0), 0.0, 2.0, 0.0])
+    torch.testing.assert_close(densifier.grad_sum, expected)
+    assert densifier.visible_count.tolist() == [2.0, 0.0, 2.0, 0.0]
+    assert densifier.max_radii.tolist() == [4.0, 0.0, 6.0, 0.0]

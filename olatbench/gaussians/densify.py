@@ -137,9 +137,11 @@ class Densifier:
         scale = torch.tensor([0.5 * width, 0.5 * height], device=means2d_grad.device, dtype=means2d_grad.dtype)
         norm = (means2d_grad * scale).norm(dim=-1)
         visible = visible.to(torch.bool)
-        self.grad_sum[visible] += norm[visible].to(self.grad_sum.dtype)
-        self.visible_count[visible] += 1
-        self.max_radii[visible] = torch.maximum(self.max_radii[visible], radii[visible].to(self.max_radii.dtype))
+        # Dense masked updates: boolean indexing costs a nonzero() and a gather/scatter per statistic.
+        self.grad_sum += torch.where(visible, norm.to(self.grad_sum.dtype), 0.0)
+        self.visible_count += visible
+        self.max_radii = torch.where(visible, torch.maximum(self.max_radii, radii.to(self.max_radii.dtype)),
+                                     self.max_radii)
 
     @torch.no_grad()
     def accumulate_priority(self, values: torch.Tensor) -> None:
