@@ -413,15 +413,15 @@ void shadow_gather_tiles(const F* means2d, const F* conics, const F* opac, const
         if (td.box(k, double(radius_px) + kBoxSlack, b, true)) {
           F vis = F(0);
           int32_t cnt = 0;
-          for (int ly = b.y0; ly < b.y1; ++ly) {
+          for (int ly = b.y0; ly < b.y1; ++ly) {  // branch-free: which pixels fall inside varies unpredictably
+            const F dy = td.my[k] - (F(td.origin_y + ly) + F(0.5)), dy2 = dy * dy;
+            const F* t_row = T_front + ly * sx;
+            const F* d_row = done_front + ly * sx;
             for (int lx = b.x0; lx < b.x1; ++lx) {
-              F dx, dy;
-              td.power(k, lx, ly, dx, dy);
-              if (dx * dx + dy * dy <= r2) {
-                const int p = ly * sx + lx;
-                vis += done_front[p] != F(0) ? F(0) : T_front[p];
-                cnt += 1;
-              }
+              const F dx = td.mx[k] - (F(td.origin_x + lx) + F(0.5));  // as TileData::power
+              const bool inside = dx * dx + dy2 <= r2;
+              vis += t_row[lx] * F(inside & (d_row[lx] == F(0)));  // + 0 outside the disc or past a stop
+              cnt += int32_t(inside);
             }
           }
           pair_vis[start + k] = vis;
