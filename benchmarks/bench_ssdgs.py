@@ -51,6 +51,7 @@ from olatbench.gaussians.projection import project
 from olatbench.gaussians.rasterize import rasterize
 from olatbench.methods.base import Views
 from olatbench.methods.ssdgs import SSDGS
+from olatbench.methods.training import camera_centre
 
 ALL_ON_STEP = 30_000  # Schedule I at 100K: every term on, nothing frozen
 
@@ -193,11 +194,13 @@ def shadow_stage(method: SSDGS) -> Callable[[], None]:
 
     model, views = method.model, method.train_views
     camera = views.views.cameras[0]
+    light = views.light_positions[0]
+    options = method._light_view(views.Ks[0], camera.width, camera.height, camera_centre(views.w2cs[0]), light)
 
     def run() -> None:
         with torch.no_grad():
-            shadow_gather(model.means, model.quats, model.scales, model.opacities, views.light_positions[0],
-                          model.means.mean(0), resolution=method.config.light_view_size(camera.width, camera.height))
+            shadow_gather(model.means, model.quats, model.scales, model.opacities, light, model.means.mean(0),
+                          **options)
 
     return run
 

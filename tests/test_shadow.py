@@ -11,7 +11,7 @@ import torch
 from olatbench.gaussians.backends import cpu_backend_status
 from olatbench.gaussians.backends.cpu import shadow_gather_cpu
 from olatbench.gaussians.projection import quat_to_rotmat
-from olatbench.gaussians.shadow import OFFICIAL_KERNEL, light_camera, shadow_gather
+from olatbench.gaussians.shadow import OFFICIAL_KERNEL, camera_matched_focal, light_camera, shadow_gather
 from olatbench.gaussians.tiles import bin_gaussians
 
 IDENTITY = [1.0, 0.0, 0.0, 0.0]
@@ -134,6 +134,29 @@ def test_footprint_mode_averages_the_whole_splat():
     disc = shadow_gather(*scene, LIGHT, TARGET, resolution=128, backend="torch", scene_radius=1.2, mode="density")
     full = shadow_gather(*scene, LIGHT, TARGET, resolution=128, backend="torch", scene_radius=1.2, mode="footprint")
     assert float(disc.visibility[1]) < 0.5 < float(full.visibility[1]) < 1.0
+
+
+def _pixel_size_of_a_sphere(eye: torch.Tensor, target: torch.Tensor, radius: float, focal: float) -> float:
+    """Projected radius (px) of the sphere silhouette around ``target`` seen from ``eye`` with ``focal``."""
+    return focal * math.tan(math.asin(radius / float((target - eye).norm())))
+
+
+def test_camera_matched_focal_shows_the_scene_at_the_camera_pixel_scale():
+    target = torch.tensor([0.3, -0.2, 0.1], dtype=torch.float64)
+    camera = target + torch.tensor([0.0, -4.0, 1.0], dtype=torch.float64)
+    light = target + torch.tensor([5.0, 3.0, 6.0], dtype=torch.float64)
+    fx, width = 300.0, 400
+    focal = camera_matched_focal(fx, width, 100, camera, light, target)
+    # a small sphere at the target spans the same fraction of both images (rescaled from 400 px to 100 px)
+    in_camera = _pixel_size_of_a_sphere(camera, target, 0.05, fx) / width
+    in_light = _pixel_size_of_a_sphere(light, target, 0.05, focal) / 100
+    assert in_light == pytest.approx(in_camera, rel=1e-3)
+    assert focal == pytest.approx(fx * 100 / width * float((light - target).norm() / (camera - target).norm()))
+    # a light nearer than the camera widens the view, capped at 120°
+    near = camera_matched_focal(fx, width, 100, camera, target + torch.tensor([0.0, 0.0, 0.05]), target)
+    assert 2 * math.degrees(math.atan(50 / near)) == pytest.approx(120.0)
+    with pytest.raises(ValueError, match="camera away from the target"):
+        camera_matched_focal(fx, width, 100, target, light, target)
 
 
 def test_light_camera_fits_the_sphere_and_handles_parallel_up():

@@ -9,9 +9,11 @@ import pytest
 import torch
 from ssdgs_scenes import sphere_views
 
+from olatbench.gaussians.shadow import camera_matched_focal
 from olatbench.methods.registry import get_method
 from olatbench.methods.ssdgs import SSDGS
 from olatbench.methods.ssdgs.presets import ABLATION_PRESETS, SCHEDULE_PRESETS
+from olatbench.methods.training import camera_centre
 
 SMALL = {"iterations": 1_000, "reference_iterations": 100_000, "num_init_gaussians": 300, "init_radius": 1.3,
          "max_gaussians": 3_000, "shadow_resolution": 24, "sss_hidden": 32, "num_asg": 4, "densify_from": 10_000,
@@ -103,6 +105,28 @@ def test_render_components_are_consistent(views) -> None:
     # pixel, but with S and every component non-negative the unclamped sum bounds the pixel value.
     assert bool((out["diffuse"] >= 0).all() and (out["sss"] >= 0).all() and (out["specular"] >= 0).all())
     assert bool(((out["shadow"] >= 0) & (out["shadow"] <= 1)).all())
+
+
+@pytest.mark.parametrize("framing", ["camera", "scene"])
+def test_light_view_framing(views, framing: str) -> None:
+    """"camera" (default, official) frames the light view at the viewing camera's pixel scale; "scene" fits the
+    Gaussians' bounding sphere; both shade with the hint they give."""
+    method = make(views, shadow_framing=framing)
+    assert SSDGS.resolve_config(None).shadow_framing == "camera"
+    tv = method.train_views
+    camera_position, light = camera_centre(tv.w2cs[0]), tv.light_positions[0]
+    options = method._light_view(tv.Ks[0], 16, 16, camera_position, light)
+    assert options["resolution"] == 24
+    if framing == "camera":
+        expected = camera_matched_focal(float(tv.Ks[0][0, 0]), 16, 24, camera_position, light,
+                                        method.model.means.detach().mean(0))
+        assert options["focal_px"] == pytest.approx(expected)
+    else:
+        assert options["focal_px"] is None
+    for step in range(2):
+        assert np.isfinite(method.train_step(step + 900)["loss"])  # every term on, the hint included
+    with pytest.raises(ValueError, match="shadow_framing"):
+        SSDGS.resolve_config(None, shadow_framing="fitted")
 
 
 @pytest.mark.parametrize("preset", [*ABLATION_PRESETS, *SCHEDULE_PRESETS])

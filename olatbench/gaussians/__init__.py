@@ -18,5 +18,6 @@ from .model import GaussianModel as GaussianModel
 from .refinement import LightRefinement as LightRefinement
 from .refinement import PoseRefinement as PoseRefinement
 from .shadow import ShadowResult as ShadowResult
+from .shadow import camera_matched_focal as camera_matched_focal
 from .shadow import light_camera as light_camera
 from .shadow import shadow_gather as shadow_gather

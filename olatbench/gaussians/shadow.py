@@ -33,8 +33,8 @@ The light camera (:func:`light_camera`) sits at the light, looks at ``target`` w
 when the view direction is parallel to it, see :func:`olatbench.datasets.cameras.look_at`) and has the
 narrowest square field of view that contains the sphere of ``scene_radius`` around ``target`` (× ``margin``),
 at most 120°. The official code instead scales the *viewing* camera's focal length by |light| / |camera| and
-looks at the mean of the Gaussian centres (with the viewing image size); callers can pass that mean as
-``target`` and that focal length as ``focal_px``.
+looks at the mean of the Gaussian centres (with the viewing image size), so the scene appears at the viewing
+camera's pixel scale: pass that mean as ``target`` and :func:`camera_matched_focal` as ``focal_px``.
 
 Backends: ``"torch"`` (reference, any device) implements every option; ``"cpu"`` (the C++ kernel of
 :mod:`olatbench.gaussians.backends.cpu`) implements ``mode="uniform"`` with any ``depth_offset`` (a lagging
@@ -79,6 +79,31 @@ class ShadowResult:
     weight: torch.Tensor
     seen: torch.Tensor
     backend: str
+
+
+def camera_matched_focal(
+    camera_fx: float,
+    camera_width: int,
+    resolution: int,
+    camera_position: torch.Tensor,
+    light_position: torch.Tensor,
+    target: torch.Tensor,
+) -> float:
+    """Light-camera focal length (px) at which the scene around ``target`` appears at the viewing camera's pixel
+    scale: the official SSD-GS / GS³ framing. The camera's ``camera_fx`` (px, for an image ``camera_width`` px
+    wide) is rescaled to the light view's ``resolution`` px and multiplied by |light − target| / |camera − target|.
+
+    The official code takes both distances from the world origin, which is the same for scenes centred there (the
+    NRHints, GS³ and SSS-GS scenes are); measured from ``target`` the framing follows the scene wherever it is.
+    The field of view is capped at ``MAX_FOV_DEGREES`` like :func:`light_camera`'s fitted one. ``camera_position``,
+    ``light_position``, ``target``: (3,) world points."""
+    to_camera = float((camera_position.detach().double().cpu() - target.detach().double().cpu()).norm())
+    to_light = float((light_position.detach().double().cpu() - target.detach().double().cpu()).norm())
+    if not (to_camera > 0 and math.isfinite(to_camera) and math.isfinite(to_light)):
+        raise ValueError(f"camera-matched light framing needs a camera away from the target; distance {to_camera}")
+    focal = camera_fx * resolution / camera_width * to_light / to_camera
+    widest = 0.5 * resolution / math.tan(math.radians(MAX_FOV_DEGREES) / 2)
+    return max(focal, widest)
 
 
 def light_camera(
@@ -340,4 +365,7 @@ def _gather_chunk(means2d, conics, opacities, width, ids, front_end, p0, p1, box
     sums[2].index_add_(0, g, weight)
 
 
-__all__ = ["MODES", "OFFICIAL_DEPTH_OFFSET", "OFFICIAL_KERNEL", "ShadowResult", "light_camera", "shadow_gather"]
+__all__ = [
+    "MODES", "OFFICIAL_DEPTH_OFFSET", "OFFICIAL_KERNEL", "ShadowResult", "camera_matched_focal", "light_camera",
+    "shadow_gather",
+]

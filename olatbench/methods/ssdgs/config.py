@@ -20,6 +20,7 @@ _CHOICES = {
     "asg_form": ("xu", "official"),
     "dipole_virtual_factor": ("jensen", "official"),
     "shadow_mode": ("uniform", "density", "footprint"),
+    "shadow_framing": ("camera", "scene"),
 }
 
 
@@ -52,6 +53,9 @@ class SSDGSConfig:
     shadow_layers: int = 3
     shadow_freqs: int = 3
     shadow_resolution: int | None = None  # light-view size (px); None: the view's size, as the official code
+    # light-view framing: "camera" (official: the scene at the viewing camera's pixel scale) or "scene" (the sphere
+    # around the Gaussians' mean holding every centre fills the view)
+    shadow_framing: str = "camera"
     shadow_mode: str = "uniform"  # light-view average: "uniform" (fast C++), "density" (official), "footprint"
     shadow_depth_offset: float = 0.0  # the official kernel's self-shadow offset is 0.015 (squared distance)
     clamp_output: bool = True

@@ -22,6 +22,7 @@ from olatbench.gaussians.optim import make_adam
 from olatbench.gaussians.projection import project
 from olatbench.gaussians.rasterize import rasterize
 from olatbench.gaussians.refinement import LightRefinement, PoseRefinement
+from olatbench.gaussians.shadow import camera_matched_focal, shadow_gather
 from olatbench.methods.base import Method, RefinedView, Views
 from olatbench.methods.ssdgs.config import SSDGSConfig
 from olatbench.methods.ssdgs.presets import PRESETS, resolve_presets
@@ -182,16 +183,13 @@ class SSDGS(Method):
         pick = visible.pick
         terms = self.active_terms(step)
         coarse, light_weight = None, None
+        camera_position = camera_centre(w2c)
         if "shadow" in terms:  # the light-view pass sees the model as it is: no gradient flows through it
-            from olatbench.gaussians.shadow import shadow_gather  # the light-view pass (gaussians-support helper)
-
             with torch.no_grad():
                 gathered = shadow_gather(means.detach(), quats.detach(), scales.detach(), opacities.detach(),
                                          light_position.detach(), means.detach().mean(0),
-                                         resolution=self.config.light_view_size(width, height),
-                                         mode=self.config.shadow_mode, depth_offset=self.config.shadow_depth_offset)
+                                         **self._light_view(K, width, height, camera_position, light_position))
             coarse, light_weight = pick(gathered.visibility), gathered.weight
-        camera_position = camera_centre(w2c)
         attributes = {name: pick(value) for name, value in model.attributes.items()}
         shaded: Components = self.shader(pick(means), pick(quats), pick(scales), attributes, camera_position,
                                          light_position, intensity, terms, coarse)
@@ -203,6 +201,18 @@ class SSDGS(Method):
             per_gaussian, background = shaded.colour, self.background
         out = rasterize(projected, opacities, visible.scatter(per_gaussian), background)
         return {"image": out.image, "projected": projected, "terms": terms, "light_weight": light_weight}
+
+    def _light_view(self, K: torch.Tensor, width: int, height: int, camera_position: torch.Tensor,
+                    light_position: torch.Tensor) -> dict[str, Any]:
+        """`shadow_gather` options of the light-view pass for a view (K (3, 3), size, camera centre (3,))."""
+        cfg = self.config
+        resolution = cfg.light_view_size(width, height)
+        focal = None
+        if cfg.shadow_framing == "camera":
+            focal = camera_matched_focal(float(K[0, 0]), width, resolution, camera_position, light_position,
+                                         self.model.means.detach().mean(0))
+        return {"resolution": resolution, "focal_px": focal, "mode": cfg.shadow_mode,
+                "depth_offset": cfg.shadow_depth_offset}
 
     # ------------------------------------------------------------------------------------------ training
     def compute_gradients(self, step: int, index: int | None = None) -> dict[str, Any]:
