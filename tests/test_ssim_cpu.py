@@ -197,11 +197,14 @@ def test_build_hash_covers_every_source(monkeypatch, tmp_path):
     assert build.build_hash() != before
 
 
-def test_build_hash_covers_the_shared_header(monkeypatch, tmp_path):
-    assert [header.name for header in build.HEADERS] == ["simd.h"]
-    copy = tmp_path / "simd.h"
-    shutil.copyfile(build.HEADERS[0], copy)
-    monkeypatch.setattr(build, "HEADERS", (copy,))
-    before = build.build_hash()
-    copy.write_text(copy.read_text() + "\n// edited\n")
-    assert build.build_hash() != before
+def test_build_hash_covers_every_shared_header(monkeypatch, tmp_path):
+    csrc = build.SOURCES[0].parent
+    assert sorted(header.name for header in build.HEADERS) == sorted(p.name for p in csrc.glob("*.h"))
+    copies = tuple(tmp_path / header.name for header in build.HEADERS)
+    for header, copy in zip(build.HEADERS, copies, strict=True):
+        shutil.copyfile(header, copy)
+    monkeypatch.setattr(build, "HEADERS", copies)
+    for copy in copies:
+        before = build.build_hash()
+        copy.write_text(copy.read_text() + "\n// edited\n")
+        assert build.build_hash() != before, copy.name

@@ -1,8 +1,9 @@
 """Build-on-first-use of the C++ kernels into a per-user cache, loaded with ctypes.
 
 ``SOURCES`` (``csrc/rasterize.cpp``: rasterizer, projection, binning, light pass; ``csrc/ssim.cpp``: the SSIM
-training loss; ``csrc/shading.cpp``: SSD-GS's per-Gaussian shading; all include ``csrc/simd.h``) are compiled by
-one compiler command into one shared library. It lives in ``$XDG_CACHE_HOME/olatbench/ext/<hash>/`` (default
+training loss; ``csrc/shading.cpp``: SSD-GS's per-Gaussian shading; they include ``HEADERS``: ``csrc/simd.h``, the
+vector helpers, and ``csrc/rotation.h``, the quaternion conversion) are compiled by one compiler command into one
+shared library. It lives in ``$XDG_CACHE_HOME/olatbench/ext/<hash>/`` (default
 ``~/.cache``), where ``<hash>`` covers the name and bytes of every source file and header, the compiler command and
 the flags, so an edited source or another compiler gets a fresh build. The compiler is ``$OLATBENCH_CXX``, else
 ``$CXX``, else ``g++``. Builds are atomic: compile to a unique temporary name in the same folder, then
@@ -27,7 +28,7 @@ import threading
 from pathlib import Path
 
 SOURCES = tuple(Path(__file__).with_name("csrc") / name for name in ("rasterize.cpp", "ssim.cpp", "shading.cpp"))
-HEADERS = (Path(__file__).with_name("csrc") / "simd.h",)  # included by the sources: part of the build hash
+HEADERS = tuple(Path(__file__).with_name("csrc") / name for name in ("rotation.h", "simd.h"))  # in the build hash
 BASE_FLAGS = ("-O3", "-shared", "-fPIC", "-std=c++17", "-ffp-contract=off")
 # Build variants in order of preference.
 VARIANTS = {"openmp": (*BASE_FLAGS, "-fopenmp"), "serial": BASE_FLAGS}

@@ -18,6 +18,7 @@
 #include <limits>
 #include <vector>
 
+#include "rotation.h"
 #include "simd.h"
 
 namespace {
@@ -589,7 +590,8 @@ struct ProjectCamera {
 // Everything the backward needs of one Gaussian's forward.
 struct ProjectState {
   double m[3], c[3], zs, u, v, uc, vc, J00, J02, J11, J12;
-  double qn[4], qnorm, Rq[3][3], s[3], Sigma[3][3], SigmaC[3][3], a, b, cc, det, ds;
+  Rotation<double> rot;  // of the Gaussian's quaternion
+  double s[3], Sigma[3][3], SigmaC[3][3], a, b, cc, det, ds;
   bool in_range, ok;
 };
 
@@ -610,15 +612,10 @@ void project_state(const F* means, const F* quats, const F* scales, int64_t g, c
   st.J11 = cam.fy / st.zs; st.J12 = -cam.fy * st.vc / st.zs;
   double q[4];
   for (int i = 0; i < 4; ++i) q[i] = double(quats[4 * g + i]);
-  st.qnorm = std::sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
-  for (int i = 0; i < 4; ++i) st.qn[i] = q[i] / st.qnorm;
-  const double w = st.qn[0], x = st.qn[1], y = st.qn[2], zq = st.qn[3];
-  const double Rq[3][3] = {{1 - 2 * (y * y + zq * zq), 2 * (x * y - w * zq), 2 * (x * zq + w * y)},
-                           {2 * (x * y + w * zq), 1 - 2 * (x * x + zq * zq), 2 * (y * zq - w * x)},
-                           {2 * (x * zq - w * y), 2 * (y * zq + w * x), 1 - 2 * (x * x + y * y)}};
+  rotation_eval<double>(q, st.rot);
   double M[3][3];
   for (int i = 0; i < 3; ++i)
-    for (int j = 0; j < 3; ++j) { st.Rq[i][j] = Rq[i][j]; M[i][j] = Rq[i][j] * st.s[j]; }
+    for (int j = 0; j < 3; ++j) M[i][j] = st.rot.R[i][j] * st.s[j];
   for (int i = 0; i < 3; ++i)
     for (int j = 0; j < 3; ++j) st.Sigma[i][j] = M[i][0] * M[j][0] + M[i][1] * M[j][1] + M[i][2] * M[j][2];
   double RS[3][3];  // R Sigma
@@ -726,24 +723,15 @@ void project_backward_impl(const F* means, const F* quats, const F* scales, cons
       double ds_j = 0.0;
       for (int i = 0; i < 3; ++i) {
         double dM = 0.0;
-        for (int k = 0; k < 3; ++k) dM += (dSigma[i][k] + dSigma[k][i]) * st.Rq[k][j] * st.s[j];
+        for (int k = 0; k < 3; ++k) dM += (dSigma[i][k] + dSigma[k][i]) * st.rot.R[k][j] * st.s[j];
         dRq[i][j] = dM * st.s[j];
-        ds_j += dM * st.Rq[i][j];
+        ds_j += dM * st.rot.R[i][j];
       }
       grad_scales[3 * g + j] = F(ds_j);
     }
-    const double w = st.qn[0], x = st.qn[1], y = st.qn[2], z = st.qn[3];
-    const double (*d)[3] = dRq;
     double gq[4];
-    gq[0] = 2.0 * (-z * d[0][1] + y * d[0][2] + z * d[1][0] - x * d[1][2] - y * d[2][0] + x * d[2][1]);
-    gq[1] = 2.0 * (y * d[0][1] + z * d[0][2] + y * d[1][0] - 2.0 * x * d[1][1] - w * d[1][2] + z * d[2][0] +
-                   w * d[2][1] - 2.0 * x * d[2][2]);
-    gq[2] = 2.0 * (-2.0 * y * d[0][0] + x * d[0][1] + w * d[0][2] + x * d[1][0] + z * d[1][2] - w * d[2][0] +
-                   z * d[2][1] - 2.0 * y * d[2][2]);
-    gq[3] = 2.0 * (-2.0 * z * d[0][0] - w * d[0][1] + x * d[0][2] + w * d[1][0] - 2.0 * z * d[1][1] +
-                   y * d[1][2] + x * d[2][0] + y * d[2][1]);
-    const double dot = gq[0] * w + gq[1] * x + gq[2] * y + gq[3] * z;
-    for (int i = 0; i < 4; ++i) grad_quats[4 * g + i] = F((gq[i] - st.qn[i] * dot) / st.qnorm);
+    rotation_backward<double>(st.rot, dRq, gq);
+    for (int i = 0; i < 4; ++i) grad_quats[4 * g + i] = F(gq[i]);
     // J entries -> zs and the clamped u, v; means2d -> u, v; u = x / zs, v = y / zs
     const double zs2 = st.zs * st.zs;
     double d_zs = -dJ[0][0] * cam.fx / zs2 + dJ[0][2] * cam.fx * st.uc / zs2 - dJ[1][1] * cam.fy / zs2 +

@@ -27,11 +27,8 @@
 #include <cstring>
 #include <vector>
 
+#include "rotation.h"
 #include "simd.h"
-
-#if defined(__SSE2__)
-#include <emmintrin.h>
-#endif
 
 namespace {
 
@@ -114,31 +111,13 @@ std::vector<double> blocked_reduce(int64_t n, int width, int threads, MakeState 
 //
 // The per-Gaussian work runs on lanes of Simd<F>::kLanes Gaussians at once (SIMD across Gaussians): it is a long
 // chain of divisions and square roots that one Gaussian at a time leaves mostly latency-bound. The rotation
-// templates serve scalars (T = F, for the lobe rotations) and lanes (T = Simd<F>::V).
+// templates (rotation.h) serve scalars (T = F, for the lobe rotations) and lanes (T = Simd<F>::V).
 
 template <typename F>
 using Lanes = typename Simd<F>::V;
 template <typename F>
 using LaneMask = typename Simd<F>::I;
 
-inline float root(float x) { return std::sqrt(x); }
-inline double root(double x) { return std::sqrt(x); }
-inline Lanes<float> root(Lanes<float> x) {
-#if defined(__SSE2__)
-  return _mm_sqrt_ps(x);
-#else
-  for (int i = 0; i < Simd<float>::kLanes; ++i) x[i] = std::sqrt(x[i]);
-  return x;
-#endif
-}
-inline Lanes<double> root(Lanes<double> x) {
-#if defined(__SSE2__)
-  return _mm_sqrt_pd(x);
-#else
-  for (int i = 0; i < Simd<double>::kLanes; ++i) x[i] = std::sqrt(x[i]);
-  return x;
-#endif
-}
 // std::max(a, b) = a < b ? b : a, lane-wise.
 template <typename F>
 inline Lanes<F> lane_max(Lanes<F> a, Lanes<F> b) {
@@ -154,42 +133,6 @@ inline Lanes<F> gather(const F* p, int stride, int count) {
 template <typename F>
 inline void scatter(F* p, int stride, int count, Lanes<F> v) {
   for (int i = 0; i < count; ++i) p[stride * i] = v[i];
-}
-
-// quat_to_rotmat: R (row-major [i][j]) of the normalised quaternion q = quat / |quat| (wxyz, no eps).
-template <typename T>
-struct Rotation {
-  T norm, q[4], R[3][3];
-};
-
-template <typename F, typename T>
-void rotation_eval(const T* quat, Rotation<T>& r) {
-  r.norm = root((quat[0] * quat[0] + quat[1] * quat[1]) + (quat[2] * quat[2] + quat[3] * quat[3]));
-  for (int i = 0; i < 4; ++i) r.q[i] = quat[i] / r.norm;
-  const T w = r.q[0], x = r.q[1], y = r.q[2], z = r.q[3];
-  const T R[3][3] = {
-      {F(1) - F(2) * (y * y + z * z), F(2) * (x * y - w * z), F(2) * (x * z + w * y)},
-      {F(2) * (x * y + w * z), F(1) - F(2) * (x * x + z * z), F(2) * (y * z - w * x)},
-      {F(2) * (x * z - w * y), F(2) * (y * z + w * x), F(1) - F(2) * (x * x + y * y)},
-  };
-  std::memcpy(r.R, R, sizeof(R));
-}
-
-// dL/dquat from dL/dR: the derivatives of R's nine entries w.r.t. q, then through q = quat / |quat|:
-// dL/dquat = (g - q (q . g)) / |quat| with g = dL/dq.
-template <typename F, typename T>
-void rotation_backward(const Rotation<T>& r, const T (&gR)[3][3], T* grad_quat) {
-  const T w = r.q[0], x = r.q[1], y = r.q[2], z = r.q[3];
-  T gq[4];
-  gq[0] = F(2) * (-z * gR[0][1] + y * gR[0][2] + z * gR[1][0] - x * gR[1][2] - y * gR[2][0] + x * gR[2][1]);
-  gq[1] = F(2) * (y * gR[0][1] + z * gR[0][2] + y * gR[1][0] - F(2) * x * gR[1][1] - w * gR[1][2] +
-                  z * gR[2][0] + w * gR[2][1] - F(2) * x * gR[2][2]);
-  gq[2] = F(2) * (-F(2) * y * gR[0][0] + x * gR[0][1] + w * gR[0][2] + x * gR[1][0] + z * gR[1][2] -
-                  w * gR[2][0] + z * gR[2][1] - F(2) * y * gR[2][2]);
-  gq[3] = F(2) * (-F(2) * z * gR[0][0] - w * gR[0][1] + x * gR[0][2] + w * gR[1][0] - F(2) * z * gR[1][1] +
-                  y * gR[1][2] + x * gR[2][0] + y * gR[2][1]);
-  const T qg = (r.q[0] * gq[0] + r.q[1] * gq[1]) + (r.q[2] * gq[2] + r.q[3] * gq[3]);
-  for (int i = 0; i < 4; ++i) grad_quat[i] = (gq[i] - r.q[i] * qg) / r.norm;
 }
 
 // ------------------------------------------------------------------------------------------------ geometry

@@ -1,4 +1,4 @@
-// SIMD helpers shared by the C++ kernels (shading.cpp, rasterize.cpp's light pass): exp and log1p on
+// SIMD helpers shared by the C++ kernels (shading.cpp, rasterize.cpp's light pass): exp, log1p and sqrt on
 // fixed-width vectors through the GCC / Clang vector extensions, with an AVX2 check for run-time dispatch.
 #pragma once
 
@@ -6,8 +6,13 @@
 #pragma GCC diagnostic ignored "-Wpsabi"
 #endif
 
+#include <cmath>
 #include <cstdint>
 #include <cstring>
+
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 namespace {
 
@@ -135,6 +140,26 @@ OLATBENCH_SIMD typename Simd<F, W>::V log1p_unit(const typename Simd<F, W>::V& u
   const V poly = estrin<F, W, AtanhCoefficients, 0, S::kLogTerms>(powers);
   const V result = s * F(2) * poly;
   return select<F, W>(high, result + F(kLn2), result);
+}
+
+// Square root of a scalar or of a 16-byte vector, lane-wise (correctly rounded, as std::sqrt).
+inline float root(float x) { return std::sqrt(x); }
+inline double root(double x) { return std::sqrt(x); }
+inline Simd<float>::V root(Simd<float>::V x) {
+#if defined(__SSE2__)
+  return _mm_sqrt_ps(x);
+#else
+  for (int i = 0; i < Simd<float>::kLanes; ++i) x[i] = std::sqrt(x[i]);
+  return x;
+#endif
+}
+inline Simd<double>::V root(Simd<double>::V x) {
+#if defined(__SSE2__)
+  return _mm_sqrt_pd(x);
+#else
+  for (int i = 0; i < Simd<double>::kLanes; ++i) x[i] = std::sqrt(x[i]);
+  return x;
+#endif
 }
 
 template <typename F, int W>
