@@ -9,7 +9,9 @@ rasterizer 2–3× faster from the second stage on). ``--states`` picks the mode
 * ``initial``: SSD-GS's initialisation, N Gaussians uniform in the unit ball, opacity 0.1 (the start of
   training: much blending, few pixels terminate);
 * ``surface``: a trained-looking object, N flat Gaussians (normal axis 0.1× the tangent ones) covering a sphere
-  of radius 0.8 with opacity 0.9 (most pixels terminate after a few Gaussians).
+  of radius 0.8 with opacity 0.9 (most pixels terminate after a few Gaussians);
+* ``--jobs DIR ...``: trained SSD-GS models, each the newest checkpoint of a job folder of ``olatbench run``
+  (its config, Gaussians and first training view; size and N are the job's), measured at its last iteration.
 
 Stages:
 
@@ -32,11 +34,13 @@ computes the coarse visibility every iteration gets below it. The last line is a
     python benchmarks/bench_ssdgs.py --sizes 128 --counts 5000 --no-shadow   # without the light-view pass
     python benchmarks/bench_ssdgs.py --light-view-scale 0.5                    # light view at half the size
     python benchmarks/bench_ssdgs.py --states surface --sizes 256
+    python benchmarks/bench_ssdgs.py --states --jobs runs/mini/ssdgs/default/*/seed0   # trained mini models
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import itertools
 import math
 import time
@@ -90,9 +94,32 @@ def make_method(size: int, count: int, use_shadow: bool, state: str, light_view_
         put_on_sphere(method, radius=0.8, opacity=0.9)
     elif state != "initial":
         raise ValueError(f"unknown state {state!r}")
+    freeze(method)
+    return method
+
+
+def freeze(method: SSDGS) -> None:
+    """Zero every learning rate: Adam does all its work but the model stays fixed."""
     rates = method._learning_rates
     method._learning_rates = lambda step: dict.fromkeys(rates(step), 0.0)
-    return method
+
+
+def load_trained(folder: str) -> tuple[SSDGS, int]:
+    """A job folder's trained SSD-GS (newest checkpoint) with densification and opacity resets off, frozen and
+    pinned to its first training view; and the step to measure (its last iteration: every term on)."""
+    from olatbench.reports.jobfolder import JobFolder
+    from olatbench.reports.video import load_trained_method
+
+    job = JobFolder.open(folder)
+    if job.job["method"] != "ssdgs":
+        raise SystemExit(f"{folder}: a {job.job['method']} job; this benchmark measures SSD-GS")
+    method = load_trained_method(job, progress=False)
+    never = 10**12  # statistics still gathered every step (as in the synthetic states), no density step ever
+    method.densifier.config = dataclasses.replace(method.densifier.config, densify_from=never, densify_until=never,
+                                                  opacity_reset_interval=never)
+    freeze(method)
+    method.train_views.next_index = lambda: 0  # every stage on the same view
+    return method, method.config.iterations - 1
 
 
 def put_on_sphere(method: SSDGS, radius: float, opacity: float) -> None:
@@ -120,7 +147,7 @@ class FreeNetwork(torch.nn.Module):
         return positions[:, :1] * 0.0 + 0.5
 
 
-def rest_stage(method: SSDGS) -> Callable[[], None]:
+def rest_stage(method: SSDGS, step: int) -> Callable[[], None]:
     """`train_step` with both networks replaced by `FreeNetwork` for the duration of each call."""
     shader = method.shader
 
@@ -128,7 +155,7 @@ def rest_stage(method: SSDGS) -> Callable[[], None]:
         networks = shader.sss_net, shader.shadow_net
         shader.sss_net, shader.shadow_net = FreeNetwork(), FreeNetwork()
         try:
-            method.train_step(ALL_ON_STEP)
+            method.train_step(step)
         finally:
             shader.sss_net, shader.shadow_net = networks
 
@@ -236,8 +263,10 @@ def main() -> None:
     parser.add_argument("--counts", type=int, nargs="+", default=[5_000, 20_000])
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--threads", type=int, default=2)
-    parser.add_argument("--states", nargs="+", choices=["initial", "surface"], default=["initial", "surface"],
-                        help="model states to measure (see above)")
+    parser.add_argument("--states", nargs="*", choices=["initial", "surface"], default=["initial", "surface"],
+                        help="synthetic model states to measure (see above); none with --jobs only")
+    parser.add_argument("--jobs", nargs="+", default=[], metavar="DIR",
+                        help="job folders of trained SSD-GS runs to measure as well (their own config and size)")
     parser.add_argument("--no-shadow", action="store_true", help="composition without the shadow term")
     parser.add_argument("--light-view-scale", type=float, default=1.0,
                         help="light-view pass size relative to the view (default 1: the view's size, as the paper)")
@@ -245,19 +274,26 @@ def main() -> None:
     torch.set_num_threads(args.threads)
     torch.set_flush_denormal(True)
     efficiencies, rest_ratios, floors = [], [], []
-    print(f"{'state':>8} {'size':>5} {'N':>6} {'visible':>7} {'step':>8} {'rest':>8} {'mlp':>8} {'matmul':>8} "
+    print(f"{'state':>14} {'size':>5} {'N':>6} {'visible':>7} {'step':>8} {'rest':>8} {'mlp':>8} {'matmul':>8} "
           f"{'raster':>8} {'shadow':>8} {'optim':>8} {'mlp_eff':>8} {'rest/rast':>9} {'floor':>6}")
-    for state, size, count in itertools.product(args.states, args.sizes, args.counts):
-        method = make_method(size, count, not args.no_shadow, state, args.light_view_scale)
+    def cases():
+        for state, size, count in itertools.product(args.states, args.sizes, args.counts):
+            yield state, make_method(size, count, not args.no_shadow, state, args.light_view_scale), ALL_ON_STEP
+        for folder in args.jobs:
+            method, last = load_trained(folder)
+            yield method.train_views.views.scene_name or "trained", method, last
+
+    for state, method, at_step in cases():
+        size, count = method.train_views.views.cameras[0].width, method.model.num_gaussians
         views = method.train_views
         camera = views.views.cameras[0]
         visible = torch.nonzero(project(method.model.means, method.model.quats, method.model.scales,
                                         views.w2cs[0], views.Ks[0], camera.width, camera.height).radii > 0
                                 ).squeeze(1)
-        stages = {"step": lambda m=method: m.train_step(ALL_ON_STEP), "rest": rest_stage(method),
+        stages = {"step": lambda m=method, k=at_step: m.train_step(k), "rest": rest_stage(method, at_step),
                   "mlp": mlp_stage(method, visible), "matmul": matmul_chain(method, int(visible.numel())),
                   "raster": raster_stage(method), "optim": optimizer_stage(method)}
-        if not args.no_shadow:
+        if method.config.use_shadow:
             stages["shadow"] = shadow_stage(method)
         times = timed({name: starting_clean(method, fn) for name, fn in stages.items()}, args.repeats)
         step, rest_time, mlp, matmul, raster, optim = (times[k] for k in ("step", "rest", "mlp", "matmul", "raster",
@@ -266,10 +302,10 @@ def main() -> None:
         efficiency, rest = matmul / mlp, rest_time / raster
         efficiencies.append(efficiency)
         rest_ratios.append(rest)
-        floors.append((raster + (0.0 if args.no_shadow else shadow)) / raster)
-        print(f"{state:>8} {size:>5} {count:>6} {visible.numel():>7} {step * 1e3:>7.1f}m {rest_time * 1e3:>7.1f}m "
-              f"{mlp * 1e3:>7.1f}m {matmul * 1e3:>7.1f}m {raster * 1e3:>7.1f}m {shadow * 1e3:>7.1f}m "
-              f"{optim * 1e3:>7.1f}m "
+        floors.append((raster + (shadow if "shadow" in times else 0.0)) / raster)
+        print(f"{state[:14]:>14} {size:>5} {count:>6} {visible.numel():>7} {step * 1e3:>7.1f}m "
+              f"{rest_time * 1e3:>7.1f}m {mlp * 1e3:>7.1f}m {matmul * 1e3:>7.1f}m {raster * 1e3:>7.1f}m "
+              f"{shadow * 1e3:>7.1f}m {optim * 1e3:>7.1f}m "
               f"{efficiency:>8.2f} {rest:>9.2f} {floors[-1]:>6.2f}")
     print(f"SUMMARY bench_ssdgs mlp_efficiency_min={min(efficiencies):.2f} (target>=0.7) "
           f"rest_vs_raster_max={max(rest_ratios):.2f} (target<=1.5; floor {max(floors):.2f}) "

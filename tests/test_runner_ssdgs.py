@@ -110,3 +110,19 @@ def test_ssdgs_resumes_exactly_through_the_runner(data, tmp_path, monkeypatch):
     model_b = torch.load(list_checkpoints(reference.folder)[-1][1], weights_only=True)["method"]["model"]
     assert model_a.keys() == model_b.keys()
     assert all(torch.equal(model_a[key], model_b[key]) for key in model_a)
+
+
+def test_speed_benchmark_measures_a_trained_job_folder(data, tmp_path, capsys, monkeypatch):
+    """benchmarks/bench_ssdgs.py --jobs: a job folder's trained model, its own size and config, one row each."""
+    import runpy
+
+    job = smaller(plan(data, tmp_path / "runs", iterations=4)[0], num_init_gaussians=150, shadow_resolution=16)
+    assert run_job(job, progress=False).status == "done"
+    script = Path(__file__).resolve().parents[1] / "benchmarks" / "bench_ssdgs.py"
+    monkeypatch.setattr("sys.argv", ["bench_ssdgs.py", "--states", "--repeats", "1", "--threads", "1",
+                                     "--jobs", job.folder])
+    runpy.run_path(str(script), run_name="__main__")
+    lines = capsys.readouterr().out.strip().splitlines()
+    row = lines[1].split()
+    assert row[:3] == ["Alpha", "64", "150"]  # scene, view width (the tiny suite's 64 px), trained Gaussians
+    assert lines[-1].startswith("SUMMARY bench_ssdgs mlp_efficiency_min=")
