@@ -121,7 +121,12 @@ def test_speed_benchmark_measures_a_trained_job_folder(data, tmp_path, capsys, m
     script = Path(__file__).resolve().parents[1] / "benchmarks" / "bench_ssdgs.py"
     monkeypatch.setattr("sys.argv", ["bench_ssdgs.py", "--states", "--repeats", "1", "--threads", "1",
                                      "--jobs", job.folder])
-    runpy.run_path(str(script), run_name="__main__")
+    threads = torch.get_num_threads()
+    try:
+        runpy.run_path(str(script), run_name="__main__")
+    finally:  # the script sets both for its process
+        torch.set_num_threads(threads)
+        torch.set_flush_denormal(False)
     lines = capsys.readouterr().out.strip().splitlines()
     row = lines[1].split()
     assert row[:3] == ["Alpha", "64", "150"]  # scene, view width (the tiny suite's 64 px), trained Gaussians

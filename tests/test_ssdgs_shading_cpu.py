@@ -251,6 +251,21 @@ def test_results_do_not_depend_on_threads(dtype):
         assert torch.equal(a, b)
 
 
+def test_results_do_not_depend_on_threads_when_the_caller_flushes_denormals():
+    """OpenMP workers run in the calling thread's float mode: with torch.set_flush_denormal(True) set after the
+    workers exist (e.g. by a training script), a worker that kept its own mode computed denormals the caller
+    flushes, and results changed with the thread count."""
+    plain = kernel_outputs(2, torch.float32)  # creates the workers in the default mode
+    try:
+        assert torch.set_flush_denormal(True)
+        one, two = kernel_outputs(1, torch.float32), kernel_outputs(2, torch.float32)
+    finally:
+        torch.set_flush_denormal(False)
+    assert any(not torch.equal(a, b) for a, b in zip(plain, one, strict=True))  # these inputs do meet denormals
+    for a, b in zip(one, two, strict=True):
+        assert torch.equal(a, b)
+
+
 def test_cpu_backend_rejects_the_official_asg_form_and_auto_falls_back():
     shader = make_shader(asg_form="official")
     scene = make_scene(edge_cases=False)  # the official form's torch gradient is NaN at a zero half vector

@@ -2,12 +2,13 @@
 
 ``SOURCES`` (``csrc/rasterize.cpp``: rasterizer, projection, binning, light pass; ``csrc/ssim.cpp``: the SSIM
 training loss; ``csrc/shading.cpp``: SSD-GS's per-Gaussian shading; they include ``HEADERS``: ``csrc/simd.h``, the
-vector helpers, and ``csrc/rotation.h``, the quaternion conversion) are compiled by one compiler command into one
-shared library. It lives in ``$XDG_CACHE_HOME/olatbench/ext/<hash>/`` (default
-``~/.cache``), where ``<hash>`` covers the name and bytes of every source file and header, the compiler command and
-the flags, so an edited source or another compiler gets a fresh build. The compiler is ``$OLATBENCH_CXX``, else
-``$CXX``, else ``g++``. Builds are atomic: compile to a unique temporary name in the same folder, then
-``os.replace`` it into place, so several processes may build concurrently and none ever loads a half-written file.
+vector helpers, ``csrc/rotation.h``, the quaternion conversion, and ``csrc/float_mode.h``, which gives OpenMP
+workers the caller's denormal and rounding mode) are compiled by one compiler command into one shared library. It
+lives in ``$XDG_CACHE_HOME/olatbench/ext/<hash>/`` (default ``~/.cache``), where ``<hash>`` covers the name and
+bytes of every source file and header, the compiler command and the flags, so an edited source or another compiler
+gets a fresh build. The compiler is ``$OLATBENCH_CXX``, else ``$CXX``, else ``g++``. Builds are atomic: compile to a
+unique temporary name in the same folder, then ``os.replace`` it into place, so several processes may build
+concurrently and none ever loads a half-written file.
 
 Flags: ``-O3 -fopenmp -shared -fPIC -std=c++17 -ffp-contract=off``. Deliberately no ``-march=native`` (the
 cache may be shared between machines) and no ``-ffast-math`` (the backward must reproduce the forward's
@@ -28,7 +29,7 @@ import threading
 from pathlib import Path
 
 SOURCES = tuple(Path(__file__).with_name("csrc") / name for name in ("rasterize.cpp", "ssim.cpp", "shading.cpp"))
-HEADERS = tuple(Path(__file__).with_name("csrc") / name for name in ("rotation.h", "simd.h"))  # in the build hash
+HEADERS = tuple(Path(__file__).with_name("csrc") / name for name in ("float_mode.h", "rotation.h", "simd.h"))
 BASE_FLAGS = ("-O3", "-shared", "-fPIC", "-std=c++17", "-ffp-contract=off")
 # Build variants in order of preference.
 VARIANTS = {"openmp": (*BASE_FLAGS, "-fopenmp"), "serial": BASE_FLAGS}

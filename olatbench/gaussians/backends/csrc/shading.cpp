@@ -27,6 +27,7 @@
 #include <cstring>
 #include <vector>
 
+#include "float_mode.h"
 #include "rotation.h"
 #include "simd.h"
 
@@ -94,8 +95,10 @@ template <typename MakeState, typename Body>
 std::vector<double> blocked_reduce(int64_t n, int width, int threads, MakeState make_state, Body body) {
   const int64_t blocks = (n + kBlock - 1) / kBlock;
   std::vector<double> partial(size_t(blocks) * width, 0.0);
+  const FloatMode mode = FloatMode::of_this_thread();
 #pragma omp parallel num_threads(threads)
   {
+    const FloatModeScope scope(mode);
     auto state = make_state();
 #pragma omp for schedule(static)
     for (int64_t b = 0; b < blocks; ++b)
@@ -205,18 +208,23 @@ template <typename F>
 void geometry_forward(const GeometryInputs<F>& in, int threads, F* wi, F* wo, F* frames, F* inv_dist2) {
   constexpr int L = Simd<F>::kLanes;
   const int64_t groups = (in.n + L - 1) / L;
-#pragma omp parallel for schedule(static) num_threads(threads)
-  for (int64_t group = 0; group < groups; ++group) {
-    const int64_t k = group * L;
-    const int count = int(std::min<int64_t>(L, in.n - k));
-    Geometry<F> g;
-    geometry_eval(in, k, count, g);
-    for (int i = 0; i < 3; ++i) {
-      scatter(wi + 3 * k + i, 3, count, g.wi[i]);
-      scatter(wo + 3 * k + i, 3, count, g.wo[i]);
-      for (int j = 0; j < 3; ++j) scatter(frames + 9 * k + 3 * i + j, 9, count, g.frame[i][j]);
+  const FloatMode mode = FloatMode::of_this_thread();
+#pragma omp parallel num_threads(threads)
+  {
+    const FloatModeScope scope(mode);
+#pragma omp for schedule(static)
+    for (int64_t group = 0; group < groups; ++group) {
+      const int64_t k = group * L;
+      const int count = int(std::min<int64_t>(L, in.n - k));
+      Geometry<F> g;
+      geometry_eval(in, k, count, g);
+      for (int i = 0; i < 3; ++i) {
+        scatter(wi + 3 * k + i, 3, count, g.wi[i]);
+        scatter(wo + 3 * k + i, 3, count, g.wo[i]);
+        for (int j = 0; j < 3; ++j) scatter(frames + 9 * k + 3 * i + j, 9, count, g.frame[i][j]);
+      }
+      scatter(inv_dist2 + k, 1, count, g.inv_dist2);
     }
-    scatter(inv_dist2 + k, 1, count, g.inv_dist2);
   }
 }
 
