@@ -222,7 +222,7 @@ def shadow_stage(method: SSDGS) -> Callable[[], None]:
     model, views = method.model, method.train_views
     camera = views.views.cameras[0]
     light = views.light_positions[0]
-    options = method._light_view(views.Ks[0], camera.width, camera.height, camera_centre(views.w2cs[0]), light)
+    options = method.light_view_options(views.Ks[0], camera.width, camera.height, camera_centre(views.w2cs[0]), light)
 
     def run() -> None:
         with torch.no_grad():

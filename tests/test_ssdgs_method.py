@@ -115,7 +115,7 @@ def test_light_view_framing(views, framing: str) -> None:
     assert SSDGS.resolve_config(None).shadow_framing == "camera"
     tv = method.train_views
     camera_position, light = camera_centre(tv.w2cs[0]), tv.light_positions[0]
-    options = method._light_view(tv.Ks[0], 16, 16, camera_position, light)
+    options = method.light_view_options(tv.Ks[0], 16, 16, camera_position, light)
     assert options["resolution"] == 24
     if framing == "camera":
         expected = camera_matched_focal(float(tv.Ks[0][0, 0]), 16, 24, camera_position, light,

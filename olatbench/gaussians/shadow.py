@@ -90,11 +90,11 @@ def camera_matched_focal(
     target: torch.Tensor,
 ) -> float:
     """Light-camera focal length (px) at which the scene around ``target`` appears at the viewing camera's pixel
-    scale: the official SSD-GS / GS³ framing. The camera's ``camera_fx`` (px, for an image ``camera_width`` px
+    scale: the official SSD-GS framing. The camera's ``camera_fx`` (px, for an image ``camera_width`` px
     wide) is rescaled to the light view's ``resolution`` px and multiplied by |light − target| / |camera − target|.
 
-    The official code takes both distances from the world origin, which is the same for scenes centred there (the
-    NRHints, GS³ and SSS-GS scenes are); measured from ``target`` the framing follows the scene wherever it is.
+    The official code takes both distances from the world origin, which is the same for a scene centred there (as
+    object-centric captures usually are); measured from ``target`` the framing follows the scene wherever it is.
     The field of view is capped at ``MAX_FOV_DEGREES`` like :func:`light_camera`'s fitted one. ``camera_position``,
     ``light_position``, ``target``: (3,) world points."""
     to_camera = float((camera_position.detach().double().cpu() - target.detach().double().cpu()).norm())

@@ -188,7 +188,7 @@ class SSDGS(Method):
             with torch.no_grad():
                 gathered = shadow_gather(means.detach(), quats.detach(), scales.detach(), opacities.detach(),
                                          light_position.detach(), means.detach().mean(0),
-                                         **self._light_view(K, width, height, camera_position, light_position))
+                                         **self.light_view_options(K, width, height, camera_position, light_position))
             coarse, light_weight = pick(gathered.visibility), gathered.weight
         attributes = {name: pick(value) for name, value in model.attributes.items()}
         shaded: Components = self.shader(pick(means), pick(quats), pick(scales), attributes, camera_position,
@@ -202,7 +202,7 @@ class SSDGS(Method):
         out = rasterize(projected, opacities, visible.scatter(per_gaussian), background)
         return {"image": out.image, "projected": projected, "terms": terms, "light_weight": light_weight}
 
-    def _light_view(self, K: torch.Tensor, width: int, height: int, camera_position: torch.Tensor,
+    def light_view_options(self, K: torch.Tensor, width: int, height: int, camera_position: torch.Tensor,
                     light_position: torch.Tensor) -> dict[str, Any]:
         """`shadow_gather` options of the light-view pass for a view (K (3, 3), size, camera centre (3,))."""
         cfg = self.config
