@@ -203,7 +203,7 @@ class SSDGS(Method):
         return {"image": out.image, "projected": projected, "terms": terms, "light_weight": light_weight}
 
     def light_view_options(self, K: torch.Tensor, width: int, height: int, camera_position: torch.Tensor,
-                    light_position: torch.Tensor) -> dict[str, Any]:
+                           light_position: torch.Tensor) -> dict[str, Any]:
         """`shadow_gather` options of the light-view pass for a view (K (3, 3), size, camera centre (3,))."""
         cfg = self.config
         resolution = cfg.light_view_size(width, height)
