@@ -162,10 +162,10 @@ def bin_gaussians_cpu(
     width: int,
     height: int,
     tile_size: int = TILE_SIZE,
-    threads: int | None = None,
 ) -> TileBins:
     """``tiles.bin_gaussians`` in C++ (identical bins): CPU float32/float64 ``means2d`` (N, 2), ``radii`` (N,),
-    ``sort_keys`` (N,) (compared as float32, like the torch version)."""
+    ``sort_keys`` (N,) (compared as float32, like the torch version). Serial: one radix sort of the N keys, then
+    each Gaussian's tiles filled in that order."""
     if means2d.device.type != "cpu":
         raise ValueError(f"the C++ binning needs CPU tensors, got {means2d.device}")
     lib, dtype = build.load(), means2d.dtype
@@ -183,8 +183,7 @@ def bin_gaussians_cpu(
     total = count(pointer(means2d), pointer(radii), ctypes.c_int64(n), *grid, pointer(ranges), pointer(offsets))
     ids = torch.empty(total, dtype=torch.int64)
     getattr(lib, f"olatbench_bin_fill_{suffix}")(
-        pointer(ranges), pointer(keys), ctypes.c_int64(n), *grid, ctypes.c_int(thread_count(threads)), pointer(offsets),
-        pointer(ids))
+        pointer(ranges), pointer(keys), ctypes.c_int64(n), *grid, pointer(offsets), pointer(ids))
     return TileBins(offsets=offsets, gaussian_ids=ids, tile_size=tile_size, tiles_x=tiles_x, tiles_y=tiles_y,
                     width=int(width), height=int(height))
 

@@ -555,30 +555,37 @@ int64_t bin_count_impl(const F* means2d, const int64_t* radii, int64_t n, Grid g
   return offsets[num_tiles];
 }
 
-// Pass 2: each tile's list sorted by (float_order(float(key)), Gaussian index): one packed 64-bit sort per tile,
-// the same order as the torch version's stable sort. Needs N < 2^32.
+// Pass 2: each tile's list in (float_order(float(key)), Gaussian index) order, the torch version's stable sort.
+// The Gaussians that cover a tile are ordered once by a stable radix sort of their 32-bit keys (four 8-bit
+// passes over the indices in ascending order, so equal keys keep index order) and then dealt out to their tiles
+// in that order, which leaves every tile's list sorted: O(N) instead of sorting each tile's pairs. Needs N < 2^32.
 template <typename F>
-void bin_fill_impl(const int64_t* ranges, const F* keys, int64_t n, Grid grid, int threads, const int64_t* offsets,
+void bin_fill_impl(const int64_t* ranges, const F* keys, int64_t n, Grid grid, const int64_t* offsets,
                    int64_t* ids) {
-  const int64_t num_tiles = grid.num_tiles();
-  std::vector<uint64_t> packed(offsets[num_tiles]);
-  std::vector<int64_t> cursor(offsets, offsets + num_tiles);
+  std::vector<uint32_t> key, index;
   for (int64_t g = 0; g < n; ++g) {
-    const int64_t* r = ranges + 4 * g;
-    if (r[0] == r[1]) continue;
-    const uint64_t entry = (uint64_t(float_order(float(keys[g]))) << 32) | uint64_t(g);
-    for (int64_t ty = r[2]; ty < r[3]; ++ty)
-      for (int64_t tx = r[0]; tx < r[1]; ++tx) packed[cursor[ty * grid.tiles_x + tx]++] = entry;
+    if (ranges[4 * g] == ranges[4 * g + 1]) continue;
+    key.push_back(float_order(float(keys[g])));
+    index.push_back(uint32_t(g));
   }
-  const FloatMode mode = FloatMode::of_this_thread();
-#pragma omp parallel num_threads(threads)
-  {
-    const FloatModeScope scope(mode);
-#pragma omp for schedule(dynamic, 4)
-    for (int64_t t = 0; t < num_tiles; ++t) {
-      std::sort(packed.begin() + offsets[t], packed.begin() + offsets[t + 1]);
-      for (int64_t m = offsets[t]; m < offsets[t + 1]; ++m) ids[m] = int64_t(packed[m] & 0xFFFFFFFFu);
+  std::vector<uint32_t> key_out(key.size()), index_out(index.size());
+  for (int shift = 0; shift < 32; shift += 8) {
+    size_t start[257] = {};
+    for (uint32_t k : key) ++start[((k >> shift) & 0xFFu) + 1];
+    for (int d = 0; d < 256; ++d) start[d + 1] += start[d];
+    for (size_t i = 0; i < key.size(); ++i) {
+      const size_t to = start[(key[i] >> shift) & 0xFFu]++;
+      key_out[to] = key[i];
+      index_out[to] = index[i];
     }
+    key.swap(key_out);
+    index.swap(index_out);
+  }
+  std::vector<int64_t> cursor(offsets, offsets + grid.num_tiles());
+  for (uint32_t g : index) {
+    const int64_t* r = ranges + 4 * int64_t(g);
+    for (int64_t ty = r[2]; ty < r[3]; ++ty)
+      for (int64_t tx = r[0]; tx < r[1]; ++tx) ids[cursor[ty * grid.tiles_x + tx]++] = int64_t(g);
   }
 }
 
@@ -822,8 +829,8 @@ void project_backward_impl(const F* means, const F* quats, const F* scales, cons
   }                                                                                                         \
   OLATBENCH_EXPORT void olatbench_bin_fill_##SUFFIX(                                                        \
       const int64_t* ranges, const F* keys, int64_t n, int width, int height, int tile, int tiles_x,         \
-      int tiles_y, int threads, const int64_t* offsets, int64_t* ids) {                                     \
-    bin_fill_impl<F>(ranges, keys, n, Grid{width, height, tile, tiles_x, tiles_y}, threads, offsets, ids);  \
+      int tiles_y, const int64_t* offsets, int64_t* ids) {                                                  \
+    bin_fill_impl<F>(ranges, keys, n, Grid{width, height, tile, tiles_x, tiles_y}, offsets, ids);           \
   }                                                                                                         \
   OLATBENCH_EXPORT void olatbench_project_forward_##SUFFIX(                                                 \
       const F* means, const F* quats, const F* scales, const double* camera, int64_t n, int width,          \
