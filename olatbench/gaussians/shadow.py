@@ -177,8 +177,8 @@ def shadow_gather(
     dtype = means.dtype if means.dtype in (torch.float32, torch.float64) else torch.float32
     light = light_position.to(device=means.device, dtype=dtype)
     target = target.to(device=means.device, dtype=dtype)
-    if scene_radius is None:
-        scene_radius = float((means - target).norm(dim=1).max()) if n > 0 else 1.0
+    if scene_radius is None:  # only frames the view when no focal length is given
+        scene_radius = float((means - target).norm(dim=1).max()) if n > 0 and focal_px is None else 1.0
     w2c, K, width, height = light_camera(light, target, scene_radius, resolution, focal_px=focal_px)
     chosen = _choose_backend(backend, means.device, dtype, mode)
     zeros = torch.zeros(n, device=means.device, dtype=dtype)
