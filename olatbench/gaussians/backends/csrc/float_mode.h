@@ -5,7 +5,8 @@
 // with, so a region whose caller flushes denormals would compute part of its work with them and part without,
 // and results would depend on the thread count. Every parallel region therefore starts with
 //   const FloatModeScope scope(mode);   // mode = FloatMode::of_this_thread(), taken before the region
-// which gives each worker the caller's mode until the region ends. Elsewhere than x86 this is a no-op.
+// which gives each worker the caller's mode until the region ends (parallel_for_static below does this for a
+// plain loop). Elsewhere than x86 this is a no-op.
 #pragma once
 
 #if defined(__SSE__) || defined(__x86_64__)
@@ -47,5 +48,17 @@ class FloatModeScope {
  private:
   unsigned saved_ = 0;
 };
+
+// body(i) for i in [0, n), statically scheduled over `threads` OpenMP threads, each in the caller's float mode.
+template <typename Index, typename Body>
+void parallel_for_static(Index n, int threads, Body body) {
+  const FloatMode mode = FloatMode::of_this_thread();
+#pragma omp parallel num_threads(threads)
+  {
+    const FloatModeScope scope(mode);
+#pragma omp for schedule(static)
+    for (Index i = 0; i < n; ++i) body(i);
+  }
+}
 
 }  // namespace

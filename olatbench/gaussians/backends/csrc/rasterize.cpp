@@ -660,28 +660,22 @@ template <typename F>
 void project_forward_impl(const F* means, const F* quats, const F* scales, const double* camera, int64_t n,
                           int width, int height, int threads, F* means2d, F* conics, int64_t* radii, F* depths) {
   const ProjectCamera cam(camera);
-  const FloatMode mode = FloatMode::of_this_thread();
-#pragma omp parallel num_threads(threads)
-  {
-    const FloatModeScope scope(mode);
-#pragma omp for schedule(static)
-    for (int64_t g = 0; g < n; ++g) {
-      ProjectState st;
-      project_state(means, quats, scales, g, cam, st);
-      const double mx = cam.fx * st.u + cam.cx, my = cam.fy * st.v + cam.cy;
-      means2d[2 * g] = F(mx);
-      means2d[2 * g + 1] = F(my);
-      conics[3 * g] = F(st.cc / st.ds);
-      conics[3 * g + 1] = F(-st.b / st.ds);
-      conics[3 * g + 2] = F(st.a / st.ds);
-      depths[g] = F(st.c[2]);
-      const double mid = 0.5 * (st.a + st.cc);
-      const double lam = mid + std::sqrt(std::max(mid * mid - st.det, 0.0));
-      const double radius = std::ceil(cam.sigmas * std::sqrt(std::max(lam, 0.0)));
-      const bool on_screen = mx + radius > 0 && mx - radius < width && my + radius > 0 && my - radius < height;
-      radii[g] = (st.ok && on_screen && std::isfinite(radius)) ? int64_t(radius) : 0;
-    }
-  }
+  parallel_for_static(n, threads, [&](int64_t g) {
+    ProjectState st;
+    project_state(means, quats, scales, g, cam, st);
+    const double mx = cam.fx * st.u + cam.cx, my = cam.fy * st.v + cam.cy;
+    means2d[2 * g] = F(mx);
+    means2d[2 * g + 1] = F(my);
+    conics[3 * g] = F(st.cc / st.ds);
+    conics[3 * g + 1] = F(-st.b / st.ds);
+    conics[3 * g + 2] = F(st.a / st.ds);
+    depths[g] = F(st.c[2]);
+    const double mid = 0.5 * (st.a + st.cc);
+    const double lam = mid + std::sqrt(std::max(mid * mid - st.det, 0.0));
+    const double radius = std::ceil(cam.sigmas * std::sqrt(std::max(lam, 0.0)));
+    const bool on_screen = mx + radius > 0 && mx - radius < width && my + radius > 0 && my - radius < height;
+    radii[g] = (st.ok && on_screen && std::isfinite(radius)) ? int64_t(radius) : 0;
+  });
 }
 
 // Backward: gradients of means (N,3), quats (N,4), scales (N,3) and, if grad_w2c is not null, of the w2c
@@ -692,96 +686,90 @@ void project_backward_impl(const F* means, const F* quats, const F* scales, cons
                            F* grad_means, F* grad_quats, F* grad_scales, F* grad_w2c) {
   const ProjectCamera cam(camera);
   std::vector<double> pose(grad_w2c ? size_t(n) * 12 : 0);
-  const FloatMode mode = FloatMode::of_this_thread();
-#pragma omp parallel num_threads(threads)
-  {
-    const FloatModeScope scope(mode);
-#pragma omp for schedule(static)
-    for (int64_t g = 0; g < n; ++g) {
-      ProjectState st;
-      project_state(means, quats, scales, g, cam, st);
-      const double gc0 = double(grad_conics[3 * g]), gc1 = double(grad_conics[3 * g + 1]);
-      const double gc2 = double(grad_conics[3 * g + 2]);
-      // conics = (c, -b, a) / ds, ds = det where ok
-      const double inv = 1.0 / st.ds;
-      const double d_ds = st.ok ? -(gc0 * st.cc - gc1 * st.b + gc2 * st.a) * inv * inv : 0.0;
-      const double ga = gc2 * inv + d_ds * st.cc, gb = -gc1 * inv - 2.0 * d_ds * st.b;
-      const double gcc = gc0 * inv + d_ds * st.a;
-      // cov2d = J SigmaC J^T, gradient E on its (0,0), (0,1), (1,1) entries.
-      const double J[2][3] = {{st.J00, 0.0, st.J02}, {0.0, st.J11, st.J12}};
-      const double E[2][2] = {{ga, gb}, {0.0, gcc}};
-      double JC[2][3];  // J SigmaC
-      for (int i = 0; i < 2; ++i)
+  parallel_for_static(n, threads, [&](int64_t g) {
+    ProjectState st;
+    project_state(means, quats, scales, g, cam, st);
+    const double gc0 = double(grad_conics[3 * g]), gc1 = double(grad_conics[3 * g + 1]);
+    const double gc2 = double(grad_conics[3 * g + 2]);
+    // conics = (c, -b, a) / ds, ds = det where ok
+    const double inv = 1.0 / st.ds;
+    const double d_ds = st.ok ? -(gc0 * st.cc - gc1 * st.b + gc2 * st.a) * inv * inv : 0.0;
+    const double ga = gc2 * inv + d_ds * st.cc, gb = -gc1 * inv - 2.0 * d_ds * st.b;
+    const double gcc = gc0 * inv + d_ds * st.a;
+    // cov2d = J SigmaC J^T, gradient E on its (0,0), (0,1), (1,1) entries.
+    const double J[2][3] = {{st.J00, 0.0, st.J02}, {0.0, st.J11, st.J12}};
+    const double E[2][2] = {{ga, gb}, {0.0, gcc}};
+    double JC[2][3];  // J SigmaC
+    for (int i = 0; i < 2; ++i)
+      for (int j = 0; j < 3; ++j)
+        JC[i][j] = J[i][0] * st.SigmaC[0][j] + J[i][1] * st.SigmaC[1][j] + J[i][2] * st.SigmaC[2][j];
+    // dJ = (E + E^T) J SigmaC
+    const double S[2][2] = {{2.0 * ga, gb}, {gb, 2.0 * gcc}};
+    double dJ[2][3];
+    for (int i = 0; i < 2; ++i)
+      for (int j = 0; j < 3; ++j) dJ[i][j] = S[i][0] * JC[0][j] + S[i][1] * JC[1][j];
+    // dSigmaC = J^T E J
+    double EJ[2][3];
+    for (int i = 0; i < 2; ++i)
+      for (int j = 0; j < 3; ++j) EJ[i][j] = E[i][0] * J[0][j] + E[i][1] * J[1][j];
+    double G[3][3];
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j) G[i][j] = J[0][i] * EJ[0][j] + J[1][i] * EJ[1][j];
+    // SigmaC = R Sigma R^T: dSigma = R^T G R, dR = (G + G^T) R Sigma
+    double GR[3][3], dSigma[3][3], dR[3][3] = {};
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j) GR[i][j] = G[i][0] * cam.R[0][j] + G[i][1] * cam.R[1][j] + G[i][2] * cam.R[2][j];
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j)
+        dSigma[i][j] = cam.R[0][i] * GR[0][j] + cam.R[1][i] * GR[1][j] + cam.R[2][i] * GR[2][j];
+    if (grad_w2c) {
+      double RSig[3][3];
+      for (int i = 0; i < 3; ++i)
         for (int j = 0; j < 3; ++j)
-          JC[i][j] = J[i][0] * st.SigmaC[0][j] + J[i][1] * st.SigmaC[1][j] + J[i][2] * st.SigmaC[2][j];
-      // dJ = (E + E^T) J SigmaC
-      const double S[2][2] = {{2.0 * ga, gb}, {gb, 2.0 * gcc}};
-      double dJ[2][3];
-      for (int i = 0; i < 2; ++i)
-        for (int j = 0; j < 3; ++j) dJ[i][j] = S[i][0] * JC[0][j] + S[i][1] * JC[1][j];
-      // dSigmaC = J^T E J
-      double EJ[2][3];
-      for (int i = 0; i < 2; ++i)
-        for (int j = 0; j < 3; ++j) EJ[i][j] = E[i][0] * J[0][j] + E[i][1] * J[1][j];
-      double G[3][3];
+          RSig[i][j] = cam.R[i][0] * st.Sigma[0][j] + cam.R[i][1] * st.Sigma[1][j] + cam.R[i][2] * st.Sigma[2][j];
       for (int i = 0; i < 3; ++i)
-        for (int j = 0; j < 3; ++j) G[i][j] = J[0][i] * EJ[0][j] + J[1][i] * EJ[1][j];
-      // SigmaC = R Sigma R^T: dSigma = R^T G R, dR = (G + G^T) R Sigma
-      double GR[3][3], dSigma[3][3], dR[3][3] = {};
-      for (int i = 0; i < 3; ++i)
-        for (int j = 0; j < 3; ++j) GR[i][j] = G[i][0] * cam.R[0][j] + G[i][1] * cam.R[1][j] + G[i][2] * cam.R[2][j];
-      for (int i = 0; i < 3; ++i)
-        for (int j = 0; j < 3; ++j)
-          dSigma[i][j] = cam.R[0][i] * GR[0][j] + cam.R[1][i] * GR[1][j] + cam.R[2][i] * GR[2][j];
-      if (grad_w2c) {
-        double RSig[3][3];
-        for (int i = 0; i < 3; ++i)
-          for (int j = 0; j < 3; ++j)
-            RSig[i][j] = cam.R[i][0] * st.Sigma[0][j] + cam.R[i][1] * st.Sigma[1][j] + cam.R[i][2] * st.Sigma[2][j];
-        for (int i = 0; i < 3; ++i)
-          for (int j = 0; j < 3; ++j) {
-            double acc = 0.0;
-            for (int k = 0; k < 3; ++k) acc += (G[i][k] + G[k][i]) * RSig[k][j];
-            dR[i][j] = acc;
-          }
-      }
-      // Sigma = M M^T, M = Rq diag(s): dM = (dSigma + dSigma^T) M
-      double dRq[3][3];
-      for (int j = 0; j < 3; ++j) {
-        double ds_j = 0.0;
-        for (int i = 0; i < 3; ++i) {
-          double dM = 0.0;
-          for (int k = 0; k < 3; ++k) dM += (dSigma[i][k] + dSigma[k][i]) * st.rot.R[k][j] * st.s[j];
-          dRq[i][j] = dM * st.s[j];
-          ds_j += dM * st.rot.R[i][j];
+        for (int j = 0; j < 3; ++j) {
+          double acc = 0.0;
+          for (int k = 0; k < 3; ++k) acc += (G[i][k] + G[k][i]) * RSig[k][j];
+          dR[i][j] = acc;
         }
-        grad_scales[3 * g + j] = F(ds_j);
+    }
+    // Sigma = M M^T, M = Rq diag(s): dM = (dSigma + dSigma^T) M
+    double dRq[3][3];
+    for (int j = 0; j < 3; ++j) {
+      double ds_j = 0.0;
+      for (int i = 0; i < 3; ++i) {
+        double dM = 0.0;
+        for (int k = 0; k < 3; ++k) dM += (dSigma[i][k] + dSigma[k][i]) * st.rot.R[k][j] * st.s[j];
+        dRq[i][j] = dM * st.s[j];
+        ds_j += dM * st.rot.R[i][j];
       }
-      double gq[4];
-      rotation_backward<double>(st.rot, dRq, gq);
-      for (int i = 0; i < 4; ++i) grad_quats[4 * g + i] = F(gq[i]);
-      // J entries -> zs and the clamped u, v; means2d -> u, v; u = x / zs, v = y / zs
-      const double zs2 = st.zs * st.zs;
-      double d_zs = -dJ[0][0] * cam.fx / zs2 + dJ[0][2] * cam.fx * st.uc / zs2 - dJ[1][1] * cam.fy / zs2 +
-                    dJ[1][2] * cam.fy * st.vc / zs2;
-      double du = double(grad_means2d[2 * g]) * cam.fx, dv = double(grad_means2d[2 * g + 1]) * cam.fy;
-      if (st.u >= cam.u_lo && st.u <= cam.u_hi) du += -dJ[0][2] * cam.fx / st.zs;
-      if (st.v >= cam.v_lo && st.v <= cam.v_hi) dv += -dJ[1][2] * cam.fy / st.zs;
-      const double dcx = du / st.zs, dcy = dv / st.zs;
-      d_zs += -du * st.c[0] / zs2 - dv * st.c[1] / zs2;
-      const double dcz = (st.in_range ? d_zs : 0.0) + double(grad_depths[g]);
-      const double dc[3] = {dcx, dcy, dcz};
-      for (int i = 0; i < 3; ++i)
-        grad_means[3 * g + i] = F(cam.R[0][i] * dc[0] + cam.R[1][i] * dc[1] + cam.R[2][i] * dc[2]);
-      if (grad_w2c) {
-        double* p = &pose[size_t(g) * 12];
-        for (int i = 0; i < 3; ++i) {
-          for (int j = 0; j < 3; ++j) p[4 * i + j] = dR[i][j] + dc[i] * st.m[j];
-          p[4 * i + 3] = dc[i];
-        }
+      grad_scales[3 * g + j] = F(ds_j);
+    }
+    double gq[4];
+    rotation_backward<double>(st.rot, dRq, gq);
+    for (int i = 0; i < 4; ++i) grad_quats[4 * g + i] = F(gq[i]);
+    // J entries -> zs and the clamped u, v; means2d -> u, v; u = x / zs, v = y / zs
+    const double zs2 = st.zs * st.zs;
+    double d_zs = -dJ[0][0] * cam.fx / zs2 + dJ[0][2] * cam.fx * st.uc / zs2 - dJ[1][1] * cam.fy / zs2 +
+                  dJ[1][2] * cam.fy * st.vc / zs2;
+    double du = double(grad_means2d[2 * g]) * cam.fx, dv = double(grad_means2d[2 * g + 1]) * cam.fy;
+    if (st.u >= cam.u_lo && st.u <= cam.u_hi) du += -dJ[0][2] * cam.fx / st.zs;
+    if (st.v >= cam.v_lo && st.v <= cam.v_hi) dv += -dJ[1][2] * cam.fy / st.zs;
+    const double dcx = du / st.zs, dcy = dv / st.zs;
+    d_zs += -du * st.c[0] / zs2 - dv * st.c[1] / zs2;
+    const double dcz = (st.in_range ? d_zs : 0.0) + double(grad_depths[g]);
+    const double dc[3] = {dcx, dcy, dcz};
+    for (int i = 0; i < 3; ++i)
+      grad_means[3 * g + i] = F(cam.R[0][i] * dc[0] + cam.R[1][i] * dc[1] + cam.R[2][i] * dc[2]);
+    if (grad_w2c) {
+      double* p = &pose[size_t(g) * 12];
+      for (int i = 0; i < 3; ++i) {
+        for (int j = 0; j < 3; ++j) p[4 * i + j] = dR[i][j] + dc[i] * st.m[j];
+        p[4 * i + 3] = dc[i];
       }
     }
-  }
+  });
   if (grad_w2c) {
     double total[12] = {0.0};
     for (int64_t g = 0; g < n; ++g)

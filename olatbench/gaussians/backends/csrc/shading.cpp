@@ -208,24 +208,18 @@ template <typename F>
 void geometry_forward(const GeometryInputs<F>& in, int threads, F* wi, F* wo, F* frames, F* inv_dist2) {
   constexpr int L = Simd<F>::kLanes;
   const int64_t groups = (in.n + L - 1) / L;
-  const FloatMode mode = FloatMode::of_this_thread();
-#pragma omp parallel num_threads(threads)
-  {
-    const FloatModeScope scope(mode);
-#pragma omp for schedule(static)
-    for (int64_t group = 0; group < groups; ++group) {
-      const int64_t k = group * L;
-      const int count = int(std::min<int64_t>(L, in.n - k));
-      Geometry<F> g;
-      geometry_eval(in, k, count, g);
-      for (int i = 0; i < 3; ++i) {
-        scatter(wi + 3 * k + i, 3, count, g.wi[i]);
-        scatter(wo + 3 * k + i, 3, count, g.wo[i]);
-        for (int j = 0; j < 3; ++j) scatter(frames + 9 * k + 3 * i + j, 9, count, g.frame[i][j]);
-      }
-      scatter(inv_dist2 + k, 1, count, g.inv_dist2);
+  parallel_for_static(groups, threads, [&](int64_t group) {
+    const int64_t k = group * L;
+    const int count = int(std::min<int64_t>(L, in.n - k));
+    Geometry<F> g;
+    geometry_eval(in, k, count, g);
+    for (int i = 0; i < 3; ++i) {
+      scatter(wi + 3 * k + i, 3, count, g.wi[i]);
+      scatter(wo + 3 * k + i, 3, count, g.wo[i]);
+      for (int j = 0; j < 3; ++j) scatter(frames + 9 * k + 3 * i + j, 9, count, g.frame[i][j]);
     }
-  }
+    scatter(inv_dist2 + k, 1, count, g.inv_dist2);
+  });
 }
 
 // Gradients of the outputs may be null (zero). Writes grad_positions (n,3), grad_quats (n,4); grad_camera (3)

@@ -238,52 +238,46 @@ void forward_impl(Image<const F> pred, Image<const F> gt, int64_t batch, int64_t
   const F c1 = F(kC1), c2 = F(kC2);
   const int chunks = chunk_count(rows, threads);
   std::vector<double> row_sums(size_t(rows), 0.0);
-  const FloatMode mode = FloatMode::of_this_thread();
-#pragma omp parallel num_threads(chunks)
-  {
-    const FloatModeScope scope(mode);
-#pragma omp for schedule(static)
-    for (int c = 0; c < chunks; ++c) {
-      int64_t r0, r1;
-      chunk_rows(rows, chunks, c, &r0, &r1);
-      Ring<F> ring(kMaps, height, width);
-      std::vector<F> blurred(static_cast<size_t>(kMaps * width)), ssim_row(static_cast<size_t>(width));
-      const F* __restrict mu_p = blurred.data();
-      const F* __restrict mu_g = mu_p + width;
-      const F* __restrict e_pp = mu_p + 2 * width;
-      const F* __restrict e_gg = mu_p + 3 * width;
-      const F* __restrict e_pg = mu_p + 4 * width;
-      for (int64_t r = r0; r < r1; ++r) {
-        int64_t first, last;
-        ring.pending(r, &first, &last);
-        for (int64_t q = first; q <= last; ++q) {
-          const F* p = pred.row(q, channels, height);
-          const F* g = gt.row(q, channels, height);
-          F *q_p = ring.padded(0), *q_g = ring.padded(1), *q_pp = ring.padded(2), *q_gg = ring.padded(3),
-            *q_pg = ring.padded(4);
-          if (sp == 1 && sg == 1)
-            fill_products(p, 1, g, 1, width, q_p, q_g, q_pp, q_gg, q_pg);
-          else
-            fill_products(p, sp, g, sg, width, q_p, q_g, q_pp, q_gg, q_pg);
-          ring.blur_pending(q, taps);
-        }
-        for (int m = 0; m < kMaps; ++m) ring.blur_vertical(m, r, taps, blurred.data() + m * width);
-        F* __restrict s = ssim_row.data();
-        for (int64_t x = 0; x < width; ++x) {  // same expression as metrics/ssim.py::ssim_map_torch
-          const F var_p = e_pp[x] - mu_p[x] * mu_p[x], var_g = e_gg[x] - mu_g[x] * mu_g[x];
-          const F cov = e_pg[x] - mu_p[x] * mu_g[x];
-          const F numerator = (F(2) * mu_p[x] * mu_g[x] + c1) * (F(2) * cov + c2);
-          const F denominator = (mu_p[x] * mu_p[x] + mu_g[x] * mu_g[x] + c1) * (var_p + var_g + c2);
-          s[x] = numerator / denominator;
-        }
-        row_sums[size_t(r)] = row_sum(s, width);
-        if (derivatives) {
-          F* d = derivatives + r * width;
-          ssim_derivatives(mu_p, mu_g, e_pp, e_gg, e_pg, width, d, d + total, d + 2 * total);
-        }
+  parallel_for_static(chunks, chunks, [&](int c) {
+    int64_t r0, r1;
+    chunk_rows(rows, chunks, c, &r0, &r1);
+    Ring<F> ring(kMaps, height, width);
+    std::vector<F> blurred(static_cast<size_t>(kMaps * width)), ssim_row(static_cast<size_t>(width));
+    const F* __restrict mu_p = blurred.data();
+    const F* __restrict mu_g = mu_p + width;
+    const F* __restrict e_pp = mu_p + 2 * width;
+    const F* __restrict e_gg = mu_p + 3 * width;
+    const F* __restrict e_pg = mu_p + 4 * width;
+    for (int64_t r = r0; r < r1; ++r) {
+      int64_t first, last;
+      ring.pending(r, &first, &last);
+      for (int64_t q = first; q <= last; ++q) {
+        const F* p = pred.row(q, channels, height);
+        const F* g = gt.row(q, channels, height);
+        F *q_p = ring.padded(0), *q_g = ring.padded(1), *q_pp = ring.padded(2), *q_gg = ring.padded(3),
+          *q_pg = ring.padded(4);
+        if (sp == 1 && sg == 1)
+          fill_products(p, 1, g, 1, width, q_p, q_g, q_pp, q_gg, q_pg);
+        else
+          fill_products(p, sp, g, sg, width, q_p, q_g, q_pp, q_gg, q_pg);
+        ring.blur_pending(q, taps);
+      }
+      for (int m = 0; m < kMaps; ++m) ring.blur_vertical(m, r, taps, blurred.data() + m * width);
+      F* __restrict s = ssim_row.data();
+      for (int64_t x = 0; x < width; ++x) {  // same expression as metrics/ssim.py::ssim_map_torch
+        const F var_p = e_pp[x] - mu_p[x] * mu_p[x], var_g = e_gg[x] - mu_g[x] * mu_g[x];
+        const F cov = e_pg[x] - mu_p[x] * mu_g[x];
+        const F numerator = (F(2) * mu_p[x] * mu_g[x] + c1) * (F(2) * cov + c2);
+        const F denominator = (mu_p[x] * mu_p[x] + mu_g[x] * mu_g[x] + c1) * (var_p + var_g + c2);
+        s[x] = numerator / denominator;
+      }
+      row_sums[size_t(r)] = row_sum(s, width);
+      if (derivatives) {
+        F* d = derivatives + r * width;
+        ssim_derivatives(mu_p, mu_g, e_pp, e_gg, e_pg, width, d, d + total, d + 2 * total);
       }
     }
-  }
+  });
   double sum = 0.0;
   for (int64_t r = 0; r < rows; ++r) sum += row_sums[size_t(r)];
   *ssim_sum = sum;
@@ -301,39 +295,33 @@ void backward_impl(Image<const F> pred, Image<const F> gt, const F* derivatives,
   const Image<F> grad{grad_pred, pred.strides};
   const F scale = F(grad_scale);
   const int chunks = chunk_count(rows, threads);
-  const FloatMode mode = FloatMode::of_this_thread();
-#pragma omp parallel num_threads(chunks)
-  {
-    const FloatModeScope scope(mode);
-#pragma omp for schedule(static)
-    for (int c = 0; c < chunks; ++c) {
-      int64_t r0, r1;
-      chunk_rows(rows, chunks, c, &r0, &r1);
-      Ring<F> ring(kGrads, height, width);
-      std::vector<F> blurred(static_cast<size_t>(kGrads * width));
-      for (int64_t r = r0; r < r1; ++r) {
-        int64_t first, last;
-        ring.pending(r, &first, &last);
-        for (int64_t q = first; q <= last; ++q) {
-          for (int m = 0; m < kGrads; ++m) {
-            const F* __restrict d = derivatives + m * total + q * width;
-            F* __restrict padded = ring.padded(m);
-            for (int64_t x = 0; x < width; ++x) padded[x] = d[x];
-          }
-          ring.blur_pending(q, taps);
+  parallel_for_static(chunks, chunks, [&](int c) {
+    int64_t r0, r1;
+    chunk_rows(rows, chunks, c, &r0, &r1);
+    Ring<F> ring(kGrads, height, width);
+    std::vector<F> blurred(static_cast<size_t>(kGrads * width));
+    for (int64_t r = r0; r < r1; ++r) {
+      int64_t first, last;
+      ring.pending(r, &first, &last);
+      for (int64_t q = first; q <= last; ++q) {
+        for (int m = 0; m < kGrads; ++m) {
+          const F* __restrict d = derivatives + m * total + q * width;
+          F* __restrict padded = ring.padded(m);
+          for (int64_t x = 0; x < width; ++x) padded[x] = d[x];
         }
-        for (int m = 0; m < kGrads; ++m) ring.blur_vertical(m, r, taps, blurred.data() + m * width);
-        const F *b_mu = blurred.data(), *b_pp = b_mu + width, *b_pg = b_mu + 2 * width;
-        const F* p = pred.row(r, channels, height);
-        const F* g = gt.row(r, channels, height);
-        F* out = grad.row(r, channels, height);
-        if (sp == 1 && sg == 1)
-          combine_gradient(b_mu, b_pp, b_pg, p, 1, g, 1, scale, width, out);
-        else
-          combine_gradient(b_mu, b_pp, b_pg, p, sp, g, sg, scale, width, out);
+        ring.blur_pending(q, taps);
       }
+      for (int m = 0; m < kGrads; ++m) ring.blur_vertical(m, r, taps, blurred.data() + m * width);
+      const F *b_mu = blurred.data(), *b_pp = b_mu + width, *b_pg = b_mu + 2 * width;
+      const F* p = pred.row(r, channels, height);
+      const F* g = gt.row(r, channels, height);
+      F* out = grad.row(r, channels, height);
+      if (sp == 1 && sg == 1)
+        combine_gradient(b_mu, b_pp, b_pg, p, 1, g, 1, scale, width, out);
+      else
+        combine_gradient(b_mu, b_pp, b_pg, p, sp, g, sg, scale, width, out);
     }
-  }
+  });
 }
 
 }  // namespace
