@@ -316,3 +316,31 @@ def test_degenerate_distances_match_torch():
             assert_relative(getattr(got, name).detach(), getattr(ref, name).detach(), 1e-12, name)
         for name, ref_grad in ref_grads.items():
             assert_relative(got_grads[name], ref_grad, 1e-10, name)
+
+
+def test_failed_build_shades_with_torch_after_one_warning(monkeypatch, tmp_path):
+    """auto: a C++ library that cannot be built gives the torch shading and one RuntimeWarning saying why;
+    an explicit "cpu" request fails with that reason instead."""
+    import warnings
+
+    from olatbench.gaussians import backends
+    from olatbench.gaussians.backends import build
+
+    shader, scene = make_shader(), make_scene(edge_cases=False)
+    reference, _ = shade(shader, scene, TERM_SETS["all"], "torch")
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    monkeypatch.setenv("OLATBENCH_CXX", str(tmp_path / "no-such-compiler"))
+    backends.reset_fallback_warning()
+    build.reset()
+    try:
+        with pytest.warns(RuntimeWarning, match=r"SSD-GS shading kernels is unavailable, falling back.*no-such"):
+            out, _ = shade(shader, scene, TERM_SETS["all"], "auto")
+        assert torch.equal(out.colour, reference.colour)
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            shade(shader, scene, TERM_SETS["all"], "auto")  # once per process
+        with pytest.raises(ValueError, match=r"C\+\+ kernels are unavailable.*no-such-compiler"):
+            shade(shader, scene, TERM_SETS["all"], "cpu")
+    finally:
+        build.reset()
+        backends.reset_fallback_warning()

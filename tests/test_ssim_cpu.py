@@ -2,19 +2,18 @@
 
 from __future__ import annotations
 
-import importlib
 import shutil
 import warnings
 
 import pytest
 import torch
 
+from olatbench.gaussians import backends
 from olatbench.gaussians.backends import build, cpu_backend_status
 from olatbench.methods.training import photometric_loss
 from olatbench.metrics.ssim import resolve_ssim_backend, ssim_loss
 from olatbench.metrics.ssim_cpu import ssim_loss_cpu
 
-ssim_module = importlib.import_module("olatbench.metrics.ssim")  # the package re-exports a function `ssim`
 _STATUS = cpu_backend_status()
 pytestmark = pytest.mark.skipif(not _STATUS[0], reason=f"C++ SSIM kernel unavailable: {_STATUS[1]}")
 
@@ -166,10 +165,11 @@ def broken_build(monkeypatch, tmp_path):
     """An empty build cache, a compiler that does not exist, and no remembered build outcome or warning."""
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
     monkeypatch.setenv("OLATBENCH_CXX", str(tmp_path / "no-such-compiler"))
-    monkeypatch.setattr(ssim_module, "_warned_fallback", False)
+    backends.reset_fallback_warning()
     build.reset()
     yield
     build.reset()
+    backends.reset_fallback_warning()
 
 
 def test_failed_build_falls_back_to_torch_with_one_warning(broken_build):

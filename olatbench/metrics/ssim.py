@@ -19,14 +19,13 @@ other call uses the torch code here. See ``resolve_ssim_backend``.
 
 from __future__ import annotations
 
-import warnings
 from typing import Literal
 
 import numpy as np
 import torch
 import torch.nn.functional as F
 
-from olatbench.gaussians.backends import cpu_backend_status
+from olatbench.gaussians.backends import cpu_kernels_or_warn
 from olatbench.metrics._inputs import ArrayLike, check_same_shape, mask_to_n1hw, to_nchw, to_output
 from olatbench.metrics.ssim_cpu import ssim_loss_cpu, unsupported_reason
 
@@ -123,8 +122,6 @@ def ssim_torch(pred: torch.Tensor, gt: torch.Tensor, variant: SSIMVariant = "3dg
     return values if batched else values[0]
 
 
-_warned_fallback = False
-
 
 def resolve_ssim_backend(pred: torch.Tensor, gt: torch.Tensor, variant: SSIMVariant = "3dgs",
                          backend: SSIMBackend = "auto") -> Literal["torch", "cpu"]:
@@ -136,7 +133,6 @@ def resolve_ssim_backend(pred: torch.Tensor, gt: torch.Tensor, variant: SSIMVari
     one RuntimeWarning saying why. ``backend="cpu"`` raises ValueError for other inputs and
     ``olatbench.gaussians.backends.build.BuildError`` when the library cannot be built; ``"torch"`` always
     uses the torch code."""
-    global _warned_fallback
     if backend not in SSIM_BACKENDS:
         raise ValueError(f"unknown SSIM backend {backend!r}; expected one of {SSIM_BACKENDS}")
     _check_variant(variant)
@@ -154,18 +150,7 @@ def resolve_ssim_backend(pred: torch.Tensor, gt: torch.Tensor, variant: SSIMVari
         return "cpu"
     if reason is not None:
         return "torch"
-    ok, detail = cpu_backend_status()
-    if ok:
-        return "cpu"
-    if not _warned_fallback:
-        _warned_fallback = True
-        warnings.warn(
-            "olatbench: the C++ SSIM loss is unavailable, falling back to the slower torch SSIM. Reason: "
-            f"{detail}\nInstall a C++ compiler with OpenMP (e.g. `apt install g++`) or point OLATBENCH_CXX at one.",
-            RuntimeWarning,
-            stacklevel=3,
-        )
-    return "torch"
+    return "cpu" if cpu_kernels_or_warn("SSIM loss", "the slower torch SSIM") else "torch"
 
 
 def ssim_loss(pred: torch.Tensor, gt: torch.Tensor, variant: SSIMVariant = "3dgs", channels_last: bool = False,

@@ -25,7 +25,7 @@ from .cuda import gsplat_available
 
 BACKENDS = ("torch", "cpu", "cuda")
 ENV_VAR = "OLATBENCH_RASTERIZER"
-_warned_fallback = False
+_warned_fallbacks: set[str] = set()
 
 
 def cpu_backend_status() -> tuple[bool, str]:
@@ -37,6 +37,21 @@ def cpu_backend_status() -> tuple[bool, str]:
         return False, str(error)
     path, note = build.loaded_path()
     return True, f"{path} ({note})" if note else str(path)
+
+
+def cpu_kernels_or_warn(kernel: str, fallback: str, hint: str = "") -> bool:
+    """Whether the C++ library is available for ``kernel`` (e.g. "CPU rasterizer"); when it is not, one
+    RuntimeWarning per ``kernel`` (and process) says that ``fallback`` is used instead and why, plus ``hint``."""
+    ok, detail = cpu_backend_status()
+    if not ok and kernel not in _warned_fallbacks:
+        _warned_fallbacks.add(kernel)
+        warnings.warn(
+            f"olatbench: the C++ {kernel} is unavailable, falling back to {fallback}. Reason: {detail}\n"
+            f"Install a C++ compiler with OpenMP (e.g. `apt install g++`) or point OLATBENCH_CXX at one{hint}.",
+            RuntimeWarning,
+            stacklevel=3,
+        )
+    return ok
 
 
 def resolve_backend(requested: str, device: torch.device | str, dtype: torch.dtype = torch.float32) -> str:
@@ -63,30 +78,18 @@ def resolve_backend(requested: str, device: torch.device | str, dtype: torch.dty
 
 
 def _auto_backend(device: torch.device, dtype: torch.dtype) -> str:
-    global _warned_fallback
     if device.type == "cuda":
         return "cuda" if gsplat_available() else "torch"
     if device.type != "cpu" or dtype not in (torch.float32, torch.float64):
         return "torch"
-    ok, detail = cpu_backend_status()
-    if ok:
-        return "cpu"
-    if not _warned_fallback:
-        _warned_fallback = True
-        warnings.warn(
-            "olatbench: the C++ CPU rasterizer is unavailable, falling back to the much slower torch "
-            f"rasterizer. Reason: {detail}\nInstall a C++ compiler with OpenMP (e.g. `apt install g++`) or point "
-            f"OLATBENCH_CXX at one; set {ENV_VAR}=torch to silence this warning.",
-            RuntimeWarning,
-            stacklevel=3,
-        )
-    return "torch"
+    return "cpu" if cpu_kernels_or_warn("CPU rasterizer", "the much slower torch rasterizer",
+                                        f"; set {ENV_VAR}=torch to silence this warning") else "torch"
 
 
 def reset_fallback_warning() -> None:
-    """Allow the fallback warning to be shown again (for tests)."""
-    global _warned_fallback
-    _warned_fallback = False
+    """Allow the fallback warnings to be shown again (for tests)."""
+    _warned_fallbacks.clear()
 
 
-__all__ = ["BACKENDS", "ENV_VAR", "cpu_backend_status", "reset_fallback_warning", "resolve_backend"]
+__all__ = ["BACKENDS", "ENV_VAR", "cpu_backend_status", "cpu_kernels_or_warn", "reset_fallback_warning",
+           "resolve_backend"]

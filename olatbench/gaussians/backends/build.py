@@ -34,7 +34,7 @@ BASE_FLAGS = ("-O3", "-shared", "-fPIC", "-std=c++17", "-ffp-contract=off")
 # Build variants in order of preference.
 VARIANTS = {"openmp": (*BASE_FLAGS, "-fopenmp"), "serial": BASE_FLAGS}
 LIBRARY_NAME = "olatbench_rasterize.so"
-ABI_VERSION = 2
+ABI_VERSION = 3
 
 
 class BuildError(RuntimeError):

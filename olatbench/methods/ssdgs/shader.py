@@ -23,7 +23,7 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from olatbench.gaussians.backends import cpu_backend_status
+from olatbench.gaussians.backends import cpu_backend_status, cpu_kernels_or_warn
 from olatbench.gaussians.projection import quat_to_rotmat
 from olatbench.methods.ssdgs.config import SSDGSConfig
 from olatbench.methods.ssdgs.shading import (
@@ -162,6 +162,8 @@ class Shader(nn.Module):
         if any(t.dtype != dtype for t in tensors):
             return "inputs of different dtypes"
         ok, detail = cpu_backend_status()
+        if not ok and self.backend == "auto":  # say once why auto shades with torch
+            cpu_kernels_or_warn("SSD-GS shading kernels", "the torch shading")
         return None if ok else f"the C++ kernels are unavailable ({detail})"
 
     def _forward_cpu(self, positions: torch.Tensor, quats: torch.Tensor, scales: torch.Tensor,

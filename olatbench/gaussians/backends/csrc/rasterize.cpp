@@ -837,4 +837,4 @@ void project_backward_impl(const F* means, const F* quats, const F* scales, cons
 OLATBENCH_DEFINE(float, f32)
 OLATBENCH_DEFINE(double, f64)
 
-OLATBENCH_EXPORT int olatbench_abi_version() { return 2; }
+OLATBENCH_EXPORT int olatbench_abi_version() { return 3; }
