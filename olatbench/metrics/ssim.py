@@ -122,7 +122,6 @@ def ssim_torch(pred: torch.Tensor, gt: torch.Tensor, variant: SSIMVariant = "3dg
     return values if batched else values[0]
 
 
-
 def resolve_ssim_backend(pred: torch.Tensor, gt: torch.Tensor, variant: SSIMVariant = "3dgs",
                          backend: SSIMBackend = "auto") -> Literal["torch", "cpu"]:
     """The backend ``ssim_loss`` uses for (B, C, H, W) ``pred``/``gt``: ``"torch"`` or ``"cpu"`` (C++ kernel).

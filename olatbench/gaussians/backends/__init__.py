@@ -49,7 +49,7 @@ def cpu_kernels_or_warn(kernel: str, fallback: str, hint: str = "") -> bool:
             f"olatbench: the C++ {kernel} is unavailable, falling back to {fallback}. Reason: {detail}\n"
             f"Install a C++ compiler with OpenMP (e.g. `apt install g++`) or point OLATBENCH_CXX at one{hint}.",
             RuntimeWarning,
-            stacklevel=3,
+            stacklevel=4,  # past this helper and the resolver that calls it: where the kernel was asked for
         )
     return ok
 
