@@ -11,7 +11,13 @@ import torch
 from olatbench.gaussians.backends import cpu_backend_status
 from olatbench.gaussians.backends.cpu import shadow_gather_cpu
 from olatbench.gaussians.projection import quat_to_rotmat
-from olatbench.gaussians.shadow import OFFICIAL_KERNEL, camera_matched_focal, light_camera, shadow_gather
+from olatbench.gaussians.shadow import (
+    OFFICIAL_KERNEL,
+    _gather_torch,
+    camera_matched_focal,
+    light_camera,
+    shadow_gather,
+)
 from olatbench.gaussians.tiles import bin_gaussians
 
 IDENTITY = [1.0, 0.0, 0.0, 0.0]
@@ -331,6 +337,38 @@ def test_cpp_depth_offset_matches_per_pixel_loop(offset):
     assert float(stack[9]) < 1e-3  # the receiver behind the opaque stack: its pixels stopped (T < 1e-4)
     plain = shadow_gather_cpu(means2d, conics, opacities, bins)
     assert torch.equal(got.weight, plain.weight)
+
+
+@pytest.mark.skipif(not cpu_backend_status()[0], reason="C++ backend unavailable")
+@pytest.mark.parametrize("offset", [0.0, 0.05])
+def test_gaussians_behind_stopped_pixels_match_the_torch_reference(offset):
+    """A wall of opaque Gaussians stops every pixel of x < 20 px (T < 1e-4). Behind it: a small Gaussian whose
+    whole box has stopped (visibility and weight 0), and a wide one centred behind the wall whose box reaches
+    past the wall's edge: its sampling disc has stopped, but the open part of its box must still be composited
+    (weight > 0, and it shades a third Gaussian beside the wall). A kernel that skipped Gaussians by their disc
+    alone would fail here."""
+    wall = [(x + 0.5, y + 0.5) for x in range(20) for y in range(32)]
+    means2d = torch.tensor([*wall, (8.0, 16.0), (16.0, 8.0), (23.0, 8.0)], dtype=torch.float64)
+    n_wall = len(wall)
+    sigma = torch.tensor([1.5] * n_wall + [0.8, 3.5, 1.0], dtype=torch.float64)
+    conics = torch.stack([sigma**-2, torch.zeros_like(sigma), sigma**-2], dim=1)
+    opacities = torch.tensor([0.99] * n_wall + [0.9, 0.9, 0.9], dtype=torch.float64)
+    keys = torch.tensor([0.1 + 0.001 * i for i in range(n_wall)] + [1.0, 1.1, 1.2], dtype=torch.float64)
+    radii = torch.ceil(3 * sigma).long()
+    bins = bin_gaussians(means2d, radii, keys, 32, 32)
+
+    got = shadow_gather_cpu(means2d, conics, opacities, bins, sort_keys=keys, depth_offset=offset, threads=2)
+    vis, count, weight = _gather_torch(means2d, conics, opacities, keys, bins, "uniform", 2.0, offset)
+    assert torch.equal(got.count, count.to(torch.int32))
+    torch.testing.assert_close(got.vis_sum, vis, rtol=1e-10, atol=1e-12)
+    torch.testing.assert_close(got.weight, weight, rtol=1e-10, atol=1e-12)
+    hidden, straddling, open_receiver = n_wall, n_wall + 1, n_wall + 2
+    assert float(got.vis_sum[hidden]) == 0.0 and float(got.weight[hidden]) == 0.0
+    assert float(got.vis_sum[straddling]) == 0.0 and float(got.weight[straddling]) > 0.05
+    # the straddling Gaussian's open part shades the receiver beside the wall
+    alone = shadow_gather_cpu(means2d[-1:], conics[-1:], opacities[-1:], bin_gaussians(
+        means2d[-1:], radii[-1:], keys[-1:], 32, 32))
+    assert float(got.vis_sum[open_receiver] / got.count[open_receiver]) < float(alone.vis_sum[0] / alone.count[0])
 
 
 def test_bad_arguments():
