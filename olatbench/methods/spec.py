@@ -1,0 +1,97 @@
+"""Method specs: what the runner, `olatbench methods` and the reports know of a method without importing it.
+
+A spec is plain data (stdlib only, never torch): the method's name and one-line description, where its
+implementation lives (a ``"module:Class"`` string imported only to train or render), its config dataclass
+(``"module:Class"`` in a torch-free module, so `methods show` and `run --dry-run` can resolve configs), its
+presets per suite and named variants, the ablation grids it offers, the outputs it renders and what it can do.
+
+Official implementations (the authors' code run in its own environment) are specs too: ``kind="official"``
+with a `SourcePin` saying which repository and commit the spec was written against and what was verified.
+"""
+
+from __future__ import annotations
+
+import importlib
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from types import MappingProxyType
+from typing import Any, Literal
+
+MethodKind = Literal["native", "official", "plugin"]
+SourceStatus = Literal["verified", "unverified", "no public code"]
+
+#: Capabilities a spec may declare (the runner and tools check these, never method names).
+CAPABILITIES = frozenset({
+    "relight",  # renders under a new point light
+    "refine_view",  # implements Method.refine_view (test-time pose/light refinement)
+    "components",  # renders named components beside rgb (see MethodSpec.outputs)
+    "checkpoint",  # state_dict / load_state_dict: resumable in-process training
+})
+
+
+@dataclass(frozen=True)
+class SourcePin:
+    """Where an official implementation's code comes from and how far olatbench has checked it.
+
+    ``commit`` is 40 lowercase hex digits, or ``"unverified"`` when it could not be checked from here;
+    ``verified`` says in one or two sentences what was verified and how (read, run on a GPU, compared, ...).
+    """
+
+    repository: str  # "owner/name" on GitHub
+    commit: str
+    status: SourceStatus
+    verified: str = ""
+
+
+def _frozen(mapping: Mapping[str, Any] | None) -> Mapping[str, Any]:
+    return MappingProxyType(dict(mapping or {}))
+
+
+@dataclass(frozen=True)
+class MethodSpec:
+    """One method as data. ``presets`` maps a preset name to config overrides: a preset named like a suite
+    (``"nrhints"``) is applied to every job on that suite, the others are variants chosen with ``--variant``
+    (``"a+b"`` applies ``a`` then ``b``). ``ablations`` maps a grid name (``"components"``) to its variants."""
+
+    name: str
+    description: str
+    implementation: str  # "module:Class" of the Method subclass
+    config: str  # "module:Class" of the config dataclass (torch-free module)
+    kind: MethodKind = "native"
+    presets: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
+    ablations: Mapping[str, tuple[str, ...]] = field(default_factory=dict)
+    outputs: tuple[str, ...] = ("rgb",)
+    capabilities: frozenset[str] = frozenset()
+    source: SourcePin | None = None  # official implementations only
+
+    def __post_init__(self) -> None:
+        for reference in (self.implementation, self.config):
+            module, sep, attribute = reference.partition(":")
+            if not (module and sep and attribute):
+                raise ValueError(f"method spec {self.name!r}: {reference!r} is not of the form 'module:Class'")
+        unknown = sorted(set(self.capabilities) - CAPABILITIES)
+        if unknown:
+            raise ValueError(f"method spec {self.name!r}: unknown capabilities {unknown}; known: "
+                             f"{sorted(CAPABILITIES)}")
+        if (self.kind == "official") != (self.source is not None):
+            raise ValueError(f"method spec {self.name!r}: official methods, and only they, carry a source pin")
+        object.__setattr__(self, "presets", _frozen({k: _frozen(v) for k, v in self.presets.items()}))
+        object.__setattr__(self, "ablations", _frozen({k: tuple(v) for k, v in self.ablations.items()}))
+        object.__setattr__(self, "capabilities", frozenset(self.capabilities))
+
+    def load_config_class(self) -> type:
+        """The config dataclass (imports only its torch-free module)."""
+        return import_reference(self.config)
+
+    def load_implementation(self) -> type:
+        """The `Method` subclass (imports the implementation, usually torch)."""
+        return import_reference(self.implementation)
+
+
+def import_reference(reference: str) -> Any:
+    """Import ``"package.module:Qual.Name"`` and return the attribute."""
+    module_name, _, qualname = reference.partition(":")
+    target: Any = importlib.import_module(module_name)
+    for part in qualname.split("."):
+        target = getattr(target, part)
+    return target
