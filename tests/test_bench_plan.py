@@ -8,7 +8,6 @@ import pytest
 import test_runner_support as support
 
 from olatbench.bench.plan import (
-    ABLATIONS,
     PlanError,
     expand_variants,
     make_plan,
@@ -17,8 +16,9 @@ from olatbench.bench.plan import (
     resolve_scenes,
 )
 from olatbench.bench.store import job_folder
+from olatbench.methods.registry import get_spec
 
-Trivial = support.TrivialMethod
+Trivial = get_spec("trivial")  # the spec of support.TrivialMethod (registered as a class)
 
 
 def test_ablation_grids_expand_to_the_papers_presets():
@@ -28,13 +28,15 @@ def test_ablation_grids_expand_to_the_papers_presets():
     assert expand_variants(Trivial) == ["default"]
     assert expand_variants(Trivial, ["ablation-D", "default"], "components")[:2] == ["ablation-D", "default"]
     assert len(expand_variants(Trivial, ["ablation-D"], "components")) == 6  # deduplicated
-    assert set(ABLATIONS) == {"components", "schedule", "shadow-on-sss"}
+    assert set(get_spec("ssdgs").ablations) == {"components", "schedule", "shadow-on-sss"}
+    assert get_spec("ssdgs").ablations["components"] == Trivial.ablations["components"]
 
 
 def test_unknown_variant_or_ablation_is_one_clear_error():
     with pytest.raises(PlanError, match=r"no preset nope; its presets: .*ablation-A"):
         expand_variants(Trivial, ["nope"])
-    with pytest.raises(PlanError, match="unknown ablation"):
+    with pytest.raises(PlanError, match=r"method 'trivial' has no ablation grid 'lighting'; its grids: components, "
+                                        r"schedule, shadow-on-sss"):
         expand_variants(Trivial, ablation="lighting")
 
 

@@ -47,6 +47,11 @@ class TrivialMethod(Method):
         **{f"schedule-{letter}": {"noise": 0.001 * (i + 1)} for i, letter in enumerate("HIJK")},
         "shadow-on-sss": {"noise": 0.5},
     }
+    ablations: ClassVar[dict[str, tuple[str, ...]]] = {
+        "components": tuple(f"ablation-{letter}" for letter in "ABCDEF"),
+        "schedule": tuple(f"schedule-{letter}" for letter in "HIJK"),
+        "shadow-on-sss": ("default", "shadow-on-sss"),
+    }
 
     def setup(self, train: Views, device, seed: int) -> None:
         self.device = torch.device(device)

@@ -10,7 +10,6 @@ randomness in these generators or in their own state dict).
 from __future__ import annotations
 
 import random
-import re
 from pathlib import Path
 from typing import Any
 
@@ -18,24 +17,9 @@ import numpy as np
 import torch
 
 from olatbench.atomic import atomic_path
+from olatbench.bench.store import checkpoint_dir, list_checkpoints  # the folder layout (torch-free)
 
 CHECKPOINT_FORMAT = 1
-_NAME = re.compile(r"^step_(\d+)\.pt$")
-
-
-def checkpoint_dir(folder: str | Path) -> Path:
-    return Path(folder) / "checkpoints"
-
-
-def list_checkpoints(folder: str | Path) -> list[tuple[int, Path]]:
-    """(step, path) of every checkpoint of a job folder, oldest first."""
-    directory = checkpoint_dir(folder)
-    if not directory.is_dir():
-        return []
-    found = [(int(match.group(1)), path) for path in directory.iterdir() if (match := _NAME.match(path.name))]
-    return sorted(found)
-
-
 def seed_everything(seed: int) -> None:
     """Seed python's `random`, numpy's global generator and torch (all devices)."""
     random.seed(seed)

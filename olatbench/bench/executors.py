@@ -13,18 +13,23 @@ from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from tqdm.auto import tqdm
 
-from olatbench.bench.execute import JobOutcome, run_job
 from olatbench.bench.jobs import Job
 
+if TYPE_CHECKING:  # the job runner imports torch: loaded when a job runs, not when the CLI lists executors
+    from olatbench.bench.execute import JobOutcome
+
 EXECUTORS = ("inline", "local", "slurm")
-OnOutcome = Callable[[JobOutcome], None]
+OnOutcome = Callable[["JobOutcome"], None]
 
 
 def run_inline(jobs: Sequence[Job], progress: bool = True, on_outcome: OnOutcome | None = None) -> list[JobOutcome]:
     """Run the jobs one after another in this process."""
+    from olatbench.bench.execute import run_job
+
     outcomes = []
     with tqdm(total=len(jobs), desc="jobs", position=0, disable=not progress, unit="job") as bar:
         for job in jobs:
@@ -41,6 +46,8 @@ def _worker(job: Job, slots, progress: bool, threads: int) -> JobOutcome:
     """Run one job in a pool process; ``slots`` hands out the tqdm row of the per-job bar."""
     import torch
 
+    from olatbench.bench.execute import run_job
+
     torch.set_num_threads(threads)
     slot = slots.get()
     try:
@@ -53,6 +60,8 @@ def run_local(jobs: Sequence[Job], workers: int, progress: bool = True, on_outco
               ) -> list[JobOutcome]:
     """Run the jobs in ``workers`` spawned processes, a fresh one per job on Python ≥ 3.11 (honest peak
     memory, isolation from crashes); torch threads are shared out between the workers."""
+    from olatbench.bench.execute import JobOutcome
+
     context = multiprocessing.get_context("spawn")
     threads = max(1, (os.cpu_count() or 1) // workers)
     outcomes: dict[int, JobOutcome] = {}
@@ -102,6 +111,8 @@ class SlurmTask:
     which requeues the same task: `run_job` then resumes from the job's newest checkpoint."""
 
     def __call__(self, job: Job) -> JobOutcome:
+        from olatbench.bench.execute import run_job
+
         return run_job(job, progress=False)
 
     def checkpoint(self, job: Job):
@@ -132,6 +143,8 @@ def submit_slurm(jobs: Sequence[Job], out: str | Path, options: SlurmOptions) ->
 def wait_slurm(submitted: list, jobs: Sequence[Job], progress: bool = True, on_outcome: OnOutcome | None = None
                ) -> list[JobOutcome]:
     """Wait for submitted array tasks; a task that died outside `run_job` is reported as failed."""
+    from olatbench.bench.execute import JobOutcome
+
     outcomes = []
     with tqdm(total=len(submitted), desc="jobs", disable=not progress, unit="job") as bar:
         for task, job in zip(submitted, jobs, strict=True):

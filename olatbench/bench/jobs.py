@@ -18,6 +18,7 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import hashlib
+import importlib.util
 import inspect
 import json
 import os
@@ -162,14 +163,32 @@ def data_manifest_hash(root: str | Path, use_cache: bool = True) -> str:
     return hash_json(entries)
 
 
-def _method_source_files(method_class: type) -> list[Path]:
+def _module_file(module_name: str) -> Path:
+    """The source file of ``module_name``, found without executing it (its parent packages are imported:
+    the method packages keep their ``__init__`` torch-free so dry runs stay light)."""
+    try:
+        found = importlib.util.find_spec(module_name)
+    except (ImportError, ValueError) as error:
+        raise ValueError(f"cannot locate the source of {module_name!r}: {error}") from None
+    if found is None or not found.origin or not Path(found.origin).is_file():
+        raise ValueError(f"cannot locate the source of {module_name!r}")
+    return Path(found.origin).resolve()
+
+
+def _method_source_files(implementation: type | str) -> list[Path]:
     """The method's source: its whole folder for ``olatbench.methods.<name>`` packages and for
-    classes defined in a package ``__init__``; its module file otherwise."""
-    source = inspect.getsourcefile(method_class)
-    if source is None:
-        raise ValueError(f"cannot locate the source of {method_class!r}")
-    path = Path(source).resolve()
-    parts = method_class.__module__.split(".")
+    classes defined in a package ``__init__``; its module file otherwise. ``implementation`` is the class or its
+    ``"module:Class"`` reference (located, not imported)."""
+    if isinstance(implementation, str):
+        module_name = implementation.partition(":")[0]
+        path = _module_file(module_name)
+    else:
+        module_name = implementation.__module__
+        source = inspect.getsourcefile(implementation)
+        if source is None:
+            raise ValueError(f"cannot locate the source of {implementation!r}")
+        path = Path(source).resolve()
+    parts = module_name.split(".")
     if path.name == "__init__.py" or (parts[:2] == ["olatbench", "methods"] and len(parts) >= 4):
         return sorted(path.parent.rglob("*.py"))
     return [path]
@@ -180,13 +199,16 @@ def _core_source_files() -> list[Path]:
     return sorted(p for p in core.rglob("*") if p.suffix in (".py", ".cpp", ".h", ".cu"))
 
 
-def code_hash(method_class: type) -> str:
-    """Hash of the code that decides a method's result: olatbench version, method and core sources."""
+def code_hash(implementation: type | str) -> str:
+    """Hash of the code that decides a method's result: olatbench version, method and core sources.
+
+    ``implementation`` is the method class or its ``"module:Class"`` reference (a spec's ``implementation``);
+    both give the same hash, and the reference is never imported (no torch at plan time)."""
     from olatbench import __version__
 
     digest = hashlib.sha256(__version__.encode())
     package_root = Path(__file__).resolve().parent.parent.parent
-    for path in _method_source_files(method_class) + _core_source_files():
+    for path in _method_source_files(implementation) + _core_source_files():
         try:
             name = path.relative_to(package_root).as_posix()
         except ValueError:

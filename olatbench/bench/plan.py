@@ -20,17 +20,10 @@ from olatbench.bench.jobs import Job, code_hash, config_to_dict, data_manifest_h
 from olatbench.bench.store import job_folder
 from olatbench.datasets.errors import DatasetError
 from olatbench.datasets.suites import Suite, get_suite
-from olatbench.methods.base import Method
-from olatbench.methods.registry import get_method
+from olatbench.methods.registry import config_class, get_spec
+from olatbench.methods.spec import DEFAULT_VARIANT, MethodSpec, import_reference, preset_overrides
 
-DEFAULT_VARIANT = "default"
 DATA_ENV = "OLATBENCH_DATA"
-
-ABLATIONS: dict[str, tuple[str, ...]] = {
-    "components": tuple(f"ablation-{letter}" for letter in "ABCDEF"),
-    "schedule": tuple(f"schedule-{letter}" for letter in "HIJK"),
-    "shadow-on-sss": (DEFAULT_VARIANT, "shadow-on-sss"),
-}
 
 
 class PlanError(ValueError):
@@ -48,50 +41,51 @@ class PlanOptions:
     save_components: bool = False
 
 
-def expand_variants(method_class: type[Method], variants: Sequence[str] = (), ablation: str | None = None
-                    ) -> list[str]:
-    """The variant names of a plan: ``variants`` then the ablation grid, deduplicated, checked.
+def expand_variants(spec: MethodSpec, variants: Sequence[str] = (), ablation: str | None = None) -> list[str]:
+    """The variant names of a plan: ``variants`` then the method's ablation grid ``ablation``, deduplicated,
+    checked against the method's presets.
 
     No variant and no ablation gives ``["default"]``; ``"a+b"`` names a combination of presets.
     """
     names = list(variants)
     if ablation is not None:
-        if ablation not in ABLATIONS:
-            raise PlanError(f"unknown ablation '{ablation}'; choose one of {', '.join(ABLATIONS)}")
-        names += ABLATIONS[ablation]
+        if ablation not in spec.ablations:
+            grids = ", ".join(sorted(spec.ablations)) or "none"
+            raise PlanError(f"method '{spec.name}' has no ablation grid '{ablation}'; its grids: {grids}. "
+                            f"See: olatbench methods show {spec.name}")
+        names += spec.ablations[ablation]
     names = list(dict.fromkeys(names or [DEFAULT_VARIANT]))
     missing = [part for name in names if name != DEFAULT_VARIANT for part in name.split("+")
-               if part not in method_class.presets]
+               if part not in spec.presets]
     if missing:
-        known = ", ".join(sorted(method_class.presets)) or "none"
-        raise PlanError(f"method '{method_class.name}' has no preset {', '.join(missing)}; its presets: {known}. "
-                        f"See: olatbench methods show {method_class.name}")
+        known = ", ".join(sorted(spec.presets)) or "none"
+        raise PlanError(f"method '{spec.name}' has no preset {', '.join(missing)}; its presets: {known}. "
+                        f"See: olatbench methods show {spec.name}")
     return names
 
 
-def resolve_config(method_class: type[Method], suite: Suite, variant: str = DEFAULT_VARIANT,
+def resolve_config(spec: MethodSpec, suite: Suite, variant: str = DEFAULT_VARIANT,
                    iterations: int | None = None, overrides: dict[str, Any] | None = None) -> Any:
     """The method's config for one suite and variant (resolution order in the module docstring)."""
-    field_names = {f.name for f in fields(method_class.config_class)}
+    config_type = config_class(spec)
+    field_names = {f.name for f in fields(config_type)}
     unknown = sorted(set(overrides or {}) - field_names)
     if unknown:
-        raise PlanError(f"method '{method_class.name}' has no config field {', '.join(unknown)}; its fields: "
-                        f"{', '.join(sorted(field_names))}. See: olatbench methods show {method_class.name}")
+        raise PlanError(f"method '{spec.name}' has no config field {', '.join(unknown)}; its fields: "
+                        f"{', '.join(sorted(field_names))}. See: olatbench methods show {spec.name}")
     values: dict[str, Any] = {}
     if "iterations" in field_names:
         values["iterations"] = suite.iterations
-    if suite.name in method_class.presets:
-        values.update(method_class.presets[suite.name])
-    if variant != DEFAULT_VARIANT:
-        for part in variant.split("+"):
-            values.update(method_class.presets[part])
-    values.update(overrides or {})
-    if iterations is not None:
-        values["iterations"] = int(iterations)
     try:
-        return method_class.resolve_config(None, **values)
-    except (TypeError, ValueError) as error:
-        raise PlanError(f"method '{method_class.name}', variant '{variant}': {error}") from None
+        if suite.name in spec.presets:
+            values.update(preset_overrides(spec.name, spec.presets, suite.name))
+        values.update(preset_overrides(spec.name, spec.presets, variant))
+        values.update(overrides or {})
+        if iterations is not None:
+            values["iterations"] = int(iterations)
+        return config_type(**values)
+    except (KeyError, TypeError, ValueError) as error:
+        raise PlanError(f"method '{spec.name}', variant '{variant}': {error}") from None
 
 
 def parse_overrides(items: Sequence[str]) -> dict[str, Any]:
@@ -174,20 +168,9 @@ def _import_callable(reference: str) -> Callable[..., Any]:
     return getattr(importlib.import_module(module_name), attribute)
 
 
-def method_reference(method_class: type[Method]) -> str:
-    """``"module:QualName"`` of a method class, so worker processes can import it."""
-    return f"{method_class.__module__}:{method_class.__qualname__}"
-
-
-def load_method_class(job: Job) -> type[Method]:
+def load_method_class(job: Job) -> type:
     """The class a job runs: from its import reference (works in fresh worker processes)."""
-    module_name, _, qualname = job.method_ref.partition(":")
-    import importlib
-
-    target: Any = importlib.import_module(module_name)
-    for part in qualname.split("."):
-        target = getattr(target, part)
-    return target
+    return import_reference(job.method_ref)
 
 
 def make_plan(method: str, suite: str | Suite, out: str | Path, scenes: Sequence[str] = (),
@@ -204,19 +187,21 @@ def make_plan(method: str, suite: str | Suite, out: str | Path, scenes: Sequence
     options = options or PlanOptions()
     suite = get_suite(suite) if isinstance(suite, str) else suite
     try:
-        method_class = get_method(method)
+        spec = get_spec(method)
     except KeyError as error:
         raise PlanError(f"{error.args[0]}. See: olatbench methods list") from None
+    except ImportError as error:
+        raise PlanError(str(error)) from None
     if seeds < 1:
         raise PlanError(f"--seeds must be at least 1, not {seeds}")
     from olatbench.metrics.protocols import get_protocol
 
     protocol = get_protocol(suite.protocol)
-    variant_names = expand_variants(method_class, variants, ablation)
+    variant_names = expand_variants(spec, variants, ablation)
     scene_names = resolve_scenes(suite, scenes)
     root = resolve_data_root(suite, data_root, scene_names, generate=generate, progress=progress)
-    code = code_hash(method_class)
-    configs = {variant: config_to_dict(resolve_config(method_class, suite, variant, iterations, overrides))
+    code = code_hash(spec.implementation)  # located, not imported: dry runs need no torch
+    configs = {variant: config_to_dict(resolve_config(spec, suite, variant, iterations, overrides))
                for variant in variant_names}
     jobs = []
     for scene in scene_names:
@@ -225,7 +210,7 @@ def make_plan(method: str, suite: str | Suite, out: str | Path, scenes: Sequence
         for variant in variant_names:
             for seed in range(seeds):
                 label = variant_label(variant, overrides)
-                job = Job(method=method, method_ref=method_reference(method_class), suite=suite.name, scene=scene,
+                job = Job(method=method, method_ref=spec.implementation, suite=suite.name, scene=scene,
                           variant=label, seed=seed, config=configs[variant],
                           scene_path=str(scene_path) if scene_path else "", scene_format=suite.format,
                           colourspace=suite.colourspace, resolution=resolution or suite.resolution,

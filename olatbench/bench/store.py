@@ -9,24 +9,39 @@ and a ``results.json`` with ``status: "failed"``.
 from __future__ import annotations
 
 import json
+import re
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from olatbench.bench.checkpoints import list_checkpoints
-
 JOB_FILE = "job.json"
 DONE_FILE = "DONE"
 RESULTS_FILE = "results.json"
 ERROR_FILE = "error.txt"
 LOCK_FILE = ".lock"
+_CHECKPOINT_NAME = re.compile(r"^step_(\d+)\.pt$")
 
 
 def job_folder(out: str | Path, suite: str, method: str, variant: str, scene: str, seed: int) -> Path:
     """The folder of one job below the output root."""
     return Path(out) / suite / method / variant / scene / f"seed{seed}"
+
+
+def checkpoint_dir(folder: str | Path) -> Path:
+    """``<job folder>/checkpoints`` (files ``step_<N>.pt``, written by `olatbench.bench.checkpoints`)."""
+    return Path(folder) / "checkpoints"
+
+
+def list_checkpoints(folder: str | Path) -> list[tuple[int, Path]]:
+    """(step, path) of every checkpoint of a job folder, oldest first."""
+    directory = checkpoint_dir(folder)
+    if not directory.is_dir():
+        return []
+    found = [(int(match.group(1)), path) for path in directory.iterdir()
+             if (match := _CHECKPOINT_NAME.match(path.name))]
+    return sorted(found)
 
 
 def find_results(runs_root: str | Path) -> list[Path]:

@@ -1,4 +1,4 @@
-"""``olatbench methods list`` and ``olatbench methods show NAME``."""
+"""``olatbench methods list`` and ``olatbench methods show NAME``: read from the method specs (no torch)."""
 
 from __future__ import annotations
 
@@ -18,20 +18,25 @@ def methods() -> None:
     """
 
 
-def _load(name: str):
-    from olatbench.methods.registry import get_method
+def _spec(name: str):
+    from olatbench.methods.registry import get_spec
 
     try:
-        return get_method(name)
+        return get_spec(name)
     except KeyError as error:
         raise click.ClickException(f"{error.args[0]}. See: olatbench methods list") from None
     except ImportError as error:
-        raise click.ClickException(f"method '{name}' cannot be imported: {error}") from None
+        raise click.ClickException(f"method '{name}' cannot be loaded: {error}") from None
+
+
+def _kind(spec) -> str:
+    return f"{spec.kind}, {spec.source.status}" if spec.source is not None else spec.kind
 
 
 @methods.command("list")
 def list_methods() -> None:
-    """Every method found through the ``olatbench.methods`` entry points.
+    """Every method: the built-in ones, official implementations and plugins (``olatbench.methods`` entry
+    points), with its kind, a one-line description and its presets.
 
     \b
     Example:
@@ -41,34 +46,23 @@ def list_methods() -> None:
 
     names = method_names()
     if not names:
-        raise click.ClickException("no methods installed; reinstall olatbench: pip install -e .")
+        raise click.ClickException("no methods found; reinstall olatbench: pip install -e .")
     width = max(len(name) for name in names)
     for name in names:
         try:
-            method_class = _load(name)
-            summary = (method_class.description or "").strip().splitlines()[0:1]
-            presets = ", ".join(method_class.presets) or "none"
-            click.echo(f"{name.ljust(width)}  {summary[0] if summary else ''}")
-            click.echo(f"{''.ljust(width)}  presets: {presets}")
+            spec = _spec(name)
         except click.ClickException as error:
             click.echo(f"{name.ljust(width)}  (unavailable: {error.message})")
+            continue
+        summary = spec.description.strip().splitlines()[0:1]
+        click.echo(f"{name.ljust(width)}  [{_kind(spec)}] {summary[0] if summary else ''}")
+        click.echo(f"{''.ljust(width)}  presets: {', '.join(spec.presets) or 'none'}")
     click.echo("Details: olatbench methods show NAME")
 
 
-@methods.command("show")
-@click.argument("name")
-def show(name: str) -> None:
-    """Config fields (type, default) and presets (the fields each one changes) of method NAME.
-
-    \b
-    Example:
-      olatbench methods show ssdgs
-    """
-    method_class = _load(name)
-    click.echo(f"{name}: {(method_class.description or '').strip()}")
-    click.echo(f"config: {method_class.config_class.__name__}")
+def _config_rows(config_class: type) -> list[tuple[str, str, str, str]]:
     rows = []
-    for field in dataclasses.fields(method_class.config_class):
+    for field in dataclasses.fields(config_class):
         if field.default is not dataclasses.MISSING:
             default = repr(field.default)
         elif field.default_factory is not dataclasses.MISSING:
@@ -78,13 +72,48 @@ def show(name: str) -> None:
         kind = field.type if isinstance(field.type, str) else getattr(field.type, "__name__", str(field.type))
         help_text = field.metadata.get("help", "") if field.metadata else ""
         rows.append((field.name, kind, default, help_text))
-    if rows:
-        widths = [max(len(str(row[i])) for row in rows) for i in range(3)]
-        for row in rows:
-            click.echo("  " + "  ".join(str(cell).ljust(width) for cell, width in zip(row, widths, strict=False))
-                       + (f"  {row[3]}" if row[3] else ""))
-    click.echo("presets:" if method_class.presets else "presets: none")
-    for preset, values in method_class.presets.items():
+    return rows
+
+
+@methods.command("show")
+@click.argument("name")
+def show(name: str) -> None:
+    """Config fields (type, default), presets (the fields each one changes), ablation grids, outputs and
+    capabilities of method NAME; for an official implementation, the repository and commit it is pinned to.
+
+    \b
+    Example:
+      olatbench methods show ssdgs
+    """
+    from olatbench.methods.registry import config_class
+
+    spec = _spec(name)
+    click.echo(f"{name} [{_kind(spec)}]: {spec.description.strip()}")
+    click.echo(f"implementation: {spec.implementation}")
+    if spec.source is not None:
+        click.echo(f"source: github.com/{spec.source.repository} @ {spec.source.commit} ({spec.source.status})")
+        if spec.source.verified:
+            click.echo(f"verified: {spec.source.verified}")
+    try:
+        config_type = config_class(spec)
+    except Exception as error:  # a plugin's config module that does not import: say so, show the rest
+        click.echo(f"config: {spec.config} (cannot be imported: {type(error).__name__}: {error})")
+    else:
+        click.echo(f"config: {config_type.__name__}")
+        rows = _config_rows(config_type)
+        if rows:
+            widths = [max(len(str(row[i])) for row in rows) for i in range(3)]
+            for row in rows:
+                click.echo("  " + "  ".join(str(cell).ljust(width) for cell, width in zip(row, widths, strict=False))
+                           + (f"  {row[3]}" if row[3] else ""))
+    click.echo("presets:" if spec.presets else "presets: none")
+    for preset, values in spec.presets.items():
         changes = ", ".join(f"{key}={value!r}" for key, value in values.items()) or "(defaults)"
         click.echo(f"  {preset}: {changes}")
-    click.echo(f"Run one: olatbench run --method {name} --suite mini [--variant PRESET]")
+    click.echo("ablation grids:" if spec.ablations else "ablation grids: none")
+    for grid, variants in spec.ablations.items():
+        click.echo(f"  {grid}: {', '.join(variants)}")
+    click.echo(f"outputs: {', '.join(spec.outputs)}")
+    click.echo(f"capabilities: {', '.join(sorted(spec.capabilities)) or 'none'}")
+    click.echo(f"Run one: olatbench run --method {name} --suite mini [--variant PRESET]"
+               + (f" [--ablation {next(iter(spec.ablations))}]" if spec.ablations else ""))

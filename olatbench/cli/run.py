@@ -9,7 +9,7 @@ from pathlib import Path
 import click
 
 from olatbench.bench.executors import EXECUTORS
-from olatbench.bench.plan import ABLATIONS, PlanError
+from olatbench.bench.plan import PlanError
 
 
 def _parse_resolution(value: str | None) -> tuple[int, int] | None:
@@ -75,9 +75,9 @@ def _metric(metrics: dict, key: str) -> str:
 @click.option("--scenes", multiple=True, help="Scenes to run (comma-separated or repeated; default: all).")
 @click.option("--variant", "variants", multiple=True,
               help="Method preset applied on top of the suite preset, e.g. ablation-A (repeatable).")
-@click.option("--ablation", type=click.Choice(sorted(ABLATIONS)),
-              help="Expand a paper grid: components = ablation-A…F, schedule = schedule-H…K, "
-                   "shadow-on-sss = default + shadow-on-sss.")
+@click.option("--ablation", metavar="GRID",
+              help="Expand one of the method's ablation grids (olatbench methods show METHOD lists them); SSD-GS: "
+                   "components = ablation-A…F, schedule = schedule-H…K, shadow-on-sss = default + shadow-on-sss.")
 @click.option("--seeds", default=1, show_default=True, help="Seeds 0…N-1 per scene and variant.")
 @click.option("--iterations", type=int, help="Training iterations (the method scales its schedule).")
 @click.option("--set", "overrides", multiple=True, metavar="KEY=VALUE",
@@ -136,7 +136,9 @@ def run(method, suite, scenes, variants, ablation, seeds, iterations, overrides,
     progress = not quiet
     if executor is None:
         executor = "local" if workers > 1 else "inline"
-    options = PlanOptions(device=_device(device), checkpoint_every=checkpoint_every, save_components=save_components)
+    # a dry run leaves "auto" unresolved (the device enters no job id, and resolving it would import torch)
+    options = PlanOptions(device=device if dry_run and device == "auto" else _device(device),
+                          checkpoint_every=checkpoint_every, save_components=save_components)
     try:
         jobs = make_plan(method, suite, out, scenes=_split_names(scenes), variants=_split_names(variants),
                          ablation=ablation, seeds=seeds, iterations=iterations,

@@ -14,6 +14,8 @@ from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
+from olatbench.methods.spec import build_config
+
 if TYPE_CHECKING:
     import torch
 
@@ -53,28 +55,26 @@ class Method(ABC):
     """A trainable method. Subclasses set ``name``, ``config_class`` and ``presets``.
 
     ``presets`` maps a preset name (e.g. ``"nrhints"``, ``"mini"``, ``"ablation-A"``) to a dict of
-    config overrides; ``resolve_config`` applies them over the dataclass defaults.
+    config overrides; ``resolve_config`` applies them over the dataclass defaults. What the runner and
+    `olatbench methods` read without importing the class lives in the method's `MethodSpec`.
     """
 
     name: ClassVar[str]
     config_class: ClassVar[type]
     presets: ClassVar[dict[str, dict[str, Any]]] = {}
     description: ClassVar[str] = ""
+    #: Named grids of presets (``run --ablation NAME``), for methods registered as a class (plugins, tests);
+    #: built-in methods declare theirs in their `MethodSpec`.
+    ablations: ClassVar[dict[str, tuple[str, ...]]] = {}
 
     def __init__(self, config: Any) -> None:
         self.config = config
 
     @classmethod
     def resolve_config(cls, preset: str | None = None, **overrides: Any) -> Any:
-        """The config dataclass with a preset's values, then explicit overrides, applied."""
-        values: dict[str, Any] = {}
-        if preset is not None:
-            if preset not in cls.presets:
-                known = ", ".join(sorted(cls.presets)) or "none"
-                raise KeyError(f"method '{cls.name}' has no preset '{preset}'; known presets: {known}")
-            values.update(cls.presets[preset])
-        values.update(overrides)
-        return cls.config_class(**values)
+        """The config dataclass with the presets named in ``preset`` (``"mini+ablation-C"``: left to right), then
+        explicit overrides, applied (`olatbench.methods.spec.build_config`, the one resolution path)."""
+        return build_config(cls.name, cls.config_class, cls.presets, preset, overrides)
 
     @abstractmethod
     def setup(self, train: Views, device: str | torch.device, seed: int) -> None:

@@ -17,6 +17,9 @@ from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import Any, Literal
 
+#: The variant that applies no preset (``run --variant default``; may appear in an ablation grid).
+DEFAULT_VARIANT = "default"
+
 MethodKind = Literal["native", "official", "plugin"]
 SourceStatus = Literal["verified", "unverified", "no public code"]
 
@@ -75,9 +78,19 @@ class MethodSpec:
                              f"{sorted(CAPABILITIES)}")
         if (self.kind == "official") != (self.source is not None):
             raise ValueError(f"method spec {self.name!r}: official methods, and only they, carry a source pin")
+        for grid, variants in self.ablations.items():
+            missing = sorted({part for variant in variants if variant != DEFAULT_VARIANT
+                              for part in variant.split("+") if part not in self.presets})
+            if missing:
+                raise ValueError(f"method spec {self.name!r}: ablation grid {grid!r} names unknown presets {missing}")
         object.__setattr__(self, "presets", _frozen({k: _frozen(v) for k, v in self.presets.items()}))
         object.__setattr__(self, "ablations", _frozen({k: tuple(v) for k, v in self.ablations.items()}))
         object.__setattr__(self, "capabilities", frozenset(self.capabilities))
+
+    def resolve_config(self, preset: str | None = None, **overrides: Any) -> Any:
+        """The config dataclass with the presets named in ``preset`` (``"a+b"``, left to right), then
+        ``overrides``, applied over its defaults (imports only the torch-free config module)."""
+        return build_config(self.name, self.load_config_class(), self.presets, preset, overrides)
 
     def load_config_class(self) -> type:
         """The config dataclass (imports only its torch-free module)."""
@@ -86,6 +99,29 @@ class MethodSpec:
     def load_implementation(self) -> type:
         """The `Method` subclass (imports the implementation, usually torch)."""
         return import_reference(self.implementation)
+
+
+def preset_overrides(method: str, presets: Mapping[str, Mapping[str, Any]], preset: str | None) -> dict[str, Any]:
+    """The config overrides of ``preset``: ``"a+b+c"`` merges the presets ``a``, ``b``, ``c`` left to right
+    (later wins); ``None``, ``""`` and ``"default"`` apply none. A `KeyError` lists ``method``'s presets."""
+    values: dict[str, Any] = {}
+    if not preset or preset == DEFAULT_VARIANT:
+        return values
+    for name in (part.strip() for part in preset.split("+")):
+        if name not in presets:
+            raise KeyError(f"method '{method}' has no preset '{name}'; known presets: "
+                           f"{', '.join(sorted(presets)) or 'none'} (combine with '+', e.g. 'mini+ablation-C')")
+        values.update(presets[name])
+    return values
+
+
+def build_config(method: str, config_class: type, presets: Mapping[str, Mapping[str, Any]], preset: str | None,
+                 overrides: Mapping[str, Any] | None = None) -> Any:
+    """The one config resolution every caller uses (`Method.resolve_config`, `MethodSpec.resolve_config`, the
+    runner's plan): ``config_class(**(preset overrides, then overrides))``."""
+    values = preset_overrides(method, presets, preset)
+    values.update(overrides or {})
+    return config_class(**values)
 
 
 def import_reference(reference: str) -> Any:

@@ -7,13 +7,25 @@
 
 Training losses: `olatbench.metrics.ssim.ssim_torch` (differentiable) and `ssim_loss` (1 - SSIM; a C++
 forward/backward for CPU tensors, `olatbench.metrics.ssim_cpu`).
+
+The package imports lazily (PEP 562): the protocol registry (`olatbench.metrics.protocols`) loads without torch,
+so plans and `olatbench metrics` listings stay light; the metric functions load torch on first use.
 """
 
-from olatbench.metrics.lpips import lpips
-from olatbench.metrics.protocols import Protocol, get_protocol, protocol_names
-from olatbench.metrics.psnr import psnr
-from olatbench.metrics.ssim import ssim, ssim_loss, ssim_torch
-from olatbench.metrics.weights import WeightsError
+from __future__ import annotations
 
-__all__ = ["Protocol", "WeightsError", "get_protocol", "lpips", "protocol_names", "psnr", "ssim", "ssim_loss",
-           "ssim_torch"]
+import importlib
+from typing import Any
+
+_EXPORTS = {"lpips": "olatbench.metrics.lpips", "Protocol": "olatbench.metrics.protocols",
+            "get_protocol": "olatbench.metrics.protocols", "protocol_names": "olatbench.metrics.protocols",
+            "psnr": "olatbench.metrics.psnr", "ssim": "olatbench.metrics.ssim", "ssim_loss": "olatbench.metrics.ssim",
+            "ssim_torch": "olatbench.metrics.ssim", "WeightsError": "olatbench.metrics.weights"}
+
+__all__ = sorted(_EXPORTS)
+
+
+def __getattr__(name: str) -> Any:
+    if name not in _EXPORTS:
+        raise AttributeError(f"module 'olatbench.metrics' has no attribute {name!r}")
+    return getattr(importlib.import_module(_EXPORTS[name]), name)

@@ -14,12 +14,13 @@ Every result stores the protocol ``id`` and ``version``; a change of recipe is a
 from __future__ import annotations
 
 import math
+import sys
 import warnings
 from collections.abc import Iterable, Sequence
 from dataclasses import asdict, dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
-import torch
 from tqdm import tqdm
 
 from olatbench.datasets.colour import dequantize_8bit, quantize_8bit
@@ -27,10 +28,9 @@ from olatbench.datasets.errors import DatasetError
 from olatbench.datasets.formats import display_colourspace
 from olatbench.datasets.official import official_ground_truth
 from olatbench.datasets.records import Frame
-from olatbench.metrics.lpips import get_runner, lpips_nchw
-from olatbench.metrics.psnr import mse_torch
-from olatbench.metrics.ssim import ssim_nchw
-from olatbench.metrics.weights import INSTALL_HINT, WeightsError
+
+if TYPE_CHECKING:
+    import torch
 
 PSNR_MSE_FLOOR = 1e-10  # identical images score 100 dB instead of +inf (JSON has no infinity)
 _WARNED: set[str] = set()
@@ -76,7 +76,7 @@ class Protocol:
     # --- preprocessing -------------------------------------------------------------------------------------------
     def prepare(self, image: np.ndarray | torch.Tensor, name: str) -> np.ndarray:
         """Check (H, W, 3) float finite, clip to [0, 1], quantise to 8 bit as the protocol says -> float32."""
-        array = image.detach().cpu().numpy() if isinstance(image, torch.Tensor) else np.asarray(image)
+        array = image.detach().cpu().numpy() if _is_tensor(image) else np.asarray(image)
         if array.ndim != 3 or array.shape[-1] != 3:
             raise ValueError(f"{name}: expected an (H, W, 3) image, found shape {array.shape}")
         if not np.issubdtype(array.dtype, np.floating):
@@ -111,6 +111,8 @@ class Protocol:
     # --- evaluation ----------------------------------------------------------------------------------------------
     def lpips_available(self) -> bool:
         """True when the weights of every LPIPS network of this protocol are installed."""
+        from olatbench.metrics.weights import WeightsError
+
         try:
             self.require_lpips()
         except WeightsError:
@@ -119,11 +121,18 @@ class Protocol:
 
     def require_lpips(self) -> None:
         """Raise ``WeightsError`` (with install instructions) unless LPIPS can be computed."""
+        from olatbench.metrics.lpips import get_runner
+
         for net in self.lpips_nets:
             get_runner(net, backend="torch")
 
     def _lpips_batch(self, pred: torch.Tensor, gt: torch.Tensor, mask: torch.Tensor | None,
                      device: str) -> dict[str, list[float | None]]:
+        import torch
+
+        from olatbench.metrics.lpips import get_runner, lpips_nchw
+        from olatbench.metrics.weights import INSTALL_HINT, WeightsError
+
         out: dict[str, list[float | None]] = {}
         for net in self.lpips_nets:
             try:
@@ -141,6 +150,11 @@ class Protocol:
 
     def _evaluate_batch(self, preds: list[np.ndarray], gts: list[np.ndarray], masks: list[np.ndarray | None],
                         device: str) -> list[dict[str, float | None]]:
+        import torch  # the metric kernels load only when scoring: plans and protocol listings stay torch-free
+
+        from olatbench.metrics.psnr import mse_torch
+        from olatbench.metrics.ssim import ssim_nchw
+
         pred = torch.from_numpy(np.stack(preds)).permute(0, 3, 1, 2).to(device)
         gt = torch.from_numpy(np.stack(gts)).permute(0, 3, 1, 2).to(device)
         mask = None
@@ -165,7 +179,7 @@ class Protocol:
             return None
         if mask is None:
             raise ValueError(f"protocol {self.id} needs a mask for every image (image {index} has none)")
-        m = mask.detach().cpu().numpy() if isinstance(mask, torch.Tensor) else np.asarray(mask, dtype=np.float32)
+        m = mask.detach().cpu().numpy() if _is_tensor(mask) else np.asarray(mask, dtype=np.float32)
         m = m[..., 0] if m.ndim == 3 else m
         if m.shape != shape[:2]:
             raise ValueError(f"mask of image {index}: shape {m.shape} does not match the image's {shape[:2]}")
@@ -220,6 +234,12 @@ class Protocol:
 
 
 _PROTOCOLS: dict[str, Protocol] = {}
+
+
+def _is_tensor(value: object) -> bool:
+    """Whether ``value`` is a torch tensor, without importing torch (a tensor exists only once torch is loaded)."""
+    torch = sys.modules.get("torch")
+    return torch is not None and isinstance(value, torch.Tensor)
 
 
 def register_protocol(protocol: Protocol) -> Protocol:

@@ -13,7 +13,6 @@ with a count cap that keeps the Gaussians seen most by the light (GS³'s ``maxim
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
 from typing import TYPE_CHECKING, Any, ClassVar
 
 import torch
@@ -23,7 +22,9 @@ from olatbench.gaussians.optim import make_adam
 from olatbench.gaussians.projection import project
 from olatbench.gaussians.shadow import shadow_gather
 from olatbench.methods.base import Method, Views
+from olatbench.methods.baselines.gs3_config import GS3Config
 from olatbench.methods.baselines.gs3_shading import GS3Components, GS3Shader
+from olatbench.methods.baselines.gs3_spec import PRESETS, SPEC
 from olatbench.methods.baselines.triple_splat import triple_splat
 from olatbench.methods.training import (
     TrainingViews,
@@ -44,94 +45,13 @@ if TYPE_CHECKING:
 STATE_FORMAT = "olatbench.methods.baselines.gs3/1"
 
 
-@dataclass
-class GS3Config:
-    """GS³ settings (defaults: the official synthetic-scene script). Iteration-valued fields are given at
-    ``reference_iterations`` and scale with ``iterations``; ``densify_interval`` is a cadence and does not."""
-
-    iterations: int = 100_000
-    reference_iterations: int = 100_000
-    # Schedule.
-    shadow_from: int = 5_000  # official --unfreeze_iterations
-    mlp_freeze_from: int = 9_000  # official --spcular_freeze_step
-    specular_from: int = 16_000  # spcular_freeze_step + fit_linear_step
-    asg_lobes_from: int = 22_000  # official --asg_freeze_step
-    # Model.
-    num_asg: int = 8
-    material_dim: int = 6
-    shadow_hidden: int = 32
-    shadow_layers: int = 3
-    other_hidden: int = 128
-    other_layers: int = 3
-    num_freqs: int = 4
-    fresnel_f0: float = 0.04
-    shadow_resolution: int = 256
-    shadow_depth_offset: float = 0.0  # light-view self-shadow offset (squared-distance units), as SSD-GS's
-    num_init_gaussians: int = 10_000
-    init_radius: float | None = 1.0  # None: fitted to the cameras (see methods.initialisation.initial_ball)
-    init_opacity: float = 0.1
-    max_gaussians: int | None = 550_000
-    # Loss and learning rates (Adam, eps 1e-15).
-    lambda_dssim: float = 0.2
-    position_lr_init: float = 1.6e-4  # × scene extent
-    position_lr_final: float = 1.6e-6
-    position_lr_delay_mult: float = 0.01
-    position_lr_max_steps: int = 50_000
-    scaling_lr: float = 5e-3
-    rotation_lr: float = 1e-3
-    opacity_lr: float = 0.05
-    colour_lr: float = 0.01  # k_d and k_s
-    asg_lr_init: float = 0.01  # ASG weights and lobes; the learned shading frame uses the same decay
-    asg_lr_final: float = 1e-4
-    asg_lr_decay_from: int = 40_000
-    asg_lr_max_steps: int = 50_000
-    mlp_lr: float = 1e-3  # constant: the official decay never applies (its group-name test is always false)
-    # Densification (3DGS).
-    densify_from: int = 500
-    densify_until: int = 50_000
-    densify_interval: int = 100
-    densify_grad_threshold: float = 2e-4
-    opacity_reset_interval: int = 3_000
-    percent_dense: float = 0.01
-
-    def __post_init__(self) -> None:
-        if self.iterations <= 0 or self.reference_iterations <= 0:
-            raise ValueError("GS³ config: iterations and reference_iterations must be positive")
-        if not self.shadow_from <= self.mlp_freeze_from <= self.specular_from:
-            raise ValueError("GS³ config: need shadow_from <= mlp_freeze_from <= specular_from")
-
-    def steps(self, value: int) -> int:
-        """An iteration count given at ``reference_iterations``, scaled to ``iterations``."""
-        return round(value * self.iterations / self.reference_iterations)
-
-    def to_dict(self) -> dict[str, Any]:
-        return asdict(self)
-
-
-PRESETS: dict[str, dict[str, Any]] = {
-    # GS³'s own scripts: 100K iterations, position decay and densification over the first 50K.
-    "nrhints": {"iterations": 100_000, "reference_iterations": 100_000},
-    "gs3": {"iterations": 100_000, "reference_iterations": 100_000},
-    # SSS-GS: 60K iterations with the same absolute phase thresholds (as SSD-GS's 60K runs).
-    "sssgs": {"iterations": 60_000, "reference_iterations": 60_000},
-    # CPU-sized: the 60K schedule compressed 20× into 3000 steps, few Gaussians, a small light-view pass with
-    # SSD-GS's mini self-shadow offset (docs/ssdgs.md; measured here on diffuse_shadow: 19.22 -> 20.80 dB).
-    "mini": {"iterations": 3_000, "reference_iterations": 60_000, "num_init_gaussians": 2_000, "init_radius": None,
-             "max_gaussians": 12_000, "shadow_resolution": 96, "shadow_depth_offset": 1.8, "num_asg": 4,
-             "other_hidden": 64,
-             "position_lr_max_steps": 60_000, "densify_from": 4_000, "densify_until": 44_000,
-             "opacity_reset_interval": 30_000, "asg_lr_decay_from": 40_000, "asg_lr_max_steps": 20_000},
-}
-
-
 class GS3(Method):
     """GS³ on the shared Gaussian core (see the module docstring)."""
 
     name: ClassVar[str] = "gs3"
     config_class: ClassVar[type] = GS3Config
     presets: ClassVar[dict[str, dict[str, Any]]] = PRESETS
-    description: ClassVar[str] = ("GS³ (Bi et al. 2024): Lambert + ASG/Fresnel, MLP-refined light-view shadow and "
-                                  "other-effects MLP, composited in screen space as I·V + O")
+    description: ClassVar[str] = SPEC.description
 
     def __init__(self, config: GS3Config | None = None) -> None:
         super().__init__(config if config is not None else GS3Config())

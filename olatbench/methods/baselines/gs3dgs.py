@@ -10,7 +10,6 @@ have no SfM points), as SSD-GS does.
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
 from typing import TYPE_CHECKING, Any, ClassVar
 
 import torch
@@ -21,6 +20,8 @@ from olatbench.gaussians.projection import project
 from olatbench.gaussians.rasterize import rasterize
 from olatbench.methods.base import Method, Views
 from olatbench.methods.baselines import sh
+from olatbench.methods.baselines.gs3dgs_config import GS3DConfig
+from olatbench.methods.baselines.gs3dgs_spec import PRESETS, SPEC
 from olatbench.methods.training import (
     TrainingViews,
     camera_centre,
@@ -38,73 +39,13 @@ if TYPE_CHECKING:
 STATE_FORMAT = "olatbench.methods.baselines.3dgs/1"
 
 
-@dataclass
-class GS3DConfig:
-    """3DGS settings. Iteration-valued fields are given at ``reference_iterations`` and scale with
-    ``iterations``; ``densify_interval`` and ``sh_increase_interval`` are cadences and do not."""
-
-    iterations: int = 30_000
-    reference_iterations: int = 30_000
-    sh_degree: int = 3
-    sh_increase_interval: int = 1_000
-    num_init_gaussians: int = 10_000
-    init_radius: float | None = 1.0  # None: fitted to the cameras (see methods.initialisation.initial_ball)
-    init_opacity: float = 0.1
-    lambda_dssim: float = 0.2
-    position_lr_init: float = 1.6e-4  # × scene extent
-    position_lr_final: float = 1.6e-6
-    position_lr_delay_mult: float = 0.01
-    position_lr_max_steps: int = 30_000
-    feature_lr: float = 2.5e-3  # DC; the higher-order coefficients use feature_lr / 20
-    opacity_lr: float = 0.05
-    scaling_lr: float = 5e-3
-    rotation_lr: float = 1e-3
-    densify_from: int = 500
-    densify_until: int = 15_000
-    densify_interval: int = 100
-    densify_grad_threshold: float = 2e-4
-    opacity_reset_interval: int = 3_000
-    percent_dense: float = 0.01
-    max_gaussians: int | None = None
-
-    def __post_init__(self) -> None:
-        if self.iterations <= 0 or self.reference_iterations <= 0:
-            raise ValueError("3DGS config: iterations and reference_iterations must be positive")
-        if not 0 <= self.sh_degree <= sh.MAX_DEGREE:
-            raise ValueError(f"3DGS config: sh_degree must be in 0..{sh.MAX_DEGREE}, got {self.sh_degree}")
-
-    def steps(self, value: int) -> int:
-        """An iteration count given at ``reference_iterations``, scaled to ``iterations``."""
-        return round(value * self.iterations / self.reference_iterations)
-
-    def to_dict(self) -> dict[str, Any]:
-        return asdict(self)
-
-
-# The 100K (NRHints, GS³) and 60K (SSS-GS) runs use the same position-decay and densification windows as the
-# official SSD-GS / GS³ scripts ("all methods are trained for 100K iterations with identical settings").
-PRESETS: dict[str, dict[str, Any]] = {
-    "nrhints": {"iterations": 100_000, "reference_iterations": 100_000, "position_lr_max_steps": 70_000,
-                "densify_until": 90_000, "max_gaussians": 550_000},
-    "gs3": {"iterations": 100_000, "reference_iterations": 100_000, "position_lr_max_steps": 70_000,
-            "densify_until": 90_000, "max_gaussians": 550_000},
-    "sssgs": {"iterations": 60_000, "reference_iterations": 60_000, "position_lr_max_steps": 50_000,
-              "densify_until": 50_000, "max_gaussians": 550_000},
-    # CPU-sized: 3000 steps, the 60K windows × 0.05, SH degree raised every 250 steps, few Gaussians.
-    "mini": {"iterations": 3_000, "reference_iterations": 60_000, "num_init_gaussians": 2_000, "init_radius": None,
-             "max_gaussians": 12_000, "sh_increase_interval": 250, "position_lr_max_steps": 60_000,
-             "densify_from": 4_000, "densify_until": 44_000, "opacity_reset_interval": 30_000},
-}
-
-
 class GaussianSplatting3D(Method):
     """3DGS with degree-3 SH colour, unaware of the light (the paper's lower bound)."""
 
     name: ClassVar[str] = "3dgs"
     config_class: ClassVar[type] = GS3DConfig
     presets: ClassVar[dict[str, dict[str, Any]]] = PRESETS
-    description: ClassVar[str] = ("3D Gaussian Splatting (Kerbl et al. 2023), SH degree 3, ignores the light: the "
-                                  "lower bound for relighting")
+    description: ClassVar[str] = SPEC.description
 
     def __init__(self, config: GS3DConfig | None = None) -> None:
         super().__init__(config if config is not None else GS3DConfig())

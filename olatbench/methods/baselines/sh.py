@@ -20,6 +20,8 @@ import math
 
 import torch
 
+from olatbench.methods.baselines.gs3dgs_config import MAX_SH_DEGREE
+
 C0 = 0.5 / math.sqrt(math.pi)
 C1 = math.sqrt(3.0) / (2.0 * math.sqrt(math.pi))
 C2 = (
@@ -38,7 +40,7 @@ C3 = (
     math.sqrt(105.0) / (4.0 * math.sqrt(math.pi)),
     -math.sqrt(70.0) / (8.0 * math.sqrt(math.pi)),
 )
-MAX_DEGREE = 3
+MAX_DEGREE = MAX_SH_DEGREE
 
 
 def num_coefficients(degree: int) -> int:

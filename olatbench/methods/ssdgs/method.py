@@ -25,9 +25,10 @@ from olatbench.gaussians.refinement import LightRefinement, PoseRefinement
 from olatbench.gaussians.shadow import camera_matched_focal, shadow_gather
 from olatbench.methods.base import Method, RefinedView, Views
 from olatbench.methods.ssdgs.config import SSDGSConfig
-from olatbench.methods.ssdgs.presets import PRESETS, resolve_presets
+from olatbench.methods.ssdgs.presets import PRESETS
 from olatbench.methods.ssdgs.schedule import Schedule
 from olatbench.methods.ssdgs.shader import Components, Shader
+from olatbench.methods.ssdgs.spec import SPEC
 from olatbench.methods.training import (
     TrainingViews,
     VisibleSubset,
@@ -52,15 +53,7 @@ class SSDGS(Method):
     name: ClassVar[str] = "ssdgs"
     config_class: ClassVar[type] = SSDGSConfig
     presets: ClassVar[dict[str, dict[str, Any]]] = PRESETS
-    description: ClassVar[str] = ("SSD-GS (ICLR 2026): Lambert + ASG/Fresnel specular + dipole SSS + light-view "
-                                  "shadow refined by an MLP, trained with a progressive schedule")
-
-    @classmethod
-    def resolve_config(cls, preset: str | None = None, **overrides: Any) -> SSDGSConfig:
-        """Presets joined by '+' apply left to right (``"mini+ablation-C"``), then ``overrides``."""
-        values = resolve_presets(preset)
-        values.update(overrides)
-        return SSDGSConfig(**values)
+    description: ClassVar[str] = SPEC.description
 
     def __init__(self, config: SSDGSConfig | None = None) -> None:
         super().__init__(config if config is not None else SSDGSConfig())

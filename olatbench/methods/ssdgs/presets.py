@@ -9,6 +9,8 @@ from __future__ import annotations
 
 from typing import Any
 
+from olatbench.methods.spec import preset_overrides
+
 SUITE_PRESETS: dict[str, dict[str, Any]] = {
     # NRHints real captures: 100K iterations, black background, camera and light refinement.
     "nrhints": {"iterations": 100_000, "reference_iterations": 100_000, "background": (0.0, 0.0, 0.0),
@@ -67,12 +69,4 @@ PRESETS: dict[str, dict[str, Any]] = {**SUITE_PRESETS, **ABLATION_PRESETS, **SCH
 
 def resolve_presets(spec: str | None) -> dict[str, Any]:
     """Merge the presets named in ``spec`` (``"a+b+c"``, applied left to right) into one override dict."""
-    values: dict[str, Any] = {}
-    if not spec:
-        return values
-    for name in (part.strip() for part in spec.split("+")):
-        if name not in PRESETS:
-            raise KeyError(f"SSD-GS has no preset {name!r}; known presets: {', '.join(sorted(PRESETS))} "
-                           f"(combine with '+', e.g. 'mini+ablation-C')")
-        values.update(PRESETS[name])
-    return values
+    return preset_overrides("ssdgs", PRESETS, spec)

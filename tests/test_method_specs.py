@@ -1,0 +1,162 @@
+"""Method specs and the torch-free registry: `methods list/show` and `run --dry-run` import no torch, the runner
+expands `--ablation` from the spec, built-in specs agree with their classes, plugins (spec or class) and stale
+entry points named like built-ins."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import pytest
+
+from olatbench.bench.jobs import code_hash
+from olatbench.methods import registry
+from olatbench.methods.spec import MethodSpec
+
+ROOT = Path(__file__).resolve().parents[1]
+BUILTIN = ("ssdgs", "3dgs", "gs3")
+
+
+def _cli_without_torch(args: list[str], env_path: list[str] = ()) -> dict:
+    """Run the click main in a fresh interpreter; report its output, exit code and whether torch was imported."""
+    script = textwrap.dedent(f"""
+        import io, json, sys, contextlib
+        from olatbench.cli import main
+        out = io.StringIO()
+        code = 0
+        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(out):
+            try:
+                main({args!r})
+            except SystemExit as exit:
+                code = exit.code or 0
+        print(json.dumps({{"output": out.getvalue(), "code": code, "torch": "torch" in sys.modules}}))
+    """)
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), *env_path])}
+    result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=300, env=env)
+    assert result.returncode == 0, result.stderr[-3000:]
+    return json.loads(result.stdout.splitlines()[-1])
+
+
+def test_methods_list_and_show_import_no_torch():
+    listed = _cli_without_torch(["methods", "list"])
+    assert listed["code"] == 0, listed["output"]
+    for name in BUILTIN:
+        assert f"{name}" in listed["output"]
+    assert "[native]" in listed["output"] and "ablation-A" in listed["output"]
+    shown = _cli_without_torch(["methods", "show", "ssdgs"])
+    assert shown["code"] == 0, shown["output"]
+    assert "components: ablation-A, ablation-B" in shown["output"] and "num_asg" in shown["output"]
+    assert "outputs: rgb, diffuse, specular, sss, shadow, shadow_coarse" in shown["output"]
+    assert not listed["torch"] and not shown["torch"]
+
+
+def test_ablation_dry_run_imports_no_torch_and_expands_the_specs_grid(tmp_path):
+    result = _cli_without_torch(["run", "--method", "ssdgs", "--suite", "mini", "--ablation", "components",
+                                 "--scenes", "diffuse_shadow", "--dry-run", "-o", str(tmp_path / "runs")])
+    assert result["code"] == 0, result["output"]
+    assert not result["torch"]
+    for letter in "ABCDEF":
+        assert f"ablation-{letter}" in result["output"]
+
+
+def test_unknown_ablation_grid_lists_the_methods_grids(tmp_path):
+    result = _cli_without_torch(["run", "--method", "gs3", "--suite", "mini", "--ablation", "components",
+                                 "--dry-run", "-o", str(tmp_path / "runs")])
+    assert result["code"] == 1
+    assert "method 'gs3' has no ablation grid 'components'; its grids: none" in result["output"]
+    result = _cli_without_torch(["run", "--method", "ssdgs", "--suite", "mini", "--ablation", "lighting",
+                                 "--dry-run", "-o", str(tmp_path / "runs")])
+    assert "its grids: components, schedule, shadow-on-sss" in result["output"]
+
+
+@pytest.mark.parametrize("name", BUILTIN)
+def test_builtin_spec_agrees_with_its_class(name):
+    spec = registry.get_spec(name)
+    method_class = registry.get_method(name)
+    assert spec.implementation == f"{method_class.__module__}:{method_class.__qualname__}"
+    assert spec.load_config_class() is method_class.config_class
+    assert {k: dict(v) for k, v in spec.presets.items()} == method_class.presets
+    assert spec.description == method_class.description
+    assert code_hash(spec.implementation) == code_hash(method_class)  # located without import == inspected
+    for preset in spec.presets:
+        assert _outcome(spec.resolve_config, preset) == _outcome(method_class.resolve_config, preset)
+
+
+def _outcome(resolve, preset: str):
+    """The config, or the error message of a preset that is invalid on its own (test-time-refinement)."""
+    try:
+        return resolve(preset)
+    except ValueError as error:
+        return str(error)
+
+
+def test_composed_presets_resolve_the_same_everywhere():
+    from olatbench.methods.ssdgs import SSDGS
+    from olatbench.methods.ssdgs.presets import resolve_presets
+
+    spec = registry.get_spec("ssdgs")
+    config = SSDGS.resolve_config("mini+ablation-C", iterations=7)
+    assert config == spec.resolve_config("mini+ablation-C", iterations=7)
+    assert (config.iterations, config.use_shadow, config.num_init_gaussians) == (7, False, 2_000)
+    assert dataclasses.asdict(config) == dataclasses.asdict(spec.load_config_class()(**{
+        **resolve_presets("mini+ablation-C"), "iterations": 7}))
+    with pytest.raises(KeyError, match="method 'ssdgs' has no preset 'ablation-Z'; known presets: .*mini"):
+        SSDGS.resolve_config("mini+ablation-Z")
+
+
+def test_spec_rejects_a_grid_naming_unknown_presets():
+    with pytest.raises(ValueError, match=r"ablation grid 'g' names unknown presets \['b'\]"):
+        MethodSpec(name="m", description="", implementation="a:B", config="a:C", presets={"a": {}},
+                   ablations={"g": ("default", "a", "a+b")})
+
+
+def _plugin_site(tmp_path: Path, entries: str, module: str) -> list[str]:
+    site = tmp_path / "site"
+    dist = site / "olatbench_test_plugin-0.1.0.dist-info"
+    dist.mkdir(parents=True)
+    (dist / "METADATA").write_text("Metadata-Version: 2.1\nName: olatbench-test-plugin\nVersion: 0.1.0\n")
+    (dist / "entry_points.txt").write_text("[olatbench.methods]\n" + entries)
+    (site / "olatbench_test_plugin.py").write_text(module)
+    return [str(site)]
+
+
+def test_plugin_spec_entry_point_and_stale_builtin_entry_points(tmp_path):
+    path = _plugin_site(tmp_path, textwrap.dedent("""\
+        toy = olatbench_test_plugin:SPEC
+        ssdgs = olatbench_test_plugin:DOES_NOT_EXIST
+        gs3 = olatbench.methods.baselines.gs3:GS3
+    """), textwrap.dedent("""\
+        from olatbench.methods.spec import MethodSpec
+        SPEC = MethodSpec(name="toy", description="A plugin described by a spec.",
+                          implementation="olatbench_test_plugin:Toy", config="olatbench_test_plugin:ToyConfig",
+                          kind="plugin", presets={"fast": {"iterations": 3}}, ablations={"speed": ("default", "fast")})
+    """))
+    listed = _cli_without_torch(["methods", "list"], path)
+    assert listed["code"] == 0, listed["output"]
+    assert "toy    [plugin] A plugin described by a spec." in listed["output"]
+    assert "unavailable" not in listed["output"]  # the stale 'ssdgs' entry point is ignored: the built-in wins
+    assert listed["output"].count("ssdgs") == 1 and not listed["torch"]  # the old 'gs3' class entry is not imported
+    shown = _cli_without_torch(["methods", "show", "toy"], path)
+    assert "speed: default, fast" in shown["output"]
+    assert "cannot be imported" in shown["output"]  # its config module has no ToyConfig: said, not a crash
+
+
+def test_register_spec_and_class_in_process():
+    spec = MethodSpec(name="in-process", description="d", implementation="test_runner_support:TrivialMethod",
+                      config="test_runner_support:TrivialConfig", kind="plugin", presets={"tiny": {"iterations": 1}})
+    registry.register(spec)
+    try:
+        assert registry.get_spec("in-process") is spec
+        assert "in-process" in registry.method_names()
+        import test_runner_support
+
+        assert registry.get_method("in-process") is test_runner_support.TrivialMethod
+    finally:
+        registry._registered.pop("in-process")
+    with pytest.raises(KeyError, match="unknown method 'in-process'; known methods: .*ssdgs"):
+        registry.get_spec("in-process")
