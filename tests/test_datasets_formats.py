@@ -293,3 +293,18 @@ def test_sssgs_is_black_straight_srgb(tmp_path):
 def test_gl_look_at_helper_is_a_rotation():
     c2w = gl_look_at([1.0, 2.0, 0.5])
     np.testing.assert_allclose(c2w[:3, :3].T @ c2w[:3, :3], np.eye(3), atol=1e-12)
+
+
+def test_every_format_module_satisfies_the_format_protocol():
+    import inspect
+
+    from olatbench.datasets.formats import FORMATS, FormatModule
+
+    members = [name for name in vars(FormatModule) if not name.startswith("_")]
+    assert {"detect", "read_scene", "write_scene"} <= set(members)
+    for name, module in FORMATS.items():
+        assert module.FORMAT_NAME == name and isinstance(module.DISPLAY_COLOURSPACE, str)
+        for member in members:
+            expected = list(inspect.signature(getattr(FormatModule, member)).parameters)[1:]  # without self
+            found = list(inspect.signature(getattr(module, member)).parameters)
+            assert found == expected, f"format {name}: {member}{tuple(found)} != the protocol's {tuple(expected)}"

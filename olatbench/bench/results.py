@@ -28,24 +28,102 @@ Metric keys: ``psnr`` (dB), ``ssim``, ``lpips`` (the protocol's primary network)
 ``lpips_alex`` / ``lpips_vgg``. Splits are ``train`` and ``test`` (and ``val`` when present).
 """
 
-from __future__ import annotations
-
 import json
+import sys
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal, TypedDict
 
 from olatbench.atomic import write_json
 
+if sys.version_info >= (3, 11):
+    from typing import NotRequired
+else:  # pragma: no cover - Python 3.10
+    from typing_extensions import NotRequired
+
+# The schema as types (no `from __future__ import annotations` here: the TypedDicts' required/optional keys stay
+# introspectable at run time). New keys that old files lack are `NotRequired`.
+
+MetricValues = dict[str, "float | None"]  # psnr, ssim, lpips[, lpips_alex, lpips_vgg]
+
+
+class ResultsJob(TypedDict):
+    id: str
+    method: str
+    variant: str
+    suite: str
+    scene: str
+    seed: int
+    config: dict[str, Any]  # the resolved method config (dataclasses.asdict)
+
+
+class ResultsProtocol(TypedDict):
+    id: str
+    version: int
+
+
+class SplitMetrics(TypedDict):
+    mean: MetricValues
+    per_image: dict[str, MetricValues]  # frame id -> values
+
+
+class Timing(TypedDict):
+    train_seconds: float | None
+    render_fps: float | None
+
+
+class Resources(TypedDict):
+    device: str
+    peak_rss_mb: float
+    cuda_peak_mb: float | None
+
+
+class ModelInfo(TypedDict):
+    iterations: int
+    num_gaussians: int | None
+
+
+class Hashes(TypedDict):
+    data_manifest: str | None
+    config: str
+    code: str
+
+
+class Evaluation(TypedDict):
+    test_time_refinement: dict[str, Any] | None  # {"split", "seconds", "frames": {frame id: {...}}}
+
+
+class ResultsFailure(TypedDict):
+    type: str
+    message: str
+
+
+class Results(TypedDict):
+    """One results.json (schema version 1): the keys of the module docstring."""
+
+    schema_version: int
+    status: Literal["done", "failed"]
+    job: ResultsJob
+    protocol: ResultsProtocol
+    metrics: dict[str, SplitMetrics]  # split -> block
+    timing: NotRequired[Timing]
+    resources: NotRequired[Resources]
+    model: NotRequired[ModelInfo]
+    versions: NotRequired[dict[str, str | None]]
+    hashes: NotRequired[Hashes]
+    evaluation: NotRequired[Evaluation]
+    error: NotRequired[ResultsFailure | None]
+
+
 SCHEMA_VERSION = 1
-REQUIRED_KEYS = ("schema_version", "status", "job", "protocol", "metrics")
-JOB_KEYS = ("id", "method", "variant", "suite", "scene", "seed")
+REQUIRED_KEYS = tuple(key for key in Results.__annotations__ if key in Results.__required_keys__)
+JOB_KEYS = tuple(key for key in ResultsJob.__annotations__ if key != "config")  # in the schema's order
 
 
 class ResultsError(ValueError):
     """A results.json that cannot be read: names the file and what is wrong."""
 
 
-def validate_results(data: Any, source: str = "results") -> dict[str, Any]:
+def validate_results(data: Any, source: str = "results") -> Results:
     """Check the structure of a results dict; return it unchanged or raise `ResultsError`."""
     if not isinstance(data, dict):
         raise ResultsError(f"{source}: expected a JSON object, found {type(data).__name__}")
@@ -65,7 +143,7 @@ def validate_results(data: Any, source: str = "results") -> dict[str, Any]:
     return data
 
 
-def read_results(path: str | Path) -> dict[str, Any]:
+def read_results(path: str | Path) -> Results:
     """Read and validate one results.json."""
     path = Path(path)
     try:
@@ -77,6 +155,6 @@ def read_results(path: str | Path) -> dict[str, Any]:
     return validate_results(data, str(path))
 
 
-def write_results(path: str | Path, data: dict[str, Any]) -> Path:
+def write_results(path: str | Path, data: Results | dict[str, Any]) -> Path:
     """Validate and write one results.json atomically."""
     return write_json(path, validate_results(data, str(path)))

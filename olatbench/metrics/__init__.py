@@ -15,6 +15,8 @@ so plans and `olatbench metrics` listings stay light; the metric functions load 
 from __future__ import annotations
 
 import importlib
+import sys
+import types
 from typing import Any
 
 _EXPORTS = {"lpips": "olatbench.metrics.lpips", "Protocol": "olatbench.metrics.protocols",
@@ -25,7 +27,15 @@ _EXPORTS = {"lpips": "olatbench.metrics.lpips", "Protocol": "olatbench.metrics.p
 __all__ = sorted(_EXPORTS)
 
 
-def __getattr__(name: str) -> Any:
-    if name not in _EXPORTS:
-        raise AttributeError(f"module 'olatbench.metrics' has no attribute {name!r}")
-    return getattr(importlib.import_module(_EXPORTS[name]), name)
+class _LazyMetrics(types.ModuleType):
+    """The package module: its exported names resolve on access. ``psnr``, ``ssim`` and ``lpips`` are also
+    submodule names, which the import system binds on the package once a submodule loads; resolving on every
+    access keeps ``olatbench.metrics.ssim`` the function, as an eager ``from ... import ssim`` did."""
+
+    def __getattribute__(self, name: str) -> Any:
+        if name in _EXPORTS:
+            return getattr(importlib.import_module(_EXPORTS[name]), name)
+        return super().__getattribute__(name)
+
+
+sys.modules[__name__].__class__ = _LazyMetrics

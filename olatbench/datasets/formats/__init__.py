@@ -1,22 +1,46 @@
 """Format readers and writers, one module per format, and auto-detection.
 
-Each module has ``FORMAT_NAME``, ``DISPLAY_COLOURSPACE`` (the space the format's official code trains and
-scores in), ``detect(root) -> bool``, ``read_scene(root, errors=None) -> Scene`` and
-``write_scene(scene, out_dir, pixels) -> Path``.
+Each format module satisfies `FormatModule` (checked by tests/test_datasets_formats.py).
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
-from types import ModuleType
+from typing import TYPE_CHECKING, Protocol, cast
+
+import numpy as np
 
 from olatbench.datasets.errors import DatasetError
 from olatbench.datasets.formats import gs3, nrhints, sssgs
 
-FORMATS: dict[str, ModuleType] = {module.FORMAT_NAME: module for module in (sssgs, gs3, nrhints)}
+if TYPE_CHECKING:
+    from olatbench.datasets.records import Frame, Scene
 
 
-def format_module(name: str) -> ModuleType:
+class FormatModule(Protocol):
+    """What a format module provides (a module, typed structurally)."""
+
+    FORMAT_NAME: str  # the name suites and ``--format`` use
+    DISPLAY_COLOURSPACE: str  # the space the format's official code trains and scores in
+
+    def detect(self, root: Path) -> bool:
+        """Whether ``root`` holds a scene of this format."""
+        ...
+
+    def read_scene(self, root: Path, errors: list[DatasetError] | None = None) -> Scene:
+        """The scene of ``root``; with ``errors`` given, problems are collected there instead of raised."""
+        ...
+
+    def write_scene(self, scene: Scene, out_dir: Path, pixels: Callable[[Frame], np.ndarray]) -> Path:
+        """Write ``scene`` in this format (``pixels(frame)`` gives each image) and return ``out_dir``."""
+        ...
+
+
+FORMATS: dict[str, FormatModule] = {module.FORMAT_NAME: cast(FormatModule, module) for module in (sssgs, gs3, nrhints)}
+
+
+def format_module(name: str) -> FormatModule:
     """The module of format ``name``."""
     try:
         return FORMATS[name]
