@@ -303,7 +303,7 @@ def test_every_format_module_satisfies_the_format_protocol():
     members = [name for name in vars(FormatModule) if not name.startswith("_")]
     assert {"detect", "read_scene", "write_scene"} <= set(members)
     for name, module in FORMATS.items():
-        assert module.FORMAT_NAME == name and isinstance(module.DISPLAY_COLOURSPACE, str)
+        assert name == module.FORMAT_NAME and isinstance(module.DISPLAY_COLOURSPACE, str)
         for member in members:
             expected = list(inspect.signature(getattr(FormatModule, member)).parameters)[1:]  # without self
             found = list(inspect.signature(getattr(module, member)).parameters)

@@ -105,7 +105,7 @@ def test_composed_presets_resolve_the_same_everywhere():
     assert (config.iterations, config.use_shadow, config.num_init_gaussians) == (7, False, 2_000)
     assert dataclasses.asdict(config) == dataclasses.asdict(spec.load_config_class()(**{
         **resolve_presets("mini+ablation-C"), "iterations": 7}))
-    with pytest.raises(KeyError, match="method 'ssdgs' has no preset 'ablation-Z'; known presets: .*mini"):
+    with pytest.raises(KeyError, match=r"method 'ssdgs' has no preset 'ablation-Z'; known presets: .*mini"):
         SSDGS.resolve_config("mini+ablation-Z")
 
 
@@ -158,5 +158,5 @@ def test_register_spec_and_class_in_process():
         assert registry.get_method("in-process") is test_runner_support.TrivialMethod
     finally:
         registry._registered.pop("in-process")
-    with pytest.raises(KeyError, match="unknown method 'in-process'; known methods: .*ssdgs"):
+    with pytest.raises(KeyError, match=r"unknown method 'in-process'; known methods: .*ssdgs"):
         registry.get_spec("in-process")
