@@ -7,15 +7,15 @@ import math
 import pytest
 import torch
 
-from olatbench.methods.ssdgs.encoding import frequency_encoding, positional_encoding
-from olatbench.methods.ssdgs.shading import (
+from olatbench.methods.shading.asg import ASGMixture
+from olatbench.methods.shading.encoding import frequency_encoding, positional_encoding
+from olatbench.methods.shading.terms import (
     inverse_square_irradiance,
     lambert_cosine,
     min_scale_frames,
     orient_frames,
     schlick_fresnel,
 )
-from olatbench.methods.ssdgs.specular import ASGMixture
 from olatbench.methods.ssdgs.sss import SSSNetwork, diffuse_reflectance_fresnel, dipole_profile
 
 

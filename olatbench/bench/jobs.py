@@ -195,8 +195,13 @@ def _method_source_files(implementation: type | str) -> list[Path]:
 
 
 def _core_source_files() -> list[Path]:
-    core = Path(__file__).resolve().parent.parent / "gaussians"
-    return sorted(p for p in core.rglob("*") if p.suffix in (".py", ".cpp", ".h", ".cu"))
+    """The code every Gaussian method runs besides its own package: the Gaussian core (Python and C++), the shared
+    method modules (``olatbench/methods/*.py``: interface, training helpers, Gaussian-method base) and the shared
+    shading blocks (``olatbench/methods/shading/``)."""
+    package = Path(__file__).resolve().parent.parent
+    core = sorted(p for p in (package / "gaussians").rglob("*") if p.suffix in (".py", ".cpp", ".h", ".cu"))
+    methods = package / "methods"
+    return core + sorted(methods.glob("*.py")) + sorted((methods / "shading").rglob("*.py"))
 
 
 def code_hash(implementation: type | str) -> str:

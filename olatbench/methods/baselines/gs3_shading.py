@@ -1,4 +1,4 @@
-"""Per-Gaussian shading of GS³ (Bi et al. 2024) built from SSD-GS's pieces.
+"""Per-Gaussian shading of GS³ (Bi et al. 2024) built from the shared blocks of `olatbench.methods.shading`.
 
 For K visible Gaussians (directions point away from the Gaussian: ``wi`` to the light, ``wo`` to the camera)::
 
@@ -6,10 +6,10 @@ For K visible Gaussians (directions point away from the Gaussian: ``wi`` to the 
     V = Θ_shadow(ωi, x, m, v̂)        v̂: the light-view visibility hint (`olatbench.gaussians.shadow`)
     O = 2 · sigmoid(Θ_other(ωo, x, m)) · L / d²
 
-k_d, k_s are softplus colours, D_ASG the official GS³ mixture of angular Gaussians (SSD-GS's `ASGMixture` with
+k_d, k_s are softplus colours, D_ASG the official GS³ mixture of angular Gaussians (`ASGMixture` with
 ``form="official"``), F Schlick's Fresnel with F0 = 0.04, the cosine the official smooth clamp, and the shading
-frame (normal = its z axis) a learned per-Gaussian quaternion ``shading_quat``. Θ_shadow is SSD-GS's
-`ShadowNetwork` (same inputs and output activation as GS³'s shadow head); Θ_other is an MLP on the frequency
+frame (normal = its z axis) a learned per-Gaussian quaternion ``shading_quat``. Θ_shadow is the
+`ShadowNetwork` SSD-GS uses too (same inputs and output activation as GS³'s shadow head); Θ_other is an MLP on the frequency
 encodings of ωo and x and the material embedding m (GS³: 3 hidden layers of 128).
 """
 
@@ -23,11 +23,11 @@ import torch.nn.functional as F
 from torch import nn
 
 from olatbench.gaussians.projection import quat_to_rotmat
-from olatbench.methods.ssdgs.encoding import frequency_encoding, frequency_encoding_dim
-from olatbench.methods.ssdgs.shading import inverse_square_irradiance, lambert_cosine, safe_normalize, schlick_fresnel
-from olatbench.methods.ssdgs.shadow_mlp import ShadowNetwork
-from olatbench.methods.ssdgs.specular import ASGMixture
-from olatbench.methods.ssdgs.sss import mlp
+from olatbench.methods.shading.asg import ASGMixture
+from olatbench.methods.shading.encoding import frequency_encoding, frequency_encoding_dim
+from olatbench.methods.shading.mlp import mlp
+from olatbench.methods.shading.shadow_mlp import ShadowNetwork
+from olatbench.methods.shading.terms import inverse_square_irradiance, lambert_cosine, safe_normalize, schlick_fresnel
 
 
 class OtherEffectsNetwork(nn.Module):

@@ -25,8 +25,9 @@ from torch import nn
 
 from olatbench.gaussians.backends import cpu_backend_status, cpu_kernels_or_warn
 from olatbench.gaussians.projection import quat_to_rotmat
-from olatbench.methods.ssdgs.config import SSDGSConfig
-from olatbench.methods.ssdgs.shading import (
+from olatbench.methods.shading.asg import ASGMixture
+from olatbench.methods.shading.shadow_mlp import ShadowNetwork
+from olatbench.methods.shading.terms import (
     inverse_square_irradiance,
     lambert_cosine,
     min_scale_frames,
@@ -34,13 +35,12 @@ from olatbench.methods.ssdgs.shading import (
     safe_normalize,
     schlick_fresnel,
 )
+from olatbench.methods.ssdgs.config import SSDGSConfig
 from olatbench.methods.ssdgs.shading_cpu import (
     rotations_cpu,
     shading_combine,
     shading_geometry,
 )
-from olatbench.methods.ssdgs.shadow_mlp import ShadowNetwork
-from olatbench.methods.ssdgs.specular import ASGMixture
 from olatbench.methods.ssdgs.sss import SSSNetwork
 
 

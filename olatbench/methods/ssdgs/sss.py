@@ -22,7 +22,8 @@ from typing import Literal
 import torch
 from torch import nn
 
-from olatbench.methods.ssdgs.encoding import positional_encoding, positional_encoding_dim
+from olatbench.methods.shading.encoding import positional_encoding, positional_encoding_dim
+from olatbench.methods.shading.mlp import mlp
 
 VirtualFactor = Literal["jensen", "official"]
 
@@ -56,17 +57,6 @@ def dipole_profile(r: torch.Tensor, sigma_s: torch.Tensor, sigma_a: torch.Tensor
     real = z_r * (sigma_tr * d_r + 1.0) * torch.exp(-sigma_tr * d_r) / d_r**3
     virtual = k_v * (sigma_tr * d_v + 1.0) * torch.exp(-sigma_tr * d_v) / d_v**3
     return albedo * (real + virtual) / (4.0 * math.pi)
-
-
-def mlp(in_dim: int, hidden: int, out_dim: int, num_linear: int) -> nn.Sequential:
-    """``num_linear`` Linear layers (ReLU between them, none after the last)."""
-    if num_linear < 2:
-        raise ValueError("an MLP needs at least 2 linear layers")
-    layers: list[nn.Module] = [nn.Linear(in_dim, hidden), nn.ReLU()]
-    for _ in range(num_linear - 2):
-        layers += [nn.Linear(hidden, hidden), nn.ReLU()]
-    layers.append(nn.Linear(hidden, out_dim))
-    return nn.Sequential(*layers)
 
 
 class SSSNetwork(nn.Module):

@@ -13,7 +13,7 @@ from __future__ import annotations
 import torch
 from torch import nn
 
-from olatbench.methods.ssdgs.encoding import frequency_encoding, frequency_encoding_dim
+from olatbench.methods.shading.encoding import frequency_encoding, frequency_encoding_dim
 
 
 class ShadowNetwork(nn.Module):

@@ -1,4 +1,4 @@
-"""Input encodings of the two SSD-GS networks.
+"""Input encodings of the shading networks (SSD-GS's SSS and shadow networks, GS³'s networks).
 
 * `positional_encoding`: the NeRF encoding used by the official SSS MLP,
   ``[x, sin(2^k x), cos(2^k x)]`` for ``k = 0 … L-1`` (identity included), so a 3-vector with
