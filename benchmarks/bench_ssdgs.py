@@ -100,8 +100,8 @@ def make_method(size: int, count: int, use_shadow: bool, state: str, light_view_
 
 def freeze(method: SSDGS) -> None:
     """Zero every learning rate: Adam does all its work but the model stays fixed."""
-    rates = method._learning_rates
-    method._learning_rates = lambda step: dict.fromkeys(rates(step), 0.0)
+    rates = method.learning_rates
+    method.learning_rates = lambda step: dict.fromkeys(rates(step), 0.0)
 
 
 def load_trained(folder: str) -> tuple[SSDGS, int]:

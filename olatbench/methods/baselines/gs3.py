@@ -18,25 +18,19 @@ from typing import TYPE_CHECKING, Any, ClassVar
 import torch
 
 from olatbench.gaussians.lr import exponential_lr
-from olatbench.gaussians.optim import make_adam
 from olatbench.gaussians.projection import project
 from olatbench.gaussians.shadow import shadow_gather
-from olatbench.methods.base import Method, Views
+from olatbench.methods.base import Views
 from olatbench.methods.baselines.gs3_config import GS3Config
 from olatbench.methods.baselines.gs3_shading import GS3Components, GS3Shader
 from olatbench.methods.baselines.gs3_spec import PRESETS, SPEC
 from olatbench.methods.baselines.triple_splat import triple_splat
+from olatbench.methods.gaussian_method import GaussianMethod, ParameterGroup
 from olatbench.methods.training import (
-    TrainingViews,
     VisibleSubset,
     camera_centre,
     camera_tensors,
-    initial_model,
     light_tensors,
-    make_densifier,
-    per_gaussian_groups,
-    photometric_loss,
-    psnr_of,
 )
 
 if TYPE_CHECKING:
@@ -45,7 +39,7 @@ if TYPE_CHECKING:
 STATE_FORMAT = "olatbench.methods.baselines.gs3/1"
 
 
-class GS3(Method):
+class GS3(GaussianMethod):
     """GS³ on the shared Gaussian core (see the module docstring)."""
 
     name: ClassVar[str] = "gs3"
@@ -53,37 +47,30 @@ class GS3(Method):
     presets: ClassVar[dict[str, dict[str, Any]]] = PRESETS
     description: ClassVar[str] = SPEC.description
 
+    state_format: ClassVar[str] = STATE_FORMAT
+    label: ClassVar[str] = "GS³"
+
     def __init__(self, config: GS3Config | None = None) -> None:
         super().__init__(config if config is not None else GS3Config())
         self.config: GS3Config
-        self.step = 0
 
-    # ------------------------------------------------------------------------------------------- setup
-    def setup(self, train: Views, device: str | torch.device, seed: int) -> None:
-        cfg = self.config
-        self.device = torch.device(device)
-        torch.manual_seed(seed)
-        self.train_views = TrainingViews(train, self.device, seed)
-        n = cfg.num_init_gaussians
+    # ------------------------------------------------------------------------------------------- set-up
+    def initial_attributes(self, n: int) -> dict[str, torch.Tensor]:
         identity = torch.zeros(n, 4)
         identity[:, 0] = 1.0
-        attributes = {"diffuse": torch.full((n, 3), 0.5), "specular": torch.full((n, 3), 0.5),
-                      "asg_weights": torch.zeros(n, cfg.num_asg), "shading_quat": identity,
-                      "material": torch.ones(n, cfg.material_dim)}
-        self.model = initial_model(train, cfg, attributes, seed, self.device)
+        return {"diffuse": torch.full((n, 3), 0.5), "specular": torch.full((n, 3), 0.5),
+                "asg_weights": torch.zeros(n, self.config.num_asg), "shading_quat": identity,
+                "material": torch.ones(n, self.config.material_dim)}
+
+    def build_modules(self, train: Views) -> None:
+        cfg = self.config
         self.shader = GS3Shader(cfg.num_asg, cfg.material_dim, cfg.shadow_hidden, cfg.shadow_layers, cfg.other_hidden,
                                 cfg.other_layers, cfg.num_freqs, cfg.fresnel_f0).to(self.device)
-        self._build_optimisers()
-        self.densifier = make_densifier(cfg, train.background, seed)
-        self.step = 0
 
-    def _build_optimisers(self) -> None:
-        self.gaussian_optimizer = make_adam(per_gaussian_groups(self.model))
-        self.global_optimizer = make_adam([
-            {"params": list(self.shader.asg.parameters()), "name": "asg_lobes", "lr": 0.0},
-            {"params": list(self.shader.shadow_net.parameters()), "name": "mlp", "lr": 0.0},
-            {"params": list(self.shader.other_net.parameters()), "name": "mlp", "lr": 0.0},
-        ])
+    def global_groups(self) -> list[ParameterGroup]:
+        return [ParameterGroup("asg_lobes", list(self.shader.asg.parameters())),
+                ParameterGroup("mlp", list(self.shader.shadow_net.parameters())),
+                ParameterGroup("mlp", list(self.shader.other_net.parameters()))]
 
     # --------------------------------------------------------------------------------------- schedule
     def learning_rates(self, step: int) -> dict[str, float]:
@@ -150,45 +137,11 @@ class GS3(Method):
         return {"image": image, "splat": splat, "projected": projected, "light_weight": light_weight}
 
     # ------------------------------------------------------------------------------------------ training
-    def compute_gradients(self, step: int, index: int | None = None) -> dict[str, Any]:
-        """Forward + backward of one training view without an update; frozen parameters keep ``grad = None``."""
+    def training_forward(self, index: int, step: int) -> dict[str, Any]:
         views = self.train_views
-        index = views.next_index() if index is None else index
         camera = views.views.cameras[index]
-        frozen = self.frozen_parameters(step)
-        for p in frozen:
-            p.requires_grad_(False)
-        try:
-            out = self._forward(views.w2cs[index], views.Ks[index], camera.width, camera.height,
-                                views.light_positions[index], views.light_intensities[index], step, components=False)
-            image = out["image"].clamp(0.0, 1.0)
-            target = views.image(index)
-            loss, l1 = photometric_loss(image, target, self.config.lambda_dssim)
-            out["projected"].means2d.retain_grad()
-            loss.backward()
-        finally:
-            for p in frozen:
-                p.requires_grad_(True)
-                p.grad = None
-        return {"loss": float(loss.detach()), "l1": float(l1.detach()), "psnr": psnr_of(image, target),
-                "projected": out["projected"], "light_weight": out["light_weight"]}
-
-    def train_step(self, step: int) -> dict[str, float]:
-        rates = self.learning_rates(step)
-        for optimizer in (self.gaussian_optimizer, self.global_optimizer):
-            for group in optimizer.param_groups:
-                group["lr"] = rates[group["name"]]
-        result = self.compute_gradients(step)
-        projected, light_weight = result.pop("projected"), result.pop("light_weight")
-        self.gaussian_optimizer.step()
-        self.global_optimizer.step()
-        self.gaussian_optimizer.zero_grad(set_to_none=True)
-        self.global_optimizer.zero_grad(set_to_none=True)
-        self.densifier.observe_and_step(self.model, self.gaussian_optimizer, projected, step,
-                                        self.train_views.scene_extent, priority=light_weight)
-        self.step = step + 1
-        result["num_gaussians"] = float(self.model.num_gaussians)
-        return result
+        return self._forward(views.w2cs[index], views.Ks[index], camera.width, camera.height,
+                             views.light_positions[index], views.light_intensities[index], step, components=False)
 
     # ----------------------------------------------------------------------------------------- rendering
     @torch.no_grad()
@@ -204,36 +157,12 @@ class GS3(Method):
                 "specular": splat.extras[..., 3:6], "shading": splat.shading, "shadow": splat.visibility,
                 "shadow_coarse": splat.extras[..., 6:7], "other": splat.other}
 
-    @property
-    def num_gaussians(self) -> int | None:
-        return self.model.num_gaussians if hasattr(self, "model") else None
-
     # ----------------------------------------------------------------------------------------- checkpoints
-    def state_dict(self) -> dict[str, Any]:
-        return {"format": STATE_FORMAT, "step": self.step, "config": self.config.to_dict(),
-                "model": self.model.state_dict(), "shader": self.shader.state_dict(),
-                "gaussian_optimizer": self.gaussian_optimizer.state_dict(),
-                "global_optimizer": self.global_optimizer.state_dict(),
-                "densifier": self.densifier.state_dict(), "views": self.train_views.state_dict(),
-                "torch_rng": torch.get_rng_state()}
+    def module_state(self) -> dict[str, Any]:
+        return {"shader": self.shader.state_dict()}
 
-    def load_state_dict(self, state: dict[str, Any]) -> None:
-        """Restore a `state_dict` (call `setup` with the same views first)."""
-        found = state.get("format") if isinstance(state, dict) else type(state).__name__
-        if found != STATE_FORMAT:
-            raise ValueError(f"not a GS³ checkpoint (format {found!r}, need {STATE_FORMAT!r})")
-        if state["config"] != self.config.to_dict():
-            changed = sorted(k for k, v in state["config"].items() if self.config.to_dict().get(k) != v)
-            raise ValueError(f"GS³ checkpoint was written with a different config (fields: {', '.join(changed)})")
-        self.model.load_state_dict(state["model"])
+    def load_module_state(self, state: dict[str, Any]) -> None:
         self.shader.load_state_dict(state["shader"])
-        self._build_optimisers()
-        self.gaussian_optimizer.load_state_dict(state["gaussian_optimizer"])
-        self.global_optimizer.load_state_dict(state["global_optimizer"])
-        self.densifier.load_state_dict(state["densifier"])
-        self.train_views.load_state_dict(state["views"])
-        torch.set_rng_state(state["torch_rng"])
-        self.step = int(state["step"])
 
 
 __all__ = ["GS3", "PRESETS", "GS3Config"]

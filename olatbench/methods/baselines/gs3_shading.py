@@ -8,8 +8,8 @@ For K visible Gaussians (directions point away from the Gaussian: ``wi`` to the 
 
 k_d, k_s are softplus colours, D_ASG the official GS³ mixture of angular Gaussians (`ASGMixture` with
 ``form="official"``), F Schlick's Fresnel with F0 = 0.04, the cosine the official smooth clamp, and the shading
-frame (normal = its z axis) a learned per-Gaussian quaternion ``shading_quat``. Θ_shadow is the
-`ShadowNetwork` SSD-GS uses too (same inputs and output activation as GS³'s shadow head); Θ_other is an MLP on the frequency
+frame (normal = its z axis) a learned per-Gaussian quaternion ``shading_quat``. Θ_shadow is the `ShadowNetwork`
+SSD-GS uses too (same inputs and output activation as GS³'s shadow head); Θ_other is an MLP on the frequency
 encodings of ωo and x and the material embedding m (GS³: 3 hidden layers of 128).
 """
 

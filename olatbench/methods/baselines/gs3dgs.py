@@ -15,59 +15,38 @@ from typing import TYPE_CHECKING, Any, ClassVar
 import torch
 
 from olatbench.gaussians.lr import exponential_lr
-from olatbench.gaussians.optim import make_adam
 from olatbench.gaussians.projection import project
 from olatbench.gaussians.rasterize import rasterize
-from olatbench.methods.base import Method, Views
 from olatbench.methods.baselines import sh
 from olatbench.methods.baselines.gs3dgs_config import GS3DConfig
 from olatbench.methods.baselines.gs3dgs_spec import PRESETS, SPEC
-from olatbench.methods.training import (
-    TrainingViews,
-    camera_centre,
-    camera_tensors,
-    initial_model,
-    make_densifier,
-    per_gaussian_groups,
-    photometric_loss,
-    psnr_of,
-)
+from olatbench.methods.gaussian_method import GaussianMethod
+from olatbench.methods.training import camera_centre, camera_tensors
 
 if TYPE_CHECKING:
     from olatbench.datasets.records import Camera, PointLight
 
-STATE_FORMAT = "olatbench.methods.baselines.3dgs/1"
+STATE_FORMAT = "olatbench.methods.baselines.3dgs/2"  # 2: the optimiser saved as "gaussian_optimizer"
 
 
-class GaussianSplatting3D(Method):
+class GaussianSplatting3D(GaussianMethod):
     """3DGS with degree-3 SH colour, unaware of the light (the paper's lower bound)."""
 
     name: ClassVar[str] = "3dgs"
     config_class: ClassVar[type] = GS3DConfig
     presets: ClassVar[dict[str, dict[str, Any]]] = PRESETS
     description: ClassVar[str] = SPEC.description
+    state_format: ClassVar[str] = STATE_FORMAT
+    label: ClassVar[str] = "3DGS"
 
     def __init__(self, config: GS3DConfig | None = None) -> None:
         super().__init__(config if config is not None else GS3DConfig())
         self.config: GS3DConfig
-        self.step = 0
 
-    # ------------------------------------------------------------------------------------------- setup
-    def setup(self, train: Views, device: str | torch.device, seed: int) -> None:
-        cfg = self.config
-        self.device = torch.device(device)
-        torch.manual_seed(seed)
-        self.train_views = TrainingViews(train, self.device, seed)
-        n = cfg.num_init_gaussians
-        rest = sh.num_coefficients(cfg.sh_degree) - 1
-        attributes = {"sh_dc": torch.zeros(n, 1, 3), "sh_rest": torch.zeros(n, rest, 3)}
-        self.model = initial_model(train, cfg, attributes, seed, self.device)
-        self._build_optimizer()
-        self.densifier = make_densifier(cfg, train.background, seed)
-        self.step = 0
-
-    def _build_optimizer(self) -> None:
-        self.optimizer = make_adam(per_gaussian_groups(self.model))
+    # ------------------------------------------------------------------------------------------- set-up
+    def initial_attributes(self, n: int) -> dict[str, torch.Tensor]:
+        rest = sh.num_coefficients(self.config.sh_degree) - 1
+        return {"sh_dc": torch.zeros(n, 1, 3), "sh_rest": torch.zeros(n, rest, 3)}
 
     def learning_rates(self, step: int) -> dict[str, float]:
         """Per parameter group at ``step``: exponential decay for positions, constants otherwise (3DGS)."""
@@ -92,29 +71,16 @@ class GaussianSplatting3D(Method):
         coefficients = torch.cat([model.attributes["sh_dc"], model.attributes["sh_rest"]], dim=1)
         colours = (sh.eval_sh(degree, coefficients, dirs) + 0.5).clamp_min(0.0)
         out = rasterize(projected, model.opacities, colours, self.train_views.background)
-        return {"image": out.image, "projected": projected}
+        return {"image": out.image, "projected": projected, "light_weight": None}
 
-    # ------------------------------------------------------------------------------------------ training
-    def train_step(self, step: int) -> dict[str, float]:
-        for group in self.optimizer.param_groups:
-            group["lr"] = self.learning_rates(step)[group["name"]]
+    def training_forward(self, index: int, step: int) -> dict[str, Any]:
         views = self.train_views
-        index = views.next_index()
         camera = views.views.cameras[index]
-        out = self._forward(views.w2cs[index], views.Ks[index], camera.width, camera.height,
-                            self.active_sh_degree(step))
-        image = out["image"].clamp(0.0, 1.0)
-        target = views.image(index)
-        loss, l1 = photometric_loss(image, target, self.config.lambda_dssim)
-        projected = out["projected"]
-        projected.means2d.retain_grad()
-        loss.backward()
-        self.optimizer.step()
-        self.optimizer.zero_grad(set_to_none=True)
-        self.densifier.observe_and_step(self.model, self.optimizer, projected, step, views.scene_extent)
-        self.step = step + 1
-        return {"loss": float(loss.detach()), "l1": float(l1.detach()), "psnr": psnr_of(image, target),
-                "num_gaussians": float(self.model.num_gaussians), "sh_degree": float(self.active_sh_degree(step))}
+        return self._forward(views.w2cs[index], views.Ks[index], camera.width, camera.height,
+                             self.active_sh_degree(step))
+
+    def step_summary(self, step: int) -> dict[str, float]:
+        return {"sh_degree": float(self.active_sh_degree(step))}
 
     # ----------------------------------------------------------------------------------------- rendering
     @torch.no_grad()
@@ -123,33 +89,6 @@ class GaussianSplatting3D(Method):
         w2c, K = camera_tensors(camera, self.device)
         out = self._forward(w2c, K, camera.width, camera.height, self.active_sh_degree(max(self.step - 1, 0)))
         return {"rgb": out["image"].clamp(0.0, 1.0)}
-
-    @property
-    def num_gaussians(self) -> int | None:
-        return self.model.num_gaussians if hasattr(self, "model") else None
-
-    # ----------------------------------------------------------------------------------------- checkpoints
-    def state_dict(self) -> dict[str, Any]:
-        return {"format": STATE_FORMAT, "step": self.step, "config": self.config.to_dict(),
-                "model": self.model.state_dict(), "optimizer": self.optimizer.state_dict(),
-                "densifier": self.densifier.state_dict(), "views": self.train_views.state_dict(),
-                "torch_rng": torch.get_rng_state()}
-
-    def load_state_dict(self, state: dict[str, Any]) -> None:
-        """Restore a `state_dict` (call `setup` with the same views first)."""
-        found = state.get("format") if isinstance(state, dict) else type(state).__name__
-        if found != STATE_FORMAT:
-            raise ValueError(f"not a 3DGS checkpoint (format {found!r}, need {STATE_FORMAT!r})")
-        if state["config"] != self.config.to_dict():
-            changed = sorted(k for k, v in state["config"].items() if self.config.to_dict().get(k) != v)
-            raise ValueError(f"3DGS checkpoint was written with a different config (fields: {', '.join(changed)})")
-        self.model.load_state_dict(state["model"])
-        self._build_optimizer()
-        self.optimizer.load_state_dict(state["optimizer"])
-        self.densifier.load_state_dict(state["densifier"])
-        self.train_views.load_state_dict(state["views"])
-        torch.set_rng_state(state["torch_rng"])
-        self.step = int(state["step"])
 
 
 __all__ = ["PRESETS", "GS3DConfig", "GaussianSplatting3D"]

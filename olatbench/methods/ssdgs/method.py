@@ -23,21 +23,16 @@ from olatbench.gaussians.projection import project
 from olatbench.gaussians.rasterize import rasterize
 from olatbench.gaussians.refinement import LightRefinement, PoseRefinement
 from olatbench.gaussians.shadow import camera_matched_focal, shadow_gather
-from olatbench.methods.base import Method, RefinedView, Views
+from olatbench.methods.base import RefinedView, Views
+from olatbench.methods.gaussian_method import GaussianMethod, ParameterGroup
 from olatbench.methods.ssdgs.config import SSDGSConfig
 from olatbench.methods.ssdgs.presets import PRESETS
 from olatbench.methods.ssdgs.schedule import Schedule
 from olatbench.methods.ssdgs.shader import Components, Shader
 from olatbench.methods.ssdgs.spec import SPEC
 from olatbench.methods.training import (
-    TrainingViews,
     VisibleSubset,
     camera_centre,
-    initial_model,
-    make_densifier,
-    per_gaussian_groups,
-    photometric_loss,
-    psnr_of,
 )
 
 if TYPE_CHECKING:
@@ -47,7 +42,7 @@ STATE_FORMAT = "olatbench.methods.ssdgs/2"  # 2: view order kept by TrainingView
 COMPONENT_CHANNELS = (("rgb", 3), ("diffuse", 3), ("specular", 3), ("sss", 3), ("shadow", 1), ("shadow_coarse", 1))
 
 
-class SSDGS(Method):
+class SSDGS(GaussianMethod):
     """Subsurface scattering, shadow and specular decomposition in Gaussian splatting (reference method)."""
 
     name: ClassVar[str] = "ssdgs"
@@ -55,17 +50,16 @@ class SSDGS(Method):
     presets: ClassVar[dict[str, dict[str, Any]]] = PRESETS
     description: ClassVar[str] = SPEC.description
 
+    state_format: ClassVar[str] = STATE_FORMAT
+    label: ClassVar[str] = "SSD-GS"
+
     def __init__(self, config: SSDGSConfig | None = None) -> None:
         super().__init__(config if config is not None else SSDGSConfig())
         self.config: SSDGSConfig
-        self.step = 0  # steps taken so far (the next train_step is normally called with this value)
 
     # ------------------------------------------------------------------------------------------- setup
-    def setup(self, train: Views, device: str | torch.device, seed: int) -> None:
+    def prepare(self, train: Views) -> None:
         cfg = self.config
-        if len(train) == 0:
-            raise ValueError("SSD-GS: no training views")
-        self.device = torch.device(device)
         background = np.asarray(train.background, dtype=np.float32).reshape(3)
         if cfg.background is not None and not np.allclose(cfg.background, background, atol=1e-3):
             raise ValueError(f"SSD-GS: the config's background {tuple(cfg.background)} differs from the training "
@@ -74,24 +68,10 @@ class SSDGS(Method):
         self.schedule: Schedule = cfg.resolved_schedule()
         self.terms_in_model = frozenset(
             t for t, on in (("shadow", cfg.use_shadow), ("sss", cfg.use_sss), ("specular", cfg.use_specular)) if on)
-
-        torch.manual_seed(seed)
-        self.train_views = TrainingViews(train, self.device, seed)  # tensors, scene extent, epoch-wise view order
         pairs = zip(train.cameras, train.lights, strict=True)
         self._train_keys = {_view_key(c, lt): i for i, (c, lt) in enumerate(pairs)}
 
-        self.model = initial_model(train, cfg, self._initial_attributes(cfg.num_init_gaussians), seed, self.device)
-        with torch.no_grad():  # random orientations: isotropic identity-rotated Gaussians would share one normal
-            random = torch.randn(self.model.num_gaussians, 4, generator=self.train_views.generator)
-            self.model.quats.copy_(F.normalize(random, dim=-1).to(self.device))
-        self.shader = Shader(cfg).to(self.device)
-        self.pose_refinement = PoseRefinement(len(train), self.device) if cfg.refine_camera else None
-        self.light_refinement = LightRefinement(len(train), self.device) if cfg.refine_light else None
-        self._build_optimisers()
-        self.densifier = make_densifier(cfg, background, seed)
-        self.step = 0
-
-    def _initial_attributes(self, n: int) -> dict[str, torch.Tensor]:
+    def initial_attributes(self, n: int) -> dict[str, torch.Tensor]:
         cfg = self.config
         colour = torch.full((n, 3), 0.5)  # raw; softplus(0.5) = 0.97 as in the official code
         attributes = {"diffuse": colour, "specular": colour.clone(), "sss": colour.clone(),
@@ -102,22 +82,29 @@ class SSDGS(Method):
             attributes["shading_quat"] = quat
         return attributes
 
-    def _build_optimisers(self) -> None:
+    def build_modules(self, train: Views) -> None:
         cfg = self.config
-        self.gaussian_optimizer = make_adam(per_gaussian_groups(self.model))
-        global_groups = [
-            {"params": list(self.shader.asg.parameters()), "name": "asg_lobes", "lr": cfg.asg_lr_init},
-            {"params": list(self.shader.sss_net.parameters()), "name": "sss_mlp", "lr": cfg.mlp_lr_init},
-            {"params": list(self.shader.shadow_net.parameters()), "name": "shadow_mlp", "lr": cfg.mlp_lr_init},
-        ]
+        with torch.no_grad():  # random orientations: isotropic identity-rotated Gaussians would share one normal
+            random = torch.randn(self.model.num_gaussians, 4, generator=self.train_views.generator)
+            self.model.quats.copy_(F.normalize(random, dim=-1).to(self.device))
+        self.shader = Shader(cfg).to(self.device)
+        self.pose_refinement = PoseRefinement(len(train), self.device) if cfg.refine_camera else None
+        self.light_refinement = LightRefinement(len(train), self.device) if cfg.refine_light else None
+
+    def global_groups(self) -> list[ParameterGroup]:
+        cfg = self.config
+        groups = [ParameterGroup("asg_lobes", list(self.shader.asg.parameters()), cfg.asg_lr_init),
+                  ParameterGroup("sss_mlp", list(self.shader.sss_net.parameters()), cfg.mlp_lr_init),
+                  ParameterGroup("shadow_mlp", list(self.shader.shadow_net.parameters()), cfg.mlp_lr_init)]
         if self.pose_refinement is not None:
-            global_groups.append({"params": list(self.pose_refinement.parameters()), "name": "camera", "lr": 0.0})
+            groups.append(ParameterGroup("camera", list(self.pose_refinement.parameters())))
         if self.light_refinement is not None:
-            global_groups.append({"params": list(self.light_refinement.parameters()), "name": "light", "lr": 0.0})
-        self.global_optimizer = make_adam(global_groups)
+            groups.append(ParameterGroup("light", list(self.light_refinement.parameters())))
+        return groups
 
     # --------------------------------------------------------------------------------------- schedules
-    def _learning_rates(self, step: int) -> dict[str, float]:
+    def learning_rates(self, step: int) -> dict[str, float]:
+        """Per parameter-group name at ``step``."""
         cfg, s = self.config, self.config.steps
 
         def decayed(init: float, final: float, start: int, length: int) -> float:
@@ -208,55 +195,17 @@ class SSDGS(Method):
                 "depth_offset": cfg.shadow_depth_offset}
 
     # ------------------------------------------------------------------------------------------ training
-    def compute_gradients(self, step: int, index: int | None = None) -> dict[str, Any]:
-        """Forward + backward of one training view (no parameter update); frozen groups keep ``grad = None``.
-
-        Returns the scalars of `train_step` plus ``projected`` and ``light_weight`` (densification statistics)."""
+    def training_forward(self, index: int, step: int) -> dict[str, Any]:
         views = self.train_views
-        index = views.next_index() if index is None else index
         camera = views.views.cameras[index]
-        for p in self.frozen_parameters(step):
-            p.requires_grad_(False)
-        try:
-            w2c = self._camera(index, views.w2cs[index], step)
-            light = self._light(index, views.light_positions[index], step)
-            out = self._forward(w2c, views.Ks[index], camera.width, camera.height, light,
-                                views.light_intensities[index], step, components=False)
-            target = views.image(index)
-            image, loss, l1 = self._photometric_loss(out["image"], target)
-            out["projected"].means2d.retain_grad()
-            loss.backward()
-        finally:
-            for p in self.frozen_parameters(step):
-                p.requires_grad_(True)
-                p.grad = None
-        return {"loss": float(loss.detach()), "l1": float(l1.detach()), "psnr": psnr_of(image, target),
-                "projected": out["projected"], "light_weight": out["light_weight"]}
+        w2c = self._camera(index, views.w2cs[index], step)
+        light = self._light(index, views.light_positions[index], step)
+        return self._forward(w2c, views.Ks[index], camera.width, camera.height, light, views.light_intensities[index],
+                             step, components=False)
 
-    def _photometric_loss(self, render: torch.Tensor, target: torch.Tensor
-                          ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-        """(image, ``(1-λ)·L1 + λ·(1-SSIM)``, L1) of a render (H, W, 3) against its target, clamped per config."""
-        image = render.clamp(0.0, 1.0) if self.config.clamp_output else render
-        return (image, *photometric_loss(image, target, self.config.lambda_dssim))
-
-    def train_step(self, step: int) -> dict[str, float]:
-        rates = self._learning_rates(step)
-        for optimizer in (self.gaussian_optimizer, self.global_optimizer):
-            for group in optimizer.param_groups:
-                group["lr"] = rates[group["name"]]
-        result = self.compute_gradients(step)
-        projected = result.pop("projected")
-        light_weight = result.pop("light_weight")
-        self.gaussian_optimizer.step()
-        self.global_optimizer.step()
-        self.gaussian_optimizer.zero_grad(set_to_none=True)
-        self.global_optimizer.zero_grad(set_to_none=True)
-        self.densifier.observe_and_step(self.model, self.gaussian_optimizer, projected, step,
-                                        self.train_views.scene_extent,
-                                        priority=light_weight)
-        self.step = step + 1
-        result["num_gaussians"] = float(self.model.num_gaussians)
-        return result
+    def clamp_render(self, render: torch.Tensor) -> torch.Tensor:
+        """The render the loss sees: clamped to [0, 1] when ``clamp_output`` (the official code's choice)."""
+        return render.clamp(0.0, 1.0) if self.config.clamp_output else render
 
     # ----------------------------------------------------------------------------------------- rendering
     @torch.no_grad()
@@ -309,7 +258,7 @@ class SSDGS(Method):
                 out = self._forward(pose.apply(0, w2c) if pose is not None else w2c, K, camera.width, camera.height,
                                     offset.apply(0, position) if offset is not None else position, intensity, step,
                                     components=False)
-                loss = self._photometric_loss(out["image"], target)[1]
+                loss = self.loss(out["image"], target)[1]
                 losses.append(float(loss.detach()))
                 if losses[-1] < best[0]:
                     best = (losses[-1], [p.detach().clone() for p in params])
@@ -331,47 +280,21 @@ class SSDGS(Method):
             "translation": float(np.linalg.norm(delta[:3, 3])), "rotation_deg": angle,
             "light_offset": float(np.linalg.norm(shift))})
 
-    @property
-    def num_gaussians(self) -> int | None:
-        return self.model.num_gaussians if hasattr(self, "model") else None
-
     # ----------------------------------------------------------------------------------------- checkpoints
-    def state_dict(self) -> dict[str, Any]:
-        state: dict[str, Any] = {
-            "format": STATE_FORMAT, "step": self.step, "config": self.config.to_dict(),
-            "model": self.model.state_dict(), "shader": self.shader.state_dict(),
-            "gaussian_optimizer": self.gaussian_optimizer.state_dict(),
-            "global_optimizer": self.global_optimizer.state_dict(),
-            "densifier": self.densifier.state_dict(),
-            "views": self.train_views.state_dict(), "torch_rng": torch.get_rng_state(),
-        }
+    def module_state(self) -> dict[str, Any]:
+        state: dict[str, Any] = {"shader": self.shader.state_dict()}
         if self.pose_refinement is not None:
             state["pose_refinement"] = self.pose_refinement.state_dict()
         if self.light_refinement is not None:
             state["light_refinement"] = self.light_refinement.state_dict()
         return state
 
-    def load_state_dict(self, state: dict[str, Any]) -> None:
-        """Restore a `state_dict` (call `setup` with the same views first)."""
-        found = state.get("format") if isinstance(state, dict) else type(state).__name__
-        if found != STATE_FORMAT:
-            raise ValueError(f"not an SSD-GS checkpoint (format {found!r}, need {STATE_FORMAT!r})")
-        if state["config"] != self.config.to_dict():
-            changed = sorted(k for k, v in state["config"].items() if self.config.to_dict().get(k) != v)
-            raise ValueError(f"SSD-GS checkpoint was written with a different config (fields: {', '.join(changed)})")
-        self.model.load_state_dict(state["model"])
+    def load_module_state(self, state: dict[str, Any]) -> None:
         self.shader.load_state_dict(state["shader"])
         if self.pose_refinement is not None:
             self.pose_refinement.load_state_dict(state["pose_refinement"])
         if self.light_refinement is not None:
             self.light_refinement.load_state_dict(state["light_refinement"])
-        self._build_optimisers()
-        self.gaussian_optimizer.load_state_dict(state["gaussian_optimizer"])
-        self.global_optimizer.load_state_dict(state["global_optimizer"])
-        self.densifier.load_state_dict(state["densifier"])
-        self.train_views.load_state_dict(state["views"])
-        torch.set_rng_state(state["torch_rng"])
-        self.step = int(state["step"])
 
 
 def _view_key(camera: Camera, light: PointLight) -> bytes:

@@ -1,0 +1,211 @@
+"""The shared base of the Gaussian methods (SSD-GS, GS³, 3DGS): written once, specialised by hooks.
+
+A `GaussianMethod` owns what the three share: the set-up order (checks, ``torch.manual_seed(seed)``, the training
+views, the initial model, the method's own modules, the optimisers, the densifier), two Adam optimisers — one group
+per per-Gaussian parameter (resized by densification) and the method's global groups, declared as data by
+`global_groups` — whose rates come every step from the method's learning-rate table `learning_rates`, the training
+step (frozen parameters, forward, the 3DGS photometric loss, backward, update, densification), and the checkpoint
+(its format string and config checked on load). A method supplies its initial per-Gaussian attributes, its modules,
+its global groups, its rate table, its forward pass and its rendering.
+
+The order of every call that consumes random numbers is fixed here, so methods moved onto this base train to the
+same numbers as before.
+"""
+
+from __future__ import annotations
+
+from abc import abstractmethod
+from dataclasses import dataclass, field
+from typing import Any, ClassVar
+
+import numpy as np
+import torch
+
+from olatbench.gaussians.optim import make_adam
+from olatbench.methods.base import Method, Views
+from olatbench.methods.training import (
+    TrainingViews,
+    initial_model,
+    make_densifier,
+    per_gaussian_groups,
+    photometric_loss,
+    psnr_of,
+)
+
+
+@dataclass
+class ParameterGroup:
+    """One global optimiser group: ``name`` keys the method's learning-rate table (several groups may share a
+    name and so a rate); ``lr`` is the rate at construction (every step sets the table's)."""
+
+    name: str
+    params: list[torch.nn.Parameter] = field(default_factory=list)
+    lr: float = 0.0
+
+
+class GaussianMethod(Method):
+    """A method on the shared Gaussian core. Subclasses set ``state_format`` and ``label`` and implement the
+    abstract hooks; their config has the shared fields (``num_init_gaussians``, ``init_radius``, ``init_opacity``,
+    ``lambda_dssim``, the ``densify_*`` windows, ``percent_dense``, ``max_gaussians``, ``steps()``, ``to_dict()``)."""
+
+    state_format: ClassVar[str]  # checkpoint format, e.g. "olatbench.methods.ssdgs/2"
+    label: ClassVar[str]  # the method's name in messages, e.g. "SSD-GS"
+
+    def __init__(self, config: Any) -> None:
+        super().__init__(config)
+        self.step = 0  # steps taken so far (the next train_step is normally called with this value)
+
+    # ------------------------------------------------------------------------------------------- set-up
+    def setup(self, train: Views, device: str | torch.device, seed: int) -> None:
+        if len(train) == 0:
+            raise ValueError(f"{self.label}: no training views")
+        self.device = torch.device(device)
+        self.prepare(train)
+        torch.manual_seed(seed)
+        self.train_views = TrainingViews(train, self.device, seed)  # tensors, scene extent, epoch-wise view order
+        self.model = initial_model(train, self.config, self.initial_attributes(self.config.num_init_gaussians), seed,
+                                   self.device)
+        self.build_modules(train)
+        self._build_optimisers()
+        self.densifier = make_densifier(self.config, np.asarray(train.background, dtype=np.float32).reshape(3), seed)
+        self.step = 0
+
+    def prepare(self, train: Views) -> None:
+        """Checks and derived settings before anything random happens (default: none)."""
+
+    @abstractmethod
+    def initial_attributes(self, n: int) -> dict[str, torch.Tensor]:
+        """The per-Gaussian attributes of the ``n`` initial Gaussians (on the CPU; no random numbers)."""
+
+    def build_modules(self, train: Views) -> None:
+        """The method's modules after the model (shader, refinements), in a fixed order (default: none)."""
+
+    def global_groups(self) -> list[ParameterGroup]:
+        """The global optimiser's parameter groups, in order (default: none, so no global optimiser)."""
+        return []
+
+    def _build_optimisers(self) -> None:
+        self.gaussian_optimizer = make_adam(per_gaussian_groups(self.model))
+        groups = self.global_groups()
+        self.global_optimizer = make_adam([{"params": g.params, "name": g.name, "lr": g.lr} for g in groups]
+                                          ) if groups else None
+
+    @property
+    def optimizers(self) -> list[torch.optim.Optimizer]:
+        """The per-Gaussian optimiser, then the global one when the method has global groups."""
+        return [self.gaussian_optimizer] + ([self.global_optimizer] if self.global_optimizer is not None else [])
+
+    # ---------------------------------------------------------------------------------------- training
+    @abstractmethod
+    def learning_rates(self, step: int) -> dict[str, float]:
+        """The rate of every parameter-group name at ``step`` (per-Gaussian names as
+        `GaussianModel.per_gaussian_parameters`, global names as `global_groups`)."""
+
+    def frozen_parameters(self, step: int) -> list[torch.nn.Parameter]:
+        """Parameters held fixed at ``step`` (their gradients are dropped before the update; default: none)."""
+        return []
+
+    @abstractmethod
+    def training_forward(self, index: int, step: int) -> dict[str, Any]:
+        """Forward pass of training view ``index`` at ``step``: ``image`` (H, W, 3), ``projected`` (the projection,
+        for densification) and ``light_weight`` (per-Gaussian densification priority or None)."""
+
+    def clamp_render(self, render: torch.Tensor) -> torch.Tensor:
+        """The render the loss sees (default: clamped to [0, 1])."""
+        return render.clamp(0.0, 1.0)
+
+    def loss(self, render: torch.Tensor, target: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """(image, ``(1-λ)·L1 + λ·(1-SSIM)``, L1) of a render (H, W, 3) against its target."""
+        image = self.clamp_render(render)
+        return (image, *photometric_loss(image, target, self.config.lambda_dssim))
+
+    def compute_gradients(self, step: int, index: int | None = None) -> dict[str, Any]:
+        """Forward + backward of one training view (no parameter update); frozen parameters keep ``grad = None``.
+
+        Returns the scalars of `train_step` plus ``projected`` and ``light_weight`` (densification statistics)."""
+        views = self.train_views
+        index = views.next_index() if index is None else index
+        frozen = self.frozen_parameters(step)
+        for p in frozen:
+            p.requires_grad_(False)
+        try:
+            out = self.training_forward(index, step)
+            target = views.image(index)
+            image, loss, l1 = self.loss(out["image"], target)
+            out["projected"].means2d.retain_grad()
+            loss.backward()
+        finally:
+            for p in frozen:
+                p.requires_grad_(True)
+                p.grad = None
+        return {"loss": float(loss.detach()), "l1": float(l1.detach()), "psnr": psnr_of(image, target),
+                "projected": out["projected"], "light_weight": out["light_weight"]}
+
+    def step_summary(self, step: int) -> dict[str, float]:
+        """Extra scalars of `train_step` (default: none)."""
+        return {}
+
+    def train_step(self, step: int) -> dict[str, float]:
+        rates = self.learning_rates(step)
+        for optimizer in self.optimizers:
+            for group in optimizer.param_groups:
+                group["lr"] = rates[group["name"]]
+        result = self.compute_gradients(step)
+        projected, light_weight = result.pop("projected"), result.pop("light_weight")
+        for optimizer in self.optimizers:
+            optimizer.step()
+        for optimizer in self.optimizers:
+            optimizer.zero_grad(set_to_none=True)
+        self.densifier.observe_and_step(self.model, self.gaussian_optimizer, projected, step,
+                                        self.train_views.scene_extent, priority=light_weight)
+        self.step = step + 1
+        result["num_gaussians"] = float(self.model.num_gaussians)
+        result.update(self.step_summary(step))
+        return result
+
+    @property
+    def num_gaussians(self) -> int | None:
+        return self.model.num_gaussians if hasattr(self, "model") else None
+
+    # ------------------------------------------------------------------------------------- checkpoints
+    def module_state(self) -> dict[str, Any]:
+        """The state of the method's modules (shader, refinements), saved beside the model (default: none)."""
+        return {}
+
+    def load_module_state(self, state: dict[str, Any]) -> None:
+        """Restore what `module_state` saved (default: nothing)."""
+
+    def state_dict(self) -> dict[str, Any]:
+        state: dict[str, Any] = {"format": self.state_format, "step": self.step, "config": self.config.to_dict(),
+                                 "model": self.model.state_dict(), **self.module_state(),
+                                 "gaussian_optimizer": self.gaussian_optimizer.state_dict()}
+        if self.global_optimizer is not None:
+            state["global_optimizer"] = self.global_optimizer.state_dict()
+        state.update({"densifier": self.densifier.state_dict(), "views": self.train_views.state_dict(),
+                      "torch_rng": torch.get_rng_state()})
+        return state
+
+    def check_state(self, state: Any) -> None:
+        """A `ValueError` unless ``state`` is this method's checkpoint format, written with this config."""
+        found = state.get("format") if isinstance(state, dict) else type(state).__name__
+        if found != self.state_format:
+            raise ValueError(f"not a {self.label} checkpoint (format {found!r}, need {self.state_format!r})")
+        config = self.config.to_dict()
+        if state["config"] != config:
+            changed = sorted(k for k in set(state["config"]) | set(config) if state["config"].get(k) != config.get(k))
+            raise ValueError(f"{self.label} checkpoint was written with a different config (fields: "
+                             f"{', '.join(changed)})")
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        """Restore a `state_dict` (call `setup` with the same views first)."""
+        self.check_state(state)
+        self.model.load_state_dict(state["model"])
+        self.load_module_state(state)
+        self._build_optimisers()
+        self.gaussian_optimizer.load_state_dict(state["gaussian_optimizer"])
+        if self.global_optimizer is not None:
+            self.global_optimizer.load_state_dict(state["global_optimizer"])
+        self.densifier.load_state_dict(state["densifier"])
+        self.train_views.load_state_dict(state["views"])
+        torch.set_rng_state(state["torch_rng"])
+        self.step = int(state["step"])
