@@ -9,9 +9,10 @@ paper is silent; `olatbench.methods.ssdgs.presets` adapts them per suite.
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
-from typing import Any
+from dataclasses import dataclass
+from typing import ClassVar
 
+from olatbench.methods.shading.config import ShadingConfig
 from olatbench.methods.ssdgs.schedule import SCHEDULES, Schedule, get_schedule
 
 _CHOICES = {
@@ -25,8 +26,12 @@ _CHOICES = {
 
 
 @dataclass
-class SSDGSConfig:
-    """All knobs of SSD-GS (see docs/ssdgs.md for each one's origin in the paper or the official code)."""
+class SSDGSConfig(ShadingConfig):
+    """All knobs of SSD-GS (see docs/ssdgs.md for each one's origin in the paper or the official code); the fields
+    every Gaussian method shares and those of the shared shading blocks come from `ShadingConfig`; those
+    redeclared here have SSD-GS's defaults."""
+
+    label: ClassVar[str] = "SSD-GS"
 
     iterations: int = 100_000
     reference_iterations: int = 100_000
@@ -40,57 +45,29 @@ class SSDGSConfig:
     diffuse_cosine: str = "smooth"
     shading_frame: str = "min_scale"
     orient_normals: bool = True
-    num_asg: int = 8
     asg_form: str = "xu"
-    fresnel_f0: float = 0.04
     dipole_eta: float = 1.3
     dipole_virtual_factor: str = "jensen"
-    material_dim: int = 6
     sss_hidden: int = 256
     sss_layers: int = 6
     sss_freqs: int = 4
-    shadow_hidden: int = 32
-    shadow_layers: int = 3
     shadow_freqs: int = 3
-    shadow_resolution: int | None = None  # light-view size (px); None: the view's size, as the official code
     # light-view framing: "camera" (official: the scene at the viewing camera's pixel scale) or "scene" (the sphere
     # around the Gaussians' mean holding every centre fills the view)
     shadow_framing: str = "camera"
     shadow_mode: str = "uniform"  # light-view average: "uniform" (fast C++), "density" (official), "footprint"
-    shadow_depth_offset: float = 0.0  # the official kernel's self-shadow offset is 0.015 (squared distance)
     clamp_output: bool = True
-    # Initialisation and size.
-    num_init_gaussians: int = 10_000
-    init_radius: float | None = 1.0  # None: 0.5 × the mean camera distance to the cameras' look-at centre
-    init_opacity: float = 0.1
+    # Size.
     max_gaussians: int | None = 550_000
     background: tuple[float, float, float] | None = None  # None: the training views' background
-    # Loss.
-    lambda_dssim: float = 0.2
     # Learning rates (Adam, eps 1e-15). Decays are exponential (3DGS) from `*_decay_from` over `*_max_steps`.
-    position_lr_init: float = 1.6e-4  # × scene extent
-    position_lr_final: float = 1.6e-6
-    position_lr_delay_mult: float = 0.01
     position_lr_max_steps: int = 70_000
-    scaling_lr: float = 5e-3
-    rotation_lr: float = 1e-3
-    opacity_lr: float = 0.05
-    colour_lr: float = 0.01
-    asg_lr_init: float = 0.01
-    asg_lr_final: float = 1e-4
-    asg_lr_decay_from: int = 40_000
-    asg_lr_max_steps: int = 50_000
     mlp_lr_init: float = 1e-3
     mlp_lr_final: float = 1e-5
     mlp_lr_decay_from: int = 50_000
     mlp_lr_max_steps: int = 50_000
-    # Densification (3DGS).
-    densify_from: int = 500
+    # Densification window (3DGS).
     densify_until: int = 90_000
-    densify_interval: int = 100
-    densify_grad_threshold: float = 2e-4
-    opacity_reset_interval: int = 3_000
-    percent_dense: float = 0.01
     # Camera-pose and light-position refinement (real data).
     refine_camera: bool = False
     refine_light: bool = False
@@ -105,13 +82,12 @@ class SSDGSConfig:
     test_time_steps: int = 100
 
     def __post_init__(self) -> None:
+        super().__post_init__()
         for name, allowed in _CHOICES.items():
             if getattr(self, name) not in allowed:
                 raise ValueError(f"SSD-GS config: {name} must be one of {allowed}, not {getattr(self, name)!r}")
         if self.schedule not in SCHEDULES:
             raise ValueError(f"SSD-GS config: schedule must be one of {sorted(SCHEDULES)}, not {self.schedule!r}")
-        if self.iterations <= 0 or self.reference_iterations <= 0:
-            raise ValueError("SSD-GS config: iterations and reference_iterations must be positive")
         if self.background is not None:
             self.background = tuple(float(v) for v in self.background)  # type: ignore[assignment]
         if self.test_time_refinement and not (self.refine_camera or self.refine_light):
@@ -124,14 +100,6 @@ class SSDGSConfig:
         """Side (px) of the square light-view pass for a view of ``width`` × ``height``."""
         return int(self.shadow_resolution or max(width, height))
 
-    def steps(self, value: int) -> int:
-        """An iteration count given at ``reference_iterations``, scaled to ``iterations``."""
-        return round(value * self.iterations / self.reference_iterations)
-
     def resolved_schedule(self) -> Schedule:
         """The schedule with its thresholds scaled to this run's length."""
         return get_schedule(self.schedule, self.reference_iterations, self.iterations)
-
-    def to_dict(self) -> dict[str, Any]:
-        """Plain JSON-friendly values."""
-        return asdict(self)

@@ -1,0 +1,55 @@
+"""The config fields every Gaussian method shares (torch-free: specs and dry runs resolve configs without torch).
+
+Iteration-valued fields are given at ``reference_iterations`` and scale with ``iterations`` (`steps`);
+``densify_interval`` is a cadence and does not. A method's config subclasses `GaussianConfig`, redeclares the
+shared fields whose default differs for it (a redeclared field keeps its place) and adds its own.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+from typing import Any, ClassVar
+
+
+@dataclass
+class GaussianConfig:
+    """Run length, initialisation, loss, the 3DGS learning rates and density control (defaults: 3DGS's)."""
+
+    label: ClassVar[str] = "Gaussian method"  # the method's name in messages
+
+    iterations: int = 30_000
+    reference_iterations: int = 30_000
+    # Initialisation and size.
+    num_init_gaussians: int = 10_000
+    init_radius: float | None = 1.0  # None: fitted to the cameras (see methods.initialisation.initial_ball)
+    init_opacity: float = 0.1
+    max_gaussians: int | None = None
+    # Loss: (1 - λ) L1 + λ (1 - SSIM).
+    lambda_dssim: float = 0.2
+    # Learning rates (Adam, eps 1e-15); the position rate decays exponentially over position_lr_max_steps.
+    position_lr_init: float = 1.6e-4  # × scene extent
+    position_lr_final: float = 1.6e-6
+    position_lr_delay_mult: float = 0.01
+    position_lr_max_steps: int = 30_000
+    scaling_lr: float = 5e-3
+    rotation_lr: float = 1e-3
+    opacity_lr: float = 0.05
+    # Densification (3DGS).
+    densify_from: int = 500
+    densify_until: int = 15_000
+    densify_interval: int = 100
+    densify_grad_threshold: float = 2e-4
+    opacity_reset_interval: int = 3_000
+    percent_dense: float = 0.01
+
+    def __post_init__(self) -> None:
+        if self.iterations <= 0 or self.reference_iterations <= 0:
+            raise ValueError(f"{self.label} config: iterations and reference_iterations must be positive")
+
+    def steps(self, value: int) -> int:
+        """An iteration count given at ``reference_iterations``, scaled to ``iterations``."""
+        return round(value * self.iterations / self.reference_iterations)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain JSON-friendly values."""
+        return asdict(self)

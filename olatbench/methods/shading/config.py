@@ -1,0 +1,26 @@
+"""The config fields of the shared shading blocks (torch-free), for the methods built on them (SSD-GS, GS³)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from olatbench.methods.gaussian_config import GaussianConfig
+
+
+@dataclass
+class ShadingConfig(GaussianConfig):
+    """The shared Gaussian fields plus the ASG specular lobes, the material embedding, the shadow network, the
+    light-view pass and their learning rates (defaults: the official SSD-GS / GS³ code's, which agree)."""
+
+    num_asg: int = 8  # ASG lobes of the specular mixture
+    material_dim: int = 6  # per-Gaussian material embedding fed to the networks
+    fresnel_f0: float = 0.04  # Schlick's F0
+    shadow_hidden: int = 32  # shadow network width
+    shadow_layers: int = 3  # shadow network hidden layers
+    shadow_resolution: int | None = None  # light-view size (px); None: the view's size, as the official code
+    shadow_depth_offset: float = 0.0  # light-view self-shadow offset (squared distance; official kernel: 0.015)
+    colour_lr: float = 0.01  # per-Gaussian colours
+    asg_lr_init: float = 0.01  # ASG weights and lobes; a learned shading frame uses the same decay
+    asg_lr_final: float = 1e-4
+    asg_lr_decay_from: int = 40_000
+    asg_lr_max_steps: int = 50_000
