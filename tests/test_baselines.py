@@ -206,3 +206,15 @@ def test_gs3_thresholds_scale_with_iterations() -> None:
     config = GS3.resolve_config("gs3", iterations=10_000)
     assert [config.steps(v) for v in (config.shadow_from, config.mlp_freeze_from, config.specular_from)] == [
         500, 900, 1600]
+
+
+def test_checkpoints_are_checked_for_their_method_and_config(views) -> None:
+    gs3 = make_gs3(views)
+    splats = GaussianSplatting3D(GaussianSplatting3D.resolve_config("mini", iterations=40, **TINY))
+    splats.setup(views, "cpu", 0)
+    assert "global_optimizer" not in splats.state_dict()  # 3DGS has no global groups
+    with pytest.raises(ValueError, match=r"not a GS³ checkpoint \(format 'olatbench\.methods\.baselines\.3dgs/2', "
+                                         r"need 'olatbench\.methods\.baselines\.gs3/1'\)"):
+        gs3.load_state_dict(splats.state_dict())
+    with pytest.raises(ValueError, match=r"GS³ checkpoint was written with a different config \(fields: num_asg\)"):
+        make_gs3(views, num_asg=2).load_state_dict(gs3.state_dict())
