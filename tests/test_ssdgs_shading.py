@@ -151,3 +151,33 @@ def test_encodings() -> None:
     assert fe.shape == (1, 18)
     torch.testing.assert_close(fe[0, 3:6], torch.sin(2 * math.pi * x[0]))
     torch.testing.assert_close(fe[0, 9:12], torch.cos(math.pi * x[0]))
+
+
+def test_sss_network_checkpointed_chunks_match_the_plain_batch(monkeypatch) -> None:
+    """Large batches run Θ_SSS in checkpointed chunks (memory); values and every gradient are the plain path's."""
+    from olatbench.methods.ssdgs import sss
+
+    torch.manual_seed(0)
+    net = SSSNetwork(material_dim=4, hidden=16, num_linear=4, num_freqs=2).double()
+    k = 50
+    inputs = [torch.randn(k, 3, dtype=torch.float64, requires_grad=True) for _ in range(4)]
+    inputs.append(torch.randn(k, 4, dtype=torch.float64, requires_grad=True))
+
+    def run() -> tuple[torch.Tensor, list[torch.Tensor]]:
+        net.zero_grad(set_to_none=True)
+        for tensor in inputs:
+            tensor.grad = None
+        out = net(*inputs)
+        (out * torch.linspace(0.5, 1.5, k, dtype=torch.float64)[:, None]).sum().backward()
+        return out.detach(), [t.grad.clone() for t in inputs] + [p.grad.clone() for p in net.parameters()]
+
+    plain_out, plain_grads = run()
+    monkeypatch.setattr(sss, "CHECKPOINT_ROWS", 7)  # 50 rows -> 8 chunks
+    calls = []
+    real_checkpoint = sss.checkpoint
+    monkeypatch.setattr(sss, "checkpoint", lambda *a, **kw: calls.append(1) or real_checkpoint(*a, **kw))
+    chunked_out, chunked_grads = run()
+    assert len(calls) == 8
+    torch.testing.assert_close(chunked_out, plain_out, rtol=1e-12, atol=1e-14)
+    for chunked, plain in zip(chunked_grads, plain_grads, strict=True):
+        torch.testing.assert_close(chunked, plain, rtol=1e-11, atol=1e-13)
