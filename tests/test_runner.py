@@ -289,6 +289,34 @@ def test_large_view_stacks_are_memory_mapped_with_the_same_result(data, tmp_path
     assert results[0] == results[1]
 
 
+def test_large_view_stacks_are_held_in_float16_and_scored_against_the_exact_images(data, tmp_path, monkeypatch):
+    """Above $OLATBENCH_VIEWS_HALF_GB the stack is float16 (within 2^-11 relative of float32); the train split is
+    then scored against the images from disk, never against the rounded stack."""
+    import numpy as np
+
+    from olatbench.bench import execute
+    from olatbench.datasets import load_scene
+
+    job = plan(data, tmp_path / "half", scenes=["Beta"])[0]
+    frames = load_scene(data / "Beta").split("train")
+    reference = execute.load_views(frames, job)
+    monkeypatch.setenv("OLATBENCH_VIEWS_HALF_GB", "1e-6")
+    views = execute.load_views(frames, job)
+    assert reference.images.dtype == np.float32 and views.images.dtype == np.float16
+    assert np.abs(views.images.astype(np.float32) - reference.images).max() <= 2.0**-11 * max(
+        1.0, float(reference.images.max()))
+    given = {}
+    real_evaluate_split = execute.evaluate_split
+
+    def recording(method, frames, job, folder, split, gt_images, *args, **kwargs):
+        given[split] = gt_images
+        return real_evaluate_split(method, frames, job, folder, split, gt_images, *args, **kwargs)
+
+    monkeypatch.setattr(execute, "evaluate_split", recording)
+    assert run_job(job, progress=False).status == "done"
+    assert given == {job.train_split: None, job.test_split: None}
+
+
 def test_official_ground_truth_protocols_score_against_the_official_images(data, tmp_path, monkeypatch):
     """A protocol whose ground truth is 'official' is scored against `Protocol.load_ground_truth`."""
     from dataclasses import replace
