@@ -1,0 +1,146 @@
+"""SSD-GS at the paper's scale on this machine: seconds per training step by stage, and peak memory.
+
+For each suite (``--suites``, default nrhints gs3 sssgs) the script loads the suite's stand-in
+(`olatbench.datasets.synth.standins`: the suite's format, image size and training-image count, rendered once and
+cached) through the runner's own loader, sets SSD-GS up with the suite's preset, and for each Gaussian count
+(``--counts``, default 100K, 300K and 550K — the densification cap) makes the model a trained-looking closed
+surface of that many Gaussians (as ``bench_ssdgs.py``'s ``surface`` state). It then times ``--steps`` complete
+``train_step`` calls at an iteration where every term is on (densification off, so N stays fixed) and splits one
+step into stages with ``bench_ssdgs.py``'s stage functions (camera pass, light-view pass, the two networks, Adam,
+and ``rest`` = the step with free stand-ins for the networks). Each case runs in its own process, so the peak
+resident memory it reports (``ru_maxrss``) is that case's alone: the training images (float32, as the runner
+holds them), the model, Adam's state and one step's autograd graph.
+
+Ratios printed against references measured in the same run: ``step/raster`` (the whole step in units of the
+camera pass alone) and ``rss/images`` (peak memory in units of the image stack); ``run at N`` is the suite's
+iteration count at that step time (an upper bound for a run that reaches N Gaussians late). The last line is a parseable
+summary with the worst peak memory at 512² (target: ≤ 8 GiB with 550K Gaussians). Examples::
+
+    python benchmarks/bench_scale.py                                  # the three suites, 100K/300K/550K
+    python benchmarks/bench_scale.py --suites gs3 --counts 550000 --steps 3
+    python benchmarks/bench_scale.py --suites nrhints --images 100    # a quicker stand-in (fewer images)
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import resource
+import subprocess
+import sys
+import tempfile
+import time
+
+ALL_ON_STEP = 30_000  # the 100K schedule: every term on, camera/light refinement on, nothing frozen
+
+
+def run_case(suite: str, count: int, steps: int, repeats: int, images: int | None, threads: int) -> dict:
+    """One (suite, Gaussian count) case in this process; returns its measurements as plain numbers."""
+    import torch
+    from bench_ssdgs import (
+        mlp_stage,
+        optimizer_stage,
+        put_on_sphere,
+        raster_stage,
+        rest_stage,
+        shadow_stage,
+        starting_clean,
+        timed,
+    )
+
+    from olatbench.bench.execute import load_views
+    from olatbench.bench.jobs import Job
+    from olatbench.bench.plan import resolve_config
+    from olatbench.datasets import load_scene
+    from olatbench.datasets.suites import get_suite
+    from olatbench.datasets.synth.standins import ensure_standin
+    from olatbench.methods.ssdgs import SSDGS
+
+    torch.set_num_threads(threads)
+    torch.set_flush_denormal(True)
+    suite_record = get_suite(suite)
+    folder = ensure_standin(suite, train=images, progress=False)
+    scene = load_scene(folder)
+    frames = scene.split(suite_record.train_split)
+    job = Job(method="ssdgs", method_ref="", suite=suite, scene=folder.name, variant="default", seed=0, config={},
+              scene_path=str(folder), scene_format=suite_record.format, colourspace=suite_record.colourspace,
+              resolution=suite_record.resolution, train_split=suite_record.train_split,
+              test_split=suite_record.test_split, protocol="", protocol_version=0, data_manifest=None, code="",
+              folder=tempfile.mkdtemp(prefix="bench_scale_"))  # where a memory-mapped image stack would go
+    clock = time.perf_counter()
+    views = load_views(frames, job)
+    load_seconds = time.perf_counter() - clock
+    never = 10**9
+    config = resolve_config(SSDGS, suite_record)
+    config = dataclasses.replace(config, num_init_gaussians=count, max_gaussians=None, densify_from=never,
+                                 densify_until=never, opacity_reset_interval=never)
+    method = SSDGS(config)
+    method.setup(views, "cpu", 0)
+    put_on_sphere(method, radius=0.8, opacity=0.9)
+    with torch.no_grad():  # onto the stand-in's object (the generator's bounding sphere: radius 1)
+        method.model.means += torch.tensor(json.loads((folder / "synth.json").read_text())["object_bounding_sphere"]
+                                           ["centre"], dtype=torch.float32)
+    visible = torch.arange(method.model.num_gaussians)
+    stages = {"raster": raster_stage(method), "shadow": shadow_stage(method), "mlp": mlp_stage(method, visible),
+              "optim": optimizer_stage(method), "rest": rest_stage(method, ALL_ON_STEP)}
+    stage_seconds = timed({name: starting_clean(method, fn) for name, fn in stages.items()}, repeats)
+    step_seconds = []
+    for offset in range(steps + 1):  # the first is a warm-up
+        clock = time.perf_counter()
+        method.train_step(ALL_ON_STEP + offset)
+        step_seconds.append(time.perf_counter() - clock)
+    camera = views.cameras[0]
+    return {"suite": suite, "gaussians": method.model.num_gaussians, "width": camera.width, "height": camera.height,
+            "images": len(views), "image_gib": views.images.nbytes / 2**30, "load_seconds": load_seconds,
+            "step_seconds": min(step_seconds[1:]), "step_seconds_mean": sum(step_seconds[1:]) / steps,
+            "stages": stage_seconds, "peak_rss_gib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20,
+            "threads": threads}
+
+
+def main() -> None:
+    from olatbench.bench.estimate import format_duration
+    from olatbench.datasets.suites import get_suite
+
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--suites", nargs="+", default=["nrhints", "gs3", "sssgs"])
+    parser.add_argument("--counts", type=int, nargs="+", default=[100_000, 300_000, 550_000])
+    parser.add_argument("--steps", type=int, default=5, help="timed training steps per case (after one warm-up)")
+    parser.add_argument("--repeats", type=int, default=2, help="rounds of the stage timings (fastest kept)")
+    parser.add_argument("--images", type=int, default=None,
+                        help="training images of the stand-in (default: the suite's realistic count)")
+    parser.add_argument("--threads", type=int, default=2)
+    parser.add_argument("--case", nargs=2, metavar=("SUITE", "COUNT"), help=argparse.SUPPRESS)
+    args = parser.parse_args()
+    if args.case:  # child process: one case, one JSON line
+        print(json.dumps(run_case(args.case[0], int(args.case[1]), args.steps, args.repeats, args.images,
+                                  args.threads)))
+        return
+    print(f"{'suite':>8} {'size':>9} {'images':>6} {'N':>7} {'step':>7} {'raster':>7} {'shadow':>7} {'mlp':>7} "
+          f"{'optim':>7} {'rest':>7} {'step/rast':>9} {'rss GiB':>8} {'rss/img':>7} {'run at N':>10}")
+    worst_512 = 0.0
+    for suite in args.suites:
+        for count in args.counts:
+            command = [sys.executable, __file__, "--case", suite, str(count), "--steps", str(args.steps),
+                       "--repeats", str(args.repeats), "--threads", str(args.threads)]
+            if args.images is not None:
+                command += ["--images", str(args.images)]
+            done = subprocess.run(command, capture_output=True, text=True)
+            if done.returncode != 0:
+                raise SystemExit(f"case {suite} N={count} failed:\n{done.stderr[-3000:]}")
+            case = json.loads(done.stdout.strip().splitlines()[-1])
+            stages = case["stages"]
+            if max(case["width"], case["height"]) >= 512:
+                worst_512 = max(worst_512, case["peak_rss_gib"])
+            print(f"{suite:>8} {case['width']:>4}×{case['height']:<4} {case['images']:>6} {case['gaussians']:>7} "
+                  f"{case['step_seconds']:>6.2f}s {stages['raster']:>6.2f}s {stages['shadow']:>6.2f}s "
+                  f"{stages['mlp']:>6.2f}s {stages['optim']:>6.2f}s {stages['rest']:>6.2f}s "
+                  f"{case['step_seconds'] / stages['raster']:>9.1f} {case['peak_rss_gib']:>8.2f} "
+                  f"{case['peak_rss_gib'] / case['image_gib']:>7.2f} "
+                  f"{format_duration(case['step_seconds'] * get_suite(suite).iterations):>10}", flush=True)
+    print(f"SUMMARY bench_scale peak_rss_512_max_gib={worst_512:.2f} (target<=8) threads={args.threads} "
+          f"counts={','.join(map(str, args.counts))}")
+
+
+if __name__ == "__main__":
+    main()
