@@ -96,6 +96,10 @@ def _metric(metrics: dict, key: str) -> str:
 @click.option("--jobs", "-j", "workers", default=1, show_default=True, help="Parallel jobs for the local executor.")
 @click.option("--dry-run", is_flag=True, help="Print the job table with each job's state and exit (never "
                                              "generates data).")
+@click.option("--calibrate", is_flag=True,
+              help="With --dry-run: time each job configuration not yet timed on this machine (a few training steps "
+                   "on its own views: seconds to a minute each) and store it, so dry runs print wall-time "
+                   "estimates.")
 @click.option("--force", is_flag=True, help="Rerun jobs from scratch, replacing finished, partial or stale folders.")
 @click.option("--checkpoint-every", type=int, help="Checkpoint every N steps (default: iterations/10; also every "
                                                   "10 minutes).")
@@ -112,7 +116,7 @@ def _metric(metrics: dict, key: str) -> str:
 @click.option("--quiet", "-q", is_flag=True, help="No progress bars.")
 def run(method, suite, scenes, variants, ablation, seeds, iterations, overrides, resolution, data_root, out, device,
         executor,
-        workers, dry_run, force, checkpoint_every, save_components, slurm_partition, slurm_time, slurm_gpus,
+        workers, dry_run, calibrate, force, checkpoint_every, save_components, slurm_partition, slurm_time, slurm_gpus,
         slurm_cpus, slurm_array_parallelism, wait, quiet) -> None:
     """Train and evaluate METHOD on every scene of SUITE; rerunning skips finished jobs and resumes
     interrupted ones from their last checkpoint.
@@ -126,6 +130,7 @@ def run(method, suite, scenes, variants, ablation, seeds, iterations, overrides,
       olatbench run --method ssdgs --suite mini
       olatbench run -m ssdgs -s nrhints --scenes Pixiu,Fish --data-root /data/nrhints
       olatbench run -m ssdgs -s nrhints --scenes Pixiu --ablation components --dry-run
+      olatbench run -m ssdgs -s gs3 --scenes Lego --data-root /data/gs3 --dry-run --calibrate   # + time estimate
       olatbench run -m ssdgs -s mini --scenes translucent --set shadow_mode=density --set num_asg=8
       olatbench run -m ssdgs -s gs3 --seeds 3 --executor slurm --slurm-partition gpu --slurm-gpus 1
     """
@@ -143,13 +148,21 @@ def run(method, suite, scenes, variants, ablation, seeds, iterations, overrides,
         jobs = make_plan(method, suite, out, scenes=_split_names(scenes), variants=_split_names(variants),
                          ablation=ablation, seeds=seeds, iterations=iterations,
                          resolution=_parse_resolution(resolution), data_root=data_root, options=options,
-                         generate=not dry_run, progress=progress, overrides=parse_overrides(overrides))
+                         generate=not dry_run or calibrate, progress=progress, overrides=parse_overrides(overrides))
     except (PlanError, DatasetError, KeyError, FileNotFoundError) as error:
         raise click.ClickException(str(error.args[0] if isinstance(error, KeyError) else error)) from None
 
     states = [job_state(job.folder, job.id or None) for job in jobs]
+    if calibrate and not dry_run:
+        raise click.UsageError("--calibrate goes with --dry-run")
     if dry_run:
-        _print_plan(jobs, states, out)
+        from olatbench.bench.estimate import plan_estimates
+
+        try:
+            estimates = plan_estimates(jobs, measure=calibrate, progress=progress)
+        except ValueError as error:
+            raise click.ClickException(str(error)) from None
+        _print_plan(jobs, states, out, estimates)
         return
 
     stale = [state for state in states if state.state == "stale"]
@@ -229,17 +242,31 @@ def _write_pending(jobs) -> None:
             write_json(path, job.to_json())
 
 
-def _print_plan(jobs, states, out: Path) -> None:
+def _print_plan(jobs, states, out: Path, estimates: list[float | None]) -> None:
+    from olatbench.bench.estimate import DAY_SECONDS, format_duration
+
     rows = []
-    for index, (job, state) in enumerate(zip(jobs, states, strict=True)):
+    for index, (job, state, seconds) in enumerate(zip(jobs, states, estimates, strict=True)):
         status = state.state if state.state != "absent" else "pending"
         if state.state == "partial":
             status = f"partial ({state.step}/{state.iterations})"
         rows.append([str(index), job.suite, job.method, job.variant, job.scene, str(job.seed), str(job.iterations),
-                     job.id or "(no data yet)", status, str(Path(job.folder).relative_to(out))])
-    click.echo(_table(rows, ["#", "suite", "method", "variant", "scene", "seed", "iters", "id", "state", "folder"]))
+                     "?" if seconds is None else format_duration(seconds), job.id or "(no data yet)", status,
+                     str(Path(job.folder).relative_to(out))])
+    click.echo(_table(rows, ["#", "suite", "method", "variant", "scene", "seed", "iters", "train (est.)", "id",
+                             "state", "folder"]))
     note = "" if all(job.id for job in jobs) else "; ids are computed once the data exists"
     click.echo(f"{len(jobs)} job(s){note}.")
+    known = [seconds for seconds in estimates if seconds is not None]
+    if len(known) < len(jobs):
+        click.echo("Training-time estimates: add --calibrate to time the untimed configurations on this machine.")
+    if known:
+        click.echo(f"Estimated training time on this machine: {format_duration(sum(known))} in all (one job at a "
+                   f"time; training only).")
+        slow = [job.label for job, seconds in zip(jobs, estimates, strict=True) if seconds and seconds > DAY_SECONDS]
+        if sum(known) > DAY_SECONDS:
+            click.echo(f"WARNING: this plan would take more than a day here ({len(slow)} job(s) alone do); see "
+                       f"docs/runner.md 'Paper scale' for what a GPU or more cores change.", err=True)
 
 
 def _print_summary(jobs, out: Path) -> None:

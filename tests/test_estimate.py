@@ -1,0 +1,99 @@
+"""Wall-time estimates of planned jobs: the step-count model, the stored calibration, and a measured run."""
+
+from __future__ import annotations
+
+import dataclasses
+import sys
+from pathlib import Path
+
+import pytest
+import test_runner_support as support
+
+from olatbench.bench.estimate import (
+    StepCost,
+    calibrate,
+    estimate_seconds,
+    format_duration,
+    gaussian_counts,
+    load_costs,
+    save_cost,
+)
+from olatbench.bench.execute import run_job
+from olatbench.bench.plan import make_plan
+from olatbench.bench.results import read_results
+
+
+@dataclasses.dataclass
+class FakeConfig:
+    iterations: int = 1000
+    reference_iterations: int = 1000
+    num_init_gaussians: int = 100
+    max_gaussians: int | None = 1100
+    densify_from: int = 200
+    densify_until: int = 600
+    densify_interval: int = 100
+
+    def steps(self, value: int) -> int:
+        return round(value * self.iterations / self.reference_iterations)
+
+
+def test_growth_model_sums_the_steps_by_hand():
+    cost = StepCost(a=0.5, b=0.001, measured={})
+    # 200 steps at N=100 (0.6 s), 400 at the ramp's mean N=600 (1.1 s), 400 at the cap N=1100 (1.6 s)
+    assert estimate_seconds(FakeConfig(), cost) == pytest.approx(200 * 0.6 + 400 * 1.1 + 400 * 1.6)
+    uncapped = FakeConfig(max_gaussians=None)
+    assert gaussian_counts(uncapped) == (100, 400)
+    halved = FakeConfig(iterations=500)  # windows scale with the run: 100 / 200 / 200 steps
+    assert estimate_seconds(halved, cost) == pytest.approx(100 * 0.6 + 200 * 1.1 + 200 * 1.6)
+    no_window = FakeConfig(densify_from=5000, densify_until=6000)
+    assert estimate_seconds(no_window, cost) == pytest.approx(1000 * 0.6)
+    late = FakeConfig(densify_from=150)  # the first densification is at the next multiple of 100: step 200
+    assert estimate_seconds(late, cost) == estimate_seconds(FakeConfig(), cost)
+    never = FakeConfig(densify_interval=5000)  # no densification step inside the run: N stays put
+    assert estimate_seconds(never, cost) == pytest.approx(1000 * 0.6)
+
+
+def test_format_duration():
+    assert [format_duration(s) for s in (40, 720, 5 * 3600 + 12 * 60, 3 * 86400 + 4 * 3600)] == [
+        "40 s", "12 min", "5 h 12 min", "3 d 4 h"]
+
+
+@pytest.fixture()
+def data(tmp_path):
+    return support.write_tiny_data(tmp_path / "data", scenes=("Alpha",))
+
+
+def tiny_ssdgs_job(data, out):
+    job = make_plan("ssdgs", support.tiny_suite(scenes=("Alpha",)), out, variants=["mini"], iterations=40,
+                    data_root=data, progress=False)[0]
+    config = {**job.config, "num_init_gaussians": 300, "max_gaussians": 1200, "shadow_resolution": 32}
+    return dataclasses.replace(job, config=config).with_id()
+
+
+def test_calibration_is_stored_per_machine_and_job(data, tmp_path, monkeypatch):
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+    job = tiny_ssdgs_job(data, tmp_path / "runs")
+    assert load_costs() == {}
+    cost = StepCost(a=0.1, b=1e-5, measured={"300": 0.103, "1200": 0.112})
+    save_cost(job, cost)
+    other = dataclasses.replace(job, config={**job.config, "num_asg": 2})
+    save_cost(other, StepCost(a=1.0, b=0.0, measured={"300": 1.0}))
+    from olatbench.bench.estimate import cost_key
+
+    stored = load_costs()
+    assert stored[cost_key(job)] == cost and len(stored) == 2
+
+
+def test_estimate_is_within_30_percent_of_a_measured_run(data, tmp_path):
+    """Calibrate a tiny SSD-GS job, estimate it, train it: the training time is within ±30 % of the estimate.
+    (Calibration and run are measured back to back, so a load on the machine affects both alike.)"""
+    from olatbench.methods.ssdgs import SSDGS
+
+    job = tiny_ssdgs_job(data, tmp_path / "runs")
+    cost = calibrate(job, progress=False)
+    assert set(cost.measured) == {"300", "1200"}
+    predicted = estimate_seconds(SSDGS.resolve_config(None, **job.config), cost)
+    assert run_job(job, progress=False).status == "done", (Path(job.folder) / "error.txt").read_text()
+    measured = read_results(Path(job.folder) / "results.json")["timing"]["train_seconds"]
+    print(f"predicted {predicted:.2f} s, measured {measured:.2f} s", file=sys.stderr)
+    assert 0.7 <= predicted / measured <= 1.3
