@@ -64,7 +64,7 @@ def data(tmp_path):
 
 
 def tiny_ssdgs_job(data, out):
-    job = make_plan("ssdgs", support.tiny_suite(scenes=("Alpha",)), out, variants=["mini"], iterations=40,
+    job = make_plan("ssdgs", support.tiny_suite(scenes=("Alpha",)), out, variants=["mini"], iterations=120,
                     data_root=data, progress=False)[0]
     config = {**job.config, "num_init_gaussians": 300, "max_gaussians": 1200, "shadow_resolution": 32}
     return dataclasses.replace(job, config=config).with_id()
@@ -86,14 +86,20 @@ def test_calibration_is_stored_per_machine_and_job(data, tmp_path, monkeypatch):
 
 def test_estimate_is_within_30_percent_of_a_measured_run(data, tmp_path):
     """Calibrate a tiny SSD-GS job, estimate it, train it: the training time is within ±30 % of the estimate.
-    (Calibration and run are measured back to back, so a load on the machine affects both alike.)"""
+    Calibration and run are measured back to back; a machine shared with other work can still disturb one of
+    them, so a second attempt (fresh calibration, fresh run) is allowed — a wrong model fails both."""
     from olatbench.methods.ssdgs import SSDGS
 
-    job = tiny_ssdgs_job(data, tmp_path / "runs")
-    cost = calibrate(job, progress=False)
-    assert set(cost.measured) == {"300", "1200"}
-    predicted = estimate_seconds(SSDGS.resolve_config(None, **job.config), cost)
-    assert run_job(job, progress=False).status == "done", (Path(job.folder) / "error.txt").read_text()
-    measured = read_results(Path(job.folder) / "results.json")["timing"]["train_seconds"]
-    print(f"predicted {predicted:.2f} s, measured {measured:.2f} s", file=sys.stderr)
-    assert 0.7 <= predicted / measured <= 1.3
+    ratios = []
+    for attempt in range(2):
+        job = tiny_ssdgs_job(data, tmp_path / f"runs{attempt}")
+        cost = calibrate(job, progress=False)
+        assert set(cost.measured) == {"300", "1200"}
+        predicted = estimate_seconds(SSDGS.resolve_config(None, **job.config), cost)
+        assert run_job(job, progress=False).status == "done", (Path(job.folder) / "error.txt").read_text()
+        measured = read_results(Path(job.folder) / "results.json")["timing"]["train_seconds"]
+        ratios.append(predicted / measured)
+        print(f"predicted {predicted:.2f} s, measured {measured:.2f} s", file=sys.stderr)
+        if 0.7 <= ratios[-1] <= 1.3:
+            return
+    pytest.fail(f"estimate / measured training time {ratios} (twice outside 0.7-1.3)")
