@@ -55,6 +55,7 @@ def run_case(suite: str, count: int, steps: int, repeats: int, images: int | Non
     from olatbench.datasets import load_scene
     from olatbench.datasets.suites import get_suite
     from olatbench.datasets.synth.standins import ensure_standin
+    from olatbench.methods.registry import get_spec
     from olatbench.methods.ssdgs import SSDGS
 
     torch.set_num_threads(threads)
@@ -72,7 +73,7 @@ def run_case(suite: str, count: int, steps: int, repeats: int, images: int | Non
     views = load_views(frames, job)
     load_seconds = time.perf_counter() - clock
     never = 10**9
-    config = resolve_config(SSDGS, suite_record)
+    config = resolve_config(get_spec("ssdgs"), suite_record)
     config = dataclasses.replace(config, num_init_gaussians=count, max_gaussians=None, densify_from=never,
                                  densify_until=never, opacity_reset_interval=never)
     method = SSDGS(config)

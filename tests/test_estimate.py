@@ -87,11 +87,12 @@ def test_calibration_is_stored_per_machine_and_job(data, tmp_path, monkeypatch):
 def test_estimate_is_within_30_percent_of_a_measured_run(data, tmp_path):
     """Calibrate a tiny SSD-GS job, estimate it, train it: the training time is within ±30 % of the estimate.
     Calibration and run are measured back to back; a machine shared with other work can still disturb one of
-    them, so a second attempt (fresh calibration, fresh run) is allowed — a wrong model fails both."""
+    them (on 2 cores a concurrent process makes single steps up to 10× slower), so three attempts (fresh
+    calibration, fresh run) are allowed — a wrong model fails all of them."""
     from olatbench.methods.ssdgs import SSDGS
 
     ratios = []
-    for attempt in range(2):
+    for attempt in range(3):
         job = tiny_ssdgs_job(data, tmp_path / f"runs{attempt}")
         cost = calibrate(job, progress=False)
         assert set(cost.measured) == {"300", "1200"}
@@ -102,4 +103,4 @@ def test_estimate_is_within_30_percent_of_a_measured_run(data, tmp_path):
         print(f"predicted {predicted:.2f} s, measured {measured:.2f} s", file=sys.stderr)
         if 0.7 <= ratios[-1] <= 1.3:
             return
-    pytest.fail(f"estimate / measured training time {ratios} (twice outside 0.7-1.3)")
+    pytest.fail(f"estimate / measured training time {ratios} (each outside 0.7-1.3)")

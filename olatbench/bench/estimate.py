@@ -175,7 +175,7 @@ def format_duration(seconds: float) -> str:
 def plan_estimates(jobs: list[Job], measure: bool = False, progress: bool = True) -> list[float | None]:
     """Estimated training seconds of each job from this machine's stored calibrations (None where there is
     none); ``measure`` calibrates (and stores) the missing ones first — jobs need their data for that."""
-    from olatbench.bench.plan import load_method_class
+    from olatbench.methods.registry import config_class, get_spec
 
     costs = load_costs()
     estimates: list[float | None] = []
@@ -189,6 +189,6 @@ def plan_estimates(jobs: list[Job], measure: bool = False, progress: bool = True
         if key not in costs:
             estimates.append(None)
             continue
-        config = load_method_class(job).resolve_config(None, **job.config)
+        config = config_class(get_spec(job.method))(**job.config)  # torch-free: the spec's config dataclass
         estimates.append(estimate_seconds(config, costs[key]))
     return estimates
