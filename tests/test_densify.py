@@ -201,3 +201,19 @@ def test_accumulate_updates_only_the_visible_gaussians():
     torch.testing.assert_close(densifier.grad_sum, expected)
     assert densifier.visible_count.tolist() == [2.0, 0.0, 2.0, 0.0]
     assert densifier.max_radii.tolist() == [4.0, 0.0, 6.0, 0.0]
+
+
+def test_observe_and_step_counts_iterations_from_one_so_step_0_resets_nothing():
+    """The runner's step 0 is the official code's iteration 1: no opacity reset there (0 % 3000 == 0 used to
+    fire one, making every Gaussian nearly transparent before the first update); the first reset is at the
+    runner's step 2999 (iteration 3000)."""
+    from types import SimpleNamespace
+
+    model, optimizer = _tagged_model(4)
+    before = model.opacities.detach().clone()
+    densifier = Densifier(DensifyConfig())
+    projected = SimpleNamespace(means2d=SimpleNamespace(grad=None))
+    report = densifier.observe_and_step(model, optimizer, projected, 0, EXTENT)
+    assert report["opacity_reset"] is False and torch.equal(model.opacities.detach(), before)
+    assert densifier.observe_and_step(model, optimizer, projected, 2998, EXTENT)["opacity_reset"] is False
+    assert densifier.observe_and_step(model, optimizer, projected, 2999, EXTENT)["opacity_reset"] is True

@@ -7,9 +7,9 @@ Usage per training iteration (after ``loss.backward()``, before ``optimizer.step
     densifier.accumulate(projected.means2d.grad, projected.radii, projected.radii > 0,
                          width=projected.width, height=projected.height)
     densifier.accumulate_priority(shadow.weight)         # optional (SSD-GS light-view weight)
-    stats = densifier.step(model, optimizer, iteration, scene_extent)
+    stats = densifier.step(model, optimizer, iteration, scene_extent)   # iteration = runner step + 1
 
-Conventions follow the reference 3DGS code (and SSD-GS, which uses it unchanged):
+(`observe_and_step` does the last three from the runner's 0-based step.) Conventions follow the reference 3DGS code (and SSD-GS, which uses it unchanged):
 
 - the densification statistic is the mean, over the iterations in which a Gaussian was visible, of the norm of
   the view-space 2D-mean gradient **in NDC units**: the pixel gradient is multiplied by (W/2, H/2), which is
@@ -153,11 +153,14 @@ class Densifier:
     @torch.no_grad()
     @torch.no_grad()
     def observe_and_step(self, model: GaussianModel, optimizer: torch.optim.Optimizer | None, projected: Any,
-                         iteration: int, scene_extent: float, priority: torch.Tensor | None = None
+                         step: int, scene_extent: float, priority: torch.Tensor | None = None
                          ) -> dict[str, int | bool]:
-        """After a training step: accumulate the view's 2D-mean gradients (and an optional per-Gaussian
-        ``priority`` such as the light-view weight), then run `step`. ``projected`` is the step's `Projected`
-        with ``means2d.retain_grad()`` called before backward."""
+        """After the runner's training ``step`` (counted from 0): accumulate the view's 2D-mean gradients (and an
+        optional per-Gaussian ``priority`` such as the light-view weight), then run `step` at iteration
+        ``step + 1`` — the schedule is the official code's, whose iterations count from 1, so nothing resets
+        the opacities at the very first step (0 % interval == 0). ``projected`` is the step's `Projected` with
+        ``means2d.retain_grad()`` called before backward."""
+        iteration = step + 1
         grad = projected.means2d.grad
         if grad is not None and self.active(iteration):
             self.accumulate(grad, projected.radii, projected.radii > 0, width=projected.width,
