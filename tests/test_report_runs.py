@@ -300,3 +300,12 @@ def test_cli_published_only(tmp_path):
     assert text.count("\\begin{tabular}") == 2 and latex_balance_problems(text) == []
     every = CliRunner().invoke(main, ["report", "--published-only", "--format", "csv"])
     assert every.exit_code == 0 and every.output.count("block,method") == len(PAPER_TABLES)
+
+
+def test_latex_escapes_the_tilde_of_override_labels():
+    """Variant labels with overrides hold '~' (``default~use_sss=false``): it must print as a tilde, not as ≈
+    (and never as LaTeX's non-breaking space)."""
+    from olatbench.reports.latex import latex_text
+
+    assert latex_text("default~use_sss=false") == r"default\textasciitilde{}use\_sss=false"
+    assert latex_text("≈ 2 h") == r"$\approx$ 2 h"

@@ -18,7 +18,7 @@ PAPER_COLOURS = ("1,0.8,0.8", "1,0.9,0.8")  # best (red), second best (orange), 
 PACKAGES = ("[table]{xcolor}", "{colortbl}", "{multirow}", "{diagbox}", "{booktabs}", "{graphicx}")
 
 _ESCAPES = {"\\": r"\textbackslash{}", "&": r"\&", "%": r"\%", "$": r"\$", "#": r"\#", "_": r"\_",
-            "{": r"\{", "}": r"\}", "^": r"\^{}", "~": r"$\approx$", "↑": r"$\uparrow$", "↓": r"$\downarrow$",
+            "{": r"\{", "}": r"\}", "^": r"\^{}", "~": r"\textasciitilde{}", "↑": r"$\uparrow$", "↓": r"$\downarrow$",
             "±": r"$\pm$", "–": "--", "—": "---", "≈": r"$\approx$", "<": r"$<$", ">": r"$>$", "Δ": r"$\Delta$",
             "−": r"$-$", "×": r"$\times$"}
 
