@@ -164,13 +164,13 @@ def test_a_failing_job_is_recorded_and_the_others_continue(data, tmp_path):
     assert states["default"].state == "done"
 
 
-def test_cli_run_skips_done_jobs_and_exits_with_the_failure_count(data, tmp_path, cli_suite):
+def test_cli_run_skips_done_jobs_and_exits_with_1_when_jobs_fail(data, tmp_path, cli_suite):
     runner = CliRunner()
     args = ["run", "--method", "trivial", "--suite", "tiny", "--data-root", str(data), "--out",
             str(tmp_path / "runs"), "--quiet", "--device", "cpu"]
     result = runner.invoke(main, [*args, "--variant", "fails", "--variant", "default"])
-    assert result.exit_code == 2, result.output  # both scenes of the failing variant
-    assert "FAILED Alpha/fails/seed0" in result.output and "error.txt" in result.output
+    assert result.exit_code == 1, result.output  # not the count (2 failed here), which is click's usage error
+    assert "2 job(s) failed" in result.output and "FAILED Alpha/fails/seed0" in result.output and "error.txt" in result.output
     assert "rerun the same command" in result.output
     done = tmp_path / "runs" / "tiny" / "trivial" / "default" / "Alpha" / "seed0" / "results.json"
     stamp = done.stat().st_mtime_ns

@@ -123,7 +123,7 @@ def run(method, suite, scenes, variants, ablation, seeds, iterations, overrides,
 
     Jobs are method × scene × variant × seed. Each writes to
     OUT/<suite>/<method>/<variant>/<scene>/seed<k>/ (results.json, renders, checkpoints, logs).
-    The exit code is the number of failed jobs (at most 125).
+    Exit code: 0 when every job is done, 1 when any failed (the count is printed), 2 for a usage error.
 
     \b
     Examples:
@@ -228,7 +228,7 @@ def run(method, suite, scenes, variants, ablation, seeds, iterations, overrides,
     if failed:
         click.echo(f"{failed} job(s) failed; fix the cause (error.txt in each folder) and rerun the same command "
                    f"to retry them.", err=True)
-    sys.exit(min(failed, 125))
+    sys.exit(1 if failed else 0)  # not the count: 2 is click's usage error
 
 
 def _write_pending(jobs) -> None:
