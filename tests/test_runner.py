@@ -169,8 +169,9 @@ def test_cli_run_skips_done_jobs_and_exits_with_1_when_jobs_fail(data, tmp_path,
     args = ["run", "--method", "trivial", "--suite", "tiny", "--data-root", str(data), "--out",
             str(tmp_path / "runs"), "--quiet", "--device", "cpu"]
     result = runner.invoke(main, [*args, "--variant", "fails", "--variant", "default"])
-    assert result.exit_code == 1, result.output  # not the count (2 failed here), which is click's usage error
-    assert "2 job(s) failed" in result.output and "FAILED Alpha/fails/seed0" in result.output and "error.txt" in result.output
+    assert result.exit_code == 1, result.output  # not the count (2 failed here): 2 is click's usage error
+    assert "2 job(s) failed" in result.output and "FAILED Alpha/fails/seed0" in result.output
+    assert "error.txt" in result.output
     assert "rerun the same command" in result.output
     done = tmp_path / "runs" / "tiny" / "trivial" / "default" / "Alpha" / "seed0" / "results.json"
     stamp = done.stat().st_mtime_ns
