@@ -183,7 +183,7 @@ def test_gs3_lowers_the_loss_and_renders_its_components(views) -> None:
     register("gs3", GS3)
     method = make_gs3(views)
     before = mean_l1(method, views)
-    for step in range(25):
+    for step in range(60):  # the loss rises over the first ~10 steps from opacity 0.1, then falls (0.099 -> 0.038)
         method.train_step(step)
     assert mean_l1(method, views) < 0.8 * before
     out = method.render(views.cameras[0], views.lights[0])
