@@ -179,7 +179,7 @@ def test_test_time_refinement_recovers_a_perturbed_pose_and_light_with_the_model
     from olatbench.gaussians.refinement import so3_exp
 
     views = sphere_views(6, size=32, seed=1)
-    method = make(views, refine_camera=True, refine_light=True, test_time_refinement=True, test_time_steps=100)
+    method = make(views, refine_camera=True, refine_light=True, test_time_refinement=True, test_time_steps=200)
     for step in range(40):
         method.train_step(step)
     camera, light = views.cameras[0], views.lights[0]
