@@ -20,6 +20,7 @@ from olatbench.bench.jobs import Job, code_hash, config_to_dict, data_manifest_h
 from olatbench.bench.store import job_folder
 from olatbench.datasets.errors import DatasetError
 from olatbench.datasets.suites import Suite, get_suite
+from olatbench.methods.overrides import OverrideError, check_overrides
 from olatbench.methods.registry import config_class, get_spec
 from olatbench.methods.spec import DEFAULT_VARIANT, MethodSpec, import_reference, preset_overrides
 
@@ -69,10 +70,7 @@ def resolve_config(spec: MethodSpec, suite: Suite, variant: str = DEFAULT_VARIAN
     """The method's config for one suite and variant (resolution order in the module docstring)."""
     config_type = config_class(spec)
     field_names = {f.name for f in fields(config_type)}
-    unknown = sorted(set(overrides or {}) - field_names)
-    if unknown:
-        raise PlanError(f"method '{spec.name}' has no config field {', '.join(unknown)}; its fields: "
-                        f"{', '.join(sorted(field_names))}. See: olatbench methods show {spec.name}")
+    overrides = checked_overrides(spec, overrides)
     values: dict[str, Any] = {}
     if "iterations" in field_names:
         values["iterations"] = suite.iterations
@@ -88,9 +86,19 @@ def resolve_config(spec: MethodSpec, suite: Suite, variant: str = DEFAULT_VARIAN
         raise PlanError(f"method '{spec.name}', variant '{variant}': {error}") from None
 
 
+def checked_overrides(spec: MethodSpec, overrides: dict[str, Any] | None) -> dict[str, Any]:
+    """``overrides`` fitted to the types of the method's config fields (`olatbench.methods.overrides`); an
+    unknown field or a value that does not fit is one `PlanError` naming the field, value and accepted form."""
+    try:
+        return check_overrides(config_class(spec), overrides or {}, spec.name)
+    except OverrideError as error:
+        raise PlanError(str(error)) from None
+
+
 def parse_overrides(items: Sequence[str]) -> dict[str, Any]:
     """``["key=value", ...]`` -> {key: value}; values are read as JSON (``true``, ``50``, ``[1, 1, 1]``),
-    anything that is not JSON stays a string (``shadow_mode=density``)."""
+    anything that is not JSON stays a string (``shadow_mode=density``, ``use_sss=False``); the plan then fits
+    each to its field's type (`checked_overrides`)."""
     overrides: dict[str, Any] = {}
     for item in items:
         key, sep, text = item.partition("=")
@@ -200,6 +208,7 @@ def make_plan(method: str, suite: str | Suite, out: str | Path, scenes: Sequence
     variant_names = expand_variants(spec, variants, ablation)
     scene_names = resolve_scenes(suite, scenes)
     root = resolve_data_root(suite, data_root, scene_names, generate=generate, progress=progress)
+    overrides = checked_overrides(spec, overrides)  # typed before they name the variant: use_sss=False -> false
     code = code_hash(spec.implementation)  # located, not imported: dry runs need no torch
     configs = {variant: config_to_dict(resolve_config(spec, suite, variant, iterations, overrides))
                for variant in variant_names}
