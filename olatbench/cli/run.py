@@ -82,7 +82,8 @@ def _metric(metrics: dict, key: str) -> str:
 @click.option("--iterations", type=int, help="Training iterations (the method scales its schedule).")
 @click.option("--set", "overrides", multiple=True, metavar="KEY=VALUE",
               help="Override one config field of every job (repeatable; checked against the field's type: "
-                   "true/false, 50, 0.5, [1,1,1], null, text). The overrides join the variant's name, so such runs get their own folders. Fields: "
+                   "true/false, 50, 0.5, [1,1,1], null, text). The overrides join the variant's name, so such "
+                   "runs get their own folders. Fields: "
                    "olatbench methods show METHOD.")
 @click.option("--resolution", help="Image size WIDTHxHEIGHT (default: the suite's, else native).")
 @click.option("--data-root", type=click.Path(file_okay=False, path_type=Path),
