@@ -84,6 +84,7 @@ def test_calibration_is_stored_per_machine_and_job(data, tmp_path, monkeypatch):
     assert stored[cost_key(job)] == cost and len(stored) == 2
 
 
+@pytest.mark.slow  # a timed test: it needs a machine no other process is loading (run with -m slow)
 def test_estimate_is_within_30_percent_of_a_measured_run(data, tmp_path):
     """Calibrate a tiny SSD-GS job, estimate it, train it: the training time is within ±30 % of the estimate.
     Calibration and run are measured back to back; a machine shared with other work can still disturb one of
