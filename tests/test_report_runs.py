@@ -206,6 +206,42 @@ def test_ablation_tables_from_runs(tmp_path):
     assert grid.cell("PSNR ↑", ("H: Joint", "Test"), "Average").marks == ("d",)  # no Lego run
 
 
+def test_ablation_cells_carry_seed_spread_and_significance(tmp_path):
+    """Mean ± sample std over seeds; "s" only where |Δ| to the full model exceeds 2 × pooled std."""
+    root = tmp_path / "runs"
+    psnrs = {"ablation-D": (30.0, 30.2, 29.8), "ablation-A": (25.0, 25.2, 24.8),  # Δ = 5, std 0.2: real
+             "ablation-E": (29.9, 30.3, 29.5), "schedule-I": (30.0, 30.2, 29.8),  # Δ = 0.1, std 0.4: noise
+             "schedule-H": (29.0, 29.2, 28.8)}  # Δ = 1.0 > 2 × 0.2: real
+    for variant, values in psnrs.items():
+        for seed, psnr in enumerate(values):
+            write_run(root, "ssdgs", variant, "nrhints", "Pixiu", seed, metric_values(psnr))
+    table = ablation_table(collect(root), metrics=["psnr"], splits=["test"])
+    full = table.cell(None, ("D: Full (Ours)",), "Test Set/PSNR ↑")
+    assert full.number == pytest.approx(30.0) and full.std == pytest.approx(np.std((30.0, 30.2, 29.8), ddof=1))
+    assert full.marks == ()  # the reference itself is not tested
+    assert table.cell(None, ("A: Diff",), "Test Set/PSNR ↑").marks == ("s",)
+    assert table.cell(None, ("E: Full - S",), "Test Set/PSNR ↑").marks == ("n",)
+    assert table.cell(None, ("H: Joint",), "Test Set/PSNR ↑").marks == ("s",)  # against I, not D
+    assert any("seed noise" in line for line in table.footnotes)
+    for variant in ("ablation-D", "ablation-A"):  # a second scene: the Average is tested on per-seed averages
+        for seed, psnr in enumerate((20.0, 20.1, 19.9)):
+            write_run(root, "ssdgs", variant, "gs3", "Lego", seed, metric_values(psnr))
+    grid = ablation_table(collect(root), metrics=["psnr"], splits=["test"])
+    average = grid.cell("PSNR ↑", ("A: Diff", "Test"), "Average")
+    assert average.number == pytest.approx((25.0 + 20.0) / 2) and average.marks == ("s",)
+    per_seed = [(25.0 + 20.0) / 2, (25.2 + 20.1) / 2, (24.8 + 19.9) / 2]
+    assert average.std == pytest.approx(np.std(per_seed, ddof=1))
+
+
+def test_ablation_single_seed_has_no_significance_mark(tmp_path):
+    root = tmp_path / "runs"
+    for variant, psnr in (("ablation-A", 20.0), ("ablation-D", 33.0)):
+        write_run(root, "ssdgs", variant, "nrhints", "Pixiu", 0, metric_values(psnr))
+    table = ablation_table(collect(root), metrics=["psnr"], splits=["test"])
+    cell = table.cell(None, ("A: Diff",), "Test Set/PSNR ↑")
+    assert cell.marks == () and cell.std is None
+
+
 def latex_balance_problems(text: str) -> list[str]:
     """Unbalanced braces, environments or inline math, and tabular rows with the wrong number of cells."""
     problems = []

@@ -16,8 +16,9 @@ never ranked.
 from __future__ import annotations
 
 import math
+import statistics
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import pandas as pd
 
@@ -31,12 +32,23 @@ from olatbench.reports.layouts import (
 from olatbench.reports.model import Cell, Table
 from olatbench.reports.published import VARIANT_LABELS, lookup, normalise_name, paper_method
 
+#: An ablation cell's difference from the full model counts as significant when it exceeds this many
+#: pooled sample standard deviations over seeds (a two-sided 5 % t-test with 3 + 3 seeds needs
+#: t(0.975, 4) · √(2/3) ≈ 2.3; 2 is the usual rule of thumb and errs towards calling an effect real).
+SIGNIFICANCE_FACTOR = 2.0
+#: The full model each ablation set is compared with.
+ABLATION_REFERENCES = {"composition": "ablation-D", "schedule": "schedule-I"}
+
 NOTE_TEXTS = {
     "a": "the run failed (see the failures listed below and the job's error.txt)",
     "b": "no run found for this cell",
     "c": "mean over the finished seeds only (others failed or are missing); an average marked c includes such a scene",
     "d": "average not computed: at least one scene has no value",
     "e": "the run did not compute this metric (null in results.json, e.g. LPIPS weights missing)",
+    "s": (f"differs from the full model (D; I for schedules) by more than {SIGNIFICANCE_FACTOR:g}× the pooled "
+          "sample std over seeds: the effect exceeds seed noise"),
+    "n": (f"differs from the full model (D; I for schedules) by at most {SIGNIFICANCE_FACTOR:g}× the pooled "
+          "sample std over seeds: within seed noise"),
 }
 ABLATION_PREFIXES = ("ablation-", "schedule-")
 
@@ -136,7 +148,7 @@ class RunCells:
              note: bool = True) -> Cell:
         """Mean over seeds of one (row, scene, split, metric), marked when anything is missing.
 
-        ``with_std`` adds the population std over seeds; ``note=False`` leaves no footnote mark (for cells
+        ``with_std`` adds the sample std over seeds (ddof=1); ``note=False`` leaves no footnote mark (for cells
         only used inside an average).
         """
         mark = self.notes.mark if note else (lambda letter: ())
@@ -151,8 +163,16 @@ class RunCells:
                 return Cell(None, marks=mark("a"))
             return Cell(None, marks=mark("e" if not values.empty else "b"))
         complete = self._complete(row, scene, split, metric)
-        std = float(numbers.std(ddof=0)) if with_std and len(numbers) > 1 else None
+        std = float(numbers.std(ddof=1)) if with_std and len(numbers) > 1 else None
         return Cell(float(numbers.mean()), std=std, marks=() if complete else mark("c"))
+
+    def seed_values(self, row: str, scenes: Sequence[str], split: str, metric: str) -> dict[int, float]:
+        """Per seed, the mean over ``scenes`` of one (row, split, metric); seeds missing a scene are left out."""
+        done = self.frame[(self.frame["row"] == row) & (self.frame["status"] == "done")
+                          & (self.frame["split"] == split) & (self.frame["metric"] == metric)].dropna(subset=["value"])
+        done = done[done["scene"].map(normalise_name).isin({normalise_name(scene) for scene in scenes})]
+        per_seed = done.groupby("seed")["value"].agg(["mean", "count"])
+        return {int(seed): float(mean) for seed, (mean, count) in per_seed.iterrows() if count == len(scenes)}
 
     def average(self, row: str, scenes: Sequence[str], split: str, metric: str, with_std: bool = False) -> Cell:
         """Mean (± population std) over scenes of the per-scene means; "—" unless every scene has a value."""
@@ -340,10 +360,52 @@ def overview_table(frame: pd.DataFrame, *, suite: str | None = None, methods: Se
     return table
 
 
+def significance_mark(values: Sequence[float], reference: Sequence[float]) -> str | None:
+    """"s" when |mean(values) − mean(reference)| > `SIGNIFICANCE_FACTOR` × pooled sample std, else "n".
+
+    The pooled std is sqrt((s_a² + s_b²) / 2) of the two sample stds (ddof=1); None when either side has
+    fewer than two seeds (no spread to compare with).
+    """
+    if len(values) < 2 or len(reference) < 2:
+        return None
+    pooled = math.sqrt((statistics.variance(values) + statistics.variance(reference)) / 2)
+    difference = abs(statistics.fmean(values) - statistics.fmean(reference))
+    return "s" if difference > SIGNIFICANCE_FACTOR * pooled else "n"
+
+
+def _mark_significance(cells: dict, run_cells: RunCells, rows: Sequence[str], sets: Mapping[str, str],
+                       columns: Sequence[Sequence[str]], splits: Sequence[str], metrics: Sequence[str]) -> None:
+    """Append "s"/"n" to each ablation cell against its set's full model (no mark without seed spread).
+
+    ``columns`` maps each printed column (a scene or "Average") to the scenes it averages, so an
+    Average cell is tested on the per-seed averages over scenes.
+    """
+    references = {row_set: row for row in rows for row_set, variant in ABLATION_REFERENCES.items()
+                  if run_cells.source[row][1] == variant}
+    for row in rows:
+        reference = references.get(sets[row])
+        if reference is None or reference == row:
+            continue
+        for column, scenes in columns:
+            for split in splits:
+                for metric in metrics:
+                    mark = significance_mark(list(run_cells.seed_values(row, scenes, split, metric).values()),
+                                             list(run_cells.seed_values(reference, scenes, split, metric).values()))
+                    cell = cells[(row, column, split, metric)]
+                    if mark is not None and cell.number is not None:
+                        cells[(row, column, split, metric)] = replace(cell, marks=(*cell.marks,
+                                                                                   *run_cells.notes.mark(mark)))
+
+
 def ablation_table(frame: pd.DataFrame, *, suite: str | None = None, method: str = "ssdgs",
                    metrics: Sequence[str] = ("psnr", "ssim", "lpips"), splits: Sequence[str] = ("train", "test"),
                    seeds: str = "mean", published: bool = False) -> Table:
-    """Compositions A–F and schedules H–K as rows: Table 2 for one scene, the appendix layout for several."""
+    """Compositions A–F and schedules H–K as rows: Table 2 for one scene, the appendix layout for several.
+
+    Cells are mean ± sample std over seeds (an Average: the std of the per-seed averages over scenes);
+    with two or more seeds on both sides each cell is marked "s" or "n" by `significance_mark` against
+    its set's full model (`ABLATION_REFERENCES`).
+    """
     selected = frame[(frame["method"] == method) & frame["variant"].str.startswith(ABLATION_PREFIXES)]
     if suite is not None:
         selected = selected[selected["suite"] == suite]
@@ -364,7 +426,19 @@ def ablation_table(frame: pd.DataFrame, *, suite: str | None = None, method: str
         for scene in scenes:
             for split in splits:
                 for metric in metrics:
-                    cells[(row, scene, split, metric)] = run_cells.cell(row, scene, split, metric)
+                    cells[(row, scene, split, metric)] = run_cells.cell(row, scene, split, metric, with_std=True)
+    columns = [(scene, [scene]) for scene in scenes]
+    if len(scenes) > 1:
+        for row in rows:
+            for split in splits:
+                for metric in metrics:
+                    average = run_cells.average(row, scenes, split, metric)
+                    per_seed = list(run_cells.seed_values(row, scenes, split, metric).values())
+                    if average.number is not None and len(per_seed) > 1:  # spread of the per-seed averages
+                        average = replace(average, std=statistics.stdev(per_seed))
+                    cells[(row, "Average", split, metric)] = average
+        columns.append(("Average", scenes))
+    _mark_significance(cells, run_cells, rows, sets, columns, splits, metrics)
     if len(scenes) == 1:
         scene = scenes[0]
         if published:
@@ -373,10 +447,6 @@ def ablation_table(frame: pd.DataFrame, *, suite: str | None = None, method: str
                                       caption=f"Ablation study on {scene}.", protocol=protocol, rank_sets=sets,
                                       rule_before=[rows.index(r) for r in first_schedule])
     else:
-        for row in rows:
-            for split in splits:
-                for metric in metrics:
-                    cells[(row, "Average", split, metric)] = run_cells.average(row, scenes, split, metric)
         if published:
             scene_suites = dict(zip(selected["scene"], selected["suite"], strict=True))
             rows = _add_published(cells, rows, run_cells, scene_suites,
