@@ -60,6 +60,7 @@ def test_end_to_end_layout_and_results(data, tmp_path):
     assert results["resources"]["peak_rss_mb"] > 50 and results["resources"]["cuda_peak_mb"] is None
     assert results["versions"]["torch"] == torch.__version__
     assert results["hashes"]["data_manifest"] == jobs[0].data_manifest
+    assert results["hashes"]["data_matches_reference"] is None  # not the mini suite
     for split, count in (("train", 4), ("test", 2)):
         renders = sorted((folder / "renders" / split).glob("*.png"))
         assert len(renders) == count

@@ -44,6 +44,7 @@ from olatbench.datasets import colour, load_scene
 from olatbench.datasets.formats._common import safe_file_stem
 from olatbench.datasets.images import write_image
 from olatbench.datasets.records import Frame
+from olatbench.datasets.synth.mini import data_matches_reference
 from olatbench.methods.base import Method, Views
 
 LOG_FILE = "log.txt"
@@ -395,7 +396,8 @@ def _base_results(job: Job, status: str) -> dict[str, Any]:
         "resources": {"device": job.device, "peak_rss_mb": round(peak_rss_mb(), 1), "cuda_peak_mb": None},
         "model": {"iterations": job.iterations, "num_gaussians": None},
         "versions": library_versions(),
-        "hashes": {"data_manifest": job.data_manifest, "config": hash_json(job.config), "code": job.code},
+        "hashes": {"data_manifest": job.data_manifest, "config": hash_json(job.config), "code": job.code,
+                   "data_matches_reference": data_matches_reference(job.scene_path) if job.suite == "mini" else None},
         "evaluation": {"test_time_refinement": None},
         "error": None,
     }

@@ -14,7 +14,7 @@ Schema version 1 (every key present; unknown values are ``null``)::
       "resources": {"device": str, "peak_rss_mb": float, "cuda_peak_mb": float | null},
       "model": {"iterations": int, "num_gaussians": int | null},
       "versions": {"olatbench": str, "python": str, "numpy": str, "torch": str | null, ...},
-      "hashes": {"data_manifest": str, "config": str, "code": str},
+      "hashes": {"data_manifest": str, "config": str, "code": str, "data_matches_reference": bool | null},
       "evaluation": {"test_time_refinement": null | {"split": str, "seconds": float,
                                                      "frames": {"<frame_id>": {"loss_before": ..., ...}}}},
       "error": null | {"type": str, "message": str}
@@ -22,7 +22,8 @@ Schema version 1 (every key present; unknown values are ``null``)::
 
 ``evaluation.test_time_refinement`` is set when the method fitted each test view's pose/light to its image
 before scoring it (e.g. SSD-GS ``test_time_refinement=true``); files written before it existed lack the key,
-which reads as ``null``.
+which reads as ``null``. ``hashes.data_matches_reference`` (``mini`` only, else ``null``; absent in older
+files) says whether the scene's files are byte-identical to the package's reference renders.
 
 Metric keys: ``psnr`` (dB), ``ssim``, ``lpips`` (the protocol's primary network), and optionally
 ``lpips_alex`` / ``lpips_vgg``. Splits are ``train`` and ``test`` (and ``val`` when present).
@@ -86,6 +87,7 @@ class Hashes(TypedDict):
     data_manifest: str | None
     config: str
     code: str
+    data_matches_reference: NotRequired[bool | None]  # mini only: data identical to the packaged reference
 
 
 class Evaluation(TypedDict):

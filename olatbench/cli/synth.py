@@ -23,6 +23,28 @@ def _resolution(value: str | None) -> tuple[int, int] | None:
     return size
 
 
+def _report_reference(root: Path, write: bool) -> None:
+    """Print each mini scene's comparison with the packaged reference (or replace the reference)."""
+    import json
+    import platform
+
+    from olatbench.datasets.synth.mini import MANIFEST, MINI_SCENES, compare_with_reference
+    from olatbench.datasets.synth.reference import load_reference, write_reference
+
+    if write:
+        synth_info = json.loads((root / MINI_SCENES[0] / "synth.json").read_text(encoding="utf-8"))
+        scenes = {name: json.loads((root / name / MANIFEST).read_text(encoding="utf-8"))["files"]
+                  for name in MINI_SCENES}
+        path = write_reference(root, scenes, {
+            "generator_version": synth_info["generator_version"], "mitsuba_version": synth_info["mitsuba_version"],
+            "mitsuba_variant": synth_info["mitsuba_variant"],
+            "made_on": f"{platform.machine()} {platform.system()} ({platform.processor() or 'cpu'})"})
+        click.echo(f"wrote the reference to {path}")
+    reference = load_reference()
+    for name in MINI_SCENES:
+        click.echo(compare_with_reference(root / name, reference).summary(reference))
+
+
 @click.command()
 @click.option("--recipe", "recipe_name", default=None, metavar="NAME|FILE",
               help="A built-in recipe (see --list) or a recipe JSON file.")
@@ -39,10 +61,13 @@ def _resolution(value: str | None) -> tuple[int, int] | None:
               help="Test cameras new (novel views) or drawn from the training cameras (default: the recipe's).")
 @click.option("--no-geometry", is_flag=True, help="Skip the diagnostic geometry pass.")
 @click.option("--mini", is_flag=True, help="Render (or verify) the mini suite instead of one recipe.")
+@click.option("--write-reference", is_flag=True,
+              help="With --mini, for maintainers: make this machine's mini renders the packaged reference "
+                   "(after a generator or Mitsuba pin change; commit the result).")
 @click.option("--list", "list_recipes", is_flag=True, help="List the built-in recipes and exit.")
 def synth(recipe_name: str | None, fmt: str, out_dir: Path | None, res: str | None, spp: int | None,
           n_train: int | None, n_test: int | None, seed: int | None, novel_views: bool | None, no_geometry: bool,
-          mini: bool, list_recipes: bool) -> None:
+          mini: bool, write_reference: bool, list_recipes: bool) -> None:
     """Render a synthetic OLAT scene with Mitsuba 3 (needs: pip install 'olatbench[synth]').
 
     \b
@@ -50,6 +75,9 @@ def synth(recipe_name: str | None, fmt: str, out_dir: Path | None, res: str | No
       olatbench datasets synth --recipe aniso_metal --out data/synth/aniso_metal
       olatbench datasets synth --recipe my_recipe.json --format gs3 --out data/synth/mine --res 128 --spp 256
       olatbench datasets synth --mini                # the mini suite into ~/.cache/olatbench/mini
+
+    With --mini each scene is compared with the packaged reference renders and the command says whether
+    this machine's data is identical to them (and if not, which files differ and by how much).
     """
     from olatbench.datasets.synth.backend import MitsubaMissing
     from olatbench.datasets.synth.recipe import RECIPES, get_recipe, recipe_names
@@ -65,9 +93,12 @@ def synth(recipe_name: str | None, fmt: str, out_dir: Path | None, res: str | No
         if mini:
             from olatbench.datasets.synth.mini import ensure_mini_suite
 
-            root = ensure_mini_suite(out_dir, progress=True)
+            root = ensure_mini_suite(out_dir, progress=True, compare=not write_reference)
+            _report_reference(root, write_reference)
             click.echo(f"mini suite ready in {root}. Next: olatbench run --method ssdgs --suite mini")
             return
+        if write_reference:
+            raise click.UsageError("--write-reference needs --mini")
         if recipe_name is None or out_dir is None:
             raise click.UsageError("give --recipe and --out (or --mini, or --list)")
         from olatbench.datasets.synth.generate import generate

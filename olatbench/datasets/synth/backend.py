@@ -4,14 +4,18 @@ Mitsuba is optional (``pip install 'olatbench[synth]'``) and imported only here,
 The variant is ``llvm_ad_rgb`` when a probe renders a tiny scene with it in a *subprocess* (a
 mismatched libLLVM aborts the whole process, which must not take the caller down), else
 ``scalar_rgb``; ``OLATBENCH_MITSUBA_VARIANT`` overrides the probe. The result is cached per process.
+`pinned_variant` fixes the variant for a block (the ``mini`` suite renders with ``scalar_rgb`` everywhere,
+so its pixels do not depend on whether a machine has LLVM); the environment variable still wins.
 """
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import os
 import subprocess
 import sys
+from collections.abc import Iterator
 from pathlib import Path
 from types import ModuleType
 
@@ -63,12 +67,30 @@ def probe_variant() -> str:
     return "llvm_ad_rgb" if works else "scalar_rgb"
 
 
+_pinned: list[str] = []
+
+
+@contextlib.contextmanager
+def pinned_variant(variant: str) -> Iterator[None]:
+    """Render with ``variant`` inside the block unless ``$OLATBENCH_MITSUBA_VARIANT`` names another."""
+    _pinned.append(variant)
+    try:
+        yield
+    finally:
+        _pinned.pop()
+
+
+def active_variant() -> str:
+    """``$OLATBENCH_MITSUBA_VARIANT``, else the innermost `pinned_variant`, else `probe_variant`."""
+    return os.environ.get(VARIANT_ENV) or (_pinned[-1] if _pinned else probe_variant())
+
+
 def mitsuba() -> ModuleType:
-    """The ``mitsuba`` module with the probed variant set (raises `MitsubaMissing` without it)."""
+    """The ``mitsuba`` module with the active variant set (raises `MitsubaMissing` without it)."""
     mi = _import_mitsuba()
-    variant = probe_variant()
+    variant = active_variant()
     if variant not in mi.variants():
-        raise ValueError(f"Mitsuba variant {variant!r} (from ${VARIANT_ENV} or the probe) is not available; "
+        raise ValueError(f"Mitsuba variant {variant!r} (from ${VARIANT_ENV}, a pin or the probe) is not available; "
                          f"this build has {', '.join(mi.variants())}")
     if mi.variant() != variant:
         mi.set_variant(variant)

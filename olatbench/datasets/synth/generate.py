@@ -19,7 +19,7 @@ import numpy as np
 from olatbench.atomic import write_json
 from olatbench.datasets.errors import DatasetError
 from olatbench.datasets.records import Frame, Scene
-from olatbench.datasets.synth.backend import mitsuba, probe_variant
+from olatbench.datasets.synth.backend import active_variant, mitsuba
 from olatbench.datasets.synth.geometry import write_geometry
 from olatbench.datasets.synth.meshes import TriangleMesh
 from olatbench.datasets.synth.recipe import Recipe
@@ -62,7 +62,7 @@ def render_recipe(recipe: Recipe, root: Path | None = None, progress: bool = Tru
     from tqdm.auto import tqdm
 
     renderer = SceneRenderer(recipe)
-    variant = probe_variant()
+    variant = active_variant()
     centre = renderer.mesh.bounding_sphere()[0]
     rig = make_rig(recipe, centre)
     frames: dict[str, list[Frame]] = {}

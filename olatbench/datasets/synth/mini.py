@@ -6,6 +6,10 @@ folder carries a ``manifest.json`` with the recipe and the sha256 of every file;
 when its recipe is today's and every hash matches, otherwise it is rendered again. Scenes are rendered
 into a temporary sibling folder and renamed into place, so an interruption never leaves half a scene;
 a lock file serialises concurrent callers (several runner processes may start at once).
+
+The suite renders with Mitsuba's ``scalar_rgb`` variant on every machine (`MINI_VARIANT`), and each
+scene is compared with the packaged reference (`olatbench.datasets.synth.reference`): the log says
+whether this machine's data is identical to the reference, and `data_matches_reference` tells the runner.
 """
 
 from __future__ import annotations
@@ -21,10 +25,15 @@ from pathlib import Path
 from typing import Any
 
 from olatbench.atomic import write_json
+from olatbench.datasets.synth.backend import pinned_variant
 from olatbench.datasets.synth.generate import GENERATOR_VERSION, generate
 from olatbench.datasets.synth.recipe import RECIPES, Recipe
+from olatbench.datasets.synth.reference import SceneComparison, compare_scene, load_reference
 
 MINI_SCENES = ("diffuse_shadow", "aniso_metal", "translucent")
+#: The Mitsuba variant of the mini suite everywhere: ``llvm_ad_rgb`` (where a machine has LLVM) renders
+#: other pixels than ``scalar_rgb``, so a probed variant would make the data depend on the machine.
+MINI_VARIANT = "scalar_rgb"
 MANIFEST = "manifest.json"
 log = logging.getLogger(__name__)
 
@@ -92,7 +101,8 @@ def render_mini_scene(root: Path, name: str, recipe: Recipe, progress: bool = Tr
     final = root / name
     partial = root / f".{name}.partial"
     shutil.rmtree(partial, ignore_errors=True)
-    generate(recipe, partial, "nrhints", progress=progress)
+    with pinned_variant(MINI_VARIANT):
+        generate(recipe, partial, "nrhints", progress=progress)
     write_json(partial / MANIFEST, {**_expected_header(recipe), "files": file_hashes(partial)})
     if final.exists():
         stale = root / f".{name}.stale"
@@ -104,13 +114,17 @@ def render_mini_scene(root: Path, name: str, recipe: Recipe, progress: bool = Tr
 
 
 def ensure_mini_suite(root: Path | None = None, progress: bool = True,
-                      recipes: dict[str, Recipe] | None = None, scenes: Sequence[str] | None = None) -> Path:
+                      recipes: dict[str, Recipe] | None = None, scenes: Sequence[str] | None = None,
+                      compare: bool = True) -> Path:
     """Make sure the mini suite exists and is intact below ``root`` (default `default_root`); return ``root``.
 
     ``scenes``: only these (default: all), so a run on one scene renders one. ``recipes`` replaces the
     suite's recipes (tests use tiny ones); scenes are re-rendered when missing, changed or corrupt.
+    ``compare``: log each built-in scene's comparison with the packaged reference (off only while
+    writing a new reference).
     """
     root = Path(root) if root is not None else default_root()
+    recipes_are_builtin = recipes is None
     recipes = mini_recipes() if recipes is None else recipes
     if scenes is not None:
         unknown = sorted(set(scenes) - set(recipes))
@@ -125,4 +139,37 @@ def ensure_mini_suite(root: Path | None = None, progress: bool = True,
             if (root / name).exists():
                 log.warning("mini suite: re-rendering %s (%s)", root / name, reason)
             render_mini_scene(root, name, recipe, progress=progress)
+    if compare and recipes_are_builtin:
+        reference = load_reference()
+        for name in recipes:
+            comparison = compare_with_reference(root / name, reference)
+            (log.info if comparison.identical else log.warning)("%s", comparison.summary(reference))
     return root
+
+
+def _manifest_files(folder: Path) -> dict[str, str] | None:
+    try:
+        return json.loads((Path(folder) / MANIFEST).read_text(encoding="utf-8"))["files"]
+    except (OSError, ValueError, KeyError):
+        return None
+
+
+def compare_with_reference(folder: Path, reference: dict[str, Any] | None = None) -> SceneComparison:
+    """A rendered mini scene (``folder``, named after its scene, with its manifest) against the reference."""
+    files = _manifest_files(folder)
+    if files is None:
+        raise FileNotFoundError(f"{Path(folder) / MANIFEST}: no readable manifest; render the scene first")
+    return compare_scene(Path(folder), Path(folder).name, files, reference)
+
+
+def data_matches_reference(folder: str | Path) -> bool | None:
+    """Whether a mini scene's files are byte-identical to the packaged reference (None: not a mini scene).
+
+    Reads the scene's manifest (hashes written when it was rendered and checked on every use), so it
+    costs one small JSON read.
+    """
+    folder = Path(folder)
+    files = _manifest_files(folder)
+    if folder.name not in MINI_SCENES or files is None:
+        return None
+    return compare_scene(folder, folder.name, files).identical

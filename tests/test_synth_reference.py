@@ -1,0 +1,104 @@
+"""The mini suite's packaged reference: byte identity, pixel differences, the variant pin, the runner's flag."""
+
+from __future__ import annotations
+
+import json
+
+import cv2
+import numpy as np
+import pytest
+
+from olatbench.datasets.synth import backend
+from olatbench.datasets.synth.mini import (
+    MANIFEST,
+    MINI_SCENES,
+    MINI_VARIANT,
+    compare_with_reference,
+    data_matches_reference,
+    ensure_mini_suite,
+    file_hashes,
+)
+from olatbench.datasets.synth.recipe import RECIPES
+from olatbench.datasets.synth.reference import compare_scene, load_reference, reference_root, write_reference
+
+pytest.importorskip("mitsuba")
+
+
+@pytest.fixture()
+def tiny_suite(tmp_path, monkeypatch):
+    """A one-scene 'mini' suite of a tiny diffuse_shadow recipe and a reference made from it."""
+    monkeypatch.delenv(backend.VARIANT_ENV, raising=False)
+    recipe = RECIPES["diffuse_shadow"].with_overrides(resolution=(24, 24), spp=4, train=3, test=2, max_depth=2)
+    root = ensure_mini_suite(tmp_path / "mini", progress=False, recipes={"diffuse_shadow": recipe})
+    files = json.loads((root / "diffuse_shadow" / MANIFEST).read_text())["files"]
+    write_reference(root, {"diffuse_shadow": files}, {"generator_version": 0, "mitsuba_version": "x",
+                                                      "mitsuba_variant": MINI_VARIANT, "made_on": "test"},
+                    out=tmp_path / "reference")
+    return root / "diffuse_shadow", tmp_path / "reference"
+
+
+def test_identical_scene_and_rendering_again_gives_the_same_bytes(tiny_suite, tmp_path):
+    scene, reference_dir = tiny_suite
+    reference = load_reference(reference_dir)
+    assert reference["scenes"]["diffuse_shadow"]["samples"] == ["train/r_0000.png", "train/r_0001.png",
+                                                                "test/r_0000.png", "test/r_0001.png"]
+    comparison = compare_scene(scene, "diffuse_shadow", file_hashes(scene), reference, root=reference_dir)
+    assert comparison.identical and "identical to the reference" in comparison.summary(reference)
+    again = ensure_mini_suite(tmp_path / "again", progress=False, recipes={"diffuse_shadow": RECIPES[
+        "diffuse_shadow"].with_overrides(resolution=(24, 24), spp=4, train=3, test=2, max_depth=2)})
+    assert compare_scene(again / "diffuse_shadow", "diffuse_shadow", file_hashes(again / "diffuse_shadow"),
+                         reference, root=reference_dir).identical  # deterministic on one machine
+
+
+def test_differences_name_the_files_and_measure_the_pixels(tiny_suite):
+    scene, reference_dir = tiny_suite
+    reference = load_reference(reference_dir)
+    image = cv2.imread(str(scene / "test/r_0001.png"), cv2.IMREAD_UNCHANGED)
+    image[5, 7, 0] = np.uint8(min(int(image[5, 7, 0]) + 51, 255) if image[5, 7, 0] < 200 else image[5, 7, 0] - 51)
+    cv2.imwrite(str(scene / "test/r_0001.png"), image)
+    (scene / "train/r_0002.png").unlink()
+    comparison = compare_scene(scene, "diffuse_shadow", file_hashes(scene), reference, root=reference_dir)
+    assert not comparison.identical
+    assert comparison.differing == ["test/r_0001.png"] and comparison.missing == ["train/r_0002.png"]
+    (difference,) = comparison.pixels
+    assert difference.max_abs == pytest.approx(51 / 255, abs=1e-6)
+    assert difference.mean_abs == pytest.approx(51 / 255 / image.size, rel=1e-4)
+    summary = comparison.summary(reference)
+    assert "NOT identical" in summary and "1 differ" in summary and "1 missing" in summary and "0.2000" in summary
+
+
+def test_mini_renders_with_the_pinned_variant_unless_the_environment_says_otherwise(monkeypatch):
+    monkeypatch.delenv(backend.VARIANT_ENV, raising=False)
+    monkeypatch.setattr(backend, "probe_variant", lambda: "llvm_ad_rgb")
+    assert backend.active_variant() == "llvm_ad_rgb"
+    with backend.pinned_variant(MINI_VARIANT):
+        assert backend.active_variant() == "scalar_rgb"
+        monkeypatch.setenv(backend.VARIANT_ENV, "llvm_ad_rgb")
+        assert backend.active_variant() == "llvm_ad_rgb"  # an explicit choice wins, and shows in the comparison
+
+
+def test_packaged_reference_is_complete_and_its_samples_match_its_hashes():
+    import hashlib
+
+    reference = load_reference()
+    assert set(reference["scenes"]) == set(MINI_SCENES) and reference["mitsuba_variant"] == MINI_VARIANT
+    for scene, record in reference["scenes"].items():
+        assert len(record["files"]) > 100 and len(record["samples"]) == 4
+        for relpath in record["samples"]:
+            data = (reference_root() / "mini_reference" / scene / relpath).read_bytes()
+            assert hashlib.sha256(data).hexdigest() == record["files"][relpath]
+
+
+def test_data_matches_reference_reads_the_manifest(tmp_path):
+    reference = load_reference()
+    scene = tmp_path / "aniso_metal"
+    scene.mkdir()
+    (scene / MANIFEST).write_text(json.dumps({"files": reference["scenes"]["aniso_metal"]["files"]}))
+    assert data_matches_reference(scene) is True  # hashes only: no image is read when all match
+    changed = dict(reference["scenes"]["aniso_metal"]["files"], **{"transforms_train.json": "0" * 64})
+    (scene / MANIFEST).write_text(json.dumps({"files": changed}))
+    assert data_matches_reference(scene) is False
+    assert compare_with_reference(scene).differing == ["transforms_train.json"]
+    other = tmp_path / "Pixiu"
+    other.mkdir()
+    assert data_matches_reference(other) is None  # not a mini scene
