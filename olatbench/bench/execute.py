@@ -94,6 +94,10 @@ def run_job(job: Job, progress: bool = True, position: int = 1) -> JobOutcome:
         if not acquired:
             return JobOutcome(job.id, job.label, str(folder), "skipped", error="running in another process")
         try:
+            if job.official is not None:  # the authors' code in its own process (olatbench.bench.official)
+                from olatbench.bench.official import run_official_job
+
+                return run_official_job(job, folder, log)
             return _run(job, folder, log, progress, position)
         except Exception as error:
             text = traceback.format_exc()

@@ -7,10 +7,12 @@ A job's id is a content hash of everything that decides its result:
 * the scene's data manifest (`data_manifest_hash`: every file's relative path and content hash),
 * the evaluation protocol id and version,
 * the code version (`code_hash`: olatbench's version, the method's source files and the
-  Gaussian core's sources).
+  Gaussian core's sources; for official implementations the ``olatbench/methods/official`` package, which holds
+  the pinned commit and the command lines).
 
-Settings that do not change the result (device, output folder, checkpoint cadence, executor)
-are kept out of the id, so a job moved to another machine or resumed elsewhere keeps its id.
+Settings that do not change the result (device, output folder, checkpoint cadence, executor, where an official
+implementation's checkout and environment live) are kept out of the id, so a job moved to another machine or
+resumed elsewhere keeps its id.
 """
 
 from __future__ import annotations
@@ -64,6 +66,7 @@ class Job:
     checkpoint_minutes: float = 10.0
     keep_checkpoints: int = 2
     save_components: bool = False
+    official: dict[str, Any] | None = None  # official code only: where it lives and runs (settings.CodeSettings)
     id: str = field(default="")
 
     @property

@@ -11,8 +11,8 @@ from __future__ import annotations
 
 import json
 import os
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass, fields
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
@@ -33,13 +33,15 @@ class PlanError(ValueError):
 
 @dataclass(frozen=True)
 class PlanOptions:
-    """Run settings that do not enter job ids (device, checkpoint cadence, components)."""
+    """Run settings that do not enter job ids (device, checkpoint cadence, components, where official code
+    lives)."""
 
     device: str = "cpu"
     checkpoint_every: int | None = None
     checkpoint_minutes: float = 10.0
     keep_checkpoints: int = 2
     save_components: bool = False
+    code: Mapping[str, str] = field(default_factory=dict)  # official methods: --code KEY=VALUE settings
 
 
 def expand_variants(spec: MethodSpec, variants: Sequence[str] = (), ablation: str | None = None) -> list[str]:
@@ -176,6 +178,29 @@ def _import_callable(reference: str) -> Callable[..., Any]:
     return getattr(importlib.import_module(module_name), attribute)
 
 
+def official_settings(spec: MethodSpec, options: Mapping[str, str], required: bool = True) -> dict[str, Any]:
+    """Where an official method's code lives and runs (`olatbench.methods.official.settings`: ``options``, then
+    ``olatbench.toml``, then environment variables), as job data. A code that cannot be fed olatbench's data is a
+    `PlanError` giving the reason; so are missing settings when ``required`` (not for dry runs)."""
+    from olatbench.methods.official.settings import SettingsError, env_name, resolve_settings
+
+    code = import_reference(spec.implementation)
+    if not code.runnable:
+        raise PlanError(f"method '{spec.name}' cannot be run: {code.unsupported}. See: olatbench methods show "
+                        f"{spec.name}")
+    try:
+        settings = resolve_settings(spec.name, options)
+    except SettingsError as error:
+        raise PlanError(str(error)) from None
+    problems = settings.problems()
+    if required and problems:
+        raise PlanError(f"method '{spec.name}' runs the authors' code, and where it lives is not set up: "
+                        f"{'; '.join(problems)}. Set them with --code KEY=VALUE, in olatbench.toml "
+                        f"([official.{spec.name}]) or as environment variables ({env_name(spec.name, 'checkout')}, "
+                        f"...); see docs/official.md")
+    return settings.to_json()
+
+
 def load_method_class(job: Job) -> type:
     """The class a job runs: from its import reference (works in fresh worker processes)."""
     return import_reference(job.method_ref)
@@ -205,6 +230,7 @@ def make_plan(method: str, suite: str | Suite, out: str | Path, scenes: Sequence
     from olatbench.metrics.protocols import get_protocol
 
     protocol = get_protocol(suite.protocol)
+    official = official_settings(spec, options.code, required=generate) if spec.kind == "official" else None
     variant_names = expand_variants(spec, variants, ablation)
     scene_names = resolve_scenes(suite, scenes)
     root = resolve_data_root(suite, data_root, scene_names, generate=generate, progress=progress)
@@ -228,6 +254,6 @@ def make_plan(method: str, suite: str | Suite, out: str | Path, scenes: Sequence
                           code=code, folder=str(job_folder(out, suite.name, method, label, scene, seed)),
                           device=options.device, checkpoint_every=options.checkpoint_every,
                           checkpoint_minutes=options.checkpoint_minutes, keep_checkpoints=options.keep_checkpoints,
-                          save_components=options.save_components)
+                          save_components=options.save_components, official=official)
                 jobs.append(job.with_id() if manifest is not None else job)
     return jobs

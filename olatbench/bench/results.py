@@ -25,6 +25,10 @@ before scoring it (e.g. SSD-GS ``test_time_refinement=true``); files written bef
 which reads as ``null``. ``hashes.data_matches_reference`` (``mini`` only, else ``null``; absent in older
 files) says whether the scene's files are byte-identical to the package's reference renders.
 
+Official implementations (``olatbench.bench.official``) add ``"method_kind": "official"`` and ``"official"``:
+the repository, the pinned commit and the one checked out, the launcher settings, and each command with its exit
+code and wall time (`OfficialProvenance`); their metrics hold the test split only.
+
 Metric keys: ``psnr`` (dB), ``ssim``, ``lpips`` (the protocol's primary network), and optionally
 ``lpips_alex`` / ``lpips_vgg``. Splits are ``train`` and ``test`` (and ``val`` when present).
 """
@@ -99,6 +103,26 @@ class ResultsFailure(TypedDict):
     message: str
 
 
+class OfficialCommand(TypedDict):
+    step: str
+    argv: list[str]
+    command: str  # the shell form of argv
+    cwd: str
+    exit_code: int | None  # None: did not finish (timed out)
+    seconds: float | None
+
+
+class OfficialProvenance(TypedDict):
+    repository: str | None  # "owner/name" on GitHub
+    pinned_commit: str | None  # the commit the method's spec was written against
+    status: str | None  # "verified" | "unverified" | "no public code"
+    commit: str | None  # the commit checked out when the job ran (None: not a git checkout)
+    local_changes: bool | None
+    matches_pin: bool | None
+    settings: dict[str, Any]  # checkout, launcher, timeout and where each came from
+    commands: list[OfficialCommand]
+
+
 class Results(TypedDict):
     """One results.json (schema version 1): the keys of the module docstring."""
 
@@ -114,6 +138,8 @@ class Results(TypedDict):
     hashes: NotRequired[Hashes]
     evaluation: NotRequired[Evaluation]
     error: NotRequired[ResultsFailure | None]
+    method_kind: NotRequired[Literal["native", "official", "plugin"]]  # absent: native
+    official: NotRequired[OfficialProvenance]  # official implementations only
 
 
 SCHEMA_VERSION = 1

@@ -21,6 +21,7 @@ DONE_FILE = "DONE"
 RESULTS_FILE = "results.json"
 ERROR_FILE = "error.txt"
 LOCK_FILE = ".lock"
+OFFICIAL_DIR = "official"  # an official implementation's working folder (olatbench.bench.official)
 _CHECKPOINT_NAME = re.compile(r"^step_(\d+)\.pt$")
 
 
@@ -54,7 +55,8 @@ class JobState:
     """State of one job folder.
 
     ``state``: ``done`` (DONE matches the job id), ``running`` (another process holds the job's lock),
-    ``failed``, ``partial`` (checkpoint at ``step`` of ``iterations``), ``pending`` (planned, nothing
+    ``failed``, ``partial`` (checkpoint at ``step`` of ``iterations``; for official code: started, not
+    finished, and rerun from the start), ``pending`` (planned, nothing
     trained yet), ``stale`` (the folder holds another job id than the one asked for) or ``absent``.
     """
 
@@ -98,6 +100,9 @@ def job_state(folder: str | Path, expected_id: str | None = None) -> JobState:
         return JobState(folder, "failed", job_id, step=step, iterations=iterations, message=first_line)
     if step is not None:
         return JobState(folder, "partial", job_id, step=step, iterations=iterations)
+    if job and job.get("official") is not None and (folder / OFFICIAL_DIR).is_dir():
+        return JobState(folder, "partial", job_id, iterations=iterations,
+                        message="interrupted; official scripts cannot resume: the next run restarts its commands")
     return JobState(folder, "pending", job_id, iterations=iterations)
 
 

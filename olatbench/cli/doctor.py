@@ -108,16 +108,34 @@ def run_checks() -> list[Check]:
     return results
 
 
+def official_code_checks(code: tuple[str, ...] = ()) -> list[Check]:
+    """Checks of each configured official implementation (`olatbench.methods.official.doctor`)."""
+    from olatbench.methods.official.doctor import official_checks
+    from olatbench.methods.official.settings import SettingsError, parse_code_options
+    from olatbench.methods.registry import builtin_specs
+
+    try:
+        options = parse_code_options(code)
+    except SettingsError as error:
+        return [("official implementations", False, str(error), "--code METHOD.KEY=VALUE")]
+    return official_checks(builtin_specs(), options)
+
+
 @click.command()
-def doctor() -> None:
-    """Show what this machine supports and how to fix what is missing.
+@click.option("--code", multiple=True, metavar="METHOD.KEY=VALUE",
+              help="Settings of an official implementation to check, over olatbench.toml and the environment "
+                   "(e.g. gs3-official.checkout=~/src/gs-relight; see docs/official.md).")
+def doctor(code: tuple[str, ...]) -> None:
+    """Show what this machine supports and how to fix what is missing; for each configured official
+    implementation: its checkout and commit, its interpreter, the GPU it sees.
 
     \b
     Example:
       olatbench doctor
+      olatbench doctor --code gs3-official.checkout=~/src/gs-relight --code gs3-official.conda_env=gs3
     """
     click.echo(f"olatbench on Python {platform.python_version()} ({platform.machine()})")
-    for name, ok, detail, fix in run_checks():
+    for name, ok, detail, fix in run_checks() + official_code_checks(code):
         click.echo(f"  {'ok ' if ok else 'NO '} {name:<32} {detail}")
         if fix:
             click.echo(f"      fix: {fix}")

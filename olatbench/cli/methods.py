@@ -33,6 +33,15 @@ def _kind(spec) -> str:
     return f"{spec.kind}, {spec.source.status}" if spec.source is not None else spec.kind
 
 
+def _official_code(spec):
+    """The `OfficialCode` of an official method (a torch-free import), or None."""
+    if spec.kind != "official":
+        return None
+    from olatbench.methods.spec import import_reference
+
+    return import_reference(spec.implementation)
+
+
 @methods.command("list")
 def list_methods() -> None:
     """Every method: the built-in ones, official implementations and plugins (``olatbench.methods`` entry
@@ -56,6 +65,10 @@ def list_methods() -> None:
             continue
         summary = spec.description.strip().splitlines()[0:1]
         click.echo(f"{name.ljust(width)}  [{_kind(spec)}] {summary[0] if summary else ''}")
+        code = _official_code(spec)
+        if code is not None and not code.runnable:
+            click.echo(f"{''.ljust(width)}  not runnable: {code.unsupported}")
+            continue
         click.echo(f"{''.ljust(width)}  presets: {', '.join(spec.presets) or 'none'}")
     click.echo("Details: olatbench methods show NAME")
 
@@ -94,6 +107,15 @@ def show(name: str) -> None:
         click.echo(f"source: github.com/{spec.source.repository} @ {spec.source.commit} ({spec.source.status})")
         if spec.source.verified:
             click.echo(f"verified: {spec.source.verified}")
+    code = _official_code(spec)
+    if code is not None:
+        click.echo(f"paper: {code.paper}")
+        if not code.runnable:
+            click.echo(f"not runnable: {code.unsupported}")
+            return
+        click.echo("commands (in the checkout; <launcher> = the configured python, conda run or container):")
+        for line in code.describe():
+            click.echo(f"  {line}")
     try:
         config_type = config_class(spec)
     except Exception as error:  # a plugin's config module that does not import: say so, show the rest
@@ -115,5 +137,9 @@ def show(name: str) -> None:
         click.echo(f"  {grid}: {', '.join(variants)}")
     click.echo(f"outputs: {', '.join(spec.outputs)}")
     click.echo(f"capabilities: {', '.join(sorted(spec.capabilities)) or 'none'}")
+    if code is not None:
+        click.echo(f"Run one: olatbench run --method {name} --suite mini --code checkout=PATH --code conda_env=NAME "
+                   f"(settings: docs/official.md; check them: olatbench doctor)")
+        return
     click.echo(f"Run one: olatbench run --method {name} --suite mini [--variant PRESET]"
                + (f" [--ablation {next(iter(spec.ablations))}]" if spec.ablations else ""))

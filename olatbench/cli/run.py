@@ -85,6 +85,11 @@ def _metric(metrics: dict, key: str) -> str:
                    "true/false, 50, 0.5, [1,1,1], null, text). The overrides join the variant's name, so such "
                    "runs get their own folders. Fields: "
                    "olatbench methods show METHOD.")
+@click.option("--code", "code_settings", multiple=True, metavar="KEY=VALUE",
+              help="Official implementations (*-official): where the authors' code lives and runs, over "
+                   "olatbench.toml [official.METHOD] and $OLATBENCH_<METHOD>_<KEY>: checkout=PATH and one of "
+                   "python=PATH, conda_env=NAME, container='TEMPLATE'; timeout_minutes=N (repeatable; not part of "
+                   "the job id). See docs/official.md.")
 @click.option("--resolution", help="Image size WIDTHxHEIGHT (default: the suite's, else native).")
 @click.option("--data-root", type=click.Path(file_okay=False, path_type=Path),
               help="Folder holding the suite's scene folders (default: $OLATBENCH_DATA; mini: its cache).")
@@ -115,8 +120,8 @@ def _metric(metrics: dict, key: str) -> str:
 @click.option("--wait/--no-wait", default=False, show_default=True,
               help="With --executor slurm: wait for the array and print the summary.")
 @click.option("--quiet", "-q", is_flag=True, help="No progress bars.")
-def run(method, suite, scenes, variants, ablation, seeds, iterations, overrides, resolution, data_root, out, device,
-        executor,
+def run(method, suite, scenes, variants, ablation, seeds, iterations, overrides, code_settings, resolution, data_root,
+        out, device, executor,
         workers, dry_run, calibrate, force, checkpoint_every, save_components, slurm_partition, slurm_time, slurm_gpus,
         slurm_cpus, slurm_array_parallelism, wait, quiet) -> None:
     """Train and evaluate METHOD on every scene of SUITE; rerunning skips finished jobs and resumes
@@ -134,17 +139,27 @@ def run(method, suite, scenes, variants, ablation, seeds, iterations, overrides,
       olatbench run -m ssdgs -s gs3 --scenes Lego --data-root /data/gs3 --dry-run --calibrate   # + time estimate
       olatbench run -m ssdgs -s mini --scenes translucent --set shadow_mode=density --set num_asg=8
       olatbench run -m ssdgs -s gs3 --seeds 3 --executor slurm --slurm-partition gpu --slurm-gpus 1
+      olatbench run -m gs3-official -s gs3 --code checkout=~/src/gs-relight --code conda_env=gs3
     """
     from olatbench.bench.plan import PlanOptions, make_plan, parse_overrides
     from olatbench.bench.store import job_state
     from olatbench.datasets.errors import DatasetError
+    from olatbench.methods.official.settings import SettingsError, parse_code_options
 
     progress = not quiet
     if executor is None:
         executor = "local" if workers > 1 else "inline"
     # a dry run leaves "auto" unresolved (the device enters no job id, and resolving it would import torch)
+    try:
+        code = parse_code_options(code_settings, method)
+    except SettingsError as error:
+        raise click.UsageError(str(error)) from None
+    unknown = sorted(set(code) - {method})
+    if unknown:
+        raise click.UsageError(f"--code names {', '.join(unknown)}, but this run is of {method}")
     options = PlanOptions(device=device if dry_run and device == "auto" else _device(device),
-                          checkpoint_every=checkpoint_every, save_components=save_components)
+                          checkpoint_every=checkpoint_every, save_components=save_components,
+                          code=code.get(method, {}))
     try:
         jobs = make_plan(method, suite, out, scenes=_split_names(scenes), variants=_split_names(variants),
                          ablation=ablation, seeds=seeds, iterations=iterations,

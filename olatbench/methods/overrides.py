@@ -73,7 +73,7 @@ def _fit(value: Any, annotation: Any) -> Any:
             return value
         raise _Mismatch(_form(annotation))
     if origin is tuple:
-        if not isinstance(value, list):
+        if not isinstance(value, (list, tuple)):  # a tuple: already fitted (the plan checks twice)
             raise _Mismatch(_form(annotation))
         items = args[:1] * len(value) if len(args) == 2 and args[1] is Ellipsis else args
         if len(items) != len(value):

@@ -28,6 +28,7 @@ BUILTIN_SPECS: tuple[str, ...] = (
     "olatbench.methods.ssdgs.spec:SPEC",
     "olatbench.methods.baselines.gs3dgs_spec:SPEC",
     "olatbench.methods.baselines.gs3_spec:SPEC",
+    "olatbench.methods.official.specs:SPECS",
 )
 
 _registered: dict[str, MethodSpec] = {}

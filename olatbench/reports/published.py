@@ -122,6 +122,7 @@ def paper_method(method: str, variant: str | None = None, suite: str | None = No
     """
     if variant in VARIANT_LABELS:
         return VARIANT_LABELS[variant]
+    method = method.removesuffix("-official")  # the authors' code run by olatbench: the paper's row too
     if normalise_name(method) == "ssdgs":
         return "Ours (w/ Opt)" if suite == "sssgs" else "Ours"
     wanted = normalise_name(method)

@@ -1,0 +1,133 @@
+"""Run one job of an official implementation: the runner's counterpart of the in-process training loop.
+
+In the job folder: ``job.json`` and ``config.json`` first; ``official/`` (the converted scene and the official
+scripts' outputs, emptied at every start: the scripts cannot resume, so an interrupted job reruns its commands from
+the start); every command's output appended to ``log.txt``; the test renders copied to
+``renders/<test split>/<frame id>.png`` (8-bit sRGB, as every method's); ``results.json`` scored under the suite's
+protocol with ``method_kind: "official"`` and an ``official`` block (repository, pinned and checked-out commit,
+launcher, command lines with exit codes and wall times); ``DONE`` last. A failing command leaves ``error.txt``
+(the log's last lines, then one line with the step and exit code) and a failed ``results.json``.
+"""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from olatbench.atomic import write_json, write_text
+from olatbench.bench.execute import JobLog, JobOutcome, _base_results, _finite
+from olatbench.bench.jobs import Job
+from olatbench.bench.results import write_results
+from olatbench.bench.store import DONE_FILE, ERROR_FILE, JOB_FILE, OFFICIAL_DIR, RESULTS_FILE
+from olatbench.datasets import colour, load_scene
+from olatbench.datasets.formats._common import safe_file_stem
+from olatbench.datasets.images import write_image
+from olatbench.datasets.records import Frame
+from olatbench.methods.official.code import OfficialCode, OfficialConfig
+from olatbench.methods.official.process import OfficialRunError
+from olatbench.methods.official.runner import OfficialRun, collect, execute, prepare
+from olatbench.methods.official.settings import CodeSettings, checkout_commit
+from olatbench.methods.spec import import_reference
+from olatbench.metrics.evaluate import read_prediction
+
+
+def run_official_job(job: Job, folder: Path, log: JobLog) -> JobOutcome:
+    """Convert, run the official commands, score their renders, write results (module docstring)."""
+    for stale in (ERROR_FILE, RESULTS_FILE, DONE_FILE):
+        (folder / stale).unlink(missing_ok=True)
+    write_json(folder / JOB_FILE, job.to_json())
+    write_json(folder / "config.json", job.config)
+    code: OfficialCode = import_reference(job.method_ref)
+    settings = CodeSettings.from_json(job.official or {"method": job.method})
+    config = OfficialConfig(**{**job.config, "train_args": tuple(job.config.get("train_args", ())),
+                               "render_args": tuple(job.config.get("render_args", ()))})
+    log(f"job {job.id}: {job.method} (official code) on {job.suite}/{job.label}, {config.iterations} iterations; "
+        f"official scripts cannot resume: commands run from the start")
+    scene = load_scene(job.scene_path, format=job.scene_format)
+    run: OfficialRun | None = None
+    try:
+        run = prepare(code, settings, scene, folder / OFFICIAL_DIR, job.suite, job.train_split, job.test_split,
+                      tuple(job.resolution) if job.resolution else None, config)
+        log(f"scene written as {code.data_format(job.suite)} to {run.scene_dir}")
+        execute(run, log.path)
+        metrics = {job.test_split: _score(job, scene.split(job.test_split), collect(run), run.colourspace,
+                                          folder)}
+    except OfficialRunError as error:
+        return _failed(job, folder, log, error, run)
+    shutil.rmtree(run.scene_dir, ignore_errors=True)  # a copy of the data; the official outputs stay in model/
+    results = _base_results(job, "done")
+    results["metrics"] = metrics
+    train_seconds = sum(r.seconds or 0.0 for r in run.commands if r.step == "train")
+    results["timing"] = {"train_seconds": round(train_seconds, 3), "render_fps": None}
+    results.update(_provenance(job, run, settings))
+    write_results(folder / RESULTS_FILE, results)
+    write_text(folder / DONE_FILE, job.id + "\n")
+    mean = metrics[job.test_split]["mean"]
+    log(f"{job.test_split}: " + ", ".join(f"{k} {v:.4f}" for k, v in mean.items() if v is not None))
+    log("done")
+    return JobOutcome(job.id, job.label, str(folder), "done", mean, train_seconds, None)
+
+
+def _failed(job: Job, folder: Path, log: JobLog, error: OfficialRunError, run: OfficialRun | None) -> JobOutcome:
+    """Record a failed official job: error.txt ends with the one-line summary `olatbench status` shows."""
+    message = str(error)
+    summary, _, details = message.partition("\n")
+    write_text(folder / ERROR_FILE, (details + "\n" if details else "") + summary + "\n")
+    log(f"FAILED: {summary}")
+    results = _base_results(job, "failed")
+    results["error"] = {"type": type(error).__name__, "message": message}
+    settings = CodeSettings.from_json(job.official or {"method": job.method})
+    results.update(_provenance(job, run, settings))
+    write_results(folder / RESULTS_FILE, results)
+    return JobOutcome(job.id, job.label, str(folder), "failed", error=summary)
+
+
+def _provenance(job: Job, run: OfficialRun | None, settings: CodeSettings) -> dict[str, Any]:
+    """``method_kind`` and the ``official`` block of results.json."""
+    from olatbench.methods.registry import get_spec
+
+    pin = get_spec(job.method).source
+    commit, dirty = checkout_commit(settings.checkout) if settings.checkout else (None, None)
+    return {"method_kind": "official", "official": {
+        "repository": pin.repository if pin else None, "pinned_commit": pin.commit if pin else None,
+        "status": pin.status if pin else None, "commit": commit, "local_changes": dirty,
+        "matches_pin": None if commit is None or pin is None else commit == pin.commit,
+        "settings": settings.to_json(),
+        "commands": [record.to_json() for record in run.commands] if run else []}}
+
+
+def _ground_truth(job: Job, protocol: Any, frame: Frame) -> tuple[np.ndarray, np.ndarray | None]:
+    """The ground truth as the in-process runner scores it (`olatbench.bench.execute.evaluate_split`)."""
+    resolution = tuple(job.resolution) if job.resolution else None
+    if protocol.ground_truth == "official" and resolution is not None:
+        loaded = frame.load(colourspace=job.colourspace, background="official", resolution=resolution)
+        return loaded.rgb, (loaded.alpha if protocol.masked else None)
+    return protocol.load_ground_truth(frame, job.scene_format, resolution)
+
+
+def _score(job: Job, frames: list[Frame], renders: dict[str, Path], encoded_as: str, folder: Path
+           ) -> dict[str, Any]:
+    """Score each render against its frame under the job's protocol (in ``job.colourspace``) and copy it to
+    ``renders/<split>/<frame id>.png``; returns ``{"mean", "per_image"}``."""
+    from olatbench.metrics.protocols import get_protocol
+
+    protocol = get_protocol(job.protocol)
+    out = folder / "renders" / job.test_split
+    per_image = {}
+    for frame in frames:
+        background = colour.convert_colourspace(np.asarray(frame.background, np.float32), frame.colourspace,
+                                                job.colourspace)
+        pred = np.clip(read_prediction(renders[frame.frame_id], job.colourspace, background, encoded_as), 0.0, 1.0)
+        gt, mask = _ground_truth(job, protocol, frame)
+        if pred.shape != gt.shape:
+            raise OfficialRunError(f"{frame.frame_id}: the official render {renders[frame.frame_id]} is "
+                                   f"{pred.shape[1]}×{pred.shape[0]}, the ground truth {gt.shape[1]}×{gt.shape[0]}")
+        scores = protocol.evaluate(pred, np.clip(gt, 0.0, 1.0), mask, device=str(job.device))
+        per_image[frame.frame_id] = {key: _finite(value) for key, value in scores.items()}
+        write_image(out / f"{safe_file_stem(frame.frame_id)}.png",
+                    colour.convert_colourspace(pred, job.colourspace, "srgb"))
+    mean = {key: _finite(value) for key, value in protocol.mean(list(per_image.values())).items()}
+    return {"mean": mean, "per_image": per_image}

@@ -1,0 +1,122 @@
+"""How to run one official implementation, as data (stdlib only): `OfficialCode` and the config of its jobs.
+
+An `OfficialCode` says, for the authors' scripts:
+
+- in which olatbench format a scene must be written for their loader (``data_formats``: per suite, ``"*"`` for
+  the others; written by `olatbench.datasets.convert.write_scene`);
+- the commands to run, in order: ``(step, argv)`` where ``argv`` starts with the script (``train.py``), never
+  with an interpreter — the launcher of `olatbench.methods.official.settings` puts the configured Python, conda
+  environment or container command in front;
+- where the renders of the test split land (``renders``) and what their PNGs hold (``render_colourspace``).
+
+Placeholders in ``argv`` and ``renders`` (`str.format` fields), filled per job:
+
+- ``{scene}`` the converted scene folder, ``{model}`` the output folder the scripts write to,
+  ``{checkout}`` the user's clone, ``{iterations}`` the job's training length;
+- ``{index}`` (renders only): the frame's position in the converted split, which is the order the official
+  loaders enumerate frames (e.g. ``{index:05d}``);
+- an argument that is exactly ``{*suite_args}`` expands to ``suite_args[suite][step]`` (``"*"``: any other
+  suite), possibly to nothing: e.g. ``--white_background`` for GS³ data.
+
+A code whose data cannot be fed (it has no point-light input) has ``unsupported`` set to the reason; the
+runner refuses to plan it and `olatbench methods list` shows why.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from types import MappingProxyType
+
+SUITE_ARGS = "{*suite_args}"
+ANY_SUITE = "*"
+
+
+@dataclass(frozen=True)
+class OfficialConfig:
+    """The config of an official method's jobs (enters the job id, as every config does)."""
+
+    iterations: int = 100_000
+    """Training iterations handed to the official script (``{iterations}``)."""
+    train_args: tuple[str, ...] = ()
+    """Extra arguments appended to the train command (``--set train_args='["--foo","1"]'``)."""
+    render_args: tuple[str, ...] = ()
+    """Extra arguments appended to the render command."""
+
+
+def _frozen(mapping: Mapping) -> Mapping:
+    return MappingProxyType({key: (_frozen(value) if isinstance(value, Mapping) else value)
+                             for key, value in mapping.items()})
+
+
+@dataclass(frozen=True)
+class OfficialCode:
+    """How to run one official implementation (module docstring)."""
+
+    name: str
+    paper: str
+    commands: tuple[tuple[str, tuple[str, ...]], ...]  # (step, argv without interpreter), run in order
+    renders: str  # path pattern of the test render of frame {index}
+    data_formats: Mapping[str, str] = field(default_factory=lambda: {ANY_SUITE: "nrhints"})
+    render_colourspace: Mapping[str, str] = field(default_factory=dict)  # suite -> what the PNGs hold (srgb)
+    suite_args: Mapping[str, Mapping[str, tuple[str, ...]]] = field(default_factory=dict)  # suite -> step -> args
+    env: Mapping[str, str] = field(default_factory=dict)  # extra environment variables of every command
+    needs_val_split: bool = False  # the loader opens transforms_val.json (written from the test split if absent)
+    unsupported: str = ""  # why olatbench's scenes cannot be fed to this code ("" = runnable)
+
+    def __post_init__(self) -> None:
+        if not self.commands and not self.unsupported:
+            raise ValueError(f"official code {self.name!r}: no commands")
+        steps = [step for step, _ in self.commands]
+        if len(set(steps)) != len(steps):
+            raise ValueError(f"official code {self.name!r}: step names repeat: {steps}")
+        for attribute in ("data_formats", "render_colourspace", "suite_args", "env"):
+            object.__setattr__(self, attribute, _frozen(getattr(self, attribute)))
+
+    @property
+    def runnable(self) -> bool:
+        return not self.unsupported
+
+    def data_format(self, suite: str) -> str:
+        """The olatbench format the scene is written in for ``suite``."""
+        return self.data_formats.get(suite, self.data_formats.get(ANY_SUITE, "nrhints"))
+
+    def colourspace_for(self, suite: str) -> str:
+        """What the render PNGs hold for ``suite`` (``srgb`` unless the code writes e.g. ``x^(1/2.2)``)."""
+        return self.render_colourspace.get(suite, self.render_colourspace.get(ANY_SUITE, "srgb"))
+
+    def args_for(self, suite: str, step: str) -> tuple[str, ...]:
+        """What ``{*suite_args}`` expands to for ``suite`` and ``step``."""
+        block = self.suite_args.get(suite, self.suite_args.get(ANY_SUITE, {}))
+        return tuple(block.get(step, ()))
+
+    def command(self, step: str, argv: tuple[str, ...], values: Mapping[str, str], suite: str,
+                extra: tuple[str, ...] = ()) -> list[str]:
+        """One command's arguments with the placeholders filled and ``extra`` appended."""
+        filled: list[str] = []
+        for arg in argv:
+            if arg == SUITE_ARGS:
+                filled.extend(self.args_for(suite, step))
+                continue
+            try:
+                filled.append(arg.format_map(values))
+            except KeyError as error:
+                raise ValueError(f"official code {self.name!r}, step {step!r}: unknown placeholder {error} in "
+                                 f"{arg!r}; known: {', '.join(sorted(values))}, {SUITE_ARGS}") from None
+        return filled + list(extra)
+
+    def describe(self) -> list[str]:
+        """The commands and render pattern as text lines, placeholders kept (``olatbench methods show``)."""
+        if not self.commands:
+            return []
+        lines = [f"{step}: <launcher> {' '.join(argv)}" for step, argv in self.commands]
+        suites = sorted(set(self.suite_args) | set(self.data_formats) | set(self.render_colourspace))
+        for suite in suites:
+            args = "; ".join(f"{step} {' '.join(self.args_for(suite, step))}" for step, _ in self.commands
+                             if self.args_for(suite, step))
+            lines.append(f"suite {suite}: data written as {self.data_format(suite)}, renders hold "
+                         f"{self.colourspace_for(suite)}" + (f", {SUITE_ARGS} = {args}" if args else ""))
+        lines.append(f"renders: {self.renders}")
+        if self.env:
+            lines.append("environment: " + " ".join(f"{k}={v}" for k, v in self.env.items()))
+        return lines

@@ -1,0 +1,97 @@
+"""Checks of each configured official implementation for ``olatbench doctor``: the checkout exists and is at the
+pinned commit (or says which commit it is at), the interpreter runs, a GPU is visible from it."""
+
+from __future__ import annotations
+
+import subprocess
+from collections.abc import Mapping
+from pathlib import Path
+
+from olatbench.methods.official.code import OfficialCode
+from olatbench.methods.official.settings import CodeSettings, SettingsError, checkout_commit, resolve_settings
+from olatbench.methods.spec import MethodSpec
+
+Check = tuple[str, bool, str, str]  # name, ok, detail, fix (as olatbench.cli.doctor)
+PROBE_TIMEOUT = 300.0  # s: a container image may have to be pulled or started
+_GPU_PROBE = ("import torch; ok = torch.cuda.is_available(); "
+              "print(torch.cuda.get_device_name(0) if ok else 'torch sees no CUDA device'); raise SystemExit(0 if ok "
+              "else 1)")
+
+
+def _probe(settings: CodeSettings, code: str) -> tuple[int | None, str]:
+    """Run ``python -c code`` through the method's launcher in its checkout: (exit code, last output line)."""
+    work = Path(str(settings.checkout)).expanduser().resolve()
+    try:
+        done = subprocess.run([*settings.prefix(work), "-c", code], cwd=work, capture_output=True, text=True,
+                              timeout=PROBE_TIMEOUT, check=False)
+    except FileNotFoundError as error:
+        return None, f"cannot start {error.filename}"
+    except subprocess.TimeoutExpired:
+        return None, f"no answer within {PROBE_TIMEOUT:g} s"
+    lines = (done.stdout + done.stderr).strip().splitlines()
+    return done.returncode, lines[-1] if lines else ""
+
+
+def check_code(spec: MethodSpec, settings: CodeSettings) -> list[Check]:
+    """The checks of one configured method (three lines: checkout and commit, interpreter, GPU)."""
+    name, pin = spec.name, spec.source
+    assert pin is not None
+    sources = ", ".join(f"{key} from {source}" for key, source in settings.sources.items())
+    problems = settings.problems()
+    checkout = Path(settings.checkout).expanduser() if settings.checkout else None
+    if checkout is None or not checkout.is_dir():
+        return [(f"{name}: checkout", False, problems[0] + f" ({sources})",
+                 f"git clone https://github.com/{pin.repository} <folder> && git -C <folder> checkout {pin.commit}; "
+                 f"then set checkout (olatbench.toml [official.{name}])")]
+    commit, dirty = checkout_commit(checkout)
+    if commit is None:
+        rows = [(f"{name}: checkout", False, f"{checkout} is not a git checkout, so its commit is unknown "
+                 f"(pinned: {pin.commit})", f"use a git clone of {pin.repository}")]
+    else:
+        at_pin = commit == pin.commit
+        rows = [(f"{name}: checkout", at_pin, f"{checkout} at {commit[:12]}" + (" (pinned)" if at_pin else
+                 f", pinned {pin.commit[:12]}") + (" with local changes" if dirty else ""),
+                 "" if at_pin else f"git -C {checkout} checkout {pin.commit}")]
+    if settings.launcher is None:
+        return [*rows, (f"{name}: interpreter", False, problems[-1], "set python, conda_env or container")]
+    launcher = f"{settings.launcher}={getattr(settings, settings.launcher)}"
+    try:
+        code, line = _probe(settings, "import sys; print(sys.version.split()[0])")
+    except SettingsError as error:
+        return [*rows, (f"{name}: interpreter", False, str(error), "fix the container template")]
+    runs = code == 0
+    rows.append((f"{name}: interpreter", runs, f"{launcher}: " + (f"Python {line}" if runs else line or
+                                                                    f"exit code {code}"),
+                 "" if runs else "check the interpreter / environment / container of this method"))
+    if runs:
+        code, line = _probe(settings, _GPU_PROBE)
+        rows.append((f"{name}: GPU", code == 0, line or f"exit code {code}",
+                     "" if code == 0 else "the official code needs a CUDA GPU visible from its environment "
+                                          "(container: --nv / --gpus all)"))
+    return rows
+
+
+def official_checks(specs: Mapping[str, MethodSpec], options: Mapping[str, Mapping[str, str]] | None = None
+                    ) -> list[Check]:
+    """Checks of every runnable official method that any source configures; one line when none is."""
+    from olatbench.methods.spec import import_reference
+
+    rows: list[Check] = []
+    for name in sorted(set(options or {}) - {n for n, s in specs.items() if s.kind == "official"}):
+        rows.append((f"{name}: settings", False, "--code names no official method",
+                     "olatbench methods list (the *-official names)"))
+    for name, spec in sorted(specs.items()):
+        if spec.kind != "official":
+            continue
+        code: OfficialCode = import_reference(spec.implementation)
+        try:
+            settings = resolve_settings(name, (options or {}).get(name))
+        except SettingsError as error:
+            rows.append((f"{name}: settings", False, str(error), "fix olatbench.toml / --code / the variables"))
+            continue
+        if settings.configured and code.runnable:
+            rows.extend(check_code(spec, settings))
+    if not rows:
+        rows.append(("official implementations", True, "none configured (only needed to run *-official methods)",
+                     "see docs/official.md"))
+    return rows

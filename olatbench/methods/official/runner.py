@@ -1,0 +1,79 @@
+"""One run of an official implementation on one scene: convert, fill in the commands, run them, find the renders.
+
+Layout below the job's working folder ``work`` (``<job folder>/official``):
+``scene/`` the converted scene, ``model/`` what the official scripts write. The official scripts cannot resume,
+so `prepare` always starts from an empty ``work`` folder.
+"""
+
+from __future__ import annotations
+
+import shutil
+from dataclasses import dataclass
+from pathlib import Path
+
+from olatbench.datasets.records import Scene
+from olatbench.methods.official.code import OfficialCode, OfficialConfig
+from olatbench.methods.official.convert import render_paths, write_for_code
+from olatbench.methods.official.process import CommandRecord, OfficialRunError, run_command
+from olatbench.methods.official.settings import CodeSettings
+
+
+@dataclass
+class OfficialRun:
+    """What `execute` runs: the filled-in ``commands`` and the expected ``renders`` {frame id: path} of the test
+    split, holding values encoded as ``colourspace``."""
+
+    code: OfficialCode
+    settings: CodeSettings
+    work: Path
+    scene_dir: Path
+    model_dir: Path
+    commands: list[CommandRecord]
+    renders: dict[str, Path]
+    colourspace: str
+
+
+def prepare(code: OfficialCode, settings: CodeSettings, source: Scene, work: Path, suite: str, train_split: str,
+            test_split: str, resolution: tuple[int, int] | None, config: OfficialConfig) -> OfficialRun:
+    """Empty ``work``, write the scene for ``code`` and fill in its commands and render paths (runs nothing)."""
+    if not code.runnable:
+        raise OfficialRunError(f"{code.name} cannot be run: {code.unsupported}")
+    problems = settings.problems()
+    if problems:
+        raise OfficialRunError(f"{code.name}: " + "; ".join(problems) + " (see docs/official.md)")
+    work = Path(work).resolve()
+    if work.exists():
+        shutil.rmtree(work)
+    work.mkdir(parents=True)
+    checkout = Path(str(settings.checkout)).expanduser().resolve()
+    scene_dir = write_for_code(code, source, work / "scene", suite, train_split, test_split, resolution)
+    model_dir = work / "model"
+    values: dict[str, object] = {"scene": str(scene_dir), "model": str(model_dir), "checkout": str(checkout),
+                                 "iterations": int(config.iterations)}
+    prefix = settings.prefix(work)
+    extra = {"train": tuple(config.train_args), "render": tuple(config.render_args)}
+    commands = [CommandRecord(step, prefix + code.command(step, argv, values, suite, extra.get(step, ())),
+                              str(checkout)) for step, argv in code.commands]
+    renders = render_paths(code, [frame.frame_id for frame in source.split(test_split)], values)
+    return OfficialRun(code=code, settings=settings, work=work, scene_dir=scene_dir, model_dir=model_dir,
+                       commands=commands, renders=renders, colourspace=code.colourspace_for(suite))
+
+
+def execute(run: OfficialRun, log_path: Path) -> None:
+    """Run the commands in order with their output appended to ``log_path`` (`OfficialRunError` on failure)."""
+    minutes = run.settings.timeout_minutes
+    for record in run.commands:
+        run_command(record, log_path, run.code.env, None if minutes is None else 60.0 * minutes)
+
+
+def collect(run: OfficialRun) -> dict[str, Path]:
+    """The expected renders, checked to exist; `OfficialRunError` listing the missing ones otherwise."""
+    missing = [(frame_id, path) for frame_id, path in run.renders.items() if not path.is_file()]
+    if missing:
+        shown = "\n".join(f"  {frame_id}: {path}" for frame_id, path in missing[:5])
+        folder = missing[0][1].parent
+        found = sorted(p.name for p in folder.iterdir())[:10] if folder.is_dir() else []
+        raise OfficialRunError(f"{run.code.name}: {len(missing)} of {len(run.renders)} test renders are missing "
+                               f"(pattern {run.code.renders!r}), e.g.\n{shown}\n{folder} holds: "
+                               f"{', '.join(found) if found else 'nothing'}")
+    return dict(run.renders)

@@ -1,0 +1,197 @@
+"""Where an official implementation's code lives and how its commands are launched, per method.
+
+Fields (all optional until a job runs):
+
+- ``checkout``: the user's clone of the repository (commands run with it as working folder);
+- the launcher, exactly one of ``python`` (an interpreter of an existing environment), ``conda_env`` (run
+  through ``conda run -n ENV python``) or ``container`` (a command template that ends with the interpreter inside
+  the container, e.g. ``apptainer exec --nv --bind {work} gs3.sif python`` or
+  ``docker run --rm --gpus all -v {checkout}:{checkout} -v {work}:{work} -w {checkout} gs3 python``;
+  ``{checkout}`` and ``{work}`` (the job's working folder) are filled in);
+- ``timeout_minutes``: the limit of each command (none by default).
+
+Sources, highest precedence first: ``--code KEY=VALUE`` options (`olatbench run`, `olatbench doctor`; a key
+may be qualified ``METHOD.KEY``), the ``[official.METHOD]`` table of ``olatbench.toml`` in the working folder, and
+environment variables ``OLATBENCH_<METHOD>_<KEY>`` (``OLATBENCH_GS3_OFFICIAL_CHECKOUT``). Each field comes from
+the highest source that sets it; the three launcher fields count as one, so a ``python`` on the command line
+replaces a ``conda_env`` from the file.
+"""
+
+from __future__ import annotations
+
+import os
+import shlex
+import subprocess
+from collections.abc import Mapping
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+TOML_FILE = "olatbench.toml"
+LAUNCHERS = ("python", "conda_env", "container")
+FIELDS = ("checkout", *LAUNCHERS, "timeout_minutes")
+
+
+class SettingsError(ValueError):
+    """Settings that cannot be used: unknown key, several launchers, unreadable olatbench.toml."""
+
+
+@dataclass(frozen=True)
+class CodeSettings:
+    """The resolved settings of one official method; ``sources`` says where each field came from."""
+
+    method: str
+    checkout: str | None = None
+    python: str | None = None
+    conda_env: str | None = None
+    container: str | None = None
+    timeout_minutes: float | None = None
+    sources: Mapping[str, str] = field(default_factory=dict)  # field -> "--code" | "olatbench.toml" | "$VAR"
+
+    @property
+    def configured(self) -> bool:
+        """Whether any source set anything for this method."""
+        return bool(self.sources)
+
+    @property
+    def launcher(self) -> str | None:
+        """``python``, ``conda_env`` or ``container``: the one that is set, or None."""
+        return next((name for name in LAUNCHERS if getattr(self, name)), None)
+
+    def problems(self) -> list[str]:
+        """What keeps a job from running (empty when nothing does)."""
+        found = []
+        if not self.checkout:
+            found.append("no checkout (the folder of your clone of the official repository)")
+        elif not Path(self.checkout).is_dir():
+            found.append(f"checkout {self.checkout} is not a folder")
+        if self.launcher is None:
+            found.append("no launcher: set one of python (an interpreter), conda_env (an environment name) or "
+                         "container (a command template)")
+        return found
+
+    def prefix(self, work: Path) -> list[str]:
+        """The arguments put before a command's script: the interpreter, ``conda run`` or the container."""
+        if self.python:
+            return [self.python]
+        if self.conda_env:
+            return ["conda", "run", "--no-capture-output", "-n", self.conda_env, "python"]
+        if self.container:
+            checkout = str(self.checkout or ".")
+            try:
+                return [part.format(checkout=checkout, work=str(work)) for part in shlex.split(self.container)]
+            except (KeyError, IndexError, ValueError) as error:
+                raise SettingsError(f"{self.method}: container template {self.container!r}: {error!r}; it may "
+                                    f"use {{checkout}} and {{work}}") from None
+        raise SettingsError(f"{self.method}: no launcher configured")
+
+    def to_json(self) -> dict[str, Any]:
+        """Plain data for job.json and results.json."""
+        data = asdict(self)
+        data["sources"] = dict(self.sources)
+        return data
+
+    @classmethod
+    def from_json(cls, data: Mapping[str, Any]) -> CodeSettings:
+        return cls(**{**data, "sources": dict(data.get("sources", {}))})
+
+
+def env_name(method: str, key: str) -> str:
+    """``OLATBENCH_GS3_OFFICIAL_CHECKOUT`` for (``gs3-official``, ``checkout``)."""
+    return "OLATBENCH_" + f"{method}_{key}".upper().replace("-", "_").replace(".", "_")
+
+
+def read_toml(folder: str | Path | None = None) -> dict[str, dict[str, Any]]:
+    """The ``[official.METHOD]`` tables of ``olatbench.toml`` in ``folder`` (the working folder), or {}."""
+    path = Path(folder or os.getcwd()) / TOML_FILE
+    if not path.is_file():
+        return {}
+    try:
+        import tomllib
+    except ImportError:  # Python 3.10
+        try:
+            import tomli as tomllib  # type: ignore[no-redef]
+        except ImportError:
+            raise SettingsError(f"{path}: reading it needs Python 3.11 or: pip install tomli") from None
+    try:
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except (OSError, tomllib.TOMLDecodeError) as error:
+        raise SettingsError(f"{path}: {error}") from None
+    tables = data.get("official", {})
+    if not isinstance(tables, dict) or not all(isinstance(v, dict) for v in tables.values()):
+        raise SettingsError(f"{path}: expected tables [official.METHOD] (e.g. [official.gs3-official])")
+    return tables
+
+
+def parse_code_options(items: list[str] | tuple[str, ...], method: str | None = None) -> dict[str, dict[str, str]]:
+    """``["checkout=/src/gs3", "gs3-official.python=/env/bin/python"]`` -> {method: {key: value}}; an unqualified
+    key belongs to ``method`` (the method being run) and is an error without one."""
+    options: dict[str, dict[str, str]] = {}
+    for item in items:
+        key, sep, value = item.partition("=")
+        if not sep or not key.strip():
+            raise SettingsError(f"--code expects [METHOD.]KEY=VALUE (e.g. checkout=/src/gs-relight), not {item!r}")
+        owner, dot, name = key.strip().rpartition(".")
+        owner = owner if dot else method
+        if owner is None:
+            raise SettingsError(f"--code {item}: say which method, e.g. gs3-official.{name}=...")
+        options.setdefault(owner, {})[name] = value
+    return options
+
+
+def resolve_settings(method: str, options: Mapping[str, Any] | None = None,
+                     toml: Mapping[str, Mapping[str, Any]] | None = None,
+                     environ: Mapping[str, str] | None = None) -> CodeSettings:
+    """The settings of ``method`` from ``options`` (its ``--code`` values), then ``toml`` (default: read
+    ``olatbench.toml`` in the working folder), then ``environ`` (default: ``os.environ``); module docstring."""
+    toml = read_toml() if toml is None else toml
+    environ = os.environ if environ is None else environ
+    layers = [("--code", dict(options or {})), (TOML_FILE, dict(toml.get(method, {}))),
+              ("$" + env_name(method, "*"), {key: environ[env_name(method, key)] for key in FIELDS
+                                             if env_name(method, key) in environ})]
+    for source, values in layers[:2]:
+        unknown = sorted(set(values) - set(FIELDS))
+        if unknown:
+            raise SettingsError(f"{method}: unknown setting {', '.join(unknown)} ({source}); known: "
+                                f"{', '.join(FIELDS)}")
+    values: dict[str, Any] = {}
+    sources: dict[str, str] = {}
+    for source, layer in layers:
+        launchers = [name for name in LAUNCHERS if layer.get(name) not in (None, "")]
+        if len(launchers) > 1:
+            raise SettingsError(f"{method}: {source} sets {' and '.join(launchers)}; set one launcher")
+        for name, value in layer.items():
+            if value in (None, "") or name in values:
+                continue
+            if name in LAUNCHERS and any(other in values for other in LAUNCHERS):
+                continue  # a higher source chose the launcher
+            values[name] = value
+            sources[name] = env_name(method, name) if source.startswith("$") else source
+    if "timeout_minutes" in values:
+        try:
+            values["timeout_minutes"] = float(values["timeout_minutes"])
+        except (TypeError, ValueError):
+            raise SettingsError(f"{method}: timeout_minutes must be a number, not {values['timeout_minutes']!r} "
+                                f"({sources['timeout_minutes']})") from None
+    for name in ("checkout", *LAUNCHERS):
+        if name in values:
+            values[name] = str(values[name])
+    for name in ("checkout", "python"):  # paths are made absolute here: jobs may run in another folder
+        if name in values and (name == "checkout" or "/" in values[name]):
+            values[name] = str(Path(values[name]).expanduser().absolute())
+    return CodeSettings(method=method, sources=sources, **values)
+
+
+def checkout_commit(checkout: str | Path) -> tuple[str | None, bool | None]:
+    """(HEAD commit, whether the work tree has local changes) of a git checkout; (None, None) when it is not one
+    or git is missing."""
+    try:
+        head = subprocess.run(["git", "-C", str(checkout), "rev-parse", "HEAD"], capture_output=True, text=True,
+                              timeout=30, check=False)
+        if head.returncode != 0:
+            return None, None
+        status = subprocess.run(["git", "-C", str(checkout), "status", "--porcelain", "--untracked-files=no"],
+                                capture_output=True, text=True, timeout=60, check=False)
+    except (OSError, subprocess.TimeoutExpired):
+        return None, None
+    return head.stdout.strip(), bool(status.stdout.strip()) if status.returncode == 0 else None

@@ -1,0 +1,184 @@
+"""The official implementations olatbench knows, as `OfficialCode` (how to run it) and `MethodSpec` (what the
+registry lists): ``ssdgs-official``, ``gs3-official``, ``nrhints-official`` run; ``rng-official``,
+``gigs-official``, ``tensoir-official`` and ``r3dg-official`` are listed with the reason they cannot be run.
+
+"Verified" here means: the repository and the pinned commit exist (a git mirror of the repository was read at
+that commit on 2026-11-24), every flag of the commands below was found in that commit's argument parsers, the
+scene files are written where that commit's loader reads them and the renders are read where its render
+script writes them. None of them was run on a GPU from here; docs/official.md says how to check one that was.
+"""
+
+from __future__ import annotations
+
+from olatbench.methods.official.code import ANY_SUITE, SUITE_ARGS, OfficialCode
+from olatbench.methods.spec import MethodSpec, SourcePin
+
+_CONFIG = "olatbench.methods.official.code:OfficialConfig"
+_MODULE = "olatbench.methods.official.specs"
+
+# ---- GS³ (gsrelight/gs-relight) --------------------------------------------------------------------------------
+# Flags shared by its syn_train.sh and real_train.sh; the per-suite ones are in suite_args.
+_GS3_TRAIN = (
+    "train.py", "-s", "{scene}", "-m", "{model}", "--view_num", "2000", "--iterations", "{iterations}",
+    "--asg_freeze_step", "22000", "--spcular_freeze_step", "9000", "--fit_linear_step", "7000",
+    "--asg_lr_freeze_step", "40000", "--asg_lr_max_steps", "50000", "--asg_lr_init", "0.01",
+    "--asg_lr_final", "0.0001", "--local_q_lr_freeze_step", "40000", "--local_q_lr_init", "0.01",
+    "--local_q_lr_final", "0.0001", "--local_q_lr_max_steps", "50000", "--neural_phasefunc_lr_init", "0.001",
+    "--neural_phasefunc_lr_final", "0.00001", "--freeze_phasefunc_steps", "50000",
+    "--neural_phasefunc_lr_max_steps", "50000", "--unfreeze_iterations", "5000",
+    "--save_iterations", "{iterations}", "--checkpoint_iterations", "{iterations}",
+    "--use_nerual_phasefunc", "--eval", SUITE_ARGS,
+)
+_GS3_SYNTHETIC = ("--position_lr_max_steps", "50000", "--densify_until_iter", "50000")
+
+GS3_CODE = OfficialCode(
+    name="gs3-official",
+    paper="GS³: Efficient Relighting with Triple Gaussian Splatting (Bi et al., SIGGRAPH Asia 2024)",
+    commands=(
+        ("train", _GS3_TRAIN),
+        ("render", ("render.py", "-m", "{model}", "--iteration", "{iterations}", "--skip_train",
+                    "--use_nerual_phasefunc", SUITE_ARGS)),
+    ),
+    renders="{model}/test/ours_{iterations}/renders/{index:05d}.png",
+    data_formats={"gs3": "gs3", ANY_SUITE: "nrhints"},
+    render_colourspace={"gs3": "gamma22"},  # render.py --gamma stores x^(1/2.2) of the linear (EXR-trained) render
+    suite_args={
+        "gs3": {"train": ("--hdr", "--white_background", *_GS3_SYNTHETIC), "render": ("--gamma",)},
+        "nrhints": {"train": ("--data_device", "cpu", "--cam_opt", "--pl_opt", "--position_lr_max_steps", "70000",
+                              "--densify_until_iter", "90000", "--densify_grad_threshold", "0.0001")},
+        ANY_SUITE: {"train": _GS3_SYNTHETIC},
+    },
+)
+
+# ---- SSD-GS (irisfreesiri/SSD-GS) ------------------------------------------------------------------------------
+_SSDGS_TRAIN = (
+    "train.py", "-s", "{scene}", "-m", "{model}", "--data_device", "cpu", "--view_num", "2000",
+    "--iterations", "{iterations}", "--asg_freeze_step", "22000", "--specular_freeze_step", "9000",
+    "--fit_linear_step", "7000", "--asg_lr_freeze_step", "40000", "--asg_lr_max_steps", "50000",
+    "--asg_lr_init", "0.01", "--asg_lr_final", "0.0001", "--local_q_lr_freeze_step", "40000",
+    "--local_q_lr_init", "0.01", "--local_q_lr_final", "0.0001", "--local_q_lr_max_steps", "50000",
+    "--neural_phasefunc_lr_init", "0.001", "--neural_phasefunc_lr_final", "0.00001",
+    "--freeze_phasefunc_steps", "50000", "--neural_phasefunc_lr_max_steps", "50000",
+    "--unfreeze_iterations", "5000", "--save_iterations", "{iterations}", "--checkpoint_iterations", "{iterations}",
+    "--use_nerual_phasefunc", "--eval", SUITE_ARGS,
+)
+_SSDGS_REAL_WINDOWS = ("--position_lr_max_steps", "70000", "--densify_until_iter", "90000")
+
+SSDGS_CODE = OfficialCode(
+    name="ssdgs-official",
+    paper="SSD-GS: Scattering and Shadow Decomposition for Relightable 3D Gaussian Splatting (ICLR 2026)",
+    commands=(
+        ("train", _SSDGS_TRAIN),
+        ("render", ("render.py", "-m", "{model}", "--iteration", "{iterations}", "--skip_train",
+                    "--use_nerual_phasefunc", SUITE_ARGS)),
+    ),
+    renders="{model}/test/ours_{iterations}/renders/{index:05d}.png",
+    data_formats={ANY_SUITE: "nrhints"},  # its loader reads 8-bit RGBA PNGs (its GS³ and SSS-GS data are PNGs too)
+    suite_args={
+        "gs3": {"train": ("--white_background", *_SSDGS_REAL_WINDOWS)},
+        "nrhints": {"train": ("--cam_opt", "--pl_opt", *_SSDGS_REAL_WINDOWS), "render": ("--opt_pose",)},
+        ANY_SUITE: {"train": ("--position_lr_max_steps", "50000", "--densify_until_iter", "50000")},
+    },
+    env={"OPENCV_IO_ENABLE_OPENEXR": "1"},
+)
+
+# ---- NRHints (iamNCJ/NRHints) ----------------------------------------------------------------------------------
+# One command: main.py trains to end_iter, then renders every test view into
+# <base_dir>/<exp_name>/<scene_name>/test_views/step_<end_iter:07d>/rgb_<index:03d>.png.
+NRHINTS_CODE = OfficialCode(
+    name="nrhints-official",
+    paper="NRHints: Relighting Neural Radiance Fields with Shadow and Highlight Hints (Zeng et al., SIGGRAPH 2023)",
+    commands=(
+        ("train", ("main.py", SUITE_ARGS, "--config.data.path", "{scene}", "--config.scene-name", "scene",
+                   "--config.base-dir", "{model}", "--config.exp-name", "olatbench",
+                   "--config.model.end-iter", "{iterations}")),
+    ),
+    renders="{model}/olatbench/scene/test_views/step_{iterations:07d}/rgb_{index:03d}.png",
+    data_formats={ANY_SUITE: "nrhints"},
+    suite_args={  # the first argument is tyro's sub-command: it has to come first
+        "nrhints": {"train": ("config:nr-hints-cam-opt", "--config.data.white-background", "False",
+                              "--config.data.view-num-limit", "1000")},
+        "gs3": {"train": ("config:nr-hints", "--config.data.white-background", "True")},
+        ANY_SUITE: {"train": ("config:nr-hints", "--config.data.white-background", "False")},
+    },
+    env={"WANDB_MODE": "offline"},  # it logs every run to wandb
+    needs_val_split=True,
+)
+
+# ---- listed, not runnable --------------------------------------------------------------------------------------
+_ENVMAP = ("its code relights with environment maps (HDR light probes) and has no point-light input, so "
+           "olatbench's OLAT scenes (one point light per image) cannot be fed to it without changing the "
+           "authors' code")
+
+RNG_CODE = OfficialCode(
+    name="rng-official", paper="RNG: Relightable Neural Gaussians (Fan et al., CVPR 2025)", commands=(),
+    renders="", unsupported="no public repository could be found or fetched from here (see `methods show`)")
+GIGS_CODE = OfficialCode(
+    name="gigs-official",
+    paper="GI-GS: Global Illumination Decomposition on Gaussian Splatting (Chen et al., ICLR 2025)",
+    commands=(), renders="", unsupported=_ENVMAP)
+TENSOIR_CODE = OfficialCode(
+    name="tensoir-official", paper="TensoIR: Tensorial Inverse Rendering (Jin et al., CVPR 2023)",
+    commands=(), renders="", unsupported=_ENVMAP)
+R3DG_CODE = OfficialCode(
+    name="r3dg-official",
+    paper="Relightable 3D Gaussians: Real-time Point Cloud Relighting with BRDF Decomposition and Ray Tracing "
+          "(Gao et al., ECCV 2024)",
+    commands=(), renders="", unsupported=_ENVMAP)
+
+
+def _spec(code_name: str, code: OfficialCode, description: str, source: SourcePin,
+          presets: dict | None = None) -> MethodSpec:
+    return MethodSpec(name=code.name, description=description, implementation=f"{_MODULE}:{code_name}",
+                      config=_CONFIG, kind="official", source=source, presets=presets or {},
+                      outputs=("rgb",), capabilities=frozenset({"relight"}))
+
+
+SPECS: tuple[MethodSpec, ...] = (
+    _spec("SSDGS_CODE", SSDGS_CODE, "SSD-GS, the authors' code (CUDA) run on olatbench's data",
+          SourcePin("irisfreesiri/SSD-GS", "26e42517e2c56cb2b943a18116560f292a06cd2c", "verified",
+                    "Commands are those of batch_script_{real_nrhints,synthetic_gs3,synthetic_sssgs}.py at this "
+                    "commit (+ --skip_train, --save/--checkpoint_iterations at the run's length); every flag found "
+                    "in arguments/__init__.py and render.py; the loader reads transforms_{train,test}.json and "
+                    "file_path + '.png' (RGBA over the background); render.py writes "
+                    "test/ours_<it>/renders/<index:05d>.png in loader order. Read, not run on a GPU."),
+          presets={"nrhints": {"iterations": 100_000}, "gs3": {"iterations": 100_000},
+                   "sssgs": {"iterations": 60_000}}),
+    _spec("GS3_CODE", GS3_CODE, "GS³, the authors' code (CUDA) run on olatbench's data",
+          SourcePin("gsrelight/gs-relight", "83c8daa41284cc310855dec6db3158106c065d11", "verified",
+                    "Commands are those of syn_train.sh / syn_render.sh (GS³ data: --hdr, EXR, --gamma) and "
+                    "real_train.sh (real data: --cam_opt --pl_opt) at this commit; every flag found in "
+                    "arguments/__init__.py and render.py; the loader reads transforms_{train,test}.json and "
+                    "file_path + '.exr' (--hdr) or '.png'; render.py writes test/ours_<it>/renders/<index:05d>.png "
+                    "in loader order, x^(1/2.2) with --gamma. Read, not run on a GPU."),
+          presets={"nrhints": {"iterations": 100_000}, "gs3": {"iterations": 100_000},
+                   "sssgs": {"iterations": 100_000}}),
+    _spec("NRHINTS_CODE", NRHINTS_CODE, "NRHints (NeuS with shadow and highlight hints), the authors' code (CUDA)",
+          SourcePin("iamNCJ/NRHints", "291800d12c474d370ec85f99c4c1180c54b68e37", "verified",
+                    "Commands are those of scripts/train_{synthetic,real}.sh at this commit (tyro sub-commands "
+                    "config:nr-hints / config:nr-hints-cam-opt; --config.model.end-iter, base-dir, exp-name, "
+                    "scene-name found in configs/main_config.py and models/neus_hint_model.py); the loader "
+                    "reads transforms_{train,val,test}.json and file_path + '.png'; after training trainer.py "
+                    "writes every test view to <base>/<exp>/<scene>/test_views/step_<it:07d>/rgb_<i:03d>.png "
+                    "(with camera optimisation it first fits each test view's pose for 500 steps). Read, not run."),
+          presets={"nrhints": {"iterations": 1_000_000}, "gs3": {"iterations": 1_000_000},
+                   "sssgs": {"iterations": 1_000_000}}),
+    _spec("RNG_CODE", RNG_CODE, "RNG (Relightable Neural Gaussians): no public code found",
+          SourcePin("whois-jiahui/RNG", "unverified", "no public code",
+                    "No repository found: the project page (whois-jiahui.fun/project_pages/RNG) names none that "
+                    "could be reached from here, and github.com/whois-jiahui/RNG could not be fetched "
+                    "(2026-11-24). Add its commands here once the code is public and read.")),
+    _spec("GIGS_CODE", GIGS_CODE, "GI-GS: environment-map relighting only, cannot take OLAT data",
+          SourcePin("stopaimme/GI-GS-official-implementation", "9e75c82674726178e955dd3e6c4aca165cba9b31",
+                    "verified",
+                    "Read at this commit: relight.py takes --hdri (an environment map); no point-light position is "
+                    "read anywhere (no pl_pos / point light in the code).")),
+    _spec("TENSOIR_CODE", TENSOIR_CODE, "TensoIR: environment-map relighting only, cannot take OLAT data",
+          SourcePin("Haian-Jin/TensoIR", "8f7b8dd87b5960847264536bb969c93dadeac1b5", "verified",
+                    "Read at this commit: the data loaders read HDR environment maps (light_name_list, hdr_dir); "
+                    "no point-light input exists.")),
+    _spec("R3DG_CODE", R3DG_CODE, "Relightable 3D Gaussians: environment-map relighting only, cannot take OLAT data",
+          SourcePin("NJU-3DV/Relightable3DGaussian", "a102f14c7e34b7bd5e421990e6f1593d39ebab83", "verified",
+                    "Read at this commit: relighting evaluation takes --envmap_path (scene/envmap.py EnvLight); "
+                    "no point-light input exists.")),
+)
