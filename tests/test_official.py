@@ -28,6 +28,7 @@ from olatbench.methods.official.settings import SettingsError, env_name, parse_c
 from olatbench.methods.registry import builtin_specs, get_spec
 from olatbench.methods.spec import import_reference
 from olatbench.reports.collect import collect
+from olatbench.reports.published import paper_method
 
 RUNNABLE = ("gs3-official", "nrhints-official", "ssdgs-official")
 PERFECT_PSNR = 35.0  # dB: a stand-in render is its ground truth after 8-bit rounding (a wrong frame scores < 25)
@@ -213,6 +214,7 @@ def test_cli_run_through_a_container_template_and_report_beside_native(tmp_path,
     assert "gs3-official" in report.output and "trivial" in report.output
     results = read_results(next((tmp_path / "runs").rglob("gs3-official/**/results.json")))
     assert results["official"]["settings"]["sources"]["container"] == "olatbench.toml"
+    assert paper_method("gs3-official", "default", "gs3") == paper_method("gs3", "default", "gs3") is not None
 
 
 # ---- failure, timeout, interruption ---------------------------------------------------------------------------------
