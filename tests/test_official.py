@@ -83,6 +83,8 @@ def test_unsupported_codes_and_missing_settings_are_plan_errors(tmp_path) -> Non
     assert len(jobs) == 1 and jobs[0].official["checkout"] is None
     with pytest.raises(PlanError, match=r"no checkout.*no launcher.*OLATBENCH_GS3_OFFICIAL_CHECKOUT"):
         plan("gs3-official", suite_of("tiny"), data, tmp_path / "runs")
+    with pytest.raises(PlanError, match="--code settings are for official implementations"):
+        plan("trivial", suite_of("tiny"), data, tmp_path / "runs", checkout=str(tmp_path))
 
 
 # ---- settings ------------------------------------------------------------------------------------------------------

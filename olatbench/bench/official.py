@@ -89,7 +89,10 @@ def _provenance(job: Job, run: OfficialRun | None, settings: CodeSettings) -> di
     """``method_kind`` and the ``official`` block of results.json."""
     from olatbench.methods.registry import get_spec
 
-    pin = get_spec(job.method).source
+    try:
+        pin = get_spec(job.method).source
+    except KeyError:  # a spec registered in another process only
+        pin = None
     commit, dirty = checkout_commit(settings.checkout) if settings.checkout else (None, None)
     return {"method_kind": "official", "official": {
         "repository": pin.repository if pin else None, "pinned_commit": pin.commit if pin else None,

@@ -230,6 +230,8 @@ def make_plan(method: str, suite: str | Suite, out: str | Path, scenes: Sequence
     from olatbench.metrics.protocols import get_protocol
 
     protocol = get_protocol(suite.protocol)
+    if options.code and spec.kind != "official":
+        raise PlanError(f"--code settings are for official implementations (*-official), not for '{method}'")
     official = official_settings(spec, options.code, required=generate) if spec.kind == "official" else None
     variant_names = expand_variants(spec, variants, ablation)
     scene_names = resolve_scenes(suite, scenes)

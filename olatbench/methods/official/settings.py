@@ -183,15 +183,16 @@ def resolve_settings(method: str, options: Mapping[str, Any] | None = None,
 
 
 def checkout_commit(checkout: str | Path) -> tuple[str | None, bool | None]:
-    """(HEAD commit, whether the work tree has local changes) of a git checkout; (None, None) when it is not one
-    or git is missing."""
+    """(HEAD commit, whether the work tree has local changes) of a git checkout; (None, None) when it is not the
+    top of a repository or git is missing."""
     try:
-        head = subprocess.run(["git", "-C", str(checkout), "rev-parse", "HEAD"], capture_output=True, text=True,
-                              timeout=30, check=False)
-        if head.returncode != 0:
-            return None, None
+        head = subprocess.run(["git", "-C", str(checkout), "rev-parse", "--show-toplevel", "HEAD"],
+                              capture_output=True, text=True, timeout=30, check=False)
+        lines = head.stdout.split()
+        if head.returncode != 0 or len(lines) != 2 or Path(lines[0]).resolve() != Path(checkout).resolve():
+            return None, None  # not a repository, or a folder inside another one
         status = subprocess.run(["git", "-C", str(checkout), "status", "--porcelain", "--untracked-files=no"],
                                 capture_output=True, text=True, timeout=60, check=False)
     except (OSError, subprocess.TimeoutExpired):
         return None, None
-    return head.stdout.strip(), bool(status.stdout.strip()) if status.returncode == 0 else None
+    return lines[1], bool(status.stdout.strip()) if status.returncode == 0 else None
