@@ -1,4 +1,5 @@
-"""Backend selection: auto, environment override, the fallback warning when the C++ build fails, and the cache."""
+"""Rasterizer backend selection: auto, environment override, the fallback warning when the C++ build fails,
+the build variants and the cache (the build machinery itself: tests/test_native.py)."""
 
 from __future__ import annotations
 
@@ -9,7 +10,10 @@ import torch
 from test_rasterize_scenes import camera, scene
 
 import olatbench.gaussians.backends as backends
-from olatbench.gaussians.backends import build, cpu_backend_status, resolve_backend
+from olatbench import _native
+from olatbench._native import build
+from olatbench.gaussians.backends import cpu_backend_status, resolve_backend
+from olatbench.gaussians.backends.cpu import LIBRARY
 from olatbench.gaussians.render import render
 
 
@@ -18,11 +22,11 @@ def fresh_build(monkeypatch, tmp_path):
     """An empty build cache and no remembered build outcome; restored afterwards."""
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
     monkeypatch.delenv("OLATBENCH_RASTERIZER", raising=False)
-    build.reset()
-    backends.reset_fallback_warning()
+    LIBRARY.reset()
+    _native.reset_fallback_warnings()
     yield tmp_path
-    build.reset()
-    backends.reset_fallback_warning()
+    LIBRARY.reset()
+    _native.reset_fallback_warnings()
 
 
 def tiny_render(backend="auto"):
@@ -37,14 +41,14 @@ def test_broken_compiler_falls_back_to_torch_with_one_warning(fresh_build, monke
     monkeypatch.setenv("OLATBENCH_CXX", str(fresh_build / "no-such-compiler"))
     ok, detail = cpu_backend_status()
     assert not ok and "no-such-compiler" in detail
-    with pytest.warns(RuntimeWarning, match="falling back.*no-such-compiler"):
+    with pytest.warns(RuntimeWarning, match="rasterizer backend 'cpu' is unavailable, falling back.*no-such-compiler"):
         assert resolve_backend("auto", "cpu") == "torch"
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         assert resolve_backend("auto", "cpu") == "torch"  # only one warning per process
         out = tiny_render()
     assert out["image"].shape == (13, 17, 3)
-    with pytest.raises(build.BuildError, match="no-such-compiler"):
+    with pytest.raises(RuntimeError, match="no-such-compiler"):
         tiny_render(backend="cpu")  # an explicit request fails loudly instead of falling back
 
 
@@ -68,9 +72,10 @@ def test_single_threaded_build_when_openmp_is_missing(fresh_build, monkeypatch):
                     'exec g++ "$@"\n')  # fmt: skip
     fake.chmod(0o755)
     monkeypatch.setenv("OLATBENCH_CXX", str(fake))
-    ok, detail = cpu_backend_status()
+    with pytest.warns(RuntimeWarning, match="(?s)olatbench_gaussians is a single-threaded build.*no OpenMP here"):
+        ok, detail = cpu_backend_status()  # slower than it could be: said once, like a fallback
     assert ok and "single-threaded" in detail and "no OpenMP here" in detail
-    assert build.loaded_path()[0] == build.library_path("serial")
+    assert LIBRARY.load().path == LIBRARY.path("serial")
     out = tiny_render(backend="cpu")
     assert float(out["alpha"].max()) > 0
 
@@ -78,10 +83,10 @@ def test_single_threaded_build_when_openmp_is_missing(fresh_build, monkeypatch):
 def test_fresh_build_lands_in_the_hashed_cache(fresh_build):
     ok, detail = cpu_backend_status()
     assert ok, detail
-    path = build.library_path()
+    path = LIBRARY.path()
     assert path.exists() and str(path) == detail
     assert path.parent.parent == fresh_build / "olatbench" / "ext"
-    assert path.parent.name == build.build_hash()
+    assert path.parent.name == f"olatbench_gaussians-{build.build_key(LIBRARY.name, LIBRARY.sources)}"
     assert not list(path.parent.glob(".build-*"))  # the temporary file was renamed into place
     assert resolve_backend("auto", "cpu") == "cpu"
 
@@ -105,7 +110,10 @@ def test_cuda_selection_logic(monkeypatch):
     assert resolve_backend("auto", "cuda") == "cuda"
     assert resolve_backend("cuda", "cuda") == "cuda"
     monkeypatch.setattr(backends, "gsplat_available", lambda: False)
-    assert resolve_backend("auto", "cuda") == "torch"
+    _native.reset_fallback_warnings()
+    with pytest.warns(RuntimeWarning, match="backend 'cuda' is unavailable, falling back to 'torch'.*gsplat"):
+        assert resolve_backend("auto", "cuda") == "torch"  # never a silent fallback
+    _native.reset_fallback_warnings()
     with pytest.raises(RuntimeError, match="gsplat"):
         resolve_backend("cuda", "cuda")
     with pytest.raises(ValueError, match="CUDA tensors"):

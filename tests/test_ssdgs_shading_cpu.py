@@ -9,12 +9,12 @@ import math
 import pytest
 import torch
 
-from olatbench.gaussians.backends import cpu_backend_status
+from olatbench import _native
 from olatbench.methods.ssdgs.config import SSDGSConfig
 from olatbench.methods.ssdgs.shader import Components, Shader
-from olatbench.methods.ssdgs.shading_cpu import rotations_cpu, shading_combine, shading_geometry
+from olatbench.methods.ssdgs.shading_cpu import LIBRARY, rotations_cpu, shading_combine, shading_geometry
 
-_STATUS = cpu_backend_status()
+_STATUS = LIBRARY.status()
 pytestmark = pytest.mark.skipif(not _STATUS[0], reason=f"C++ shading kernels unavailable: {_STATUS[1]}")
 
 D = torch.float64
@@ -320,27 +320,24 @@ def test_degenerate_distances_match_torch():
 
 def test_failed_build_shades_with_torch_after_one_warning(monkeypatch, tmp_path):
     """auto: a C++ library that cannot be built gives the torch shading and one RuntimeWarning saying why;
-    an explicit "cpu" request fails with that reason instead."""
+    an explicit "cpu" request fails with that reason instead (RuntimeError: the backend is missing)."""
     import warnings
-
-    from olatbench.gaussians import backends
-    from olatbench.gaussians.backends import build
 
     shader, scene = make_shader(), make_scene(edge_cases=False)
     reference, _ = shade(shader, scene, TERM_SETS["all"], "torch")
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
     monkeypatch.setenv("OLATBENCH_CXX", str(tmp_path / "no-such-compiler"))
-    backends.reset_fallback_warning()
-    build.reset()
+    _native.reset_fallback_warnings()
+    LIBRARY.reset()
     try:
-        with pytest.warns(RuntimeWarning, match=r"SSD-GS shading kernels is unavailable, falling back.*no-such"):
+        with pytest.warns(RuntimeWarning, match=r"SSD-GS shading backend 'cpu' is unavailable, falling back.*no-such"):
             out, _ = shade(shader, scene, TERM_SETS["all"], "auto")
         assert torch.equal(out.colour, reference.colour)
         with warnings.catch_warnings():
             warnings.simplefilter("error")
             shade(shader, scene, TERM_SETS["all"], "auto")  # once per process
-        with pytest.raises(ValueError, match=r"C\+\+ kernels are unavailable.*no-such-compiler"):
+        with pytest.raises(RuntimeError, match=r"C\+\+ library olatbench_ssdgs_shading is unavailable.*no-such"):
             shade(shader, scene, TERM_SETS["all"], "cpu")
     finally:
-        build.reset()
-        backends.reset_fallback_warning()
+        LIBRARY.reset()
+        _native.reset_fallback_warnings()

@@ -22,13 +22,25 @@ def _torch() -> Check:
     return "torch", True, f"{torch.__version__}; devices: {', '.join(devices)}; {torch.get_num_threads()} threads", ""
 
 
-def _rasterizer() -> Check:
-    if importlib.util.find_spec("torch") is None:
-        return "C++ rasterizer", False, "needs torch", "pip install torch==2.13.0"
-    from olatbench.gaussians.backends import cpu_backend_status
+# The native libraries (module holding the declaration, what they speed up); without one, torch runs instead.
+NATIVE_LIBRARIES = (
+    ("olatbench.gaussians.backends.cpu", "C++ rasterizer"),  # + projection, binning, light pass
+    ("olatbench.metrics.ssim_cpu", "C++ SSIM loss"),
+    ("olatbench.methods.ssdgs.shading_cpu", "C++ SSD-GS shading"),
+)
 
-    ok, detail = cpu_backend_status()
-    return "C++ rasterizer", ok, detail, "" if ok else "apt-get install g++  (then rerun; the build is cached)"
+
+def _native_check(module: str, name: str) -> Callable[[], Check]:
+    def check() -> Check:
+        if importlib.util.find_spec("torch") is None:
+            return name, False, "needs torch", "pip install torch==2.13.0"
+        ok, detail = importlib.import_module(module).LIBRARY.status()
+        if not ok:
+            detail = f"unavailable, the slower torch code runs instead (one warning per run): {detail}"
+        return name, ok, detail, "" if ok else "apt-get install g++  (with OpenMP; then rerun, the build is cached)"
+
+    check.__name__ = name
+    return check
 
 
 def _gsplat() -> Check:
@@ -94,7 +106,9 @@ def _video() -> Check:
         "" if ok else "pip install --force-reinstall opencv-contrib-python-headless"
 
 
-CHECKS: tuple[Callable[[], Check], ...] = (_torch, _rasterizer, _gsplat, _mitsuba, _lpips, _exr, _slurm, _video)
+CHECKS: tuple[Callable[[], Check], ...] = (
+    _torch, *(_native_check(module, name) for module, name in NATIVE_LIBRARIES), _gsplat, _mitsuba, _lpips, _exr,
+    _slurm, _video)
 
 
 def run_checks() -> list[Check]:

@@ -24,6 +24,8 @@ from dataclasses import dataclass
 
 import torch
 
+from olatbench._native import Unavailable
+
 # 3DGS clamps x/z and y/z of the camera-space mean to 1.3 × the half-FoV tangent before building the Jacobian,
 # so that Gaussians far outside the frustum do not get huge screen-space footprints.
 FRUSTUM_CLAMP = 1.3
@@ -102,21 +104,22 @@ def project(
     depth is outside [near, far], its 2D covariance is not positive definite, or its box mean ± radius misses
     the image. ``backend``: "torch", "cpu" (the C++ kernel) or "auto" (see the module docstring).
     """
-    if backend == "auto":
-        from .backends import resolve_backend
+    from .backends import resolve_kernel_backend
 
-        use_cpp = (resolve_backend("auto", means.device, means.dtype) == "cpu" and not K.requires_grad
-                   and all(t.device.type == "cpu" for t in (quats, scales, w2c, K)))
-        backend = "cpu" if use_cpp else "torch"
-    if backend == "cpu":
+    def cpu_inputs() -> Unavailable | None:
+        if K.requires_grad:
+            return Unavailable("it gives K no gradient, and K requires grad")
+        if any(t.device.type != "cpu" for t in (means, quats, scales, w2c, K)):
+            return Unavailable("it needs every tensor on the CPU")
+        return None
+
+    if resolve_kernel_backend(backend, means.device, means.dtype, "projection", cpu_inputs) == "cpu":
         from .backends.cpu import project_cpu
 
         means2d, conics, radii, depths = project_cpu(means, quats, scales, w2c, K, width, height, near, far,
                                                      low_pass)
         return Projected(means2d=means2d, conics=conics, radii=radii, depths=depths, width=int(width),
                          height=int(height))
-    if backend != "torch":
-        raise ValueError(f"unknown projection backend {backend!r}; choose 'auto', 'torch' or 'cpu'")
     dtype = means.dtype
     w2c = w2c.to(dtype)
     K = K.to(device=means.device, dtype=dtype)

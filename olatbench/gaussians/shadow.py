@@ -52,6 +52,7 @@ from typing import Literal
 import numpy as np
 import torch
 
+from olatbench._native import Unavailable
 from olatbench.datasets.cameras import look_at
 from olatbench.gaussians.projection import project
 from olatbench.gaussians.tiles import TileBins, bin_gaussians, float_order_key
@@ -62,7 +63,7 @@ OFFICIAL_DEPTH_OFFSET = 0.015  # squared-distance units (the official kernel's `
 # Options reproducing the official SSD-GS light kernel (torch backend: the C++ kernel has no "density" mode).
 OFFICIAL_KERNEL = {"mode": "density", "depth_offset": OFFICIAL_DEPTH_OFFSET}
 MAX_FOV_DEGREES = 120.0
-# Compositing constants of the rasterizer (kept identical to backends/csrc/rasterize.cpp).
+# Compositing constants of the rasterizer (kept identical to gaussians/csrc/rasterize.cpp).
 _ALPHA_MAX = 0.99
 _ALPHA_MIN = 1.0 / 255.0
 _T_MIN = 1e-4
@@ -207,24 +208,14 @@ def shadow_gather(
 
 
 def _choose_backend(backend: str, device: torch.device, dtype: torch.dtype, mode: str) -> str:
-    cpp_ok = mode == "uniform"
-    if backend == "torch":
-        return "torch"
-    if backend == "cpu":
-        if not cpp_ok:
-            raise ValueError(
-                f"the C++ light pass implements mode='uniform' only, got mode={mode!r} (use 'torch' or 'auto')"
-            )
-        if device.type != "cpu":
-            raise ValueError(f"backend='cpu' needs CPU tensors, got {device}")
-        return "cpu"
-    if backend != "auto":
-        raise ValueError(f"unknown shadow backend {backend!r}; choose 'auto', 'torch' or 'cpu'")
-    if not cpp_ok:
-        return "torch"
-    from olatbench.gaussians.backends import resolve_backend
+    from olatbench.gaussians.backends import resolve_kernel_backend
 
-    return "cpu" if resolve_backend("auto", device, dtype) == "cpu" else "torch"
+    def cpu_inputs() -> Unavailable | None:
+        if mode == "uniform":
+            return None
+        return Unavailable(f"the C++ light pass implements mode='uniform' only, got mode={mode!r}")
+
+    return resolve_kernel_backend(backend, device, dtype, "light-pass", cpu_inputs)
 
 
 def _gather_torch(

@@ -87,16 +87,12 @@ def bin_gaussians(
 
     ``backend``: "torch", "cpu" (the C++ kernel; CPU float32/float64 means) or "auto" (the rasterizer's
     choice for these tensors, see :func:`olatbench.gaussians.backends.resolve_backend`; torch unless "cpu")."""
-    if backend == "auto":
-        from .backends import resolve_backend
+    from .backends import resolve_kernel_backend
 
-        backend = "cpu" if resolve_backend("auto", means2d.device, means2d.dtype) == "cpu" else "torch"
-    if backend == "cpu":
+    if resolve_kernel_backend(backend, means2d.device, means2d.dtype, "binning") == "cpu":
         from .backends.cpu import bin_gaussians_cpu
 
         return bin_gaussians_cpu(means2d, radii, sort_keys, width, height, tile_size)
-    if backend != "torch":
-        raise ValueError(f"unknown binning backend {backend!r}; choose 'auto', 'torch' or 'cpu'")
     device = means2d.device
     tiles_x = (width + tile_size - 1) // tile_size
     tiles_y = (height + tile_size - 1) // tile_size

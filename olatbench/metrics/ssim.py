@@ -25,14 +25,13 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
-from olatbench.gaussians.backends import cpu_kernels_or_warn
+from olatbench._native import Unavailable, always, choose_backend
 from olatbench.metrics._inputs import ArrayLike, check_same_shape, mask_to_n1hw, to_nchw, to_output
-from olatbench.metrics.ssim_cpu import ssim_loss_cpu, unsupported_reason
+from olatbench.metrics.ssim_cpu import LIBRARY, ssim_loss_cpu, unsupported_reason
 
 SSIMVariant = Literal["wang", "3dgs"]
 SSIM_VARIANTS: tuple[str, ...] = ("wang", "3dgs")
 SSIMBackend = Literal["auto", "torch", "cpu"]
-SSIM_BACKENDS: tuple[str, ...] = ("auto", "torch", "cpu")
 WINDOW_SIZE = 11
 SIGMA = 1.5
 K1, K2 = 0.01, 0.03
@@ -128,28 +127,21 @@ def resolve_ssim_backend(pred: torch.Tensor, gt: torch.Tensor, variant: SSIMVari
 
     ``"cpu"`` handles the ``"3dgs"`` variant of CPU float32/float64 tensors of one dtype, at least 11×11, whose
     ``gt`` does not require grad. ``backend="auto"`` picks it for such inputs when the C++ library builds and
-    otherwise ``"torch"``; like the rasterizer's ``resolve_backend``, a failed build falls back to torch with
-    one RuntimeWarning saying why. ``backend="cpu"`` raises ValueError for other inputs and
-    ``olatbench.gaussians.backends.build.BuildError`` when the library cannot be built; ``"torch"`` always
-    uses the torch code."""
-    if backend not in SSIM_BACKENDS:
-        raise ValueError(f"unknown SSIM backend {backend!r}; expected one of {SSIM_BACKENDS}")
+    otherwise ``"torch"``; a failed build falls back to torch with one RuntimeWarning saying why
+    (``olatbench._native.choose_backend``). ``backend="cpu"`` raises ValueError for other inputs and
+    RuntimeError when the library cannot be built; ``"torch"`` always uses the torch code."""
     _check_variant(variant)
-    if backend == "torch":
-        return "torch"
-    if variant != "3dgs":
-        reason = f"it implements only the '3dgs' variant, not {variant!r}"
-    elif min(pred.shape[-2:]) < WINDOW_SIZE:
-        reason = f"it needs images of at least {WINDOW_SIZE}×{WINDOW_SIZE} pixels, found {tuple(pred.shape[-2:])}"
-    else:
-        reason = unsupported_reason(pred, gt)
-    if backend == "cpu":
-        if reason is not None:
-            raise ValueError(f"SSIM backend 'cpu' cannot compute this loss: {reason}; use 'auto' or 'torch'")
-        return "cpu"
-    if reason is not None:
-        return "torch"
-    return "cpu" if cpu_kernels_or_warn("SSIM loss", "the slower torch SSIM") else "torch"
+
+    def cpu_check() -> Unavailable | None:
+        if variant != "3dgs":
+            reason = f"it implements only the '3dgs' variant, not {variant!r}"
+        elif min(pred.shape[-2:]) < WINDOW_SIZE:
+            reason = f"it needs images of at least {WINDOW_SIZE}×{WINDOW_SIZE} pixels, found {tuple(pred.shape[-2:])}"
+        else:
+            reason = unsupported_reason(pred, gt)
+        return Unavailable(reason) if reason is not None else LIBRARY.unavailable()
+
+    return choose_backend(backend, pred.device.type, {"cpu": cpu_check, "torch": always}, kind="SSIM")
 
 
 def ssim_loss(pred: torch.Tensor, gt: torch.Tensor, variant: SSIMVariant = "3dgs", channels_last: bool = False,

@@ -1,4 +1,4 @@
-"""Rasterizer backends and their selection.
+"""Rasterizer backends and their selection (also followed by projection, binning and the light pass).
 
 Every backend implements ``(means2d (N,2), conics (N,3), opacities (N,), features (N,C), bins: TileBins) ->
 (colour without background (H,W,C), final transmittance (H,W))``:
@@ -7,89 +7,79 @@ Every backend implements ``(means2d (N,2), conics (N,3), opacities (N,), feature
 - ``cpu``: ``cpu.rasterize_cpu``, the C++/OpenMP kernel with a hand-written backward (built on first use);
 - ``cuda``: ``cuda.rasterize_cuda``, gsplat's CUDA kernel.
 
-``resolve_backend("auto", device)`` picks ``cuda`` (gsplat) for CUDA tensors when gsplat is importable, else
-``torch``; on the CPU it picks ``cpu`` when the C++ build works, else ``torch`` with one warning saying why.
-The environment variable ``OLATBENCH_RASTERIZER`` (``torch``, ``cpu``, ``cuda`` or ``auto``) overrides
-``"auto"``; an explicitly requested backend is used as asked (or fails with a clear error).
+``resolve_backend("auto", device)`` picks ``cuda`` (gsplat) for CUDA tensors when gsplat is importable and
+``cpu`` for CPU float32/float64 tensors when the C++ library builds, else ``torch``; a missing gsplat or a
+failed build falls back to ``torch`` with one warning saying why (``olatbench._native.choose_backend``). The
+environment variable ``OLATBENCH_RASTERIZER`` (``torch``, ``cpu``, ``cuda`` or ``auto``) overrides ``"auto"``;
+an explicitly requested backend is used as asked (or fails with a clear error).
+
+``resolve_kernel_backend`` chooses for the kernels that have a C++ and a torch version (projection, binning,
+light pass): ``"auto"`` takes the C++ one exactly when the rasterizer's choice for these tensors is ``cpu``, so
+``OLATBENCH_RASTERIZER=torch`` switches the whole Gaussian core to torch.
 """
 
 from __future__ import annotations
 
-import os
-import warnings
+from collections.abc import Callable
+from typing import Literal
 
 import torch
 
-from . import build
+from olatbench._native import Unavailable, always, choose_backend
+
+from .cpu import LIBRARY
 from .cuda import gsplat_available
 
 BACKENDS = ("torch", "cpu", "cuda")
 ENV_VAR = "OLATBENCH_RASTERIZER"
-_warned_fallbacks: set[str] = set()
+KernelBackend = Literal["torch", "cpu"]
 
 
 def cpu_backend_status() -> tuple[bool, str]:
-    """(ok, detail) of the C++ CPU backend: builds/loads it if needed; ``detail`` is the library path or the
-    reason it is unavailable (for ``olatbench doctor``)."""
-    try:
-        build.load()
-    except build.BuildError as error:
-        return False, str(error)
-    path, note = build.loaded_path()
-    return True, f"{path} ({note})" if note else str(path)
+    """(ok, detail) of the Gaussian core's C++ library: builds/loads it if needed; ``detail`` is the library
+    path or the reason it is unavailable (for ``olatbench doctor``)."""
+    return LIBRARY.status()
 
 
-def cpu_kernels_or_warn(kernel: str, fallback: str, hint: str = "") -> bool:
-    """Whether the C++ library is available for ``kernel`` (e.g. "CPU rasterizer"); when it is not, one
-    RuntimeWarning per ``kernel`` (and process) says that ``fallback`` is used instead and why, plus ``hint``."""
-    ok, detail = cpu_backend_status()
-    if not ok and kernel not in _warned_fallbacks:
-        _warned_fallbacks.add(kernel)
-        warnings.warn(
-            f"olatbench: the C++ {kernel} is unavailable, falling back to {fallback}. Reason: {detail}\n"
-            f"Install a C++ compiler with OpenMP (e.g. `apt install g++`) or point OLATBENCH_CXX at one{hint}.",
-            RuntimeWarning,
-            stacklevel=4,  # past this helper and the resolver that calls it: where the kernel was asked for
-        )
-    return ok
+def _cpu_check(dtype: torch.dtype) -> Unavailable | None:
+    if dtype not in (torch.float32, torch.float64):
+        return Unavailable(f"it supports float32 and float64, not {dtype}")
+    return LIBRARY.unavailable()
+
+
+def _cuda_check() -> Unavailable | None:
+    if gsplat_available():
+        return None
+    return Unavailable("it needs gsplat (`pip install gsplat`) and a CUDA device", missing=True)
 
 
 def resolve_backend(requested: str, device: torch.device | str, dtype: torch.dtype = torch.float32) -> str:
-    """The concrete backend name for ``requested`` ("auto" or one of BACKENDS) and the tensors' device."""
+    """The concrete rasterizer backend for ``requested`` ("auto" or one of BACKENDS) and the tensors' device
+    and dtype (see the module docstring)."""
+    return choose_backend(requested, torch.device(device).type, {
+        "cuda": _cuda_check,
+        "cpu": lambda: _cpu_check(dtype),
+        "torch": always,
+    }, kind="rasterizer", env_var=ENV_VAR)  # fmt: skip
+
+
+def resolve_kernel_backend(requested: str, device: torch.device | str, dtype: torch.dtype, kind: str,
+                           inputs_check: Callable[[], Unavailable | None] = always) -> KernelBackend:
+    """``"cpu"`` or ``"torch"`` for a Gaussian-core kernel named ``kind`` ("projection", ...) that has both.
+
+    ``inputs_check`` says why the C++ version cannot take these inputs (None when it can). ``"auto"`` takes
+    it when that check passes and ``resolve_backend("auto", device, dtype)`` is ``"cpu"`` (whose warning covers
+    a failed build); ``"cpu"`` requires the check to pass and the library to build."""
     device = torch.device(device)
-    name = requested
-    if requested == "auto":
-        name = os.environ.get(ENV_VAR, "").strip().lower() or "auto"
-        source = f"environment variable {ENV_VAR}={name!r}"
-    else:
-        source = f"backend={requested!r}"
-    if name != "auto" and name not in BACKENDS:
-        raise ValueError(f"unknown rasterizer backend from {source}; choose one of {', '.join(BACKENDS)} or 'auto'")
-    if name == "auto":
-        return _auto_backend(device, dtype)
-    if name == "cpu" and device.type != "cpu":
-        raise ValueError(f"{source} needs CPU tensors, got {device}; use 'auto', 'torch' or 'cuda'")
-    if name == "cuda":
-        if device.type != "cuda":
-            raise ValueError(f"{source} needs CUDA tensors, got {device}")
-        if not gsplat_available():
-            raise RuntimeError(f"{source} needs gsplat (`pip install gsplat`); use 'torch' instead")
-    return name
+
+    def cpu_check() -> Unavailable | None:
+        problem = inputs_check()
+        if problem is None and requested == "auto":
+            rasterizer = resolve_backend("auto", device, dtype)
+            return None if rasterizer == "cpu" else Unavailable(f"the rasterizer uses {rasterizer!r}")
+        return problem or _cpu_check(dtype)
+
+    return choose_backend(requested, device.type, {"cpu": cpu_check, "torch": always}, kind=kind)
 
 
-def _auto_backend(device: torch.device, dtype: torch.dtype) -> str:
-    if device.type == "cuda":
-        return "cuda" if gsplat_available() else "torch"
-    if device.type != "cpu" or dtype not in (torch.float32, torch.float64):
-        return "torch"
-    return "cpu" if cpu_kernels_or_warn("CPU rasterizer", "the much slower torch rasterizer",
-                                        f"; set {ENV_VAR}=torch to silence this warning") else "torch"
-
-
-def reset_fallback_warning() -> None:
-    """Allow the fallback warnings to be shown again (for tests)."""
-    _warned_fallbacks.clear()
-
-
-__all__ = ["BACKENDS", "ENV_VAR", "cpu_backend_status", "cpu_kernels_or_warn", "reset_fallback_warning",
-           "resolve_backend"]
+__all__ = ["BACKENDS", "ENV_VAR", "KernelBackend", "cpu_backend_status", "resolve_backend", "resolve_kernel_backend"]

@@ -1,28 +1,66 @@
-"""C++/OpenMP CPU backend: ``csrc/rasterize.cpp`` called through ctypes, wrapped in a ``torch.autograd.Function``.
+"""C++/OpenMP CPU backend: ``gaussians/csrc/rasterize.cpp`` called through ctypes, wrapped in
+``torch.autograd.Function``s: rasterizer, projection, binning and the light pass.
 
-The kernel has a hand-written backward (the 3DGS one: back-to-front per pixel, recovering each Gaussian's
+The rasterizer has a hand-written backward (the 3DGS one: back-to-front per pixel, recovering each Gaussian's
 transmittance from the final one) and is deterministic whatever the thread count. float32 and float64 are
 both supported (float64 is what the tests compare against the torch reference at tight tolerances).
+``LIBRARY`` is the Gaussian core's native library and its typed symbol table (built on first use by
+``olatbench._native``).
 """
 
 from __future__ import annotations
 
 import ctypes
 from dataclasses import dataclass
+from pathlib import Path
 
 import torch
 
+from olatbench._native import NativeLibrary, Signature, per_float
+from olatbench._native.tensors import float_suffix, pointer, thread_count
+
 from ..tiles import TILE_SIZE, TileBins
-from . import build
-from .kernel_args import float_suffix, pointer, thread_count
+
+CSRC = Path(__file__).parents[1] / "csrc"
+_P, _INT, _I64 = ctypes.c_void_p, ctypes.c_int, ctypes.c_int64  # a pointer (tensor data or NULL), int, int64_t
+_GRID = (_INT,) * 5  # width, height, tile size, tiles_x, tiles_y
+
+
+def _symbols(suffix: str, real: type) -> dict[str, Signature]:
+    """The exported functions of ``csrc/rasterize.cpp`` for one float type (its ``OLATBENCH_DEFINE``)."""
+    return {
+        # means2d, conics, opacities, features, channels, offsets, ids, grid, threads -> colour, final T, counts
+        f"olatbench_forward_{suffix}": Signature(None, (_P, _P, _P, _P, _INT, _P, _P, *_GRID, _INT, _P, _P, _P)),
+        # ... as forward, final T, counts, grad colour, grad T, N -> grads of means2d, conics, opacities, features
+        f"olatbench_backward_{suffix}": Signature(
+            None, (_P, _P, _P, _P, _INT, _P, _P, *_GRID, _INT, _P, _P, _P, _P, _I64, _P, _P, _P, _P)),
+        # means2d, conics, opacities, keys, depth_offset, offsets, ids, grid, radius_px, threads, N
+        # -> vis_sum, count, weight
+        f"olatbench_shadow_gather_{suffix}": Signature(
+            None, (_P, _P, _P, _P, ctypes.c_double, _P, _P, *_GRID, real, _INT, _I64, _P, _P, _P)),
+        # means2d, radii, N, grid -> ranges, offsets; returns the number of (tile, Gaussian) pairs
+        f"olatbench_bin_count_{suffix}": Signature(_I64, (_P, _P, _I64, *_GRID, _P, _P)),
+        # ranges, keys, N, grid, offsets -> ids
+        f"olatbench_bin_fill_{suffix}": Signature(None, (_P, _P, _I64, *_GRID, _P, _P)),
+        # means, quats, scales, camera, N, width, height, threads -> means2d, conics, radii, depths
+        f"olatbench_project_forward_{suffix}": Signature(
+            None, (_P, _P, _P, _P, _I64, _INT, _INT, _INT, _P, _P, _P, _P)),
+        # means, quats, scales, camera, N, threads, grads of means2d, conics, depths
+        # -> grads of means, quats, scales, w2c
+        f"olatbench_project_backward_{suffix}": Signature(
+            None, (_P, _P, _P, _P, _I64, _INT, _P, _P, _P, _P, _P, _P, _P)),
+    }  # fmt: skip
+
+
+LIBRARY = NativeLibrary("olatbench_gaussians", [CSRC / "rasterize.cpp"], per_float(_symbols))
 
 
 def _prepare(tensors: list[torch.Tensor], dtype: torch.dtype) -> list[torch.Tensor]:
     return [t.detach().to(device="cpu", dtype=dtype).contiguous() for t in tensors]
 
 
-def _grid(bins: TileBins) -> list[ctypes.c_int]:
-    return [ctypes.c_int(v) for v in (bins.width, bins.height, bins.tile_size, bins.tiles_x, bins.tiles_y)]
+def _grid(bins: TileBins) -> tuple[int, int, int, int, int]:
+    return bins.width, bins.height, bins.tile_size, bins.tiles_x, bins.tiles_y
 
 
 def _suffix(dtype: torch.dtype) -> str:
@@ -32,7 +70,7 @@ def _suffix(dtype: torch.dtype) -> str:
 class _RasterizeCPU(torch.autograd.Function):
     @staticmethod
     def forward(ctx, means2d, conics, opacities, features, offsets, ids, bins, threads):
-        lib = build.load()
+        lib = LIBRARY.load()
         dtype = means2d.dtype
         suffix = _suffix(dtype)
         means2d, conics, opacities, features = _prepare([means2d, conics, opacities, features], dtype)
@@ -41,9 +79,9 @@ class _RasterizeCPU(torch.autograd.Function):
         colour = torch.empty(bins.height, bins.width, channels, dtype=dtype)
         final_t = torch.empty(bins.height, bins.width, dtype=dtype)
         counts = torch.empty(bins.height, bins.width, dtype=torch.int32)
-        getattr(lib, f"olatbench_forward_{suffix}")(
-            pointer(means2d), pointer(conics), pointer(opacities), pointer(features), ctypes.c_int(channels),
-            pointer(offsets), pointer(ids), *_grid(bins), ctypes.c_int(threads),
+        lib[f"olatbench_forward_{suffix}"](
+            pointer(means2d), pointer(conics), pointer(opacities), pointer(features), channels,
+            pointer(offsets), pointer(ids), *_grid(bins), threads,
             pointer(colour), pointer(final_t), pointer(counts),
         )  # fmt: skip
         ctx.save_for_backward(means2d, conics, opacities, features, offsets, ids, final_t, counts)
@@ -61,10 +99,10 @@ class _RasterizeCPU(torch.autograd.Function):
             grad_t = torch.zeros_like(final_t)
         grad_colour, grad_t = _prepare([grad_colour, grad_t], dtype)
         out = [torch.empty_like(t) for t in (means2d, conics, opacities, features)]
-        getattr(build.load(), f"olatbench_backward_{_suffix(dtype)}")(
-            pointer(means2d), pointer(conics), pointer(opacities), pointer(features), ctypes.c_int(features.shape[1]),
-            pointer(offsets), pointer(ids), *_grid(ctx.bins), ctypes.c_int(ctx.threads),
-            pointer(final_t), pointer(counts), pointer(grad_colour), pointer(grad_t), ctypes.c_int64(n),
+        LIBRARY.load()[f"olatbench_backward_{_suffix(dtype)}"](
+            pointer(means2d), pointer(conics), pointer(opacities), pointer(features), features.shape[1],
+            pointer(offsets), pointer(ids), *_grid(ctx.bins), ctx.threads,
+            pointer(final_t), pointer(counts), pointer(grad_colour), pointer(grad_t), n,
             *(pointer(t) for t in out),
         )  # fmt: skip
         return (*out, None, None, None, None)
@@ -81,8 +119,8 @@ def rasterize_cpu(
     """Composite binned Gaussians on the CPU: colour without background (H, W, C) and final transmittance (H, W).
 
     Same contract as ``torch_ref.rasterize_torch``; inputs must be CPU float32 or float64 (one dtype).
-    ``threads`` defaults to ``torch.get_num_threads()``. Raises ``build.BuildError`` if the kernel cannot be
-    built."""
+    ``threads`` defaults to ``torch.get_num_threads()``. Raises ``olatbench._native.BuildError`` if the kernel
+    cannot be built."""
     colour, final_t, _ = _RasterizeCPU.apply(
         means2d, conics, opacities, features, bins.offsets, bins.gaussian_ids, bins, thread_count(threads)
     )
@@ -98,10 +136,9 @@ class _ProjectCPU(torch.autograd.Function):
         means, quats, scales = _prepare([means, quats, scales], dtype)
         means2d, conics = torch.empty(n, 2, dtype=dtype), torch.empty(n, 3, dtype=dtype)
         radii, depths = torch.empty(n, dtype=torch.int64), torch.empty(n, dtype=dtype)
-        getattr(build.load(), f"olatbench_project_forward_{_suffix(dtype)}")(
-            pointer(means), pointer(quats), pointer(scales), pointer(camera), ctypes.c_int64(n),
-            ctypes.c_int(width), ctypes.c_int(height), ctypes.c_int(threads), pointer(means2d), pointer(conics),
-            pointer(radii), pointer(depths))
+        LIBRARY.load()[f"olatbench_project_forward_{_suffix(dtype)}"](
+            pointer(means), pointer(quats), pointer(scales), pointer(camera), n, width, height, threads,
+            pointer(means2d), pointer(conics), pointer(radii), pointer(depths))
         ctx.save_for_backward(means, quats, scales, camera)
         ctx.threads, ctx.w2c_dtype = threads, w2c.dtype
         ctx.mark_non_differentiable(radii)
@@ -115,9 +152,9 @@ class _ProjectCPU(torch.autograd.Function):
                           for g, k in ((grad_means2d, 2), (grad_conics, 3), (grad_depths, 1))], dtype)
         out = [torch.empty_like(t) for t in (means, quats, scales)]
         grad_w2c = torch.empty(4, 4, dtype=dtype) if ctx.needs_input_grad[3] else None
-        getattr(build.load(), f"olatbench_project_backward_{_suffix(dtype)}")(
-            pointer(means), pointer(quats), pointer(scales), pointer(camera), ctypes.c_int64(n),
-            ctypes.c_int(ctx.threads), *(pointer(g) for g in grads), *(pointer(t) for t in out), pointer(grad_w2c))
+        LIBRARY.load()[f"olatbench_project_backward_{_suffix(dtype)}"](
+            pointer(means), pointer(quats), pointer(scales), pointer(camera), n, ctx.threads,
+            *(pointer(g) for g in grads), *(pointer(t) for t in out), pointer(grad_w2c))
         if grad_w2c is not None:
             grad_w2c = grad_w2c.to(ctx.w2c_dtype)
         return (*out, grad_w2c, None, None, None, None)
@@ -168,22 +205,20 @@ def bin_gaussians_cpu(
     each Gaussian's tiles filled in that order."""
     if means2d.device.type != "cpu":
         raise ValueError(f"the C++ binning needs CPU tensors, got {means2d.device}")
-    lib, dtype = build.load(), means2d.dtype
+    lib, dtype = LIBRARY.load(), means2d.dtype
     suffix = _suffix(dtype)
     tiles_x, tiles_y = (width + tile_size - 1) // tile_size, (height + tile_size - 1) // tile_size
     (means2d, keys), n = _prepare([means2d, sort_keys], dtype), means2d.shape[0]
     radii = radii.detach().to(dtype=torch.int64).contiguous()
-    grid = [ctypes.c_int(v) for v in (width, height, tile_size, tiles_x, tiles_y)]
+    grid = (width, height, tile_size, tiles_x, tiles_y)
     if n >= 2**32:
         raise ValueError(f"the C++ binning packs Gaussian indices in 32 bits; got {n} Gaussians")
     offsets = torch.empty(tiles_x * tiles_y + 1, dtype=torch.int64)
     ranges = torch.empty(n, 4, dtype=torch.int64)
-    count = getattr(lib, f"olatbench_bin_count_{suffix}")
-    count.restype = ctypes.c_int64
-    total = count(pointer(means2d), pointer(radii), ctypes.c_int64(n), *grid, pointer(ranges), pointer(offsets))
+    total = lib[f"olatbench_bin_count_{suffix}"](pointer(means2d), pointer(radii), n, *grid, pointer(ranges),
+                                                 pointer(offsets))
     ids = torch.empty(total, dtype=torch.int64)
-    getattr(lib, f"olatbench_bin_fill_{suffix}")(
-        pointer(ranges), pointer(keys), ctypes.c_int64(n), *grid, pointer(offsets), pointer(ids))
+    lib[f"olatbench_bin_fill_{suffix}"](pointer(ranges), pointer(keys), n, *grid, pointer(offsets), pointer(ids))
     return TileBins(offsets=offsets, gaussian_ids=ids, tile_size=tile_size, tiles_x=tiles_x, tiles_y=tiles_y,
                     width=int(width), height=int(height))
 
@@ -244,14 +279,12 @@ def shadow_gather_cpu(
     vis_sum = torch.empty(n, dtype=dtype)
     count = torch.empty(n, dtype=torch.int32)
     weight = torch.empty(n, dtype=dtype)
-    c_float = ctypes.c_float if dtype == torch.float32 else ctypes.c_double
-    getattr(build.load(), f"olatbench_shadow_gather_{suffix}")(
-        pointer(means2d), pointer(conics), pointer(opacities), pointer(keys),
-        ctypes.c_double(depth_offset), pointer(offsets), pointer(ids), *_grid(bins),
-        c_float(radius_px), ctypes.c_int(thread_count(threads)), ctypes.c_int64(n),
-        pointer(vis_sum), pointer(count), pointer(weight),
+    LIBRARY.load()[f"olatbench_shadow_gather_{suffix}"](
+        pointer(means2d), pointer(conics), pointer(opacities), pointer(keys), depth_offset, pointer(offsets),
+        pointer(ids), *_grid(bins), radius_px, thread_count(threads), n, pointer(vis_sum), pointer(count),
+        pointer(weight),
     )  # fmt: skip
     return ShadowGather(vis_sum=vis_sum, count=count, weight=weight)
 
 
-__all__ = ["ShadowGather", "rasterize_cpu", "shadow_gather_cpu"]
+__all__ = ["LIBRARY", "ShadowGather", "bin_gaussians_cpu", "project_cpu", "rasterize_cpu", "shadow_gather_cpu"]

@@ -8,10 +8,11 @@ is, optionally ``shading_quat`` (K, 4) for the official code's learned shading f
 
 Backends (`Shader.backend`): ``"torch"`` evaluates everything with torch ops (the reference); ``"cpu"`` runs the
 closed-form parts as the two fused C++ kernels of `shading_cpu` (hand-written backwards; the two networks stay
-torch modules called between them) and raises ValueError when it cannot (tensors not on the CPU, not one
-float32/float64 dtype, ``asg_form`` "official" — the kernels implement the "xu" ASG only — or no C++ build);
-``"auto"`` (default) uses ``"cpu"`` when it can and ``"torch"`` otherwise. Both give the same components and
-gradients up to rounding.
+torch modules called between them) and raises ValueError when it cannot take the inputs (tensors not on the
+CPU, not one float32/float64 dtype, ``asg_form`` "official" — the kernels implement the "xu" ASG only) and
+RuntimeError when its C++ library does not build; ``"auto"`` (default) uses ``"cpu"`` when it can and
+``"torch"`` otherwise, with one RuntimeWarning when the reason is a failed build (``olatbench._native``'s
+``choose_backend``). Both give the same components and gradients up to rounding.
 """
 
 from __future__ import annotations
@@ -23,7 +24,7 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from olatbench.gaussians.backends import cpu_backend_status, cpu_kernels_or_warn
+from olatbench._native import Unavailable, always, choose_backend
 from olatbench.gaussians.projection import quat_to_rotmat
 from olatbench.methods.shading.asg import ASGMixture
 from olatbench.methods.shading.shadow_mlp import ShadowNetwork
@@ -37,6 +38,7 @@ from olatbench.methods.shading.terms import (
 )
 from olatbench.methods.ssdgs.config import SSDGSConfig
 from olatbench.methods.ssdgs.shading_cpu import (
+    LIBRARY,
     rotations_cpu,
     shading_combine,
     shading_geometry,
@@ -100,12 +102,10 @@ class Shader(nn.Module):
                        *(attributes[name] for name in self._attribute_names(terms))]
             if "specular" in terms:
                 tensors += list(self.asg.parameters())
-            reason = self.cpu_unsupported(tensors)
-            if reason is None:
+            available = {"cpu": lambda: self.cpu_unsupported(tensors), "torch": always}
+            if choose_backend(self.backend, positions.device.type, available, kind="SSD-GS shading") == "cpu":
                 return self._forward_cpu(positions, quats, scales, attributes, camera_position, light_position,
                                          intensity, terms, coarse_visibility)
-            if self.backend == "cpu":
-                raise ValueError(f"Shader backend 'cpu' cannot shade these inputs: {reason}; use 'auto' or 'torch'")
         wi, incident = inverse_square_irradiance(positions, light_position, intensity)
         wo = safe_normalize(camera_position[None, :] - positions)
         frames = self.frames(attributes, quats, scales, wo)
@@ -150,21 +150,18 @@ class Shader(nn.Module):
             names.append("material")
         return names
 
-    def cpu_unsupported(self, tensors: list[torch.Tensor]) -> str | None:
+    def cpu_unsupported(self, tensors: list[torch.Tensor]) -> Unavailable | None:
         """Why the fused C++ kernels cannot shade with these input ``tensors`` and this config (None: they can)."""
         if self.config.asg_form != "xu":
-            return f"asg_form {self.config.asg_form!r} (the C++ kernels implement the 'xu' ASG form only)"
+            return Unavailable(f"asg_form {self.config.asg_form!r} (the C++ kernels implement the 'xu' ASG form only)")
         dtype = tensors[0].dtype
         if dtype not in (torch.float32, torch.float64):
-            return f"dtype {dtype} (the C++ kernels support float32 and float64)"
+            return Unavailable(f"dtype {dtype} (the C++ kernels support float32 and float64)")
         if any(t.device.type != "cpu" for t in tensors):
-            return "tensors not on the CPU"
+            return Unavailable("tensors not on the CPU")
         if any(t.dtype != dtype for t in tensors):
-            return "inputs of different dtypes"
-        ok, detail = cpu_backend_status()
-        if not ok and self.backend == "auto":  # say once why auto shades with torch
-            cpu_kernels_or_warn("SSD-GS shading kernels", "the torch shading")
-        return None if ok else f"the C++ kernels are unavailable ({detail})"
+            return Unavailable("inputs of different dtypes")
+        return LIBRARY.unavailable()
 
     def _forward_cpu(self, positions: torch.Tensor, quats: torch.Tensor, scales: torch.Tensor,
                      attributes: dict[str, torch.Tensor], camera_position: torch.Tensor,

@@ -1,4 +1,4 @@
-"""C++ kernels of SSD-GS's per-Gaussian shading (``csrc/shading.cpp``), called through ctypes.
+"""C++ kernels of SSD-GS's per-Gaussian shading (``methods/ssdgs/csrc/shading.cpp``), called through ctypes.
 
 `Shader.forward` (backend "auto" or "cpu") runs its closed-form parts as two fused kernels with hand-written
 backwards; the two networks Θ_SSS and Θ_shad stay torch modules called between them:
@@ -11,19 +11,50 @@ backwards; the two networks Θ_SSS and Θ_shad stay torch modules called between
 
 They reproduce the torch code of `shader`, `shading` and `specular` (ASG form "xu" only) up to rounding,
 including its gradient conventions at clamps, ties and normalisations, and give the same results for any
-number of threads. CPU float32/float64 tensors of one dtype; the kernels live in the library built by
-``olatbench.gaussians.backends.build`` (first use compiles it).
+number of threads. CPU float32/float64 tensors of one dtype. The kernels are SSD-GS's own native library,
+``LIBRARY`` (built on first use by ``olatbench._native``). It includes the Gaussian core's ``rotation.h`` but
+none of its sources: editing ``shading.cpp`` rebuilds this library only, editing ``rotation.h`` both.
 """
 
 from __future__ import annotations
 
 import ctypes
+from pathlib import Path
 
 import torch
 from torch.autograd.function import once_differentiable
 
-from olatbench.gaussians.backends import build
-from olatbench.gaussians.backends.kernel_args import float_suffix, pointer, thread_count
+from olatbench._native import NativeLibrary, Signature, per_float
+from olatbench._native.tensors import float_suffix, pointer, thread_count
+from olatbench.gaussians.backends.cpu import CSRC as GAUSSIAN_CSRC
+
+_P, _INT, _I64 = ctypes.c_void_p, ctypes.c_int, ctypes.c_int64  # a pointer (tensor data or NULL), int, int64_t
+# OLATBENCH_SHADING_COMBINE_ARGS: wi, wo, frames, inv_dist2, intensity, diffuse, specular, asg_weights, lobe_axes,
+# lam, mu, num_lobes, sss, profile, profile_channels, shadow, n, smooth_cosine, shadow_on_sss, f0, threads.
+_COMBINE_ARGS = (*(_P,) * 11, _INT, _P, _P, _INT, _P, _I64, _INT, _INT, ctypes.c_double, _INT)
+
+
+def _symbols(suffix: str, real: type) -> dict[str, Signature]:
+    """The exported functions of ``csrc/shading.cpp`` for one float type (its ``OLATBENCH_SHADING_DEFINE``)."""
+    return {
+        # quats, n -> rotations; quats, n, grad rotations -> grad quats
+        f"olatbench_shading_rotations_forward_{suffix}": Signature(None, (_P, _I64, _P)),
+        f"olatbench_shading_rotations_backward_{suffix}": Signature(None, (_P, _I64, _P, _P)),
+        # positions, quats, scales, camera, light, n, orient, threads -> wi, wo, frames, inv_dist2
+        f"olatbench_shading_geometry_forward_{suffix}": Signature(None, (*(_P,) * 5, _I64, _INT, _INT, *(_P,) * 4)),
+        # ... as forward, grads of wi, wo, frames, inv_dist2 -> grads of positions, quats, camera, light
+        f"olatbench_shading_geometry_backward_{suffix}": Signature(
+            None, (*(_P,) * 5, _I64, _INT, _INT, *(_P,) * 8)),
+        # combine args -> colour, diffuse, specular, sss, cache
+        f"olatbench_shading_combine_forward_{suffix}": Signature(None, (*_COMBINE_ARGS, *(_P,) * 5)),
+        # combine args, cache, grads of colour, diffuse, specular, sss -> grads of the 14 tensor inputs
+        f"olatbench_shading_combine_backward_{suffix}": Signature(None, (*_COMBINE_ARGS, *(_P,) * 19)),
+    }  # fmt: skip
+
+
+CSRC = Path(__file__).with_name("csrc")
+LIBRARY = NativeLibrary("olatbench_ssdgs_shading", [CSRC / "shading.cpp"], per_float(_symbols),
+                        include_dirs=[GAUSSIAN_CSRC])  # for rotation.h (quaternion -> rotation matrix)
 
 
 def _suffix(dtype: torch.dtype) -> str:
@@ -46,8 +77,8 @@ class _GeometryCPU(torch.autograd.Function):
         inputs = [_contiguous(t) for t in (positions, frame_quats, scales, camera_position, light_position)]
         wi, wo = torch.empty(n, 3, dtype=dtype), torch.empty(n, 3, dtype=dtype)
         frames, inv_dist2 = torch.empty(n, 3, 3, dtype=dtype), torch.empty(n, 1, dtype=dtype)
-        getattr(build.load(), f"olatbench_shading_geometry_forward_{suffix}")(
-            *map(pointer, inputs), ctypes.c_int64(n), ctypes.c_int(int(orient)), ctypes.c_int(threads),
+        LIBRARY.load()[f"olatbench_shading_geometry_forward_{suffix}"](
+            *map(pointer, inputs), n, int(orient), threads,
             pointer(wi), pointer(wo), pointer(frames), pointer(inv_dist2),
         )  # fmt: skip
         ctx.save_for_backward(*inputs)
@@ -64,8 +95,8 @@ class _GeometryCPU(torch.autograd.Function):
         grads = [_contiguous(g) for g in (g_wi, g_wo, g_frames, g_inv)]
         out = [torch.empty_like(positions), torch.empty_like(frame_quats), torch.empty(3, dtype=dtype),
                torch.empty(3, dtype=dtype)]
-        getattr(build.load(), f"olatbench_shading_geometry_backward_{_suffix(dtype)}")(
-            *map(pointer, inputs), ctypes.c_int64(n), ctypes.c_int(int(ctx.orient)), ctypes.c_int(ctx.threads),
+        LIBRARY.load()[f"olatbench_shading_geometry_backward_{_suffix(dtype)}"](
+            *map(pointer, inputs), n, int(ctx.orient), ctx.threads,
             *map(pointer, grads), *map(pointer, out),
         )  # fmt: skip
         grad_positions, grad_quats, grad_camera, grad_light = out
@@ -83,8 +114,8 @@ class _RotationsCPU(torch.autograd.Function):
     def forward(ctx, quats):
         quats = quats.contiguous()
         out = torch.empty(quats.shape[0], 3, 3, dtype=quats.dtype)
-        getattr(build.load(), f"olatbench_shading_rotations_forward_{_suffix(quats.dtype)}")(
-            pointer(quats), ctypes.c_int64(quats.shape[0]), pointer(out))
+        LIBRARY.load()[f"olatbench_shading_rotations_forward_{_suffix(quats.dtype)}"](
+            pointer(quats), quats.shape[0], pointer(out))
         ctx.save_for_backward(quats)
         return out
 
@@ -93,8 +124,8 @@ class _RotationsCPU(torch.autograd.Function):
     def backward(ctx, grad_out):
         (quats,) = ctx.saved_tensors
         grad = torch.empty_like(quats)
-        getattr(build.load(), f"olatbench_shading_rotations_backward_{_suffix(quats.dtype)}")(
-            pointer(quats), ctypes.c_int64(quats.shape[0]), pointer(grad_out.contiguous()), pointer(grad))
+        LIBRARY.load()[f"olatbench_shading_rotations_backward_{_suffix(quats.dtype)}"](
+            pointer(quats), quats.shape[0], pointer(grad_out.contiguous()), pointer(grad))
         return grad
 
 
@@ -118,8 +149,8 @@ class _CombineCPU(torch.autograd.Function):
         out = [torch.empty(n, 3, dtype=dtype) for _ in range(4)]
         ctx.scalars = _combine_scalars(tensors, n, smooth_cosine, fresnel_f0, shadow_on_sss, threads)
         # Softplus values and derivatives and the lobe exponentials, saved for the backward (csrc CacheLayout).
-        cache = torch.empty(n * (18 + 3 * ctx.scalars["num_lobes"].value), dtype=dtype)
-        getattr(build.load(), f"olatbench_shading_combine_forward_{suffix}")(
+        cache = torch.empty(n * (18 + 3 * ctx.scalars["num_lobes"]), dtype=dtype)
+        LIBRARY.load()[f"olatbench_shading_combine_forward_{suffix}"](
             *_combine_arguments(tensors, ctx.scalars), *map(pointer, out), pointer(cache))
         ctx.save_for_backward(cache, *tensors)
         ctx.set_materialize_grads(False)  # unused outputs get None gradients (passed to the kernel as null)
@@ -133,30 +164,25 @@ class _CombineCPU(torch.autograd.Function):
         grads_in = [_contiguous(g) for g in grad_outputs]
         # Gradient buffers shaped like each present input (the kernel writes all of them).
         out = [None if t is None else torch.empty_like(t) for t in tensors]
-        getattr(build.load(), f"olatbench_shading_combine_backward_{_suffix(dtype)}")(
+        LIBRARY.load()[f"olatbench_shading_combine_backward_{_suffix(dtype)}"](
             *_combine_arguments(tensors, ctx.scalars), pointer(cache), *map(pointer, grads_in), *map(pointer, out))
         if tensors[_COMBINE_TENSORS.index("specular")] is None:
             out[_COMBINE_TENSORS.index("wo")] = None
         return (*out, None, None, None, None)
 
 
-_Scalar = ctypes.c_int | ctypes.c_int64 | ctypes.c_double
-
-
 def _combine_scalars(tensors: list[torch.Tensor | None], n: int, smooth_cosine: bool, fresnel_f0: float,
-                     shadow_on_sss: bool, threads: int) -> dict[str, _Scalar]:
+                     shadow_on_sss: bool, threads: int) -> dict[str, int | float]:
     names = dict(zip(_COMBINE_TENSORS, tensors, strict=True))
     num_lobes = names["asg_weights"].shape[1] if names["asg_weights"] is not None else 0
     profile_channels = names["profile"].shape[1] if names["profile"] is not None else 1
     return {
-        "num_lobes": ctypes.c_int(num_lobes), "profile_channels": ctypes.c_int(profile_channels),
-        "n": ctypes.c_int64(n), "smooth_cosine": ctypes.c_int(int(smooth_cosine)),
-        "shadow_on_sss": ctypes.c_int(int(shadow_on_sss)), "f0": ctypes.c_double(fresnel_f0),
-        "threads": ctypes.c_int(threads),
+        "num_lobes": num_lobes, "profile_channels": profile_channels, "n": n, "smooth_cosine": int(smooth_cosine),
+        "shadow_on_sss": int(shadow_on_sss), "f0": float(fresnel_f0), "threads": threads,
     }  # fmt: skip
 
 
-def _combine_arguments(tensors: list[torch.Tensor | None], scalars: dict[str, _Scalar]) -> list[object]:
+def _combine_arguments(tensors: list[torch.Tensor | None], scalars: dict[str, int | float]) -> list[object]:
     """The shared leading arguments of the combine forward and backward (OLATBENCH_SHADING_COMBINE_ARGS)."""
     p = [pointer(t) for t in tensors]
     s = scalars

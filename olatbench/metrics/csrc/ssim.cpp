@@ -38,6 +38,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "export.h"
 #include "float_mode.h"
 
 namespace {
@@ -326,16 +327,14 @@ void backward_impl(Image<const F> pred, Image<const F> gt, const F* derivatives,
 
 }  // namespace
 
-#define OLATBENCH_SSIM_EXPORT extern "C" __attribute__((visibility("default")))
-
 #define OLATBENCH_SSIM_DEFINE(F, SUFFIX)                                                                      \
-  OLATBENCH_SSIM_EXPORT void olatbench_ssim_loss_forward_##SUFFIX(                                           \
+  OLATBENCH_EXPORT void olatbench_ssim_loss_forward_##SUFFIX(                                                \
       const F* pred, const int64_t* pred_strides, const F* gt, const int64_t* gt_strides, int64_t batch,     \
       int64_t channels, int64_t height, int64_t width, int threads, F* derivatives, double* ssim_sum) {      \
     forward_impl<F>(Image<const F>{pred, pred_strides}, Image<const F>{gt, gt_strides}, batch, channels,     \
                     height, width, threads, derivatives, ssim_sum);                                         \
   }                                                                                                         \
-  OLATBENCH_SSIM_EXPORT void olatbench_ssim_loss_backward_##SUFFIX(                                          \
+  OLATBENCH_EXPORT void olatbench_ssim_loss_backward_##SUFFIX(                                               \
       const F* pred, const int64_t* pred_strides, const F* gt, const int64_t* gt_strides,                   \
       const F* derivatives, int64_t batch, int64_t channels, int64_t height, int64_t width, int threads,     \
       double grad_scale, F* grad_pred) {                                                                    \
@@ -345,3 +344,5 @@ void backward_impl(Image<const F> pred, Image<const F> gt, const F* derivatives,
 
 OLATBENCH_SSIM_DEFINE(float, f32)
 OLATBENCH_SSIM_DEFINE(double, f64)
+
+OLATBENCH_DEFINE_ABI_VERSION()

@@ -1,5 +1,5 @@
-"""Arguments of the compiled library's C functions (``build.load()``): tensor pointers, the dtype suffix that
-picks a function's float (``_f32``) or double (``_f64``) version, and the OpenMP thread count."""
+"""Torch tensors as arguments of the native libraries' C functions: data pointers, the dtype suffix that picks a
+function's float (``_f32``) or double (``_f64``) version, and the OpenMP thread count."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ FLOAT_SUFFIXES = {torch.float32: "f32", torch.float64: "f64"}
 
 
 def pointer(t: torch.Tensor | None) -> ctypes.c_void_p:
-    """The address of ``t``'s data (a C-contiguous CPU tensor), or NULL for None."""
+    """The address of ``t``'s data (a CPU tensor laid out as the C function expects), or NULL for None."""
     return ctypes.c_void_p(None) if t is None else ctypes.c_void_p(t.data_ptr())
 
 
@@ -25,3 +25,6 @@ def float_suffix(dtype: torch.dtype, kernels: str) -> str:
     if dtype not in FLOAT_SUFFIXES:
         raise TypeError(f"{kernels} support float32 and float64, not {dtype}")
     return FLOAT_SUFFIXES[dtype]
+
+
+__all__ = ["FLOAT_SUFFIXES", "float_suffix", "pointer", "thread_count"]

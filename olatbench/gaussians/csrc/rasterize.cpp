@@ -18,6 +18,7 @@
 #include <limits>
 #include <vector>
 
+#include "export.h"
 #include "float_mode.h"
 #include "rotation.h"
 #include "simd.h"
@@ -781,8 +782,6 @@ void project_backward_impl(const F* means, const F* quats, const F* scales, cons
 
 }  // namespace
 
-#define OLATBENCH_EXPORT extern "C" __attribute__((visibility("default")))
-
 #define OLATBENCH_DEFINE(F, SUFFIX)                                                                          \
   OLATBENCH_EXPORT void olatbench_forward_##SUFFIX(                                                         \
       const F* means2d, const F* conics, const F* opac, const F* features, int channels,                    \
@@ -837,4 +836,4 @@ void project_backward_impl(const F* means, const F* quats, const F* scales, cons
 OLATBENCH_DEFINE(float, f32)
 OLATBENCH_DEFINE(double, f64)
 
-OLATBENCH_EXPORT int olatbench_abi_version() { return 3; }
+OLATBENCH_DEFINE_ABI_VERSION()

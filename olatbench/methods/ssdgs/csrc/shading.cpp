@@ -19,7 +19,7 @@
 // Gaussians); the gradients of inputs shared by all Gaussians (camera, light, intensity, lobe frames and
 // sharpness) are summed in double per block in a fixed order, then the block sums are added serially in block
 // order, so results do not depend on the number of threads. Build without -ffast-math and with
-// -ffp-contract=off (build.py's flags).
+// -ffp-contract=off (olatbench/_native's flags).
 
 #include <algorithm>
 #include <cmath>
@@ -27,6 +27,7 @@
 #include <cstring>
 #include <vector>
 
+#include "export.h"
 #include "float_mode.h"
 #include "rotation.h"
 #include "simd.h"
@@ -836,8 +837,6 @@ void combine_backward(const CombineInputs<F>& in, int threads, const F* cache, c
 
 }  // namespace
 
-#define OLATBENCH_SHADING_EXPORT extern "C" __attribute__((visibility("default")))
-
 // The combine kernel's inputs, in the order both exported combine functions take them.
 #define OLATBENCH_SHADING_COMBINE_ARGS(F)                                                                   \
   const F *wi, const F *wo, const F *frames, const F *inv_dist2, const F *intensity, const F *diffuse,      \
@@ -851,7 +850,7 @@ void combine_backward(const CombineInputs<F>& in, int threads, const F* cache, c
   }
 
 #define OLATBENCH_SHADING_DEFINE(F, SUFFIX)                                                                  \
-  OLATBENCH_SHADING_EXPORT void olatbench_shading_rotations_forward_##SUFFIX(const F* quats, int64_t n,     \
+  OLATBENCH_EXPORT void olatbench_shading_rotations_forward_##SUFFIX(const F* quats, int64_t n,             \
                                                                              F* rotations) {                \
     for (int64_t k = 0; k < n; ++k) {                                                                       \
       Rotation<F> r;                                                                                        \
@@ -859,7 +858,7 @@ void combine_backward(const CombineInputs<F>& in, int threads, const F* cache, c
       std::memcpy(rotations + 9 * k, r.R, sizeof(r.R));                                                     \
     }                                                                                                       \
   }                                                                                                         \
-  OLATBENCH_SHADING_EXPORT void olatbench_shading_rotations_backward_##SUFFIX(                              \
+  OLATBENCH_EXPORT void olatbench_shading_rotations_backward_##SUFFIX(                                      \
       const F* quats, int64_t n, const F* grad_rotations, F* grad_quats) {                                  \
     for (int64_t k = 0; k < n; ++k) {                                                                       \
       Rotation<F> r;                                                                                        \
@@ -869,26 +868,26 @@ void combine_backward(const CombineInputs<F>& in, int threads, const F* cache, c
       rotation_backward<F>(r, gR, grad_quats + 4 * k);                                                      \
     }                                                                                                       \
   }                                                                                                         \
-  OLATBENCH_SHADING_EXPORT void olatbench_shading_geometry_forward_##SUFFIX(                                \
+  OLATBENCH_EXPORT void olatbench_shading_geometry_forward_##SUFFIX(                                        \
       const F* positions, const F* quats, const F* scales, const F* camera, const F* light, int64_t n,      \
       int orient, int threads, F* wi, F* wo, F* frames, F* inv_dist2) {                                     \
     geometry_forward<F>(GeometryInputs<F>{positions, quats, scales, camera, light, n, orient != 0}, threads, wi,\
                         wo, frames, inv_dist2);                                                             \
   }                                                                                                         \
-  OLATBENCH_SHADING_EXPORT void olatbench_shading_geometry_backward_##SUFFIX(                               \
+  OLATBENCH_EXPORT void olatbench_shading_geometry_backward_##SUFFIX(                                       \
       const F* positions, const F* quats, const F* scales, const F* camera, const F* light, int64_t n,      \
       int orient, int threads, const F* g_wi, const F* g_wo, const F* g_frames, const F* g_inv,             \
       F* grad_positions, F* grad_quats, F* grad_camera, F* grad_light) {                                    \
     geometry_backward<F>(GeometryInputs<F>{positions, quats, scales, camera, light, n, orient != 0}, threads,\
                          g_wi, g_wo, g_frames, g_inv, grad_positions, grad_quats, grad_camera, grad_light); \
   }                                                                                                         \
-  OLATBENCH_SHADING_EXPORT void olatbench_shading_combine_forward_##SUFFIX(                                 \
+  OLATBENCH_EXPORT void olatbench_shading_combine_forward_##SUFFIX(                                         \
       OLATBENCH_SHADING_COMBINE_ARGS(F), F* colour, F* diffuse_out, F* specular_out, F* sss_out,            \
       F* cache) {                                                                                           \
     combine_forward<F>(OLATBENCH_SHADING_COMBINE_INPUTS(F), threads, colour, diffuse_out, specular_out,     \
                        sss_out, cache);                                                                     \
   }                                                                                                         \
-  OLATBENCH_SHADING_EXPORT void olatbench_shading_combine_backward_##SUFFIX(                                \
+  OLATBENCH_EXPORT void olatbench_shading_combine_backward_##SUFFIX(                                        \
       OLATBENCH_SHADING_COMBINE_ARGS(F), const F* cache, const F* g_colour, const F* g_diffuse,             \
       const F* g_specular, const F* g_sss, F* grad_wi, F* grad_wo, F* grad_frames, F* grad_inv,             \
       F* grad_intensity, F* grad_diffuse, F* grad_specular, F* grad_asg_weights, F* grad_lobe_axes,         \
@@ -901,3 +900,5 @@ void combine_backward(const CombineInputs<F>& in, int threads, const F* cache, c
 
 OLATBENCH_SHADING_DEFINE(float, f32)
 OLATBENCH_SHADING_DEFINE(double, f64)
+
+OLATBENCH_DEFINE_ABI_VERSION()
