@@ -11,6 +11,7 @@ import importlib
 import click
 
 from olatbench import __version__
+from olatbench.numerics import pin_cpu_capability
 
 # verb -> "module:attribute" of a click command or group
 COMMANDS: dict[str, str] = {
@@ -52,6 +53,11 @@ class LazyGroup(click.Group):
         super().__init__(*args, **kwargs)
         self.lazy_commands = COMMANDS if commands is None else commands
         self.help_lines = HELP_LINES if help_lines is None else help_lines
+
+    def main(self, *args, **kwargs):  # type: ignore[override]
+        """Pin torch's CPU kernel width before any verb can import torch (`olatbench.numerics`)."""
+        pin_cpu_capability()
+        return super().main(*args, **kwargs)
 
     def list_commands(self, ctx: click.Context) -> list[str]:
         return sorted(set(self.lazy_commands) | set(self.commands))
