@@ -10,7 +10,7 @@ rasterizer 2–3× faster from the second stage on). ``--states`` picks the mode
   training: much blending, few pixels terminate);
 * ``surface``: a trained-looking object, N flat Gaussians (normal axis 0.1× the tangent ones) covering a sphere
   of radius 0.8 with opacity 0.9 (most pixels terminate after a few Gaussians);
-* ``--jobs DIR ...``: trained SSD-GS models, each the newest checkpoint of a job folder of ``olatbench run``
+* ``--jobs DIR ...``: trained SSD-GS models, each the final checkpoint of a job folder of ``olatbench run``
   (its config, Gaussians and first training view; size and N are the job's), measured at its last iteration.
 
 Stages:
@@ -105,15 +105,14 @@ def freeze(method: SSDGS) -> None:
 
 
 def load_trained(folder: str) -> tuple[SSDGS, int]:
-    """A job folder's trained SSD-GS (newest checkpoint) with densification and opacity resets off, frozen and
+    """A job folder's trained SSD-GS (final checkpoint) with densification and opacity resets off, frozen and
     pinned to its first training view; and the step to measure (its last iteration: every term on)."""
-    from olatbench.reports.jobfolder import JobFolder
-    from olatbench.reports.video import load_trained_method
+    from olatbench.bench.restore import read_job, restore
 
-    job = JobFolder.open(folder)
-    if job.job["method"] != "ssdgs":
-        raise SystemExit(f"{folder}: a {job.job['method']} job; this benchmark measures SSD-GS")
-    method = load_trained_method(job, progress=False)
+    method_name = read_job(folder).method
+    if method_name != "ssdgs":
+        raise SystemExit(f"{folder}: a {method_name} job; this benchmark measures SSD-GS")
+    method = restore(folder, train_images=True)[0]  # it takes training steps
     never = 10**12  # statistics still gathered every step (as in the synthetic states), no density step ever
     method.densifier.config = dataclasses.replace(method.densifier.config, densify_from=never, densify_until=never,
                                                   opacity_reset_interval=never)

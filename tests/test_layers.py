@@ -118,8 +118,6 @@ RULES = [
 #: Rules the code still breaks on this commit, each with the work that removes it. strict: once that work lands,
 #: the test passes, the xfail fails, and the entry must go.
 KNOWN_BREAKS = {
-    "reports": "reports/video.py rebuilds the method through olatbench.methods.registry; issue #21 item 4 "
-               "(bench.restore) replaces it",
 }
 
 

@@ -134,6 +134,7 @@ def make_job(tmp_path: Path) -> Path:
            "test_split": "test", "protocol": "olatbench-v1", "protocol_version": 1, "data_manifest": None,
            "code": "x", "folder": "", "device": "cpu"}
     (folder / "job.json").write_text(json.dumps(job))
+    (folder / "config.json").write_text(json.dumps(job["config"]))
     save_checkpoint(folder, 1, {"gain": torch.tensor(1.0)}, "job123", train_seconds=1.0)
     return folder
 

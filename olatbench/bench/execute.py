@@ -10,13 +10,11 @@ from __future__ import annotations
 
 import json
 import math
-import os
 import platform
 import resource
 import sys
 import time
 import traceback
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
@@ -30,7 +28,6 @@ from olatbench import __version__
 from olatbench.atomic import write_json, write_text
 from olatbench.bench.checkpoints import (
     list_checkpoints,
-    load_checkpoint,
     prune_checkpoints,
     restore_rng_states,
     save_checkpoint,
@@ -38,8 +35,10 @@ from olatbench.bench.checkpoints import (
 )
 from olatbench.bench.jobs import Job, hash_json
 from olatbench.bench.plan import load_method_class
+from olatbench.bench.restore import load_state
 from olatbench.bench.results import SCHEMA_VERSION, write_results
 from olatbench.bench.store import DONE_FILE, ERROR_FILE, JOB_FILE, RESULTS_FILE, job_lock
+from olatbench.bench.views import VIEWS_FILE, load_views, view_camera
 from olatbench.datasets import colour, load_scene
 from olatbench.datasets.formats._common import safe_file_stem
 from olatbench.datasets.images import write_image
@@ -48,9 +47,6 @@ from olatbench.datasets.synth.mini import data_matches_reference
 from olatbench.methods.base import Method, Views
 
 LOG_FILE = "log.txt"
-VIEWS_FILE = ".views.npy"
-VIEWS_RAM_ENV = "OLATBENCH_VIEWS_RAM_GB"
-VIEWS_HALF_ENV = "OLATBENCH_VIEWS_HALF_GB"
 TRAIN_LOG_FILE = "train_log.jsonl"
 WARMUP_RENDERS = 1
 
@@ -150,55 +146,6 @@ def _run(job: Job, folder: Path, log: JobLog, progress: bool, position: int) -> 
                       render_fps)
 
 
-def load_views(frames: list[Frame], job: Job, progress: bool = False, position: int = 1) -> Views:
-    """The frames' cameras, lights and images (composited on the official background, in the suite's
-    colour space, resized to ``job.resolution``), loaded with a few threads into one preallocated array.
-
-    Stacks whose float32 size exceeds ``$OLATBENCH_VIEWS_HALF_GB`` (default 2 GiB: every paper-scale scene,
-    e.g. GS³'s 2000 views at 512² are 5.9 GiB; never a mini scene) are held as float16, which halves them at a
-    rounding error ≤ 2⁻¹¹ relative (≤ 4.9e-4 on [0, 1], a quarter of an 8-bit step); methods receive float32
-    images per view either way, and the train split is then scored against the exact images from disk. Stacks
-    still larger than ``$OLATBENCH_VIEWS_RAM_GB`` (default 8 GiB; e.g. 2000 NRHints views at 1024² are 12.6 GB
-    in float16) live in a memory-mapped file ``<job folder>/.views.npy`` instead of RAM; it is deleted when the
-    job ends.
-    """
-    if not frames:
-        raise ValueError(f"{job.scene_path}: split '{job.train_split}' has no frames")
-    resolution = tuple(job.resolution) if job.resolution else None
-
-    def load(frame: Frame) -> np.ndarray:
-        return frame.load(colourspace=job.colourspace, background="official", resolution=resolution).rgb
-
-    first_image = load(frames[0])
-    shape = (len(frames), *first_image.shape)
-    dtype = np.float16 if math.prod(shape) * 4 > float(os.environ.get(VIEWS_HALF_ENV, "2")) * 2**30 else np.float32
-    if math.prod(shape) * np.dtype(dtype).itemsize > float(os.environ.get(VIEWS_RAM_ENV, "8")) * 2**30:
-        images = np.lib.format.open_memmap(Path(job.folder) / VIEWS_FILE, mode="w+", dtype=dtype, shape=shape)
-    else:
-        images = np.empty(shape, dtype=dtype)
-
-    def fill(index: int) -> None:
-        image = first_image if index == 0 else load(frames[index])
-        if image.shape != first_image.shape:
-            raise ValueError(f"{frames[index].frame_id}: image is {image.shape[1]}×{image.shape[0]}, the first view "
-                             f"is {first_image.shape[1]}×{first_image.shape[0]}; pass --resolution WxH")
-        images[index] = image
-
-    with ThreadPoolExecutor(max_workers=4) as pool:
-        list(tqdm(pool.map(fill, range(len(frames))), total=len(frames), desc=f"{job.scene}: loading views",
-                  position=position, leave=False, disable=not progress))
-    first = frames[0]
-    background = colour.convert_colourspace(np.asarray(first.background, np.float32), first.colourspace,
-                                            job.colourspace)
-    return Views(cameras=[_camera(frame, job) for frame in frames], lights=[frame.light for frame in frames],
-                 images=images, frame_ids=[frame.frame_id for frame in frames],
-                 colourspace=job.colourspace, background=background, scene_name=job.scene)
-
-
-def _camera(frame: Frame, job: Job):
-    return frame.camera.resized(*job.resolution) if job.resolution else frame.camera
-
-
 def _train(method: Method, views: Views, job: Job, folder: Path, log: JobLog, progress: bool, position: int
            ) -> float:
     """Set the method up, resume from the newest checkpoint, train to the end; returns train seconds.
@@ -213,8 +160,7 @@ def _train(method: Method, views: Views, job: Job, folder: Path, log: JobLog, pr
     checkpoints = list_checkpoints(folder)
     if checkpoints:
         step, path = checkpoints[-1]
-        payload = load_checkpoint(path, job.id)
-        method.load_state_dict(payload["method"])
+        payload = load_state(method, path, job.id)
         restore_rng_states(payload["rng"])
         start, train_seconds = payload["step"], payload["train_seconds"]
         log(f"resumed from {path.name} (step {start} of {job.iterations})")
@@ -311,13 +257,13 @@ def evaluate_split(method: Method, frames: list[Frame], job: Job, folder: Path, 
     official_gt = protocol.ground_truth == "official" and resolution is None
     with torch.no_grad():
         for frame in frames[:WARMUP_RENDERS]:
-            method.render(_camera(frame, job), frame.light)
+            method.render(view_camera(frame, job), frame.light)
         render_seconds, per_image = 0.0, {}
         refine = split == job.test_split and method.refines_test_views
         refinement: dict[str, Any] | None = {"split": split, "seconds": 0.0, "frames": {}} if refine else None
         for index, frame in enumerate(tqdm(frames, desc=f"{job.label}: {split}", position=position, leave=False,
                                            disable=not progress)):
-            camera, light, loaded = _camera(frame, job), frame.light, None
+            camera, light, loaded = view_camera(frame, job), frame.light, None
             if refinement is not None:
                 clock = time.perf_counter()
                 loaded = frame.load(colourspace=job.colourspace, background="official", resolution=resolution)

@@ -24,6 +24,7 @@ import importlib.util
 import inspect
 import json
 import os
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -103,6 +104,32 @@ class Job:
     def to_json(self) -> dict[str, Any]:
         """The job.json content: id, identity and the settings that do not enter the id."""
         return {"id": self.id, "identity": self.identity(), **dataclasses.asdict(self)}
+
+    @classmethod
+    def from_json(cls, data: Mapping[str, Any]) -> Job:
+        """Inverse of `to_json` (also of its JSON text parsed back: ``resolution`` becomes a tuple again).
+
+        A `ValueError` names missing or unknown keys, and an ``identity`` that does not match the fields it is
+        computed from (a hand-edited job.json). ``id`` is taken as written, not recomputed.
+        """
+        values = dict(data)
+        identity = values.pop("identity", None)
+        known = {f.name: f for f in dataclasses.fields(cls)}
+        unknown = sorted(set(values) - set(known))
+        missing = sorted(name for name, f in known.items() if name not in values
+                         and f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING)
+        if unknown or missing:
+            raise ValueError("not a job of this olatbench version: "
+                             + "; ".join(part for part in (f"missing keys {', '.join(missing)}" if missing else "",
+                                                           f"unknown keys {', '.join(unknown)}" if unknown else "")
+                                         if part))
+        if values.get("resolution") is not None:
+            values["resolution"] = tuple(int(v) for v in values["resolution"])
+        job = cls(**values)
+        if identity is not None and hash_json(identity) != hash_json(job.identity()):
+            changed = sorted(k for k, v in job.identity().items() if hash_json(v) != hash_json(identity.get(k)))
+            raise ValueError(f"its identity does not match its fields ({', '.join(changed)}); was it edited?")
+        return job
 
 
 def hash_json(data: Any) -> str:

@@ -26,12 +26,14 @@ if TYPE_CHECKING:
 class Views:
     """Training (or evaluation) views: one camera, light and image per entry.
 
-    ``images`` is (N, H, W, 3) float32 in [0, 1] in ``colourspace``, composited on ``background`` (3,).
+    ``images`` is (N, H, W, 3) float32 in [0, 1] in ``colourspace``, composited on ``background`` (3,); it is
+    None when a trained method is restored for rendering and declared it needs no images
+    (`Method.restore_needs_images`).
     """
 
     cameras: list[Camera]
     lights: list[PointLight]
-    images: np.ndarray
+    images: np.ndarray | None
     frame_ids: list[str]
     colourspace: str = "srgb"
     background: np.ndarray = field(default_factory=lambda: np.zeros(3, dtype=np.float32))
@@ -66,6 +68,11 @@ class Method(ABC):
     #: Named grids of presets (``run --ablation NAME``), for methods registered as a class (plugins, tests);
     #: built-in methods declare theirs in their `MethodSpec`.
     ablations: ClassVar[dict[str, tuple[str, ...]]] = {}
+    #: Whether `setup` needs the training images when the method is restored from its final checkpoint to
+    #: render (`olatbench.bench.restore`). False: `setup` then gets ``Views.images = None`` (cameras, lights and
+    #: frame ids are always given, in training order, so per-view state stays addressable by frame id), and a
+    #: sweep or the viewer reads no training image. True (the safe default for plugins): the images are loaded.
+    restore_needs_images: ClassVar[bool] = True
 
     def __init__(self, config: Any) -> None:
         self.config = config

@@ -50,6 +50,8 @@ class GaussianMethod(Method):
 
     state_format: ClassVar[str]  # checkpoint format, e.g. "olatbench.methods.ssdgs/2"
     label: ClassVar[str]  # the method's name in messages, e.g. "SSD-GS"
+    #: `setup` reads cameras, lights and the background only; the images are read per training step.
+    restore_needs_images: ClassVar[bool] = False
 
     def __init__(self, config: Any) -> None:
         super().__init__(config)

@@ -1,11 +1,9 @@
 """Render a relighting sweep of a finished job to an MP4 and a folder of PNG frames.
 
-The method is rebuilt through the registry (`olatbench.methods.registry.get_method`) from the
-job's ``method`` and ``config``, set up on the job's training views exactly as the runner does, its
-state read from the newest checkpoint with ``torch.load(weights_only=True)``
-(`olatbench.bench.checkpoints.load_checkpoint`), then ``method.render(camera, light)`` draws each
-frame. Renders are converted from the job's colour space to sRGB and written as 8-bit PNGs
-(``<sweep>_frames/00000.png`` …) and an ``mp4v`` MP4 (OpenCV).
+The trained method is rebuilt from the job's final checkpoint by `olatbench.bench.restore.restore` (the
+runner's restore path: no training image is read for methods that need none), then
+``method.render(camera, light)`` draws each frame. Renders are converted from the job's colour space to sRGB and
+written as 8-bit PNGs (``<sweep>_frames/00000.png`` …) and an ``mp4v`` MP4 (OpenCV).
 """
 
 from __future__ import annotations
@@ -33,41 +31,14 @@ class SweepOutput:
 
 
 def load_trained_method(job: JobFolder, device: str = "cpu", progress: bool = True):
-    """The job's method, set up on its training views and restored from the newest checkpoint.
+    """The job's trained method, rebuilt from its final checkpoint by `olatbench.bench.restore.restore` (which
+    reads no training image for methods that need none); a `JobFolderError` says why it cannot be."""
+    from olatbench.bench.restore import RestoreError, restore
 
-    As in the runner, ``setup`` runs first (methods such as SSD-GS size their per-view refinements from
-    the training views), then ``load_state_dict`` with the checkpoint read with ``weights_only=True``.
-    """
-    import dataclasses
-
-    from olatbench.bench.checkpoints import list_checkpoints, load_checkpoint
-    from olatbench.bench.execute import load_views
-    from olatbench.bench.jobs import Job
-    from olatbench.methods.registry import get_method
-
-    checkpoints = list_checkpoints(job.folder)
-    if not checkpoints:
-        raise JobFolderError(f"{job.folder / 'checkpoints'}: no checkpoint; train the job first "
-                             f"(olatbench run ...) or check the folder")
     try:
-        method_class = get_method(job.job["method"])
-    except KeyError as error:
-        raise JobFolderError(str(error.args[0])) from None
-    names = {field.name for field in dataclasses.fields(Job)}
-    values = {key: value for key, value in job.job.items() if key in names}
-    values["resolution"] = job.resolution
-    values["device"] = device
-    try:
-        runner_job = Job(**values)
-    except TypeError as error:
-        raise JobFolderError(f"{job.folder / 'job.json'}: not a job written by this olatbench ({error})") from None
-    scene = job.load_scene()
-    views = load_views(scene.split(runner_job.train_split), runner_job, progress=progress, position=0)
-    method = method_class(method_class.resolve_config(None, **job.job["config"]))
-    method.setup(views, device, int(job.job["seed"]))
-    payload = load_checkpoint(checkpoints[-1][1], job.job["id"])
-    method.load_state_dict(payload["method"])
-    return method
+        return restore(job.folder, device, progress=progress)[0]
+    except RestoreError as error:
+        raise JobFolderError(str(error)) from None
 
 
 def sweep_frames(job: JobFolder, kind: str, frame_id: str | None = None, count: int | None = None,
