@@ -2,8 +2,8 @@
 
 Every ``import`` / ``from ... import`` in ``olatbench/**.py`` counts, wherever it is written (module level, inside
 functions, under ``TYPE_CHECKING``): a lazy import is still a dependency. Layers, top to bottom:
-cli → reports → bench → methods → metrics → gaussians → datasets → _native; ``olatbench.atomic`` (stdlib only) and
-the root package (``__version__``) may be imported by every layer.
+cli → viewer → reports → bench → methods → metrics → gaussians → datasets → _native; ``olatbench.atomic`` (stdlib
+only) and the root package (``__version__``) may be imported by every layer.
 """
 
 from __future__ import annotations
@@ -111,6 +111,8 @@ RULES = [
     Rule("methods import no bench, reports or cli", "methods", forbidden=frozenset({"bench", "reports", "cli"})),
     Rule("bench imports no reports or cli", "bench", forbidden=frozenset({"reports", "cli"})),
     Rule("reports import no methods (a report that renders goes through bench.restore) and no cli", "reports",
+         forbidden=frozenset({"methods", "cli"})),
+    Rule("the viewer imports no methods (it renders through bench.restore) and no cli", "viewer",
          forbidden=frozenset({"methods", "cli"})),
 ]
 

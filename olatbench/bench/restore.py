@@ -102,19 +102,7 @@ def restore(job_folder: str | Path, device: str = "cpu", *, train_images: bool =
     from olatbench.datasets.errors import DatasetError
 
     folder = Path(job_folder)
-    job = replace(read_job(folder), device=device, folder=str(folder))
-    config_path = folder / CONFIG_FILE
-    try:
-        config = json.loads(config_path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise RestoreError(f"{config_path}: not found (the runner writes it beside job.json)") from None
-    except (OSError, json.JSONDecodeError) as error:
-        raise RestoreError(f"{config_path}: unreadable ({error})") from None
-    if config != job.config:
-        raise RestoreError(f"{config_path}: differs from the config in job.json; the checkpoint was trained with "
-                           f"job.json's")
-    checkpoint = final_checkpoint(folder, job)
-    cls = method_class(job, folder)
+    job, checkpoint, cls = check_job(folder, device)
     try:
         scene = load_scene(job.scene_path, format=job.scene_format)
         frames = scene.split(job.train_split)
@@ -129,3 +117,21 @@ def restore(job_folder: str | Path, device: str = "cpu", *, train_images: bool =
     except (RuntimeError, ValueError, KeyError) as error:
         raise RestoreError(f"{checkpoint}: {error}") from None
     return method, job
+
+
+def check_job(job_folder: str | Path, device: str = "cpu") -> tuple[Job, Path, type[Method]]:
+    """The cheap checks of `restore`, before any scene or model is loaded: (job with ``device`` and ``folder`` set,
+    final checkpoint, method class); a `RestoreError` says what is wrong."""
+    folder = Path(job_folder)
+    job = replace(read_job(folder), device=device, folder=str(folder))
+    config_path = folder / CONFIG_FILE
+    try:
+        config = json.loads(config_path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise RestoreError(f"{config_path}: not found (the runner writes it beside job.json)") from None
+    except (OSError, json.JSONDecodeError) as error:
+        raise RestoreError(f"{config_path}: unreadable ({error})") from None
+    if config != job.config:
+        raise RestoreError(f"{config_path}: differs from the config in job.json; the checkpoint was trained with "
+                           f"job.json's")
+    return job, final_checkpoint(folder, job), method_class(job, folder)

@@ -24,6 +24,7 @@ COMMANDS: dict[str, str] = {
     "weights": "olatbench.cli.metrics:weights",
     "report": "olatbench.cli.report:report",
     "render": "olatbench.cli.report:render",
+    "view": "olatbench.cli.view:view",
     "doctor": "olatbench.cli.doctor:doctor",
 }
 
@@ -37,6 +38,7 @@ HELP_LINES: dict[str, str] = {
     "weights": "Install and locate the LPIPS weights.",
     "report": "Build the paper's tables and figures from results.json files.",
     "render": "Render relighting sweeps (videos) from a finished run.",
+    "view": "Interactive relighting viewer for trained jobs (web, viser).",
     "doctor": "Show what this machine supports and how to fix what is missing.",
 }
 

@@ -60,17 +60,28 @@ def sweep_frames(job: JobFolder, kind: str, frame_id: str | None = None, count: 
     return subsample(trajectory(kind, camera, start.light, centre, up), count)
 
 
-def _to_numpy(tensor) -> np.ndarray:
-    return tensor.detach().to("cpu").float().numpy()
+def display_image(tensor, colourspace: str) -> np.ndarray:
+    """A rendered output as it is shown: (H, W, 3) float32 sRGB in [0, 1]. Three-channel outputs (``rgb`` and the
+    colour components) are converted from the job's ``colourspace``; one-channel maps (shadow, …) are shown as grey
+    values as they are."""
+    image = tensor.detach().to("cpu").float().numpy()
+    if image.ndim == 2:
+        image = image[..., None]
+    if image.shape[2] == 1:
+        image = np.repeat(image, 3, axis=2)
+    else:
+        image = colour.convert_colourspace(image, colourspace, "srgb")
+    return np.clip(image, 0.0, 1.0)
 
 
 def render_sweep(job: JobFolder, kind: str, out_dir: str | Path, *, count: int | None = None,
                  frame_id: str | None = None, component: str = "rgb", fps: float = 30.0, device: str = "cpu",
                  resolution: tuple[int, int] | None = None, progress: bool = True, method=None,
-                 frames: list[SweepFrame] | None = None) -> SweepOutput:
+                 frames: list[SweepFrame] | None = None, video: str | Path | None = None) -> SweepOutput:
     """Render the sweep into ``out_dir`` (``<kind>.mp4`` and ``<kind>_frames/``); returns where.
 
-    ``method`` and ``frames`` may be given to skip loading them from the job (tests, notebooks).
+    ``method`` and ``frames`` may be given to skip loading them from the job (tests, notebooks, the viewer);
+    ``video`` names the MP4 instead (its frames then go to ``<video stem>_frames/`` beside it).
     """
     import cv2
     import torch
@@ -78,9 +89,9 @@ def render_sweep(job: JobFolder, kind: str, out_dir: str | Path, *, count: int |
     out_dir = Path(out_dir)
     frames = frames if frames is not None else sweep_frames(job, kind, frame_id, count, resolution)
     method = method if method is not None else load_trained_method(job, device, progress)
-    frames_dir = out_dir / f"{kind}_frames"
+    video_path = Path(video) if video is not None else out_dir / f"{kind}.mp4"
+    frames_dir = video_path.with_name(f"{video_path.stem}_frames")
     frames_dir.mkdir(parents=True, exist_ok=True)
-    video_path = out_dir / f"{kind}.mp4"
     width, height = frames[0].camera.width, frames[0].camera.height
     with atomic_path(video_path) as temporary:
         writer = cv2.VideoWriter(str(temporary), cv2.VideoWriter_fourcc(*"mp4v"), float(fps), (width, height))
@@ -93,14 +104,7 @@ def render_sweep(job: JobFolder, kind: str, out_dir: str | Path, *, count: int |
                     if component not in output:
                         raise JobFolderError(f"method '{job.job['method']}' renders no component {component!r}; "
                                              f"it renders {', '.join(sorted(output))}")
-                    image = _to_numpy(output[component])
-                    if image.ndim == 2:
-                        image = image[..., None]
-                    if image.shape[2] == 1:
-                        image = np.repeat(image, 3, axis=2)
-                    elif component == "rgb" or image.shape[2] == 3:
-                        image = colour.convert_colourspace(image, job.job["colourspace"], "srgb")
-                    image = np.clip(image, 0.0, 1.0)
+                    image = display_image(output[component], job.job["colourspace"])
                     write_image(frames_dir / f"{index:05d}.png", image)
                     bgr = colour.quantize_8bit(image)[..., ::-1]
                     writer.write(np.ascontiguousarray(bgr))

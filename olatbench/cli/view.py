@@ -1,0 +1,74 @@
+"""``olatbench view``: serve the interactive relighting viewer for trained jobs (or record what it shows)."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import click
+
+
+@click.command("view")
+@click.argument("folder", type=click.Path(exists=True, file_okay=False, path_type=Path))
+@click.option("--port", type=click.IntRange(0, 65535), default=8080, show_default=True,
+              help="Port of the web viewer (0: any free port).")
+@click.option("--host", default="127.0.0.1", show_default=True, help="Address to listen on (0.0.0.0: every one).")
+@click.option("--device", default="cpu", show_default=True, help="torch device for rendering.")
+@click.option("--drag-scale", type=click.FloatRange(0.05, 1.0), default=0.5, show_default=True,
+              help="Resolution factor while the camera or light moves (full resolution once still).")
+@click.option("--record", nargs=2, type=(click.Choice(("light-orbit", "view-orbit")), click.Path(dir_okay=False,
+              path_type=Path)), help="Instead of serving: render KIND OUT.mp4 (the sweep of 'olatbench render').")
+@click.option("--component", default="rgb", show_default=True, help="With --record: the output to record.")
+@click.option("--frames", "count", type=click.IntRange(min=1), help="With --record: spread this many frames.")
+@click.option("--start-frame", help="With --record: test frame id whose camera and light start (default: first).")
+def view(folder, port, host, device, drag_scale, record, component, count, start_frame) -> None:
+    """Open a web viewer on a trained job (or every finished job of a run folder).
+
+    \b
+    Move the light (handle or sliders), orbit the camera, switch outputs (rgb, diffuse, specular, sss, shadow, …),
+    snap to a dataset frame to see its ground truth and PSNR.
+    Examples:
+      olatbench view runs/mini/ssdgs/default/translucent/seed0
+      olatbench view runs/mini --port 8081
+      olatbench view runs/mini/ssdgs/default/translucent/seed0 --record light-orbit orbit.mp4
+    """
+    from olatbench.bench.restore import RestoreError
+    from olatbench.viewer.jobs import job_folders
+    from olatbench.viewer.model import ViewerModel
+
+    try:
+        folders, skipped = job_folders(folder, device)
+        for line in skipped:
+            click.echo(f"skipped: {line}", err=True)
+        first = ViewerModel.open(folders[0], device)
+    except RestoreError as error:
+        raise click.ClickException(str(error)) from None
+    if record is not None:
+        _record(first, *record, component=component, count=count, start_frame=start_frame)
+        return
+    try:
+        from olatbench.viewer.server import ViewerApp
+
+        app = ViewerApp(folders, first, host=host, port=port, device=device, drag_scale=drag_scale).start()
+    except OSError as error:
+        raise click.ClickException(f"cannot listen on {host}:{port} ({error}); try --port 0") from None
+    click.echo(f"olatbench view: {len(folders)} job(s) at {app.url} (Ctrl-C to stop)")
+    try:
+        while True:
+            time.sleep(1.0)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        app.stop()
+
+
+def _record(model, kind: str, out: Path, *, component: str, count: int | None, start_frame: str | None) -> None:
+    from olatbench.reports.jobfolder import JobFolder, JobFolderError
+    from olatbench.reports.video import render_sweep
+
+    try:
+        result = render_sweep(JobFolder.open(model.folder), kind, out.parent, count=count, frame_id=start_frame,
+                              component=component, method=model.method, video=out)
+    except (JobFolderError, OSError, ValueError) as error:
+        raise click.ClickException(str(error)) from None
+    click.echo(f"wrote {result.video} ({result.frames} frames; frames in {result.frames_dir})")

@@ -1,0 +1,37 @@
+"""Which job folders a ``olatbench view FOLDER`` serves: the folder itself when it is a job, else every finished job
+below it (a run folder), each checked cheaply (`olatbench.bench.restore.check_job`) before any server starts."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from olatbench.bench.restore import RestoreError, check_job
+from olatbench.bench.store import JOB_FILE
+
+
+def job_folders(folder: str | Path, device: str = "cpu") -> tuple[list[Path], list[str]]:
+    """(finished job folders to serve, one line per job folder skipped and why).
+
+    A job folder must be restorable (a `RestoreError` otherwise); a run folder must hold at least one restorable
+    job (the error then names why each one is not).
+    """
+    folder = Path(folder)
+    if (folder / JOB_FILE).is_file():
+        check_job(folder, device)
+        return [folder], []
+    candidates = sorted(path.parent for path in folder.rglob(JOB_FILE))
+    if not candidates:
+        raise RestoreError(f"{folder}: no job.json in or below it; pass a job folder "
+                           "(<out>/<suite>/<method>/<variant>/<scene>/seed<k>) or a run folder holding some")
+    found, skipped = [], []
+    for candidate in candidates:
+        try:
+            check_job(candidate, device)
+        except RestoreError as error:
+            skipped.append(str(error))
+        else:
+            found.append(candidate)
+    if not found:
+        raise RestoreError(f"{folder}: none of its {len(candidates)} job folders can be shown:\n  "
+                           + "\n  ".join(skipped))
+    return found, skipped

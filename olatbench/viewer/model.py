@@ -1,0 +1,139 @@
+"""What the viewer shows of one trained job: the restored method, its scene's frames, the light's frame, renders.
+
+`ViewerModel.open` restores the method through `olatbench.bench.restore` (no training image is read) and reads
+the scene's frame records. Renders are converted for display as the sweeps do (`olatbench.reports.video
+.display_image`: sRGB, 8-bit). Ground truth is read only for a frame the user snaps to, and compared in the job's
+evaluation colour space as the runner scores (both clipped to [0, 1]).
+"""
+
+from __future__ import annotations
+
+import json
+import threading
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from olatbench.bench.restore import restore
+from olatbench.bench.views import view_camera
+from olatbench.datasets import colour, load_scene
+from olatbench.datasets.records import Camera, Frame, PointLight
+from olatbench.metrics.psnr import psnr
+from olatbench.reports.sweeps import orbit_frame
+from olatbench.reports.video import display_image
+from olatbench.viewer.geometry import LightFrame
+
+
+@dataclass(frozen=True)
+class ViewerFrame:
+    """A dataset frame the viewer can snap to: its camera at the job's resolution and its light."""
+
+    split: str
+    frame: Frame
+    camera: Camera
+
+    @property
+    def frame_id(self) -> str:
+        return self.frame.frame_id
+
+    @property
+    def light(self) -> PointLight:
+        return self.frame.light
+
+    @property
+    def label(self) -> str:
+        return f"{self.split}/{self.frame_id}"
+
+
+@dataclass(frozen=True)
+class Comparison:
+    """A render of a dataset frame beside its ground truth: both (H, W, 3) uint8 sRGB; ``psnr`` (dB) of the render
+    against the ground truth in the job's colour space; ``recorded_psnr`` the runner's, from results.json (or None)."""
+
+    frame: ViewerFrame
+    render: np.ndarray
+    ground_truth: np.ndarray
+    psnr: float
+    recorded_psnr: float | None
+
+
+class ViewerModel:
+    """One trained job ready to render. `render` is serialised by a lock (torch and the native kernels run on the
+    calling thread; the viewer's scheduler already calls it from one thread, recordings from another)."""
+
+    def __init__(self, method: Any, job: Any, train: list[Frame], test: list[Frame], folder: Path) -> None:
+        self.method = method
+        self.job = job
+        self.folder = folder
+        self.frames = [ViewerFrame(split, frame, view_camera(frame, job))
+                       for split, frames in ((job.test_split, test), (job.train_split, train)) for frame in frames]
+        self.train = [f for f in self.frames if f.split == job.train_split]
+        self.test = [f for f in self.frames if f.split == job.test_split]
+        first = (self.test or self.train)[0]
+        self.home = first
+        centre, up = orbit_frame([f.camera for f in self.train])
+        self.light_frame = LightFrame.of(centre, up, self.train[0].camera.position)
+        self.full_size = (first.camera.width, first.camera.height)
+        self._lock = threading.Lock()
+        self.components: tuple[str, ...] = tuple(self.render_outputs(first.camera.resized(8, 8), first.light))
+        self._recorded = self._recorded_psnr()
+
+    @classmethod
+    def open(cls, folder: str | Path, device: str = "cpu") -> ViewerModel:
+        """Restore the job in ``folder`` (a `olatbench.bench.restore.RestoreError` if it cannot be)."""
+        method, job = restore(folder, device)
+        scene = load_scene(job.scene_path, format=job.scene_format)
+        return cls(method, job, scene.split(job.train_split), scene.split(job.test_split), Path(folder))
+
+    @property
+    def label(self) -> str:
+        job = self.job
+        return f"{job.method}/{job.variant}/{job.scene}/seed{job.seed}"
+
+    def frame(self, label: str) -> ViewerFrame:
+        """The frame named ``<split>/<frame id>`` (a `KeyError` otherwise)."""
+        for frame in self.frames:
+            if frame.label == label:
+                return frame
+        raise KeyError(f"{self.label}: no frame {label!r}")
+
+    def render_outputs(self, camera: Camera, light: PointLight) -> dict[str, Any]:
+        """``method.render(camera, light)`` (tensors), serialised."""
+        import torch
+
+        with self._lock, torch.no_grad():
+            return self.method.render(camera, light)
+
+    def render(self, camera: Camera, light: PointLight, component: str = "rgb") -> np.ndarray:
+        """One output for display: (H, W, 3) uint8 sRGB."""
+        outputs = self.render_outputs(camera, light)
+        if component not in outputs:
+            raise KeyError(f"method '{self.job.method}' renders no {component!r}; it renders {', '.join(outputs)}")
+        return colour.quantize_8bit(display_image(outputs[component], self.job.colourspace))
+
+    def compare(self, frame: ViewerFrame) -> Comparison:
+        """Render ``frame`` with its own camera and light and put it beside the ground truth."""
+        outputs = self.render_outputs(frame.camera, frame.light)
+        space = self.job.colourspace
+        prediction = np.clip(outputs["rgb"].detach().cpu().float().numpy(), 0.0, 1.0)
+        resolution = tuple(self.job.resolution) if self.job.resolution else None
+        truth = np.clip(frame.frame.load(colourspace=space, background="official", resolution=resolution).rgb,
+                        0.0, 1.0)
+        return Comparison(frame, colour.quantize_8bit(display_image(outputs["rgb"], space)),
+                          colour.quantize_8bit(np.clip(colour.convert_colourspace(truth, space, "srgb"), 0.0, 1.0)),
+                          float(psnr(prediction, truth)), self._recorded.get(frame.label))
+
+    def _recorded_psnr(self) -> dict[str, float]:
+        """``<split>/<frame id>`` -> the PSNR the runner recorded (results.json), when it is there."""
+        try:
+            results = json.loads((self.folder / "results.json").read_text(encoding="utf-8"))
+        except (OSError, json.JSONDecodeError):
+            return {}
+        found = {}
+        for split, block in (results.get("metrics") or {}).items():
+            for frame_id, scores in (block.get("per_image") or {}).items():
+                if isinstance(scores, dict) and isinstance(scores.get("psnr"), (int, float)):
+                    found[f"{split}/{frame_id}"] = float(scores["psnr"])
+        return found

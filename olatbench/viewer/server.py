@@ -1,0 +1,343 @@
+"""The viser application: one `ClientSession` per browser tab, all rendering through one `RenderScheduler`.
+
+Each tab has its own camera, light, output and GUI (viser's per-client ``client.gui`` / ``client.scene``), so tabs
+do not disturb one another; they share the restored models and the one render worker. The browser orbits, pans
+and zooms its camera itself; every camera, light or output change submits a request for that tab, which the
+scheduler renders at reduced resolution while changes keep coming and at the scene's resolution once they stop,
+then sends as the tab's background image (JPEG). Snapping to a dataset frame renders it with the frame's own
+camera and light, beside its ground truth and PSNR (lossless PNG in the GUI panel).
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+import traceback
+from collections.abc import Hashable
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from olatbench.datasets.records import PointLight
+from olatbench.viewer.geometry import browser_camera, camera_pose, render_size
+from olatbench.viewer.model import Comparison, ViewerFrame, ViewerModel
+from olatbench.viewer.scheduler import Quality, RenderScheduler
+
+JPEG_QUALITY = 90
+LIGHT_COLOUR = (255, 210, 60)
+CAMERA_COLOUR = (60, 120, 220)
+
+
+@dataclass(frozen=True)
+class ViewRequest:
+    """Render ``component`` of ``model`` from a browser pose (OpenCV camera-to-world ``wxyz`` and ``position``,
+    vertical ``fov`` in radians, canvas ``aspect`` width/height) under ``light``."""
+
+    model: ViewerModel
+    wxyz: tuple[float, ...]
+    position: tuple[float, ...]
+    fov: float
+    aspect: float
+    light: PointLight
+    component: str
+
+
+@dataclass(frozen=True)
+class CompareRequest:
+    """Render a dataset frame with its own camera and light beside its ground truth."""
+
+    model: ViewerModel
+    frame: ViewerFrame
+
+
+@dataclass(frozen=True)
+class Delivered:
+    """The newest image a tab received: what was asked, the (H, W, 3) uint8 image, its quality and render time."""
+
+    request: ViewRequest
+    image: np.ndarray
+    quality: Quality
+    seconds: float
+
+
+class ViewerApp:
+    """The viewer over one or more job folders (the first restored eagerly by the caller, the others on demand).
+
+    ``drag_scale`` is the resolution factor while the user drags (1.0: always the scene's resolution);
+    ``settle_seconds`` how long a view must be still before its full-resolution render.
+    """
+
+    def __init__(self, folders: list[Path], first: ViewerModel, *, host: str = "127.0.0.1", port: int = 8080,
+                 device: str = "cpu", drag_scale: float = 0.5, settle_seconds: float = 0.25,
+                 verbose: bool = False) -> None:
+        self.folders = [Path(f) for f in folders]
+        self.host, self.port, self.device, self.verbose = host, port, device, verbose
+        self.drag_scale = drag_scale
+        self._models: dict[Path, ViewerModel] = {self.folders[0]: first}
+        self._models_lock = threading.Lock()
+        self.sessions: dict[int, ClientSession] = {}
+        self.scheduler = RenderScheduler(self._render, self._deliver, settle_seconds=settle_seconds,
+                                         on_error=self._render_failed)
+        self.server: Any = None
+
+    # ------------------------------------------------------------------------------------------- lifecycle
+    def start(self) -> ViewerApp:
+        import viser
+
+        self.scheduler.start()
+        self.server = viser.ViserServer(host=self.host, port=self.port, label="olatbench view", verbose=self.verbose)
+        self.port = self.server.get_port()
+        self.server.gui.configure_theme(control_width="large")
+        first = self.model(self.folders[0])
+        self.server.scene.set_up_direction(tuple(first.light_frame.up))
+        self.server.on_client_connect(self._connect)
+        self.server.on_client_disconnect(self._disconnect)
+        return self
+
+    def stop(self) -> None:
+        if self.server is not None:
+            self.server.stop()
+        self.scheduler.close()
+
+    def __enter__(self) -> ViewerApp:
+        return self.start()
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
+
+    @property
+    def url(self) -> str:
+        return f"http://{self.host}:{self.port}"
+
+    def model(self, folder: Path) -> ViewerModel:
+        """The restored model of a job folder (restored on first use, then kept)."""
+        with self._models_lock:
+            if folder not in self._models:
+                self._models[folder] = ViewerModel.open(folder, self.device)
+            return self._models[folder]
+
+    def _connect(self, client: Any) -> None:
+        ClientSession(self, client)  # registers itself in `sessions` before it sends anything to the tab
+
+    def _disconnect(self, client: Any) -> None:
+        self.sessions.pop(client.client_id, None)
+        for kind in ("view", "compare"):
+            self.scheduler.forget((client.client_id, kind))
+
+    # ------------------------------------------------------------------------------------------- rendering
+    def _render(self, request: ViewRequest | CompareRequest, quality: Quality) -> tuple[Any, float]:
+        started = time.perf_counter()
+        if isinstance(request, CompareRequest):
+            return request.model.compare(request.frame), time.perf_counter() - started
+        size = render_size(request.model.full_size, request.aspect, 1.0 if quality == "full" else self.drag_scale)
+        camera = browser_camera(np.asarray(request.wxyz), np.asarray(request.position), request.fov, *size)
+        image = request.model.render(camera, request.light, request.component)
+        return image, time.perf_counter() - started
+
+    def _deliver(self, key: Hashable, request: Any, result: tuple[Any, float], quality: Quality) -> None:
+        session = self.sessions.get(key[0])
+        if session is not None:
+            session.show(request, result[0], quality, result[1])
+
+    def _render_failed(self, key: Hashable, error: BaseException) -> None:
+        session = self.sessions.get(key[0])
+        text = f"{type(error).__name__}: {error}"
+        if self.verbose:
+            traceback.print_exception(error)
+        if session is not None:
+            session.status.content = f"**render failed**: {text}"
+
+
+class ClientSession:
+    """One browser tab: its model, camera pose, light, output, GUI and scene nodes."""
+
+    def __init__(self, app: ViewerApp, client: Any) -> None:
+        self.app, self.client = app, client
+        self.delivered: Delivered | None = None
+        self.comparison: Comparison | None = None
+        self.pose: tuple[tuple[float, ...], tuple[float, ...], float] | None = None
+        self.aspect = 1.0
+        self._camera_known = False
+        self._scene_nodes: list[Any] = []
+        app.sessions[client.client_id] = self
+        self._build_gui()
+        self.use_model(app.model(app.folders[0]))
+        client.camera.on_update(self._camera_moved)
+
+    # ------------------------------------------------------------------------------------------- GUI
+    def _build_gui(self) -> None:
+        gui = self.client.gui
+        self.status = gui.add_markdown("connecting…")
+        if len(self.app.folders) > 1:
+            self.job_dropdown = gui.add_dropdown("job", [str(f) for f in self.app.folders],
+                                                 initial_value=str(self.app.folders[0]))
+            self.job_dropdown.on_update(self._job_chosen)
+        with gui.add_folder("Light"):
+            self.azimuth = gui.add_slider("azimuth °", -180.0, 180.0, 1.0, 0.0)
+            self.elevation = gui.add_slider("elevation °", -89.0, 89.0, 1.0, 0.0)
+            self.distance = gui.add_slider("distance", 0.01, 1.0, 0.01, 0.5)
+            self.intensity = gui.add_slider("intensity ×", 0.0, 4.0, 0.05, 1.0)
+        for slider in (self.azimuth, self.elevation, self.distance):
+            slider.on_update(self._light_slid)
+        self.intensity.on_update(self._intensity_slid)
+        with gui.add_folder("Output"):
+            self.output = gui.add_dropdown("component", ["rgb"], initial_value="rgb")
+            self.output.on_update(self._output_chosen)
+        with gui.add_folder("Dataset frames"):
+            self.frame_dropdown = gui.add_dropdown("frame", ["-"], initial_value="-")
+            self.snap_button = gui.add_button("Snap camera and light to frame")
+            self.snap_button.on_click(self._snap_clicked)
+            self.comparison_text = gui.add_markdown("Snap to a frame to see its ground truth and PSNR.")
+            self.comparison_image = gui.add_image(np.zeros((8, 16, 3), np.uint8), label="render | ground truth",
+                                                  format="png", visible=False)
+            self.show_cameras = gui.add_checkbox("training cameras", False)
+            self.show_lights = gui.add_checkbox("training lights", False)
+        self.show_cameras.on_update(lambda _: self._set_visible("cameras", self.show_cameras.value))
+        self.show_lights.on_update(lambda _: self._set_visible("lights", self.show_lights.value))
+
+    def use_model(self, model: ViewerModel) -> None:
+        """Show ``model``: GUI options, scene nodes (light handle, training cameras and lights), its home frame."""
+        self.model = model
+        self.frame_dropdown.options = [f.label for f in model.frames]
+        self.frame_dropdown.value = model.home.label
+        self.output.options = list(model.components)
+        self.output.value = "rgb" if "rgb" in model.components else model.components[0]
+        light_frame = model.light_frame
+        home_distance = light_frame.spherical(model.home.light.position)[2]
+        extent = max(float(np.linalg.norm(f.camera.position - light_frame.centre)) for f in model.train)
+        limit = max(3.0 * home_distance, 1.5 * extent)
+        self.distance.max = round(limit, 2)
+        self.distance.step = max(round(limit / 300, 3), 0.001)
+        self.base_intensity = np.asarray(model.home.light.intensity, dtype=np.float64)
+        self.light_template = model.home.light
+        for node in self._scene_nodes:
+            node.remove()
+        scene = self.client.scene
+        self.light_handle = scene.add_transform_controls("/light", scale=0.15 * home_distance, disable_rotations=True,
+                                                         position=tuple(model.home.light.position))
+        self.light_handle.on_update(self._light_dragged)
+        bulb = scene.add_icosphere("/light/bulb", radius=0.02 * home_distance, color=LIGHT_COLOUR)
+        self.cameras = [scene.add_camera_frustum(
+            f"/train/cameras/{index}", fov=camera_pose(f.camera)[2], aspect=f.camera.width / f.camera.height,
+            scale=0.05 * extent, wxyz=camera_pose(f.camera)[0], position=camera_pose(f.camera)[1],
+            color=CAMERA_COLOUR, visible=bool(self.show_cameras.value)) for index, f in enumerate(model.train)]
+        self.lights = scene.add_point_cloud(
+            "/train/lights", np.array([f.light.position for f in model.train], dtype=np.float32),
+            colors=LIGHT_COLOUR, point_size=0.01 * extent, visible=bool(self.show_lights.value))
+        self._scene_nodes = [self.light_handle, bulb, *self.cameras, self.lights]
+        self.snap(model.home, compare=False)
+
+    def _set_visible(self, kind: str, visible: bool) -> None:
+        for node in self.cameras if kind == "cameras" else [self.lights]:
+            node.visible = visible
+
+    # ------------------------------------------------------------------------------------------- state
+    @property
+    def light(self) -> PointLight:
+        """The light the tab renders with: the handle's position, the home light's intensity × the slider."""
+        return replace(self.light_template, position=np.asarray(self.light_handle.position, dtype=np.float64),
+                       intensity=self.base_intensity * float(self.intensity.value))
+
+    def set_light(self, position: np.ndarray) -> None:
+        """Move the light (handle and sliders) and render."""
+        self.light_handle.position = tuple(float(v) for v in position)
+        self._sync_sliders()
+        self.request()
+
+    def _sync_sliders(self) -> None:
+        azimuth, elevation, distance = self.model.light_frame.spherical(np.asarray(self.light_handle.position))
+        self.azimuth.value = round(azimuth, 1)
+        self.elevation.value = round(max(-89.0, min(89.0, elevation)), 1)
+        self.distance.value = min(round(distance, 3), self.distance.max)
+
+    def snap(self, frame: ViewerFrame, compare: bool = True) -> None:
+        """Camera and light to a dataset frame; with ``compare``, render it beside its ground truth."""
+        wxyz, position, fov = camera_pose(frame.camera)
+        self.pose = (tuple(wxyz), tuple(position), fov)
+        self.aspect = frame.camera.width / frame.camera.height if not self._camera_known else self.aspect
+        self.intensity.value = 1.0
+        if self._camera_known:
+            self._move_browser_camera(frame)
+        self.set_light(np.asarray(frame.light.position, dtype=np.float64))
+        if compare:
+            self.app.scheduler.submit((self.client.client_id, "compare"), CompareRequest(self.model, frame),
+                                      progressive=False)
+
+    def _move_browser_camera(self, frame: ViewerFrame) -> None:
+        camera = self.client.camera
+        c2w = frame.camera.c2w
+        centre = self.model.light_frame.centre
+        with self.client.atomic():
+            camera.fov = camera_pose(frame.camera)[2]
+            camera.up_direction = tuple(-c2w[:3, 1])
+            camera.position = tuple(c2w[:3, 3])
+            camera.look_at = tuple(c2w[:3, 3] + c2w[:3, 2] * float(np.linalg.norm(centre - c2w[:3, 3])))
+
+    def request(self, progressive: bool = True) -> None:
+        """Submit a render of the current state (never blocks)."""
+        if self.pose is None:
+            return
+        wxyz, position, fov = self.pose
+        self.app.scheduler.submit((self.client.client_id, "view"), ViewRequest(
+            self.model, wxyz, position, fov, self.aspect, self.light, str(self.output.value)), progressive)
+
+    # ------------------------------------------------------------------------------------------- events
+    def _camera_moved(self, camera: Any) -> None:
+        self.aspect = float(camera.aspect) if camera.image_height else self.aspect
+        if not self._camera_known:  # the first message of the tab: show the home frame
+            self._camera_known = True
+            self._move_browser_camera(self.model.home)
+            self.request(progressive=False)
+            return
+        self.pose = (tuple(camera.wxyz), tuple(camera.position), float(camera.fov))
+        self.request()
+
+    def _light_dragged(self, event: Any) -> None:
+        self._sync_sliders()
+        self.request()
+
+    def _light_slid(self, event: Any) -> None:
+        if event.client is None:  # set by the server (sliders follow the handle), not by the user
+            return
+        position = self.model.light_frame.position(float(self.azimuth.value), float(self.elevation.value),
+                                                   float(self.distance.value))
+        self.light_handle.position = tuple(float(v) for v in position)
+        self.request()
+
+    def _intensity_slid(self, event: Any) -> None:
+        if event.client is not None:
+            self.request()
+
+    def _output_chosen(self, event: Any) -> None:
+        if event.client is not None:
+            self.request(progressive=False)
+
+    def _snap_clicked(self, event: Any) -> None:
+        self.snap(self.model.frame(str(self.frame_dropdown.value)))
+
+    def _job_chosen(self, event: Any) -> None:
+        if event.client is None:
+            return
+        self.status.content = f"restoring {self.job_dropdown.value} …"
+        try:
+            self.use_model(self.app.model(Path(str(self.job_dropdown.value))))
+        except Exception as error:  # shown in the tab; the other jobs stay usable
+            self.status.content = f"**cannot show {self.job_dropdown.value}**: {error}"
+
+    # ------------------------------------------------------------------------------------------- output
+    def show(self, request: Any, result: Any, quality: Quality, seconds: float) -> None:
+        """Put a finished render in the tab (called on the render worker)."""
+        if isinstance(request, CompareRequest):
+            self.comparison = result
+            self.comparison_image.image = np.concatenate([result.render, result.ground_truth], axis=1)
+            self.comparison_image.visible = True
+            recorded = f" (runner: {result.recorded_psnr:.2f} dB)" if result.recorded_psnr is not None else ""
+            self.comparison_text.content = f"**{result.frame.label}**: PSNR {result.psnr:.2f} dB{recorded}"
+            return
+        self.client.scene.set_background_image(result, format="jpeg", jpeg_quality=JPEG_QUALITY)
+        self.delivered = Delivered(request, result, quality, seconds)
+        height, width = result.shape[:2]
+        self.status.content = (f"{self.model.label} · {request.component} · {width}×{height} "
+                               f"({'full' if quality == 'full' else 'dragging'}) in {1000 * seconds:.0f} ms")

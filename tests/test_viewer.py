@@ -1,0 +1,183 @@
+"""`olatbench view`: the viser server on a tiny trained SSD-GS job, driven by a websocket client like a browser."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+import urllib.request
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+from click.testing import CliRunner
+from trained_jobs import train_tiny_ssdgs
+
+from olatbench.cli import main
+from olatbench.datasets import colour
+from olatbench.reports.jobfolder import JobFolder, read_png
+
+pytest.importorskip("viser")
+pytest.importorskip("olatbench.gaussians.shadow")
+from viser import _messages
+from viser_client import ViserTestClient
+
+from olatbench.viewer.geometry import browser_camera, camera_pose
+from olatbench.viewer.model import ViewerModel
+from olatbench.viewer.server import ViewerApp
+
+
+@pytest.fixture(scope="module")
+def trained(tmp_path_factory) -> Path:
+    return train_tiny_ssdgs(tmp_path_factory.mktemp("viewer"))
+
+
+@pytest.fixture(scope="module")
+def app(trained):
+    model = ViewerModel.open(trained)
+    with ViewerApp([trained], model, port=0, settle_seconds=0.05) as running:
+        yield running
+
+
+def full_image(client: ViserTestClient, model: ViewerModel, after: int = 0) -> np.ndarray:
+    """The next background image at the scene's resolution (previews are smaller)."""
+    height = model.full_size[1]
+    message = client.wait_for(lambda m: m.get("type") == "BackgroundImageMessage" and m.get("rgb_data") is not None
+                              and cv2.imdecode(np.frombuffer(m["rgb_data"], np.uint8), 1).shape[0] == height,
+                              after=after)
+    return cv2.imdecode(np.frombuffer(message["rgb_data"], np.uint8), 1)[..., ::-1].astype(np.float64)
+
+
+def connect_home(app: ViewerApp) -> ViserTestClient:
+    """A tab whose browser camera sits at the home (first test) frame, canvas of the scene's aspect."""
+    model = app.model(app.folders[0])
+    client = ViserTestClient(app.port)
+    wxyz, position, fov = camera_pose(model.home.camera)
+    client.send_camera(wxyz, position, fov, *model.full_size)
+    return client
+
+
+def test_server_serves_the_page_on_a_free_port(app):
+    with urllib.request.urlopen(app.url, timeout=30) as response:
+        page = response.read().decode("utf-8", "replace")
+    assert response.status == 200 and "<html" in page.lower() and "<script" in page.lower()
+
+
+def test_moving_the_light_changes_the_image_in_the_shadowed_region(app):
+    model = app.model(app.folders[0])
+    client = connect_home(app)
+    try:
+        first = full_image(client, model)
+        owner = client.wait_for(lambda m: m.get("type") == "TransformControlsMessage")["owner"]
+        session = app.sessions[int(owner)]
+        request = session.delivered.request
+        camera = browser_camera(np.asarray(request.wxyz), np.asarray(request.position), request.fov,
+                                first.shape[1], first.shape[0])
+        shadow = model.render_outputs(camera, request.light)["shadow"][..., 0].numpy()
+        azimuth, elevation, distance = model.light_frame.spherical(request.light.position)
+        moved = model.light_frame.position(azimuth + 120.0, elevation, distance)
+        mark = len(client.received)
+        client.send(_messages.TransformControlsUpdateMessage(name="/light", wxyz=(1.0, 0.0, 0.0, 0.0),
+                                                             position=tuple(moved), owner=owner))
+        second = full_image(client, model, after=mark)
+    finally:
+        client.close()
+    np.testing.assert_allclose(session.delivered.request.light.position, moved)
+    assert session.azimuth.value == pytest.approx(((azimuth + 120.0 + 180.0) % 360.0) - 180.0, abs=0.1)
+    shadowed = shadow < np.median(shadow)  # the darker-shadowed half of the first view
+    assert shadowed.sum() > 0
+    difference = np.abs(second - first).mean(axis=2)
+    assert difference[shadowed].mean() > 3.0  # 8-bit levels, far above JPEG noise (same image twice: 0)
+
+
+def test_snapping_to_a_test_frame_reproduces_the_stored_test_render(app, trained):
+    client = connect_home(app)
+    try:
+        owner = client.wait_for(lambda m: m.get("type") == "TransformControlsMessage")["owner"]
+        session = app.sessions[int(owner)]
+        model = session.model
+        frame = model.test[-1]
+        session.snap(frame)
+        assert app.scheduler.wait_idle(60)
+    finally:
+        client.close()
+    comparison = session.comparison
+    assert comparison is not None and comparison.frame is frame
+    stored = np.round(read_png(JobFolder.open(trained).render_path("test", frame.frame_id)) * 255).astype(np.uint8)
+    np.testing.assert_array_equal(comparison.render, stored)
+    truth = frame.frame.load(colourspace=model.job.colourspace, background="official").rgb
+    render = colour.convert_colourspace(stored.astype(np.float64) / 255, "srgb", model.job.colourspace)
+    mse = np.mean((np.clip(render, 0, 1) - np.clip(truth, 0, 1)) ** 2)
+    assert comparison.psnr == pytest.approx(-10 * np.log10(mse), abs=0.3)  # the stored render is 8-bit
+    recorded = json.loads((trained / "results.json").read_text())["metrics"]["test"]["per_image"][frame.frame_id]
+    assert comparison.recorded_psnr == recorded["psnr"]
+    np.testing.assert_allclose(session.light_handle.position, frame.light.position)
+
+
+def test_two_tabs_have_their_own_light(app):
+    model = app.model(app.folders[0])
+    first, second = connect_home(app), connect_home(app)
+    try:
+        owners = [c.wait_for(lambda m: m.get("type") == "TransformControlsMessage")["owner"] for c in (first, second)]
+        assert owners[0] != owners[1]
+        sessions = [app.sessions[int(owner)] for owner in owners]
+        full_image(first, model)
+        full_image(second, model)
+        moved = model.light_frame.position(10.0, 40.0, 2.0)
+        mark = len(first.received)
+        first.send(_messages.TransformControlsUpdateMessage(name="/light", wxyz=(1.0, 0.0, 0.0, 0.0),
+                                                            position=tuple(moved), owner=owners[0]))
+        full_image(first, model, after=mark)
+        np.testing.assert_allclose(sessions[0].light_handle.position, moved)
+        np.testing.assert_allclose(sessions[1].light_handle.position, model.home.light.position)
+        np.testing.assert_allclose(sessions[1].delivered.request.light.position, model.home.light.position)
+    finally:
+        first.close()
+        second.close()
+
+
+def test_bad_folders_fail_before_a_server_starts(trained, tmp_path):
+    runner = CliRunner()
+    empty = runner.invoke(main, ["view", str(tmp_path)])
+    assert empty.exit_code == 1 and "no job.json in or below it" in empty.output
+    copy = tmp_path / "job"
+    shutil.copytree(trained, copy)
+    job = json.loads((copy / "job.json").read_text())
+    plugin = {**job, "method": "nope", "method_ref": "olatbench.nope:Nope", "identity": {**job["identity"],
+                                                                                         "method": "nope"}}
+    (copy / "job.json").write_text(json.dumps(plugin))  # a job of a plugin that is not installed here
+    unknown = runner.invoke(main, ["view", str(copy)])
+    assert unknown.exit_code == 1 and "method 'nope' (olatbench.nope:Nope) cannot be imported" in unknown.output
+    (copy / "job.json").write_text(json.dumps(job))
+    for checkpoint in (copy / "checkpoints").iterdir():
+        checkpoint.unlink()
+    unfinished = runner.invoke(main, ["view", str(tmp_path)])
+    assert unfinished.exit_code == 1 and "none of its 1 job folders can be shown" in unfinished.output
+    assert "no checkpoint" in unfinished.output
+
+
+def test_record_a_light_orbit(trained, tmp_path):
+    out = tmp_path / "orbit.mp4"
+    result = CliRunner().invoke(main, ["view", str(trained), "--record", "light-orbit", str(out), "--frames", "3",
+                                       "--component", "diffuse"])
+    assert result.exit_code == 0, result.output
+    capture = cv2.VideoCapture(str(out))
+    count = 0
+    while capture.read()[0]:
+        count += 1
+    capture.release()
+    assert count == 3 and len(list((tmp_path / "orbit_frames").glob("*.png"))) == 3
+
+
+CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(CHROMIUM is None, reason="needs Debian's chromium (apt-get install chromium)")
+def test_the_page_shows_a_canvas_in_headless_chromium(app, tmp_path):
+    """The page's JavaScript runs: after it loads, the DOM holds the WebGL canvas viser draws into."""
+    result = subprocess.run([CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--use-gl=swiftshader",
+                             "--virtual-time-budget=15000", "--dump-dom", app.url],
+                            capture_output=True, text=True, timeout=120)
+    assert "<canvas" in result.stdout, result.stderr[-2000:]

@@ -1,0 +1,154 @@
+"""The viewer's render scheduler and geometry, without a browser or a model."""
+
+from __future__ import annotations
+
+import threading
+import time
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from olatbench.datasets.cameras import intrinsics_from_fov, look_at
+from olatbench.datasets.records import Camera
+from olatbench.viewer.geometry import (
+    LightFrame,
+    browser_camera,
+    camera_pose,
+    matrix_to_quaternion,
+    quaternion_to_matrix,
+    render_size,
+)
+from olatbench.viewer.scheduler import RenderScheduler
+
+
+class Recorder:
+    """A render function that records concurrency and can be held at a gate."""
+
+    def __init__(self, seconds: float = 0.0) -> None:
+        self.seconds = seconds
+        self.lock = threading.Lock()
+        self.active = 0
+        self.max_active = 0
+        self.gate = threading.Event()
+        self.gate.set()
+        self.started = threading.Event()
+        self.delivered: list[tuple[object, object, str]] = []
+
+    def render(self, request, quality):
+        with self.lock:
+            self.active += 1
+            self.max_active = max(self.max_active, self.active)
+        self.started.set()
+        self.gate.wait(10)
+        time.sleep(self.seconds)
+        with self.lock:
+            self.active -= 1
+        return f"image of {request}"
+
+    def deliver(self, key, request, image, quality):
+        self.delivered.append((key, request, quality))
+
+
+def test_one_render_in_flight_across_keys_and_threads():
+    recorder = Recorder(seconds=0.002)
+    with RenderScheduler(recorder.render, recorder.deliver, settle_seconds=0.0) as scheduler:
+        def tab(key):
+            for index in range(30):
+                scheduler.submit(key, index)
+                time.sleep(0.001)
+
+        threads = [threading.Thread(target=tab, args=(key,)) for key in ("a", "b", "c")]
+        for thread in threads:
+            thread.start()
+        for thread in threads:
+            thread.join()
+        assert scheduler.wait_idle(10)
+    assert recorder.max_active == 1
+    last = {key: [r for k, r, q in recorder.delivered if k == key][-1] for key in ("a", "b", "c")}
+    assert last == {"a": 29, "b": 29, "c": 29}  # every tab ends on its newest request
+
+
+def test_requests_replaced_before_their_render_are_dropped_and_submit_never_blocks():
+    recorder = Recorder()
+    recorder.gate.clear()
+    with RenderScheduler(recorder.render, recorder.deliver, settle_seconds=0.0) as scheduler:
+        scheduler.submit("tab", 0)
+        assert recorder.started.wait(5)  # request 0 is rendering, held at the gate
+        clock = time.perf_counter()
+        for index in range(1, 10):
+            scheduler.submit("tab", index)
+        assert time.perf_counter() - clock < 0.05  # the UI thread is not held by the render in flight
+        recorder.gate.set()
+        assert scheduler.wait_idle(5)
+    assert [request for _, request, _ in recorder.delivered] == [0, 9]
+    assert scheduler.dropped == 8
+
+
+def test_progressive_previews_while_dragging_then_one_full_render_when_still():
+    recorder = Recorder(seconds=0.005)
+    with RenderScheduler(recorder.render, recorder.deliver, settle_seconds=0.15) as scheduler:
+        for index in range(20):  # a drag: a new request every 10 ms, for 0.2 s
+            scheduler.submit("tab", index)
+            time.sleep(0.01)
+        during = list(recorder.delivered)
+        assert scheduler.wait_idle(5)
+    assert during and all(quality == "preview" for _, _, quality in during)
+    assert recorder.delivered[-1] == ("tab", 19, "full")
+    assert [q for _, _, q in recorder.delivered].count("full") == 1
+
+
+def test_a_button_request_is_rendered_at_full_quality_at_once():
+    recorder = Recorder()
+    with RenderScheduler(recorder.render, recorder.deliver, settle_seconds=5.0) as scheduler:
+        scheduler.submit("tab", "snap", progressive=False)
+        assert scheduler.wait_idle(2)  # long before the 5 s settle time
+    assert recorder.delivered == [("tab", "snap", "full")]
+
+
+def test_render_errors_go_to_on_error_and_the_worker_goes_on():
+    errors = []
+
+    def render(request, quality):
+        if request == "bad":
+            raise ValueError("no such component")
+        return request
+
+    delivered = []
+    with RenderScheduler(render, lambda key, request, image, quality: delivered.append(image), settle_seconds=0.0,
+                         on_error=lambda key, error: errors.append((key, str(error)))) as scheduler:
+        scheduler.submit("a", "bad")
+        scheduler.submit("b", "good")
+        assert scheduler.wait_idle(5)
+    assert errors == [("a", "no such component")] and delivered == ["good"]
+
+
+def test_quaternions_match_scipy():
+    for rotation in Rotation.random(20, random_state=1):
+        x, y, z, w = rotation.as_quat()
+        np.testing.assert_allclose(quaternion_to_matrix(np.array([w, x, y, z])), rotation.as_matrix(), atol=1e-12)
+        q = matrix_to_quaternion(rotation.as_matrix())
+        np.testing.assert_allclose(quaternion_to_matrix(q), rotation.as_matrix(), atol=1e-12)
+        assert q[0] >= 0 and abs(np.linalg.norm(q) - 1) < 1e-12
+
+
+def test_browser_camera_reproduces_a_dataset_camera_from_its_pose():
+    """A camera with square pixels and a centred principal point survives camera_pose -> browser_camera."""
+    K = intrinsics_from_fov(np.radians(40.0), 64, 48)
+    camera = Camera(K=K, c2w=look_at(np.array([3.0, -2.0, 1.5]), np.zeros(3)), width=64, height=48)
+    wxyz, position, fov = camera_pose(camera)
+    again = browser_camera(wxyz, position, fov, 64, 48)
+    np.testing.assert_allclose(again.K, camera.K, atol=1e-9)
+    np.testing.assert_allclose(again.c2w, camera.c2w, atol=1e-12)
+    assert render_size((64, 48), 64 / 48) == (64, 48) and render_size((64, 48), 2.0, 0.5) == (48, 24)
+
+
+def test_light_frame_spherical_coordinates():
+    frame = LightFrame.of(np.array([1.0, 2.0, 3.0]), np.array([0.0, 0.0, 2.0]), np.array([4.0, 2.0, 7.0]))
+    np.testing.assert_allclose(frame.forward, [1.0, 0.0, 0.0])
+    np.testing.assert_allclose(frame.position(0.0, 0.0, 2.0), [3.0, 2.0, 3.0])
+    np.testing.assert_allclose(frame.position(90.0, 0.0, 2.0), [1.0, 4.0, 3.0], atol=1e-12)  # counter-clockwise
+    np.testing.assert_allclose(frame.position(0.0, 90.0, 2.0), [1.0, 2.0, 5.0], atol=1e-12)
+    for azimuth, elevation, distance in ((-170.0, 10.0, 0.5), (35.0, -60.0, 3.0), (120.0, 80.0, 1.0)):
+        position = frame.position(azimuth, elevation, distance)
+        assert frame.spherical(position) == pytest.approx((azimuth, elevation, distance))
