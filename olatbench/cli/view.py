@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import time
 from pathlib import Path
 
@@ -32,6 +33,9 @@ def view(folder, port, host, device, drag_scale, record, component, count, start
       olatbench view runs/mini --port 8081
       olatbench view runs/mini/ssdgs/default/translucent/seed0 --record light-orbit orbit.mp4
     """
+    # Idle OpenMP threads sleep instead of spinning: on a shared 2-core machine spinning made each render of the
+    # native kernels 8x slower with 2 threads (benchmarks/bench_viewer.py, docs/viewer.md). Set before torch loads.
+    os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
     from olatbench.bench.restore import RestoreError
     from olatbench.viewer.jobs import job_folders
     from olatbench.viewer.model import ViewerModel
