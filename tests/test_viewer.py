@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import shutil
 import subprocess
+import time
 import urllib.request
 from pathlib import Path
 
@@ -135,6 +136,36 @@ def test_two_tabs_have_their_own_light(app):
     finally:
         first.close()
         second.close()
+
+
+def test_a_run_folder_serves_each_finished_job_and_a_tab_switches_between_them(trained, tmp_path):
+    run = tmp_path / "run"
+    for seed in (0, 1):  # two finished jobs below one run folder, one unfinished
+        shutil.copytree(trained, run / f"seed{seed}")
+    shutil.copytree(trained, run / "seed2", ignore=shutil.ignore_patterns("step_*.pt"))
+    from olatbench.viewer.jobs import job_folders
+
+    folders, skipped = job_folders(run)
+    assert folders == [run / "seed0", run / "seed1"] and len(skipped) == 1 and "no checkpoint" in skipped[0]
+    with ViewerApp(folders, ViewerModel.open(folders[0]), port=0, settle_seconds=0.05) as viewer:
+        client = connect_home(viewer)
+        try:
+            dropdown = client.wait_for(lambda m: m.get("type") == "GuiDropdownMessage"
+                                       and m["props"]["label"] == "job")
+            owner = client.wait_for(lambda m: m.get("type") == "TransformControlsMessage")["owner"]
+            session = viewer.sessions[int(owner)]
+            assert session.model.folder == folders[0]
+            mark = len(client.received)
+            client.send(_messages.GuiUpdateMessage(dropdown["uuid"], {"value": str(folders[1])}))
+            deadline = time.monotonic() + 120  # the second job is restored on first use, on viser's thread pool
+            while session.model.folder != folders[1] and time.monotonic() < deadline:
+                time.sleep(0.05)
+            assert session.model.folder == folders[1]
+            full_image(client, session.model, after=mark)
+            assert viewer.scheduler.wait_idle(60)
+            assert session.delivered.request.model is session.model
+        finally:
+            client.close()
 
 
 def test_bad_folders_fail_before_a_server_starts(trained, tmp_path):

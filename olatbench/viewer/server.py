@@ -10,10 +10,11 @@ camera and light, beside its ground truth and PSNR (lossless PNG in the GUI pane
 
 from __future__ import annotations
 
+import functools
 import threading
 import time
 import traceback
-from collections.abc import Hashable
+from collections.abc import Callable, Hashable
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -150,6 +151,17 @@ class ViewerApp:
             session.status.content = f"**render failed**: {text}"
 
 
+def _locked(method: Callable[..., None]) -> Callable[..., None]:
+    """Run a `ClientSession` method under the session's lock."""
+
+    @functools.wraps(method)
+    def locked(self: ClientSession, *args: Any, **kwargs: Any) -> None:
+        with self._lock:
+            method(self, *args, **kwargs)
+
+    return locked
+
+
 class ClientSession:
     """One browser tab: its model, camera pose, light, output, GUI and scene nodes."""
 
@@ -161,10 +173,14 @@ class ClientSession:
         self.aspect = 1.0
         self._camera_known = False
         self._scene_nodes: list[Any] = []
-        app.sessions[client.client_id] = self
-        self._build_gui()
-        self.use_model(app.model(app.folders[0]))
-        client.camera.on_update(self._camera_moved)
+        # Events of the tab (run on viser's thread pool) and public calls wait while another one, or the set-up,
+        # changes the session: the set-up already sends GUI and scene messages, so the tab can answer early.
+        self._lock = threading.RLock()
+        with self._lock:
+            app.sessions[client.client_id] = self
+            self._build_gui()
+            self.use_model(app.model(app.folders[0]))
+            client.camera.on_update(self._camera_moved)
 
     # ------------------------------------------------------------------------------------------- GUI
     def _build_gui(self) -> None:
@@ -197,6 +213,7 @@ class ClientSession:
         self.show_cameras.on_update(lambda _: self._set_visible("cameras", self.show_cameras.value))
         self.show_lights.on_update(lambda _: self._set_visible("lights", self.show_lights.value))
 
+    @_locked
     def use_model(self, model: ViewerModel) -> None:
         """Show ``model``: GUI options, scene nodes (light handle, training cameras and lights), its home frame."""
         self.model = model
@@ -218,7 +235,7 @@ class ClientSession:
         self.light_handle = scene.add_transform_controls("/light", scale=0.15 * home_distance, disable_rotations=True,
                                                          position=tuple(model.home.light.position))
         self.light_handle.on_update(self._light_dragged)
-        bulb = scene.add_icosphere("/light/bulb", radius=0.02 * home_distance, color=LIGHT_COLOUR)
+        scene.add_icosphere("/light/bulb", radius=0.02 * home_distance, color=LIGHT_COLOUR)
         self.cameras = [scene.add_camera_frustum(
             f"/train/cameras/{index}", fov=camera_pose(f.camera)[2], aspect=f.camera.width / f.camera.height,
             scale=0.05 * extent, wxyz=camera_pose(f.camera)[0], position=camera_pose(f.camera)[1],
@@ -226,7 +243,7 @@ class ClientSession:
         self.lights = scene.add_point_cloud(
             "/train/lights", np.array([f.light.position for f in model.train], dtype=np.float32),
             colors=LIGHT_COLOUR, point_size=0.01 * extent, visible=bool(self.show_lights.value))
-        self._scene_nodes = [self.light_handle, bulb, *self.cameras, self.lights]
+        self._scene_nodes = [self.light_handle, *self.cameras, self.lights]  # the bulb goes with /light
         self.snap(model.home, compare=False)
 
     def _set_visible(self, kind: str, visible: bool) -> None:
@@ -240,6 +257,7 @@ class ClientSession:
         return replace(self.light_template, position=np.asarray(self.light_handle.position, dtype=np.float64),
                        intensity=self.base_intensity * float(self.intensity.value))
 
+    @_locked
     def set_light(self, position: np.ndarray) -> None:
         """Move the light (handle and sliders) and render."""
         self.light_handle.position = tuple(float(v) for v in position)
@@ -252,6 +270,7 @@ class ClientSession:
         self.elevation.value = round(max(-89.0, min(89.0, elevation)), 1)
         self.distance.value = min(round(distance, 3), self.distance.max)
 
+    @_locked
     def snap(self, frame: ViewerFrame, compare: bool = True) -> None:
         """Camera and light to a dataset frame; with ``compare``, render it beside its ground truth."""
         wxyz, position, fov = camera_pose(frame.camera)
@@ -284,6 +303,7 @@ class ClientSession:
             self.model, wxyz, position, fov, self.aspect, self.light, str(self.output.value)), progressive)
 
     # ------------------------------------------------------------------------------------------- events
+    @_locked
     def _camera_moved(self, camera: Any) -> None:
         self.aspect = float(camera.aspect) if camera.image_height else self.aspect
         if not self._camera_known:  # the first message of the tab: show the home frame
@@ -294,10 +314,12 @@ class ClientSession:
         self.pose = (tuple(camera.wxyz), tuple(camera.position), float(camera.fov))
         self.request()
 
+    @_locked
     def _light_dragged(self, event: Any) -> None:
         self._sync_sliders()
         self.request()
 
+    @_locked
     def _light_slid(self, event: Any) -> None:
         if event.client is None:  # set by the server (sliders follow the handle), not by the user
             return
@@ -306,17 +328,21 @@ class ClientSession:
         self.light_handle.position = tuple(float(v) for v in position)
         self.request()
 
+    @_locked
     def _intensity_slid(self, event: Any) -> None:
         if event.client is not None:
             self.request()
 
+    @_locked
     def _output_chosen(self, event: Any) -> None:
         if event.client is not None:
             self.request(progressive=False)
 
+    @_locked
     def _snap_clicked(self, event: Any) -> None:
         self.snap(self.model.frame(str(self.frame_dropdown.value)))
 
+    @_locked
     def _job_chosen(self, event: Any) -> None:
         if event.client is None:
             return
