@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
-from olatbench.methods.spec import build_config
+from olatbench.methods.spec import MethodSpec, build_config
 
 if TYPE_CHECKING:
     import torch
@@ -73,6 +73,14 @@ class Method(ABC):
     #: frame ids are always given, in training order, so per-view state stays addressable by frame id), and a
     #: sweep or the viewer reads no training image. True (the safe default for plugins): the images are loaded.
     restore_needs_images: ClassVar[bool] = True
+
+    def __init_subclass__(cls, spec: MethodSpec | None = None, **kwargs: Any) -> None:
+        """``class SSDGS(GaussianMethod, spec=SPEC)`` takes ``name``, ``presets``, ``description`` and
+        ``ablations`` from the method's spec, so they are written once."""
+        super().__init_subclass__(**kwargs)
+        if spec is not None:
+            cls.name, cls.presets, cls.description = spec.name, dict(spec.presets), spec.description
+            cls.ablations = dict(spec.ablations)
 
     def __init__(self, config: Any) -> None:
         self.config = config

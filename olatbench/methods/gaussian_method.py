@@ -53,8 +53,8 @@ class GaussianMethod(Method):
     #: `setup` reads cameras, lights and the background only; the images are read per training step.
     restore_needs_images: ClassVar[bool] = False
 
-    def __init__(self, config: Any) -> None:
-        super().__init__(config)
+    def __init__(self, config: Any | None = None) -> None:
+        super().__init__(config if config is not None else self.config_class())
         self.step = 0  # steps taken so far (the next train_step is normally called with this value)
 
     # ------------------------------------------------------------------------------------------- set-up

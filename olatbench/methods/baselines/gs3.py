@@ -39,20 +39,15 @@ if TYPE_CHECKING:
 STATE_FORMAT = "olatbench.methods.baselines.gs3/1"
 
 
-class GS3(GaussianMethod):
+class GS3(GaussianMethod, spec=SPEC):
     """GS³ on the shared Gaussian core (see the module docstring)."""
 
-    name: ClassVar[str] = "gs3"
     config_class: ClassVar[type] = GS3Config
-    presets: ClassVar[dict[str, dict[str, Any]]] = PRESETS
-    description: ClassVar[str] = SPEC.description
 
     state_format: ClassVar[str] = STATE_FORMAT
     label: ClassVar[str] = "GS³"
 
-    def __init__(self, config: GS3Config | None = None) -> None:
-        super().__init__(config if config is not None else GS3Config())
-        self.config: GS3Config
+    config: GS3Config
 
     # ------------------------------------------------------------------------------------------- set-up
     def initial_attributes(self, n: int) -> dict[str, torch.Tensor]:

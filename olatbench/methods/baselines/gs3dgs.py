@@ -29,19 +29,14 @@ if TYPE_CHECKING:
 STATE_FORMAT = "olatbench.methods.baselines.3dgs/2"  # 2: the optimiser saved as "gaussian_optimizer"
 
 
-class GaussianSplatting3D(GaussianMethod):
+class GaussianSplatting3D(GaussianMethod, spec=SPEC):
     """3DGS with degree-3 SH colour, unaware of the light (the paper's lower bound)."""
 
-    name: ClassVar[str] = "3dgs"
     config_class: ClassVar[type] = GS3DConfig
-    presets: ClassVar[dict[str, dict[str, Any]]] = PRESETS
-    description: ClassVar[str] = SPEC.description
     state_format: ClassVar[str] = STATE_FORMAT
     label: ClassVar[str] = "3DGS"
 
-    def __init__(self, config: GS3DConfig | None = None) -> None:
-        super().__init__(config if config is not None else GS3DConfig())
-        self.config: GS3DConfig
+    config: GS3DConfig
 
     # ------------------------------------------------------------------------------------------- set-up
     def initial_attributes(self, n: int) -> dict[str, torch.Tensor]:

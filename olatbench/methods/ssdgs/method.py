@@ -26,7 +26,6 @@ from olatbench.gaussians.shadow import camera_matched_focal, shadow_gather
 from olatbench.methods.base import RefinedView, Views
 from olatbench.methods.gaussian_method import GaussianMethod, ParameterGroup
 from olatbench.methods.ssdgs.config import SSDGSConfig
-from olatbench.methods.ssdgs.presets import PRESETS
 from olatbench.methods.ssdgs.schedule import Schedule
 from olatbench.methods.ssdgs.shader import Components, Shader
 from olatbench.methods.ssdgs.spec import SPEC
@@ -42,20 +41,15 @@ STATE_FORMAT = "olatbench.methods.ssdgs/2"  # 2: view order kept by TrainingView
 COMPONENT_CHANNELS = (("rgb", 3), ("diffuse", 3), ("specular", 3), ("sss", 3), ("shadow", 1), ("shadow_coarse", 1))
 
 
-class SSDGS(GaussianMethod):
+class SSDGS(GaussianMethod, spec=SPEC):
     """Subsurface scattering, shadow and specular decomposition in Gaussian splatting (reference method)."""
 
-    name: ClassVar[str] = "ssdgs"
     config_class: ClassVar[type] = SSDGSConfig
-    presets: ClassVar[dict[str, dict[str, Any]]] = PRESETS
-    description: ClassVar[str] = SPEC.description
 
     state_format: ClassVar[str] = STATE_FORMAT
     label: ClassVar[str] = "SSD-GS"
 
-    def __init__(self, config: SSDGSConfig | None = None) -> None:
-        super().__init__(config if config is not None else SSDGSConfig())
-        self.config: SSDGSConfig
+    config: SSDGSConfig
 
     # ------------------------------------------------------------------------------------------- setup
     def prepare(self, train: Views) -> None:
