@@ -44,6 +44,8 @@ def test_ssdgs_runs_end_to_end_at_a_few_iterations(data, tmp_path):
     results = read_results(Path(job.folder) / "results.json")
     assert results["model"]["iterations"] == 16 and results["model"]["num_gaussians"] == 300
     assert results["job"]["config"]["num_init_gaussians"] == 300
+    assert (results["job"]["config"]["cull_shading"], results["job"]["config"]["cull_epsilon"]) == (
+        False, SSDGS.config_class().cull_epsilon)  # the contribution-culling switch is part of the recorded config
     for split in ("train", "test"):
         assert results["metrics"][split]["mean"]["psnr"] > 0
     components = {p.name for p in (Path(job.folder) / "components" / "test").iterdir()}
