@@ -26,9 +26,10 @@ class ShadingConfig(GaussianConfig):
     asg_lr_max_steps: int = 50_000
     # Contribution culling (docs/ssdgs.md): training steps shade only the Gaussians whose largest blending weight
     # T·α in the view exceeds cull_epsilon (the others get zero colour; their geometry is still composited).
-    # Renders for evaluation then cull at ε = 0, which is exact.
+    # Renders for evaluation then cull at ε = 0, which is exact. Off until a seed-matched comparison says the
+    # results do not change; ε = 1e-4 chosen by measurement (image change < 0.03/255, gradients ≤ 1.2 %).
     cull_shading: bool = False
-    cull_epsilon: float = 1e-3
+    cull_epsilon: float = 1e-4
 
     def __post_init__(self) -> None:
         super().__post_init__()
