@@ -37,8 +37,8 @@ class ShadingConfig(GaussianConfig):
             raise ValueError(f"{self.label} config: cull_epsilon must be ≥ 0, got {self.cull_epsilon}")
 
     def shading_cull_epsilon(self, evaluation: bool) -> float | None:
-        """The culling threshold of a forward pass (None: no culling): ``cull_epsilon`` for training passes, 0
-        (exact) for evaluation renders, None when ``cull_shading`` is off."""
+        """The culling threshold of a forward pass (None: no culling): ``cull_epsilon`` for the passes that take
+        gradients (training, test-time refinement), 0 (exact) for renders, None when ``cull_shading`` is off."""
         if not self.cull_shading:
             return None
         return 0.0 if evaluation else float(self.cull_epsilon)
