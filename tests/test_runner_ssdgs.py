@@ -132,4 +132,8 @@ def test_speed_benchmark_measures_a_trained_job_folder(data, tmp_path, capsys, m
     lines = capsys.readouterr().out.strip().splitlines()
     row = lines[1].split()
     assert row[:3] == ["Alpha", "64", "150"]  # scene, view width (the tiny suite's 64 px), trained Gaussians
-    assert lines[-1].startswith("SUMMARY bench_ssdgs mlp_efficiency_min=")
+    summaries = [line for line in lines if line.startswith("SUMMARY")]
+    assert summaries[0].startswith("SUMMARY bench_ssdgs mlp_efficiency_min=")
+    # the culled variant, at eps 0 and the config's default, in the same run
+    assert summaries[1].startswith("SUMMARY bench_ssdgs culling speed-up") and "Alpha@0=" in summaries[1]
+    assert sum("cull eps=" in line for line in lines) == 2
