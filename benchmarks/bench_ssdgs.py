@@ -23,17 +23,24 @@ Stages:
 * ``matmul``: a bare chain of ``torch.addmm`` + ReLU with exactly the networks' layer shapes, forward +
   backward on the same batch (the reference for ``mlp``);
 * ``raster``: projection + rasterization of 3 channels forward + backward alone (the reference for the rest);
-* ``shadow``: the light-view visibility pass (forward only) and ``optimizer``: both Adam steps.
+* ``shadow``: the light-view visibility pass (forward only) and ``optimizer``: both Adam steps;
+* contribution culling (``cull_shading``, one set per ``--cull-epsilons`` value ε): ``step`` with culling on at ε,
+  ``mlp`` on the Gaussians it shades (those whose largest blending weight in the view exceeds ε), and ``cull``,
+  the contribution pass alone (`olatbench.gaussians.contribution.max_weights`).
 
 Ratios: ``mlp_efficiency = matmul / mlp`` (target ≥ 0.7) and ``rest_vs_raster = rest / raster``
 (target ≤ 1.5). ``floor = (raster + shadow) / raster`` is what the camera pass and the light-view pass alone
 cost in those units: the light-view pass is a forward rasterization at the view's size, so no step that
-computes the coarse visibility every iteration gets below it. The last line is a parseable summary. Example::
+computes the coarse visibility every iteration gets below it. Per ε, an indented line gives the Gaussians shaded,
+the culled step time and its speed-up ``step / culled step`` (target ≥ 2 on ``surface``), and the MLP share of
+the step (``mlp / step``) without and with culling; every stage of a case, culled or not, takes turns in the
+same rounds. The last line is a parseable summary. Example::
 
     python benchmarks/bench_ssdgs.py --repeats 3
     python benchmarks/bench_ssdgs.py --sizes 128 --counts 5000 --no-shadow   # without the light-view pass
     python benchmarks/bench_ssdgs.py --light-view-scale 0.5                    # light view at half the size
     python benchmarks/bench_ssdgs.py --states surface --sizes 256
+    python benchmarks/bench_ssdgs.py --counts 20000 --cull-epsilons 0 0.001            # culled vs unculled
     python benchmarks/bench_ssdgs.py --states --jobs runs/mini/ssdgs/default/*/seed0   # trained mini models
 """
 
@@ -51,11 +58,13 @@ import torch
 
 from olatbench.datasets.cameras import intrinsics_from_fov, look_at
 from olatbench.datasets.records import Camera, PointLight
+from olatbench.gaussians.contribution import max_weights
 from olatbench.gaussians.projection import project
 from olatbench.gaussians.rasterize import rasterize
 from olatbench.methods.base import Views
 from olatbench.methods.ssdgs import SSDGS
-from olatbench.methods.training import camera_centre
+from olatbench.methods.ssdgs.config import SSDGSConfig
+from olatbench.methods.training import camera_centre, shaded_subset
 
 ALL_ON_STEP = 30_000  # Schedule I at 100K: every term on, nothing frozen
 
@@ -201,6 +210,43 @@ def matmul_chain(method: SSDGS, k: int) -> Callable[[], None]:
     return run
 
 
+def culled(method: SSDGS, epsilon: float, stage: Callable[[], None]) -> Callable[[], None]:
+    """``stage`` with contribution culling on at ``epsilon`` for the duration of each call."""
+    config = dataclasses.replace(method.config, cull_shading=True, cull_epsilon=epsilon)
+
+    def run() -> None:
+        plain, method.config = method.config, config
+        try:
+            stage()
+        finally:
+            method.config = plain
+
+    return run
+
+
+def shaded_by_culling(method: SSDGS, epsilon: float) -> torch.Tensor:
+    """Indices of the Gaussians a culled step at ``epsilon`` shades on the method's (first) view."""
+    views, model = method.train_views, method.model
+    camera = views.views.cameras[0]
+    projected = project(model.means, model.quats, model.scales, views.w2cs[0], views.Ks[0], camera.width,
+                        camera.height)
+    return shaded_subset(projected, model.opacities, epsilon)[0].indices
+
+
+def cull_stage(method: SSDGS) -> Callable[[], None]:
+    """The contribution pass alone (projection, binning and the max-weight compositing, forward only)."""
+    model, views = method.model, method.train_views
+    camera = views.views.cameras[0]
+
+    def run() -> None:
+        with torch.no_grad():
+            projected = project(model.means, model.quats, model.scales, views.w2cs[0], views.Ks[0], camera.width,
+                                camera.height)
+            max_weights(projected, model.opacities)
+
+    return run
+
+
 def raster_stage(method: SSDGS) -> Callable[[], None]:
     model, views = method.model, method.train_views
     camera = views.views.cameras[0]
@@ -269,10 +315,14 @@ def main() -> None:
     parser.add_argument("--no-shadow", action="store_true", help="composition without the shadow term")
     parser.add_argument("--light-view-scale", type=float, default=1.0,
                         help="light-view pass size relative to the view (default 1: the view's size, as the paper)")
+    parser.add_argument("--cull-epsilons", type=float, nargs="*", default=[0.0, SSDGSConfig().cull_epsilon],
+                        metavar="EPS", help="contribution-culling thresholds to measure as well (default: 0, exact, "
+                                            "and the config's default); none to skip")
     args = parser.parse_args()
     torch.set_num_threads(args.threads)
     torch.set_flush_denormal(True)
     efficiencies, rest_ratios, floors = [], [], []
+    speedups: dict[str, list[float]] = {}  # per "state@ε": step / culled step of every size and count
     print(f"{'state':>14} {'size':>5} {'N':>6} {'visible':>7} {'step':>8} {'rest':>8} {'mlp':>8} {'matmul':>8} "
           f"{'raster':>8} {'shadow':>8} {'optim':>8} {'mlp_eff':>8} {'rest/rast':>9} {'floor':>6}")
     def cases():
@@ -294,6 +344,12 @@ def main() -> None:
                   "raster": raster_stage(method), "optim": optimizer_stage(method)}
         if method.config.use_shadow:
             stages["shadow"] = shadow_stage(method)
+        shaded = {eps: shaded_by_culling(method, eps) for eps in args.cull_epsilons}
+        if shaded:
+            stages["cull"] = cull_stage(method)
+        for eps, subset in shaded.items():
+            stages[f"step@{eps:g}"] = culled(method, eps, lambda m=method, k=at_step: m.train_step(k))
+            stages[f"mlp@{eps:g}"] = mlp_stage(method, subset)
         times = timed({name: starting_clean(method, fn) for name, fn in stages.items()}, args.repeats)
         step, rest_time, mlp, matmul, raster, optim = (times[k] for k in ("step", "rest", "mlp", "matmul", "raster",
                                                                           "optim"))
@@ -306,11 +362,20 @@ def main() -> None:
               f"{rest_time * 1e3:>7.1f}m {mlp * 1e3:>7.1f}m {matmul * 1e3:>7.1f}m {raster * 1e3:>7.1f}m "
               f"{shadow * 1e3:>7.1f}m {optim * 1e3:>7.1f}m "
               f"{efficiency:>8.2f} {rest:>9.2f} {floors[-1]:>6.2f}")
+        for eps, subset in shaded.items():
+            step_c, mlp_c = times[f"step@{eps:g}"], times[f"mlp@{eps:g}"]
+            speedups.setdefault(f"{state}@{eps:g}", []).append(step / step_c)
+            print(f"{'':>14} cull eps={eps:<7g} shaded {subset.numel():>6}/{visible.numel():<6} "
+                  f"step {step_c * 1e3:7.1f}m  speed-up {step / step_c:5.2f}x  mlp share {mlp / step:4.2f} -> "
+                  f"{mlp_c / step_c:4.2f}  (pass {times['cull'] * 1e3:.1f}m)")
     print(f"SUMMARY bench_ssdgs mlp_efficiency_min={min(efficiencies):.2f} (target>=0.7) "
           f"rest_vs_raster_max={max(rest_ratios):.2f} (target<=1.5; floor {max(floors):.2f}) "
           f"shadow={'off' if args.no_shadow else 'on'} light_view_scale={args.light_view_scale:g} "
           f"threads={args.threads}")
-
+    if speedups:
+        ratios = " ".join(f"{key}={min(values):.2f}" for key, values in speedups.items())
+        print(f"SUMMARY bench_ssdgs culling speed-up (step / culled step, min over sizes and counts): {ratios} "
+              "(target>=2 on surface)")
 
 if __name__ == "__main__":
     main()

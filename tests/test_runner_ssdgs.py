@@ -44,6 +44,8 @@ def test_ssdgs_runs_end_to_end_at_a_few_iterations(data, tmp_path):
     results = read_results(Path(job.folder) / "results.json")
     assert results["model"]["iterations"] == 16 and results["model"]["num_gaussians"] == 300
     assert results["job"]["config"]["num_init_gaussians"] == 300
+    assert (results["job"]["config"]["cull_shading"], results["job"]["config"]["cull_epsilon"]) == (
+        False, SSDGS.config_class().cull_epsilon)  # the contribution-culling switch is part of the recorded config
     for split in ("train", "test"):
         assert results["metrics"][split]["mean"]["psnr"] > 0
     components = {p.name for p in (Path(job.folder) / "components" / "test").iterdir()}
@@ -130,4 +132,8 @@ def test_speed_benchmark_measures_a_trained_job_folder(data, tmp_path, capsys, m
     lines = capsys.readouterr().out.strip().splitlines()
     row = lines[1].split()
     assert row[:3] == ["Alpha", "64", "150"]  # scene, view width (the tiny suite's 64 px), trained Gaussians
-    assert lines[-1].startswith("SUMMARY bench_ssdgs mlp_efficiency_min=")
+    summaries = [line for line in lines if line.startswith("SUMMARY")]
+    assert summaries[0].startswith("SUMMARY bench_ssdgs mlp_efficiency_min=")
+    # the culled variant, at eps 0 and the config's default, in the same run
+    assert summaries[1].startswith("SUMMARY bench_ssdgs culling speed-up") and "Alpha@0=" in summaries[1]
+    assert sum("cull eps=" in line for line in lines) == 2

@@ -1,6 +1,8 @@
 """olatbench.gaussians."""
 
-# Rasterizer (projection, tile binning, compositing backends, one-call render).
+# Rasterizer (projection, tile binning, compositing backends, one-call render, contribution pass).
+from .contribution import Contribution as Contribution
+from .contribution import max_weights as max_weights
 from .projection import Projected as Projected
 from .projection import project as project
 from .rasterize import Rasterized as Rasterized

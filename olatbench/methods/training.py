@@ -1,10 +1,12 @@
 """Training plumbing shared by the Gaussian methods (SSD-GS and the in-process baselines).
 
 `TrainingViews` holds the training cameras and lights as tensors and draws views as 3DGS does (a fresh random
-permutation per epoch); `photometric_loss` is the 3DGS loss ``(1 - λ) L1 + λ (1 - SSIM)``; `initial_model`,
-`per_gaussian_groups` and `make_densifier` build the model, its optimiser groups and its density control from
-the config fields every method shares (``num_init_gaussians``, ``init_radius``, ``init_opacity``, the
-``densify_*`` windows given at ``reference_iterations`` and scaled by the config's ``steps``).
+permutation per epoch); `VisibleSubset` / `shaded_subset` pick the Gaussians a view shades (those in the frustum,
+or with contribution culling those that reach a pixel); `photometric_loss` is the 3DGS loss
+``(1 - λ) L1 + λ (1 - SSIM)``; `initial_model`, `per_gaussian_groups` and `make_densifier` build the model, its
+optimiser groups and its density control from the config fields every method shares (``num_init_gaussians``,
+``init_radius``, ``init_opacity``, the ``densify_*`` windows given at ``reference_iterations`` and scaled by the
+config's ``steps``).
 """
 
 from __future__ import annotations
@@ -14,8 +16,11 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import torch
 
+from olatbench.gaussians.contribution import max_weights
 from olatbench.gaussians.densify import Densifier, DensifyConfig
 from olatbench.gaussians.model import GaussianModel
+from olatbench.gaussians.projection import Projected
+from olatbench.gaussians.tiles import TileBins
 from olatbench.methods.base import Views
 from olatbench.methods.initialisation import initial_ball
 from olatbench.metrics.ssim import ssim_loss
@@ -25,27 +30,42 @@ if TYPE_CHECKING:
 
 
 class VisibleSubset:
-    """The Gaussians one view sees (projected radius > 0), for per-Gaussian work on those only.
+    """The Gaussians one view shades: projected radius > 0 (and ``keep``, when given), for per-Gaussian work on
+    those only.
 
     ``pick`` selects their rows of an (N, ...) tensor and ``scatter`` puts (K, C) values back into (N, C) rows
-    (zeros for the unseen). When the view sees every Gaussian (common for an object in frame) both are the
+    (zeros for the others). When the subset is every Gaussian (common for an object in frame) both are the
     identity: no gather, no scatter, no copies in the autograd graph.
     """
 
-    def __init__(self, radii: torch.Tensor) -> None:
+    def __init__(self, radii: torch.Tensor, keep: torch.Tensor | None = None) -> None:
         self.total = int(radii.shape[0])
-        self.indices = torch.nonzero(radii > 0).squeeze(1)
+        mask = radii > 0 if keep is None else (radii > 0) & keep
+        self.indices = torch.nonzero(mask).squeeze(1)
         self.everything = int(self.indices.numel()) == self.total
 
     def pick(self, values: torch.Tensor) -> torch.Tensor:
-        """(N, ...) -> (K, ...) rows of the visible Gaussians."""
+        """(N, ...) -> (K, ...) rows of the subset."""
         return values if self.everything else values[self.indices]
 
     def scatter(self, values: torch.Tensor) -> torch.Tensor:
-        """(K, C) -> (N, C), zero rows for the Gaussians the view does not see."""
+        """(K, C) -> (N, C), zero rows for the Gaussians outside the subset."""
         if self.everything:
             return values
         return values.new_zeros(self.total, values.shape[1]).index_copy(0, self.indices, values)
+
+
+def shaded_subset(projected: Projected, opacities: torch.Tensor, cull_epsilon: float | None,
+                  ) -> tuple[VisibleSubset, TileBins | None]:
+    """The Gaussians a view shades and, when culling ran, its tile binning (to pass to `rasterize`).
+
+    ``cull_epsilon`` None: every visible Gaussian (radius > 0). Otherwise contribution culling
+    (`olatbench.gaussians.contribution`): only those whose largest blending weight in the view exceeds it."""
+    if cull_epsilon is None:
+        return VisibleSubset(projected.radii), None
+    contribution = max_weights(projected, opacities)
+    return VisibleSubset(projected.radii, contribution.max_weight > cull_epsilon), contribution.bins
+
 
 class TrainingViews:
     """The training views on ``device``: ``Ks`` (N,3,3), ``w2cs`` (N,4,4), ``light_positions`` (N,3),

@@ -34,6 +34,8 @@ def _symbols(suffix: str, real: type) -> dict[str, Signature]:
         # ... as forward, final T, counts, grad colour, grad T, N -> grads of means2d, conics, opacities, features
         f"olatbench_backward_{suffix}": Signature(
             None, (_P, _P, _P, _P, _INT, _P, _P, *_GRID, _INT, _P, _P, _P, _P, _I64, _P, _P, _P, _P)),
+        # means2d, conics, opacities, offsets, ids, grid, threads, N -> largest blending weight per Gaussian
+        f"olatbench_max_weight_{suffix}": Signature(None, (_P, _P, _P, _P, _P, *_GRID, _INT, _I64, _P)),
         # means2d, conics, opacities, keys, depth_offset, offsets, ids, grid, radius_px, threads, N
         # -> vis_sum, count, weight
         f"olatbench_shadow_gather_{suffix}": Signature(
@@ -125,6 +127,28 @@ def rasterize_cpu(
         means2d, conics, opacities, features, bins.offsets, bins.gaussian_ids, bins, thread_count(threads)
     )
     return colour, final_t
+
+
+@torch.no_grad()
+def max_weights_cpu(
+    means2d: torch.Tensor,
+    conics: torch.Tensor,
+    opacities: torch.Tensor,
+    bins: TileBins,
+    threads: int | None = None,
+) -> torch.Tensor:
+    """``torch_ref.max_weights_torch`` in C++: each Gaussian's largest blending weight ``T·α`` over the image (N,),
+    from the forward kernel run without feature channels (its skip and stop decisions exactly). CPU float32 or
+    float64 inputs; deterministic whatever ``threads``."""
+    dtype, n = means2d.dtype, means2d.shape[0]
+    suffix = _suffix(dtype)
+    means2d, conics, opacities = _prepare([means2d, conics, opacities], dtype)
+    offsets, ids = (t.to(device="cpu", dtype=torch.int64).contiguous() for t in (bins.offsets, bins.gaussian_ids))
+    max_weight = torch.empty(n, dtype=dtype)
+    LIBRARY.load()[f"olatbench_max_weight_{suffix}"](
+        pointer(means2d), pointer(conics), pointer(opacities), pointer(offsets), pointer(ids), *_grid(bins),
+        thread_count(threads), n, pointer(max_weight))
+    return max_weight
 
 
 class _ProjectCPU(torch.autograd.Function):
@@ -287,4 +311,5 @@ def shadow_gather_cpu(
     return ShadowGather(vis_sum=vis_sum, count=count, weight=weight)
 
 
-__all__ = ["LIBRARY", "ShadowGather", "bin_gaussians_cpu", "project_cpu", "rasterize_cpu", "shadow_gather_cpu"]
+__all__ = ["LIBRARY", "ShadowGather", "bin_gaussians_cpu", "max_weights_cpu", "project_cpu", "rasterize_cpu",
+           "shadow_gather_cpu"]

@@ -11,6 +11,8 @@ memory held for backward is one chunk's worth, not the whole image's.
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+
 import torch
 from torch.utils.checkpoint import checkpoint
 
@@ -23,18 +25,18 @@ T_MIN = 1e-4
 CHUNK_ELEMENTS = 1 << 22
 
 
-def _composite_chunk(
+def _chunk_weights(
     means2d: torch.Tensor,
     conics: torch.Tensor,
     opacities: torch.Tensor,
-    features: torch.Tensor,
     ids: torch.Tensor,
     valid: torch.Tensor,
     pixels: torch.Tensor,
-) -> tuple[torch.Tensor, torch.Tensor]:
-    """Composite B tiles: ``ids``/``valid`` (B, L) padded lists, ``pixels`` (B, P, 2) pixel centres.
+) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """Blending weights of B tiles: ``ids``/``valid`` (B, L) padded lists, ``pixels`` (B, P, 2) pixel centres.
 
-    Returns colour without background (B, P, C) and final transmittance (B, P)."""
+    Returns the weights ``T·α`` (B, P, L) (0 where a Gaussian is skipped or after the pixel stops), ``1 - α``
+    (B, P, L) and the composited mask (B, P, L)."""
     mean = means2d[ids]  # (B, L, 2)
     con = conics[ids]
     d = mean[:, None, :, :] - pixels[:, :, None, :]  # (B, P, L, 2)
@@ -49,6 +51,22 @@ def _composite_chunk(
     t_before = torch.cat([torch.ones_like(t_after[..., :1]), t_after[..., :-1]], dim=-1)
     include = (t_after >= T_MIN).detach()
     weights = torch.where(include, t_before * alpha, torch.zeros_like(alpha))
+    return weights, one_minus, include
+
+
+def _composite_chunk(
+    means2d: torch.Tensor,
+    conics: torch.Tensor,
+    opacities: torch.Tensor,
+    features: torch.Tensor,
+    ids: torch.Tensor,
+    valid: torch.Tensor,
+    pixels: torch.Tensor,
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """Composite B tiles (arguments as `_chunk_weights`, ``features`` (N, C)).
+
+    Returns colour without background (B, P, C) and final transmittance (B, P)."""
+    weights, one_minus, include = _chunk_weights(means2d, conics, opacities, ids, valid, pixels)
     colour = torch.einsum("bpl,blc->bpc", weights, features[ids])
     t_final = torch.where(include, one_minus, torch.ones_like(one_minus)).prod(dim=-1)
     return colour, t_final
@@ -72,6 +90,30 @@ def _chunks(counts: torch.Tensor, pixels_per_tile: int) -> list[torch.Tensor]:
     return chunks
 
 
+def _chunk_lists(
+    bins: TileBins, chunks: list[torch.Tensor], device: torch.device, dtype: torch.dtype
+) -> Iterator[tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]]:
+    """Per chunk of tiles: their indices (B,), padded Gaussian lists ``ids``/``valid`` (B, L) and the pixel
+    centres (B, P, 2) of their ``tile_size``² pixels (including those of edge tiles beyond the image)."""
+    ts = bins.tile_size
+    offsets = bins.offsets.to(device)
+    ids_all = bins.gaussian_ids.to(device)
+    counts = offsets[1:] - offsets[:-1]
+    local = torch.arange(ts * ts, device=device)
+    tile_pixel = torch.stack([local % ts, local // ts], dim=-1).to(dtype) + 0.5  # (P, 2) offsets within a tile
+    for chunk in chunks:
+        chunk_dev = chunk.to(device)
+        starts = offsets[chunk_dev]
+        lengths = counts[chunk_dev]
+        width = int(lengths.max())
+        slot = torch.arange(width, device=device)
+        valid = slot[None, :] < lengths[:, None]
+        ids = ids_all[(starts[:, None] + slot[None, :]).clamp(max=max(ids_all.numel() - 1, 0))]
+        ids = torch.where(valid, ids, torch.zeros_like(ids))
+        origin = torch.stack([chunk_dev % bins.tiles_x, chunk_dev // bins.tiles_x], dim=-1).to(dtype) * ts
+        yield chunk_dev, ids, valid, origin[:, None, :] + tile_pixel[None, :, :]
+
+
 def rasterize_torch(
     means2d: torch.Tensor,
     conics: torch.Tensor,
@@ -84,11 +126,7 @@ def rasterize_torch(
     Inputs: means2d (N, 2) px, conics (N, 3), opacities (N,), features (N, C), all one dtype and device."""
     device, dtype = means2d.device, means2d.dtype
     ts, n_tiles, channels = bins.tile_size, bins.num_tiles, features.shape[1]
-    offsets = bins.offsets.to(device)
-    ids_all = bins.gaussian_ids.to(device)
-    counts = (offsets[1:] - offsets[:-1]).cpu()
-    local = torch.arange(ts * ts, device=device)
-    tile_pixel = torch.stack([local % ts, local // ts], dim=-1).to(dtype) + 0.5  # (P, 2) offsets within a tile
+    counts = (bins.offsets[1:] - bins.offsets[:-1]).cpu()
     use_checkpoint = torch.is_grad_enabled() and any(
         t.requires_grad for t in (means2d, conics, opacities, features)
     )
@@ -101,17 +139,7 @@ def rasterize_torch(
         # an empty view, as with the other backends.
         tie = sum(t.sum() for t in (means2d, conics, opacities, features)) * 0
         colour_tiles, t_tiles = colour_tiles + tie, t_tiles + tie
-    for chunk in chunks:
-        chunk_dev = chunk.to(device)
-        starts = offsets[chunk_dev]
-        lengths = counts[chunk].to(device)
-        width = int(lengths.max())
-        slot = torch.arange(width, device=device)
-        valid = slot[None, :] < lengths[:, None]
-        ids = ids_all[(starts[:, None] + slot[None, :]).clamp(max=max(ids_all.numel() - 1, 0))]
-        ids = torch.where(valid, ids, torch.zeros_like(ids))
-        origin = torch.stack([chunk_dev % bins.tiles_x, chunk_dev // bins.tiles_x], dim=-1).to(dtype) * ts
-        pixels = origin[:, None, :] + tile_pixel[None, :, :]
+    for chunk_dev, ids, valid, pixels in _chunk_lists(bins, chunks, device, dtype):
         args = (means2d, conics, opacities, features, ids, valid, pixels)
         if use_checkpoint:
             colour, t_final = checkpoint(_composite_chunk, *args, use_reentrant=False)
@@ -128,4 +156,23 @@ def rasterize_torch(
     return untile(colour_tiles), untile(t_tiles)
 
 
-__all__ = ["ALPHA_MAX", "ALPHA_MIN", "CHUNK_ELEMENTS", "T_MIN", "rasterize_torch"]
+
+
+@torch.no_grad()
+def max_weights_torch(
+    means2d: torch.Tensor, conics: torch.Tensor, opacities: torch.Tensor, bins: TileBins
+) -> torch.Tensor:
+    """Each Gaussian's largest blending weight ``T·α`` over the image's pixels (N,) (0 for a Gaussian that is
+    composited nowhere), with the compositing rules of `rasterize_torch`; inputs as there, no features."""
+    device, dtype = means2d.device, means2d.dtype
+    counts = (bins.offsets[1:] - bins.offsets[:-1]).cpu()
+    best = torch.zeros(means2d.shape[0], device=device, dtype=dtype)
+    for _, ids, valid, pixels in _chunk_lists(bins, _chunks(counts, bins.tile_size**2), device, dtype):
+        weights = _chunk_weights(means2d, conics, opacities, ids, valid, pixels)[0]
+        inside = (pixels[..., 0] < bins.width) & (pixels[..., 1] < bins.height)  # edge tiles reach past the image
+        per_pair = torch.where(inside[:, :, None], weights, torch.zeros_like(weights)).amax(dim=1)  # (B, L)
+        best = best.scatter_reduce(0, ids[valid], per_pair[valid], reduce="amax")
+    return best
+
+
+__all__ = ["ALPHA_MAX", "ALPHA_MIN", "CHUNK_ELEMENTS", "T_MIN", "max_weights_torch", "rasterize_torch"]

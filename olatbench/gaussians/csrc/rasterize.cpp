@@ -1,5 +1,6 @@
 // olatbench CPU rasterizer: tile-based front-to-back Gaussian compositing (3DGS rules) with a hand-written,
-// deterministic backward, plus the forward-only light-view "shadow gather" pass.
+// deterministic backward, plus the forward-only light-view "shadow gather" pass and the per-Gaussian largest
+// blending weight (contribution culling).
 //
 // Plain C ABI on raw pointers (no torch headers): called from Python through ctypes.
 // Every function exists for float (_f32) and double (_f64). Arrays are C-contiguous:
@@ -109,11 +110,12 @@ struct TileData {
 };
 
 // Forward. Per tile, Gaussians front to back (outer) and the pixels of their box (inner): each pixel still
-// sees its Gaussians in list order, with per-pixel state kept in tile-sized arrays.
+// sees its Gaussians in list order, with per-pixel state kept in tile-sized arrays. pair_max (or null): per
+// (tile, Gaussian) pair, the largest blending weight T*alpha it composited with (0 where it composited nothing).
 template <typename F>
 void forward_impl(const F* means2d, const F* conics, const F* opac, const F* features, int channels,
                   const int64_t* offsets, const int64_t* ids, Grid grid, int threads,
-                  F* out_colour, F* out_t, int32_t* out_count) {
+                  F* out_colour, F* out_t, int32_t* out_count, F* pair_max = nullptr) {
   const int64_t num_tiles = grid.num_tiles();
   const int area = grid.tile * grid.tile;
   const FloatMode mode = FloatMode::of_this_thread();
@@ -134,6 +136,8 @@ void forward_impl(const F* means2d, const F* conics, const F* opac, const F* fea
       std::fill(done.begin(), done.end(), 0);
       int active = sx * td.size_y;
       Box b;
+      F* tile_max = pair_max ? pair_max + offsets[tile] : nullptr;
+      if (tile_max) std::fill(tile_max, tile_max + td.n, F(0));
       for (int64_t k = 0; k < td.n && active > 0; ++k) {
         if (!td.box(k, -1.0, b)) continue;
         const F* f = &td.feat[size_t(k) * channels];
@@ -151,6 +155,7 @@ void forward_impl(const F* means2d, const F* conics, const F* opac, const F* fea
             const F w = alpha * T[p];
             F* a = &acc[size_t(p) * channels];
             for (int c = 0; c < channels; ++c) a[c] += w * f[c];
+            if (tile_max) tile_max[k] = std::max(tile_max[k], w);
             T[p] = t_next;
             count[p] = int32_t(k + 1);
           }
@@ -167,6 +172,22 @@ void forward_impl(const F* means2d, const F* conics, const F* opac, const F* fea
       }
     }
   }
+}
+
+// Contribution pass: each Gaussian's largest blending weight T*alpha over the image (max_weight (N,), 0 for those
+// that composite nothing), from the forward itself run without feature channels, so the weights and every skip
+// and stop decision are the camera pass's. A maximum does not depend on the order of the reduction.
+template <typename F>
+void max_weight_impl(const F* means2d, const F* conics, const F* opac, const int64_t* offsets, const int64_t* ids,
+                     Grid grid, int threads, int64_t num_gaussians, F* max_weight) {
+  const int64_t num_pairs = offsets[grid.num_tiles()];
+  const size_t pixels = size_t(grid.width) * size_t(grid.height);
+  std::vector<F> pair_max(num_pairs), final_t(pixels);
+  std::vector<int32_t> counts(pixels);
+  forward_impl<F>(means2d, conics, opac, nullptr, 0, offsets, ids, grid, threads, nullptr, final_t.data(),
+                  counts.data(), pair_max.data());
+  std::fill(max_weight, max_weight + num_gaussians, F(0));
+  for (int64_t m = 0; m < num_pairs; ++m) max_weight[ids[m]] = std::max(max_weight[ids[m]], pair_max[m]);
 }
 
 // Gradient slots per pair: mean x, mean y, conic a, b, c, opacity, then C feature channels.
@@ -798,6 +819,13 @@ void project_backward_impl(const F* means, const F* quats, const F* scales, cons
     backward_impl<F>(means2d, conics, opac, features, channels, offsets, ids,                               \
                      Grid{width, height, tile, tiles_x, tiles_y}, threads, final_t, counts, grad_colour,    \
                      grad_t, num_gaussians, grad_means2d, grad_conics, grad_opac, grad_features);           \
+  }                                                                                                         \
+  OLATBENCH_EXPORT void olatbench_max_weight_##SUFFIX(                                                      \
+      const F* means2d, const F* conics, const F* opac, const int64_t* offsets, const int64_t* ids,         \
+      int width, int height, int tile, int tiles_x, int tiles_y, int threads, int64_t num_gaussians,        \
+      F* max_weight) {                                                                                      \
+    max_weight_impl<F>(means2d, conics, opac, offsets, ids, Grid{width, height, tile, tiles_x, tiles_y},    \
+                       threads, num_gaussians, max_weight);                                                 \
   }                                                                                                         \
   OLATBENCH_EXPORT void olatbench_shadow_gather_##SUFFIX(                                                   \
       const F* means2d, const F* conics, const F* opac, const F* keys, double depth_offset,                 \

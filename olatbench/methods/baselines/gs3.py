@@ -8,7 +8,9 @@ networks training; networks and material embedding frozen in ``[mlp_freeze_from,
 specular from ``specular_from`` (16K); ASG lobe shapes frozen until ``asg_lobes_from`` (22K). The official
 HDR warm-up (fitting gamma-encoded targets first) is not reproduced: olatbench hands every method images in
 the suite's colour space already. One training view per step, ``0.8 L1 + 0.2 (1 - SSIM)``, 3DGS densification
-with a count cap that keeps the Gaussians seen most by the light (GS³'s ``maximum_gs``).
+with a count cap that keeps the Gaussians seen most by the light (GS³'s ``maximum_gs``). With ``cull_shading`` a
+training step shades only the Gaussians whose largest blending weight in the view exceeds ``cull_epsilon``
+(`olatbench.gaussians.contribution`; not in the official code).
 """
 
 from __future__ import annotations
@@ -27,10 +29,10 @@ from olatbench.methods.baselines.gs3_spec import PRESETS, SPEC
 from olatbench.methods.baselines.triple_splat import triple_splat
 from olatbench.methods.gaussian_method import GaussianMethod, ParameterGroup
 from olatbench.methods.training import (
-    VisibleSubset,
     camera_centre,
     camera_tensors,
     light_tensors,
+    shaded_subset,
 )
 
 if TYPE_CHECKING:
@@ -108,7 +110,7 @@ class GS3(GaussianMethod, spec=SPEC):
         model = self.model
         means, opacities = model.means, model.opacities
         projected = project(means, model.quats, model.scales, w2c, K, width, height)
-        visible = VisibleSubset(projected.radii)
+        visible, bins = shaded_subset(projected, opacities, self.config.shading_cull_epsilon(components))
         hint, light_weight = None, None
         if self.shadow_on(step):
             with torch.no_grad():
@@ -127,7 +129,7 @@ class GS3(GaussianMethod, spec=SPEC):
         if components:
             extras = scatter(torch.cat([shaded.diffuse, shaded.specular, shaded.hint], dim=1))
         splat = triple_splat(projected, opacities, scatter(shaded.shading), scatter(shaded.visibility),
-                             scatter(shaded.other), self.train_views.background, extras)
+                             scatter(shaded.other), self.train_views.background, extras, bins=bins)
         image = splat.image if self.shadow_on(step) else splat.shading
         return {"image": image, "splat": splat, "projected": projected, "light_weight": light_weight}
 

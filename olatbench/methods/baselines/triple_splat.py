@@ -22,6 +22,7 @@ import torch
 
 from olatbench.gaussians.projection import Projected
 from olatbench.gaussians.rasterize import rasterize
+from olatbench.gaussians.tiles import TileBins
 
 
 @dataclass
@@ -48,15 +49,15 @@ def composite(shading: torch.Tensor, visibility: torch.Tensor, other: torch.Tens
 
 def triple_splat(projected: Projected, opacities: torch.Tensor, shading: torch.Tensor, visibility: torch.Tensor,
                  other: torch.Tensor, background: torch.Tensor, extras: torch.Tensor | None = None,
-                 backend: str = "auto") -> TripleSplat:
+                 backend: str = "auto", bins: TileBins | None = None) -> TripleSplat:
     """Splat per-Gaussian ``shading`` (N,3), ``visibility`` (N,1), ``other`` (N,3) (and ``extras`` (N,C)) in one
-    rasterize call over ``background`` (3,) and composite them per pixel."""
+    rasterize call over ``background`` (3,) and composite them per pixel; ``bins`` as for `rasterize`."""
     parts = [shading, visibility, other] + ([extras] if extras is not None else [])
     features = torch.cat(parts, dim=1)
     extra_channels = 0 if extras is None else extras.shape[1]
     full_background = torch.cat([background, visibility_background(background),
                                  background.new_zeros(3 + extra_channels)])
-    image = rasterize(projected, opacities, features, full_background, backend=backend).image
+    image = rasterize(projected, opacities, features, full_background, backend=backend, bins=bins).image
     shading_px, visibility_px, other_px = image[..., 0:3], image[..., 3:4], image[..., 4:7]
     return TripleSplat(shading=shading_px, visibility=visibility_px, other=other_px,
                        image=composite(shading_px, visibility_px, other_px),

@@ -24,3 +24,21 @@ class ShadingConfig(GaussianConfig):
     asg_lr_final: float = 1e-4
     asg_lr_decay_from: int = 40_000
     asg_lr_max_steps: int = 50_000
+    # Contribution culling (docs/ssdgs.md): training steps shade only the Gaussians whose largest blending weight
+    # T·α in the view exceeds cull_epsilon (the others get zero colour; their geometry is still composited).
+    # Renders for evaluation then cull at ε = 0, which is exact. Off until a seed-matched comparison says the
+    # results do not change; ε = 1e-4 chosen by measurement (image change < 0.03/255, gradients ≤ 1.2 %).
+    cull_shading: bool = False
+    cull_epsilon: float = 1e-4
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if not self.cull_epsilon >= 0.0:
+            raise ValueError(f"{self.label} config: cull_epsilon must be ≥ 0, got {self.cull_epsilon}")
+
+    def shading_cull_epsilon(self, evaluation: bool) -> float | None:
+        """The culling threshold of a forward pass (None: no culling): ``cull_epsilon`` for the passes that take
+        gradients (training, test-time refinement), 0 (exact) for renders, None when ``cull_shading`` is off."""
+        if not self.cull_shading:
+            return None
+        return 0.0 if evaluation else float(self.cull_epsilon)

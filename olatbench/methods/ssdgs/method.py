@@ -2,7 +2,8 @@
 
 The runner owns the loop; this class answers `setup`, `train_step`, `render`, `state_dict` and
 `load_state_dict`. One training step: pick a training view (a fresh random permutation each epoch), project
-the Gaussians, shade only the visible ones (radii > 0) with the terms the schedule has switched on, splat the
+the Gaussians, shade only the visible ones (radii > 0; with ``cull_shading`` only those whose largest blending
+weight in the view exceeds ``cull_epsilon``) with the terms the schedule has switched on, splat the
 colour as 3 feature channels, take ``0.8 L1 + 0.2 (1 - SSIM)``, step Adam (per-Gaussian parameters and global
 parameters in two optimisers so densification surgery only touches the former), then densify as 3DGS.
 """
@@ -29,10 +30,7 @@ from olatbench.methods.ssdgs.config import SSDGSConfig
 from olatbench.methods.ssdgs.schedule import Schedule
 from olatbench.methods.ssdgs.shader import Components, Shader
 from olatbench.methods.ssdgs.spec import SPEC
-from olatbench.methods.training import (
-    VisibleSubset,
-    camera_centre,
-)
+from olatbench.methods.training import camera_centre, shaded_subset
 
 if TYPE_CHECKING:
     from olatbench.datasets.records import Camera, PointLight
@@ -149,11 +147,12 @@ class SSDGS(GaussianMethod, spec=SPEC):
 
     def _forward(self, w2c: torch.Tensor, K: torch.Tensor, width: int, height: int, light_position: torch.Tensor,
                  intensity: torch.Tensor, step: int, components: bool) -> dict[str, Any]:
-        """Project, shade the visible Gaussians and rasterize: rgb only (training) or every component."""
+        """Project, shade the visible Gaussians (those reaching a pixel, with ``cull_shading``) and rasterize: rgb
+        only (training) or every component (evaluation)."""
         model = self.model
         means, quats, scales, opacities = model.means, model.quats, model.scales, model.opacities
         projected = project(means, quats, scales, w2c, K, width, height)
-        visible = VisibleSubset(projected.radii)
+        visible, bins = shaded_subset(projected, opacities, self.config.shading_cull_epsilon(components))
         pick = visible.pick
         terms = self.active_terms(step)
         coarse, light_weight = None, None
@@ -173,7 +172,7 @@ class SSDGS(GaussianMethod, spec=SPEC):
             background = torch.cat([self.background, self.background.new_zeros(per_gaussian.shape[1] - 3)])
         else:
             per_gaussian, background = shaded.colour, self.background
-        out = rasterize(projected, opacities, visible.scatter(per_gaussian), background)
+        out = rasterize(projected, opacities, visible.scatter(per_gaussian), background, bins=bins)
         return {"image": out.image, "projected": projected, "terms": terms, "light_weight": light_weight}
 
     def light_view_options(self, K: torch.Tensor, width: int, height: int, camera_position: torch.Tensor,
