@@ -14,7 +14,7 @@ from olatbench.cli.metrics import evaluate, explain, list_protocols, where
 from olatbench.datasets import load_scene
 from olatbench.datasets.images import write_image
 from olatbench.datasets.official import official_ground_truth
-from olatbench.metrics.evaluate import EvaluationError, evaluate_folder, match_predictions, sha256_file, write_result
+from olatbench.metrics.evaluate import EvaluationError, evaluate_folder, match_predictions, sha256_file
 from olatbench.metrics.protocols import get_protocol
 
 SIZE = (40, 36)
@@ -58,13 +58,10 @@ def test_perfect_predictions_and_result_json(scene, tmp_path):
     assert block["mean"]["psnr"] == 100.0 and block["mean"]["ssim"] == pytest.approx(1.0, abs=1e-6)
     assert block["mean"]["lpips"] in (0.0, None)
     assert result["protocol"]["id"] == "olatbench-v1" and result["protocol"]["version"] == 1
-    first = ids[0]
-    assert result["inputs"][first]["pred_sha256"] == sha256_file(tmp_path / "pred" / f"{first}.png")
-    assert result["inputs"][first]["gt_sha256"] == sha256_file(Path(result["inputs"][first]["gt"]))
-    out = write_result(result, tmp_path / "r.json")
-    assert json.loads(out.read_text())["metrics"]["test"]["mean"]["psnr"] == 100.0
-    with pytest.raises(EvaluationError, match="--overwrite"):
-        write_result(result, out)
+    first = result["files"]["test"][ids[0]]
+    assert first["render_sha256"] == sha256_file(tmp_path / "pred" / f"{ids[0]}.png")
+    assert first["ground_truth_sha256"] == sha256_file(Path(first["ground_truth"]))
+    assert result["source"]["split"] == "test" and result["source"]["scene"]["format"] == "nrhints"
 
 
 def test_noisy_predictions_match_direct_protocol_call(scene, tmp_path):
@@ -163,7 +160,7 @@ def test_ssdgs_on_gs3_scores_in_the_official_gamma22_space(tmp_path):
     for frame in scene.split("test"):
         write_image(tmp_path / "pred" / f"{frame.frame_id}.png", official_ground_truth(frame, "gs3"))
     result = evaluate_folder(tmp_path / "pred", tmp_path / "Lego", "test", get_protocol("ssdgs"), png_space="gamma22")
-    assert result["colourspace"] == "gamma22"
+    assert result["source"]["colourspace"] == "gamma22"
     assert result["metrics"]["test"]["mean"]["psnr"] == 100.0
     as_srgb = evaluate_folder(tmp_path / "pred", tmp_path / "Lego", "test", get_protocol("ssdgs"))
     assert as_srgb["metrics"]["test"]["mean"]["psnr"] < 60  # the same files read as sRGB are other values
@@ -171,5 +168,28 @@ def test_ssdgs_on_gs3_scores_in_the_official_gamma22_space(tmp_path):
     # the float composite without the official loader's alpha quirk and 8-bit rounding: close, not equal
     v1 = evaluate_folder(tmp_path / "pred", tmp_path / "Lego", "test", get_protocol("olatbench-v1"),
                          png_space="gamma22")
-    assert v1["colourspace"] == "gamma22"
+    assert v1["source"]["colourspace"] == "gamma22"
     assert 30 < v1["metrics"]["test"]["mean"]["psnr"] < 100, v1["metrics"]["test"]["mean"]
+
+
+def test_cli_writes_the_runners_results_schema(scene, tmp_path):
+    """`olatbench evaluate` writes a results.json of the current schema (kind "evaluate") with the runner's
+    provenance keys: the same version and library key names, timestamps, hardware and per-file sha256."""
+    from olatbench.bench.provenance import library_versions
+    from olatbench.bench.results import SCHEMA_VERSION, Results, read_results
+
+    ids = write_predictions(scene, tmp_path / "pred")
+    out = tmp_path / "scored.json"
+    result = CliRunner().invoke(evaluate, [str(tmp_path / "pred"), "--gt", str(scene), "-o", str(out)])
+    assert result.exit_code == 0, result.output
+    data = read_results(out)
+    assert data["schema_version"] == SCHEMA_VERSION and data["kind"] == "evaluate" and data["job"] is None
+    assert set(Results.__annotations__) - {"method_kind", "official"} <= set(data)  # all but official's
+    assert set(data["versions"]) == set(library_versions())
+    assert data["timing"]["started"] <= data["timing"]["finished"]
+    assert data["hardware"]["cpu"]["threads"] >= 1
+    assert data["protocol"]["definition"] == get_protocol("olatbench-v1").definition()
+    assert data["source"]["predictions"] == str((tmp_path / "pred").resolve())
+    entry = data["files"]["test"][ids[0]]
+    assert entry["render_sha256"] == sha256_file(tmp_path / "pred" / f"{ids[0]}.png")
+    assert entry["ground_truth_sha256"] == sha256_file(Path(entry["ground_truth"]))

@@ -1,4 +1,4 @@
-"""Reports from a tiny folder of results.json files (schema v1) written here: tables, footnotes, CLI, LaTeX."""
+"""Reports from a tiny folder of results.json files (schema v2) written here: tables, footnotes, CLI, LaTeX."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from olatbench.bench.results import ResultsError, write_results
+from olatbench.bench.results import ResultsError, read_results, write_results
 from olatbench.cli import main
 from olatbench.reports.collect import COLUMNS, collect
 from olatbench.reports.latex import to_latex
@@ -31,7 +31,7 @@ def write_run(root: Path, method: str, variant: str, suite: str, scene: str, see
     """One job's results.json in the runner's folder layout."""
     folder = root / suite / method / variant / scene / f"seed{seed}"
     failed = status == "failed"
-    data = {"schema_version": 1, "status": status,
+    data = {"schema_version": 2, "kind": "run", "status": status,
             "job": {"id": f"{method}-{variant}-{scene}-{seed}", "method": method, "variant": variant, "suite": suite,
                     "scene": scene, "seed": seed, "config": {"iterations": 10}},
             "protocol": {"id": "olatbench-v1", "version": 1},
@@ -85,11 +85,37 @@ def test_collect_long_form(tiny_runs):
 def test_unknown_schema_version_names_the_file(tmp_path):
     path = tmp_path / "runs" / "results.json"
     path.parent.mkdir(parents=True)
-    path.write_text(json.dumps({"schema_version": 2, "status": "done"}))
-    with pytest.raises(ResultsError, match=r"results\.json: schema_version 2 is not supported"):
+    path.write_text(json.dumps({"schema_version": 99, "status": "done"}))
+    with pytest.raises(ResultsError, match=r"results\.json: schema_version 99 is not supported"):
         collect(tmp_path / "runs")
     result = CliRunner().invoke(main, ["report", str(tmp_path / "runs")])
-    assert result.exit_code == 1 and "schema_version 2" in result.output and "Traceback" not in result.output
+    assert result.exit_code == 1 and "schema_version 99" in result.output and "Traceback" not in result.output
+
+
+def test_schema_v1_files_are_read_and_evaluate_files_give_no_rows(tmp_path):
+    """A results.json written before schema 2 (no kind, hardware, files, timestamps) still reports; a file
+    written by `olatbench evaluate` below the runs folder names no job and adds no rows."""
+    v1 = {"schema_version": 1, "status": "done",
+          "job": {"id": "abc", "method": "ssdgs", "variant": "default", "suite": "mini", "scene": "translucent",
+                  "seed": 0, "config": {}},
+          "protocol": {"id": "olatbench-v1", "version": 1},
+          "metrics": {"test": {"mean": {"psnr": 25.0, "ssim": 0.9, "lpips": 0.1}, "per_image": {}}},
+          "timing": {"train_seconds": 10.0, "render_fps": 5.0},
+          "resources": {"device": "cpu", "peak_rss_mb": 100.0, "cuda_peak_mb": None},
+          "model": {"iterations": 10, "num_gaussians": 5},
+          "versions": {"olatbench": "0.1.0"}, "hashes": {"data_manifest": "x", "config": "y", "code": "z"},
+          "evaluation": {"test_time_refinement": None}, "error": None}
+    old = tmp_path / "runs" / "mini" / "ssdgs" / "default" / "translucent" / "seed0" / "results.json"
+    old.parent.mkdir(parents=True)
+    old.write_text(json.dumps(v1))
+    upgraded = read_results(old)
+    assert upgraded["schema_version"] == 2 and upgraded["kind"] == "run" and "hardware" not in upgraded
+    assert upgraded["metrics"] == v1["metrics"] and upgraded["job"] == v1["job"]
+    evaluated = {key: value for key, value in upgraded.items() if key not in ("job", "model")}
+    write_results(tmp_path / "runs" / "scored" / "results.json", {**evaluated, "kind": "evaluate", "job": None})
+    frame = collect(tmp_path / "runs")
+    psnr = frame[(frame["metric"] == "psnr") & (frame["split"] == "test")]
+    assert list(psnr["value"]) == [25.0] and list(psnr["scene"]) == ["translucent"]
 
 
 def test_scene_table_means_marks_and_footnotes(tiny_runs):

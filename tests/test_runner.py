@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import pickle
 import signal
 import subprocess
@@ -61,6 +62,7 @@ def test_end_to_end_layout_and_results(data, tmp_path):
     assert results["versions"]["torch"] == torch.__version__
     assert results["hashes"]["data_manifest"] == jobs[0].data_manifest
     assert results["hashes"]["data_matches_reference"] is None  # not the mini suite
+    _check_provenance(results, folder, data / "Alpha")
     for split, count in (("train", 4), ("test", 2)):
         renders = sorted((folder / "renders" / split).glob("*.png"))
         assert len(renders) == count
@@ -74,6 +76,29 @@ def test_end_to_end_layout_and_results(data, tmp_path):
     assert json.loads((folder / "config.json").read_text())["iterations"] == 12
     assert "done" in (folder / "log.txt").read_text()
     assert find_results(tmp_path / "runs") == sorted(Path(job.folder) / "results.json" for job in jobs)
+
+
+def _check_provenance(results, folder, scene_folder):
+    """Schema 2: kind, start/end times, hardware, sha256 of the final checkpoint, the renders and the ground truth."""
+    from datetime import datetime
+
+    from olatbench.bench.results import Results
+    from olatbench.metrics.evaluate import sha256_file
+
+    assert results["schema_version"] == 2 and results["kind"] == "run" and results["source"] is None
+    assert set(Results.__annotations__) - {"method_kind", "official"} <= set(results)  # all but official's
+    started, finished = (datetime.fromisoformat(results["timing"][key]) for key in ("started", "finished"))
+    assert started.tzinfo is not None and started <= finished
+    cpu = results["hardware"]["cpu"]
+    assert cpu["threads"] == os.cpu_count() and cpu["model"] and 1 <= cpu["usable_threads"] <= cpu["threads"]
+    assert (results["hardware"]["gpus"] == []) == (not torch.cuda.is_available())
+    assert results["hashes"]["checkpoint"] == sha256_file(list_checkpoints(folder)[-1][1])
+    test = results["files"]["test"]["000"]
+    assert test["render"] == "renders/test/000.png"
+    assert test["render_sha256"] == sha256_file(folder / "renders" / "test" / "000.png")
+    assert Path(test["ground_truth"]).parent.parent == scene_folder.resolve()
+    assert test["ground_truth_sha256"] == sha256_file(test["ground_truth"])
+    assert set(results["files"]["train"]) == set(results["metrics"]["train"]["per_image"])
 
 
 def test_metrics_match_the_saved_renders(data, tmp_path):

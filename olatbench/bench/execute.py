@@ -10,8 +10,6 @@ from __future__ import annotations
 
 import json
 import math
-import platform
-import resource
 import sys
 import time
 import traceback
@@ -24,7 +22,6 @@ import numpy as np
 import torch
 from tqdm.auto import tqdm
 
-from olatbench import __version__
 from olatbench.atomic import write_json, write_text
 from olatbench.bench.checkpoints import (
     list_checkpoints,
@@ -35,6 +32,7 @@ from olatbench.bench.checkpoints import (
 )
 from olatbench.bench.jobs import Job, hash_json
 from olatbench.bench.plan import load_method_class
+from olatbench.bench.provenance import hardware_identity, library_versions, peak_rss_mb, utc_now
 from olatbench.bench.restore import load_state
 from olatbench.bench.results import SCHEMA_VERSION, write_results
 from olatbench.bench.store import DONE_FILE, ERROR_FILE, JOB_FILE, RESULTS_FILE, job_lock
@@ -45,6 +43,7 @@ from olatbench.datasets.images import write_image
 from olatbench.datasets.records import Frame
 from olatbench.datasets.synth.mini import data_matches_reference
 from olatbench.methods.base import Method, Views
+from olatbench.metrics.evaluate import sha256_file
 
 LOG_FILE = "log.txt"
 TRAIN_LOG_FILE = "train_log.jsonl"
@@ -89,23 +88,24 @@ def run_job(job: Job, progress: bool = True, position: int = 1) -> JobOutcome:
     with job_lock(folder) as acquired:
         if not acquired:
             return JobOutcome(job.id, job.label, str(folder), "skipped", error="running in another process")
+        started = utc_now()
         try:
             if job.official is not None:  # the authors' code in its own process (olatbench.bench.official)
                 from olatbench.bench.official import run_official_job
 
-                return run_official_job(job, folder, log)
-            return _run(job, folder, log, progress, position)
+                return run_official_job(job, folder, log, started)
+            return _run(job, folder, log, progress, position, started)
         except Exception as error:
             text = traceback.format_exc()
             write_text(folder / ERROR_FILE, text)
             log(f"FAILED: {type(error).__name__}: {error}")
-            write_results(folder / RESULTS_FILE, _failed_results(job, error))
+            write_results(folder / RESULTS_FILE, _failed_results(job, error, started))
             return JobOutcome(job.id, job.label, str(folder), "failed", error=f"{type(error).__name__}: {error}")
         finally:
             (folder / VIEWS_FILE).unlink(missing_ok=True)
 
 
-def _run(job: Job, folder: Path, log: JobLog, progress: bool, position: int) -> JobOutcome:
+def _run(job: Job, folder: Path, log: JobLog, progress: bool, position: int, started: str) -> JobOutcome:
     for stale in (ERROR_FILE, RESULTS_FILE, DONE_FILE):
         (folder / stale).unlink(missing_ok=True)
     write_json(folder / JOB_FILE, job.to_json())
@@ -116,15 +116,16 @@ def _run(job: Job, folder: Path, log: JobLog, progress: bool, position: int) -> 
         torch.cuda.reset_peak_memory_stats(job.device)
     seed_everything(job.seed)
     scene = load_scene(job.scene_path, format=job.scene_format)
-    started = time.perf_counter()
+    clock = time.perf_counter()
     train_views = load_views(scene.split(job.train_split), job, progress, position)
-    log(f"loaded {len(train_views)} training views in {time.perf_counter() - started:.1f} s")
+    log(f"loaded {len(train_views)} training views in {time.perf_counter() - clock:.1f} s")
 
     method_class = load_method_class(job)
     method = method_class(method_class.resolve_config(None, **job.config))
     train_seconds = _train(method, train_views, job, folder, log, progress, position)
 
     metrics: dict[str, Any] = {}
+    files: dict[str, dict[str, Any]] = {}
     render_fps, refinement = None, None
     for split, frames in ((job.train_split, scene.split(job.train_split)),
                           (job.test_split, scene.split(job.test_split))):
@@ -132,11 +133,15 @@ def _run(job: Job, folder: Path, log: JobLog, progress: bool, position: int) -> 
         gt_images = train_views.images if split == job.train_split and exact else None
         metrics[split], fps, refined = evaluate_split(method, frames, job, folder, split, gt_images, progress,
                                                       position)
+        files[split] = scored_files(frames, folder, split)
         if split == job.test_split:
             render_fps, refinement = fps, refined
         log(f"{split}: " + ", ".join(f"{k} {v:.4f}" for k, v in metrics[split]["mean"].items() if v is not None))
 
-    results = _done_results(job, metrics, train_seconds, render_fps, method)
+    results = _done_results(job, started, metrics, train_seconds, render_fps, method)
+    results["files"] = files
+    checkpoints = list_checkpoints(folder)
+    results["hashes"]["checkpoint"] = sha256_file(checkpoints[-1][1]) if checkpoints else None
     results["evaluation"]["test_time_refinement"] = refinement
     write_results(folder / RESULTS_FILE, results)
     prune_checkpoints(folder, keep=1)
@@ -314,58 +319,55 @@ def _save_components(output: dict[str, torch.Tensor], directory: Path, stem: str
         write_image(directory / name / f"{stem}.png", np.clip(image, 0.0, 1.0))
 
 
-def peak_rss_mb() -> float:
-    """Peak resident memory of this process in MiB (``ru_maxrss`` is KiB on Linux, bytes on macOS)."""
-    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
-    return peak / (2**20 if sys.platform == "darwin" else 2**10)
+def scored_files(frames: list[Frame], folder: Path, split: str) -> dict[str, dict[str, Any]]:
+    """sha256 of each frame's saved render (path relative to the job folder) and of its ground-truth file."""
+    files = {}
+    for frame in frames:
+        render = Path("renders") / split / f"{safe_file_stem(frame.frame_id)}.png"
+        truth = frame.image_path
+        files[frame.frame_id] = {"render": render.as_posix(), "render_sha256": sha256_file(folder / render),
+                                 "ground_truth": None if truth is None else str(Path(truth).resolve()),
+                                 "ground_truth_sha256": None if truth is None else sha256_file(truth)}
+    return files
 
 
-def library_versions() -> dict[str, str | None]:
-    """Versions of the libraries that can change a result."""
-    versions: dict[str, str | None] = {"olatbench": __version__, "python": platform.python_version(),
-                                       "numpy": np.__version__, "torch": torch.__version__,
-                                       "cuda": torch.version.cuda}
-    for name, module in (("opencv", "cv2"), ("openimageio", "OpenImageIO")):
-        try:
-            versions[name] = __import__(module).__version__
-        except Exception:
-            versions[name] = None
-    versions["platform"] = platform.platform()
-    return versions
-
-
-def _base_results(job: Job, status: str) -> dict[str, Any]:
+def _base_results(job: Job, status: str, started: str) -> dict[str, Any]:
     return {
         "schema_version": SCHEMA_VERSION,
+        "kind": "run",
         "status": status,
         "job": {"id": job.id, "method": job.method, "variant": job.variant, "suite": job.suite, "scene": job.scene,
                 "seed": job.seed, "config": job.config},
         "protocol": {"id": job.protocol, "version": job.protocol_version},
         "metrics": {},
-        "timing": {"train_seconds": None, "render_fps": None},
+        "timing": {"started": started, "finished": utc_now(), "train_seconds": None, "render_fps": None},
         "resources": {"device": job.device, "peak_rss_mb": round(peak_rss_mb(), 1), "cuda_peak_mb": None},
+        "hardware": hardware_identity(),
         "model": {"iterations": job.iterations, "num_gaussians": None},
         "versions": library_versions(),
         "hashes": {"data_manifest": job.data_manifest, "config": hash_json(job.config), "code": job.code,
-                   "data_matches_reference": data_matches_reference(job.scene_path) if job.suite == "mini" else None},
+                   "data_matches_reference": data_matches_reference(job.scene_path) if job.suite == "mini" else None,
+                   "checkpoint": None},
+        "files": {},
+        "source": None,
         "evaluation": {"test_time_refinement": None},
         "error": None,
     }
 
 
-def _done_results(job: Job, metrics: dict[str, Any], train_seconds: float, render_fps: float | None,
-                  method: Method) -> dict[str, Any]:
-    results = _base_results(job, "done")
+def _done_results(job: Job, started: str, metrics: dict[str, Any], train_seconds: float,
+                  render_fps: float | None, method: Method) -> dict[str, Any]:
+    results = _base_results(job, "done", started)
     results["metrics"] = metrics
-    results["timing"] = {"train_seconds": round(train_seconds, 3),
-                         "render_fps": round(render_fps, 3) if render_fps else None}
+    results["timing"].update(train_seconds=round(train_seconds, 3),
+                             render_fps=round(render_fps, 3) if render_fps else None)
     if torch.device(job.device).type == "cuda":
         results["resources"]["cuda_peak_mb"] = round(torch.cuda.max_memory_allocated(job.device) / 2**20, 1)
     results["model"]["num_gaussians"] = method.num_gaussians
     return results
 
 
-def _failed_results(job: Job, error: BaseException) -> dict[str, Any]:
-    results = _base_results(job, "failed")
+def _failed_results(job: Job, error: BaseException, started: str) -> dict[str, Any]:
+    results = _base_results(job, "failed", started)
     results["error"] = {"type": type(error).__name__, "message": str(error)}
     return results

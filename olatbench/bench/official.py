@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from olatbench.atomic import write_json, write_text
-from olatbench.bench.execute import JobLog, JobOutcome, _base_results, _finite
+from olatbench.bench.execute import JobLog, JobOutcome, _base_results, _finite, scored_files
 from olatbench.bench.jobs import Job
 from olatbench.bench.results import write_results
 from olatbench.bench.store import DONE_FILE, ERROR_FILE, JOB_FILE, OFFICIAL_DIR, RESULTS_FILE
@@ -34,8 +34,9 @@ from olatbench.methods.spec import import_reference
 from olatbench.metrics.evaluate import read_prediction
 
 
-def run_official_job(job: Job, folder: Path, log: JobLog) -> JobOutcome:
-    """Convert, run the official commands, score their renders, write results (module docstring)."""
+def run_official_job(job: Job, folder: Path, log: JobLog, started: str) -> JobOutcome:
+    """Convert, run the official commands, score their renders, write results (module docstring); ``started``:
+    the UTC time the job started (results.json ``timing.started``)."""
     for stale in (ERROR_FILE, RESULTS_FILE, DONE_FILE):
         (folder / stale).unlink(missing_ok=True)
     write_json(folder / JOB_FILE, job.to_json())
@@ -56,12 +57,13 @@ def run_official_job(job: Job, folder: Path, log: JobLog) -> JobOutcome:
         metrics = {job.test_split: _score(job, scene.split(job.test_split), collect(run), run.colourspace,
                                           folder)}
     except OfficialRunError as error:
-        return _failed(job, folder, log, error, run)
+        return _failed(job, folder, log, error, run, started)
     shutil.rmtree(run.scene_dir, ignore_errors=True)  # a copy of the data; the official outputs stay in model/
-    results = _base_results(job, "done")
+    results = _base_results(job, "done", started)
     results["metrics"] = metrics
+    results["files"] = {job.test_split: scored_files(scene.split(job.test_split), folder, job.test_split)}
     train_seconds = sum(r.seconds or 0.0 for r in run.commands if r.step == "train")
-    results["timing"] = {"train_seconds": round(train_seconds, 3), "render_fps": None}
+    results["timing"].update(train_seconds=round(train_seconds, 3), render_fps=None)
     results.update(_provenance(job, run, settings))
     write_results(folder / RESULTS_FILE, results)
     write_text(folder / DONE_FILE, job.id + "\n")
@@ -71,13 +73,14 @@ def run_official_job(job: Job, folder: Path, log: JobLog) -> JobOutcome:
     return JobOutcome(job.id, job.label, str(folder), "done", mean, train_seconds, None)
 
 
-def _failed(job: Job, folder: Path, log: JobLog, error: OfficialRunError, run: OfficialRun | None) -> JobOutcome:
+def _failed(job: Job, folder: Path, log: JobLog, error: OfficialRunError, run: OfficialRun | None,
+            started: str) -> JobOutcome:
     """Record a failed official job: error.txt ends with the one-line summary `olatbench status` shows."""
     message = str(error)
     summary, _, details = message.partition("\n")
     write_text(folder / ERROR_FILE, (details + "\n" if details else "") + summary + "\n")
     log(f"FAILED: {summary}")
-    results = _base_results(job, "failed")
+    results = _base_results(job, "failed", started)
     results["error"] = {"type": type(error).__name__, "message": message}
     settings = CodeSettings.from_json(job.official or {"method": job.method})
     results.update(_provenance(job, run, settings))

@@ -1,29 +1,47 @@
-"""The ``results.json`` schema of one finished job: written by the runner, read by reports.
+"""The ``results.json`` schema: written by ``olatbench run`` (one per job) and ``olatbench evaluate``, read by reports.
 
-Schema version 1 (every key present; unknown values are ``null``)::
+Schema version 2 (unknown values are ``null``; blocks marked *run* are ``null`` in an ``evaluate`` file)::
 
     {
-      "schema_version": 1,
+      "schema_version": 2,
+      "kind": "run" | "evaluate",
       "status": "done" | "failed",
       "job": {"id": str, "method": str, "variant": str, "suite": str, "scene": str, "seed": int,
-              "config": {...resolved method config...}},
-      "protocol": {"id": "olatbench-v1", "version": 1},
+              "config": {...resolved method config...}} | null (evaluate),
+      "protocol": {"id": "olatbench-v1", "version": 1[, "definition": {...}]},
       "metrics": {"<split>": {"mean": {"psnr": float, "ssim": float, "lpips": float | null, ...},
                                "per_image": {"<frame_id>": {"psnr": ..., ...}}}},
-      "timing": {"train_seconds": float, "render_fps": float | null},
+      "timing": {"started": str, "finished": str, "train_seconds": float | null, "render_fps": float | null},
       "resources": {"device": str, "peak_rss_mb": float, "cuda_peak_mb": float | null},
-      "model": {"iterations": int, "num_gaussians": int | null},
-      "versions": {"olatbench": str, "python": str, "numpy": str, "torch": str | null, ...},
-      "hashes": {"data_manifest": str, "config": str, "code": str, "data_matches_reference": bool | null},
+      "hardware": {"machine": str, "cpu": {"model": str | null, "cores": int | null, "threads": int | null,
+                                           "usable_threads": int | null},
+                   "gpus": [{"index": int, "name": str, "memory_mb": float}]},
+      "model": {"iterations": int, "num_gaussians": int | null} | null (evaluate),
+      "versions": {"olatbench": str, "python": str, "numpy": str, "torch": str | null, "cuda": str | null,
+                   "opencv": str | null, "openimageio": str | null, "platform": str},
+      "hashes": {"data_manifest": str | null, "config": str | null, "code": str | null,
+                 "data_matches_reference": bool | null, "checkpoint": str | null},
+      "files": {"<split>": {"<frame_id>": {"render": str, "render_sha256": str,
+                                           "ground_truth": str | null, "ground_truth_sha256": str | null}}},
+      "source": null (run) | {"predictions": str, "scene": {"name": str, "format": str, "root": str},
+                              "split": str, "colourspace": str, "png_space": str},
       "evaluation": {"test_time_refinement": null | {"split": str, "seconds": float,
                                                      "frames": {"<frame_id>": {"loss_before": ..., ...}}}},
       "error": null | {"type": str, "message": str}
     }
 
+Provenance (new in version 2): ``timing.started`` / ``timing.finished`` are UTC ISO 8601 (for a run: the
+session that completed the job; earlier sessions of a resumed job are in its ``log.txt``); ``hardware`` is
+`olatbench.bench.provenance.hardware_identity`; ``hashes.checkpoint`` is the sha256 of the final checkpoint
+(the file kept in ``checkpoints/``); ``files`` holds the sha256 of every render scored and of the ground-truth
+image file each was scored against (a run's render paths are relative to the job folder, ground-truth paths
+absolute). Runs and ``olatbench evaluate`` write the same keys through the same code
+(`olatbench.bench.provenance`).
+
 ``evaluation.test_time_refinement`` is set when the method fitted each test view's pose/light to its image
-before scoring it (e.g. SSD-GS ``test_time_refinement=true``); files written before it existed lack the key,
-which reads as ``null``. ``hashes.data_matches_reference`` (``mini`` only, else ``null``; absent in older
-files) says whether the scene's files are byte-identical to the package's reference renders.
+before scoring it (e.g. SSD-GS ``test_time_refinement=true``). ``hashes.data_matches_reference`` (``mini`` only,
+else ``null``; absent in older files) says whether the scene's files are byte-identical to the package's
+reference renders.
 
 Official implementations (``olatbench.bench.official``) add ``"method_kind": "official"`` and ``"official"``:
 the repository, the pinned commit and the one checked out, the launcher settings, and each command with its exit
@@ -31,6 +49,10 @@ code and wall time (`OfficialProvenance`); their metrics hold the test split onl
 
 Metric keys: ``psnr`` (dB), ``ssim``, ``lpips`` (the protocol's primary network), and optionally
 ``lpips_alex`` / ``lpips_vgg``. Splits are ``train`` and ``test`` (and ``val`` when present).
+
+Older files: version 1 (runs only; no ``kind``, ``hardware``, ``files``, ``source``, start/end times or
+checkpoint hash) is read and upgraded in memory (`upgrade_results`): ``kind`` becomes ``"run"`` and the keys it
+lacks are absent, which readers treat as ``null``.
 """
 
 import json
@@ -64,6 +86,7 @@ class ResultsJob(TypedDict):
 class ResultsProtocol(TypedDict):
     id: str
     version: int
+    definition: NotRequired[dict[str, Any]]  # the protocol's full definition (evaluate writes it)
 
 
 class SplitMetrics(TypedDict):
@@ -72,6 +95,8 @@ class SplitMetrics(TypedDict):
 
 
 class Timing(TypedDict):
+    started: NotRequired[str | None]  # UTC ISO 8601 (schema 2)
+    finished: NotRequired[str | None]
     train_seconds: float | None
     render_fps: float | None
 
@@ -82,6 +107,25 @@ class Resources(TypedDict):
     cuda_peak_mb: float | None
 
 
+class CpuIdentity(TypedDict):
+    model: str | None
+    cores: int | None  # physical
+    threads: int | None  # logical, the whole machine
+    usable_threads: int | None  # this process's CPU affinity
+
+
+class GpuIdentity(TypedDict):
+    index: int
+    name: str
+    memory_mb: float
+
+
+class Hardware(TypedDict):
+    machine: str  # platform.machine(): x86_64, arm64, ...
+    cpu: CpuIdentity
+    gpus: list[GpuIdentity]
+
+
 class ModelInfo(TypedDict):
     iterations: int
     num_gaussians: int | None
@@ -89,9 +133,25 @@ class ModelInfo(TypedDict):
 
 class Hashes(TypedDict):
     data_manifest: str | None
-    config: str
-    code: str
+    config: str | None
+    code: str | None
     data_matches_reference: NotRequired[bool | None]  # mini only: data identical to the packaged reference
+    checkpoint: NotRequired[str | None]  # sha256 of the final checkpoint (schema 2)
+
+
+class ScoredFile(TypedDict):
+    render: str
+    render_sha256: str
+    ground_truth: str | None
+    ground_truth_sha256: str | None
+
+
+class EvaluationSource(TypedDict):
+    predictions: str
+    scene: dict[str, str]  # name, format, root
+    split: str
+    colourspace: str
+    png_space: str
 
 
 class Evaluation(TypedDict):
@@ -124,25 +184,31 @@ class OfficialProvenance(TypedDict):
 
 
 class Results(TypedDict):
-    """One results.json (schema version 1): the keys of the module docstring."""
+    """One results.json (schema version 2): the keys of the module docstring."""
 
     schema_version: int
+    kind: Literal["run", "evaluate"]
     status: Literal["done", "failed"]
-    job: ResultsJob
+    job: ResultsJob | None  # None for kind "evaluate"
     protocol: ResultsProtocol
     metrics: dict[str, SplitMetrics]  # split -> block
     timing: NotRequired[Timing]
     resources: NotRequired[Resources]
-    model: NotRequired[ModelInfo]
+    hardware: NotRequired[Hardware]
+    model: NotRequired[ModelInfo | None]
     versions: NotRequired[dict[str, str | None]]
     hashes: NotRequired[Hashes]
+    files: NotRequired[dict[str, dict[str, ScoredFile]]]  # split -> frame id -> scored files
+    source: NotRequired[EvaluationSource | None]
     evaluation: NotRequired[Evaluation]
     error: NotRequired[ResultsFailure | None]
     method_kind: NotRequired[Literal["native", "official", "plugin"]]  # absent: native
     official: NotRequired[OfficialProvenance]  # official implementations only
 
 
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2
+READABLE_VERSIONS = (1, 2)
+KINDS = ("run", "evaluate")
 REQUIRED_KEYS = tuple(key for key in Results.__annotations__ if key in Results.__required_keys__)
 JOB_KEYS = tuple(key for key in ResultsJob.__annotations__ if key != "config")  # in the schema's order
 
@@ -151,18 +217,30 @@ class ResultsError(ValueError):
     """A results.json that cannot be read: names the file and what is wrong."""
 
 
+def upgrade_results(data: dict[str, Any]) -> dict[str, Any]:
+    """A results dict of any readable version as the current version (a copy; version 1 files were runs)."""
+    if data.get("schema_version") == 1:
+        data = {"schema_version": SCHEMA_VERSION, "kind": "run",
+                **{key: value for key, value in data.items() if key != "schema_version"}}
+    return data
+
+
 def validate_results(data: Any, source: str = "results") -> Results:
-    """Check the structure of a results dict; return it unchanged or raise `ResultsError`."""
+    """Check the structure of a results dict of the current version; return it unchanged or raise `ResultsError`."""
     if not isinstance(data, dict):
         raise ResultsError(f"{source}: expected a JSON object, found {type(data).__name__}")
     version = data.get("schema_version")
     if version != SCHEMA_VERSION:
         raise ResultsError(f"{source}: schema_version {version!r} is not supported by this olatbench "
-                           f"(it reads version {SCHEMA_VERSION}); upgrade olatbench or re-run the job")
+                           f"(it reads versions {', '.join(map(str, READABLE_VERSIONS))}); upgrade olatbench or "
+                           "re-run the job")
     missing = [key for key in REQUIRED_KEYS if key not in data]
-    missing += [f"job.{key}" for key in JOB_KEYS if key not in data.get("job", {})]
+    if data.get("kind") == "run":
+        missing += [f"job.{key}" for key in JOB_KEYS if key not in (data.get("job") or {})]
     if missing:
         raise ResultsError(f"{source}: missing keys {', '.join(missing)}")
+    if data["kind"] not in KINDS:
+        raise ResultsError(f"{source}: kind must be 'run' or 'evaluate', found {data['kind']!r}")
     if data["status"] not in ("done", "failed"):
         raise ResultsError(f"{source}: status must be 'done' or 'failed', found {data['status']!r}")
     for split, block in data["metrics"].items():
@@ -172,7 +250,7 @@ def validate_results(data: Any, source: str = "results") -> Results:
 
 
 def read_results(path: str | Path) -> Results:
-    """Read and validate one results.json."""
+    """Read, upgrade (`upgrade_results`) and validate one results.json."""
     path = Path(path)
     try:
         data = json.loads(path.read_text(encoding="utf-8"))
@@ -180,9 +258,11 @@ def read_results(path: str | Path) -> Results:
         raise ResultsError(f"{path}: file not found") from None
     except json.JSONDecodeError as error:
         raise ResultsError(f"{path}: malformed JSON ({error})") from None
+    if isinstance(data, dict):
+        data = upgrade_results(data)
     return validate_results(data, str(path))
 
 
 def write_results(path: str | Path, data: Results | dict[str, Any]) -> Path:
-    """Validate and write one results.json atomically."""
+    """Validate and write one results.json (current version) atomically."""
     return write_json(path, validate_results(data, str(path)))

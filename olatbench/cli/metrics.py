@@ -43,8 +43,10 @@ def evaluate(pred_dir: Path, scene_dir: Path, split: str, protocol_name: str, ou
       olatbench evaluate runs/mini/ssdgs/default/Cat/seed0/renders/test --gt data/mini/Cat \\
           --protocol olatbench-v1 -o cat_test.json --require lpips
     """
+    from olatbench.bench.evaluate import evaluation_results
+    from olatbench.bench.results import write_results
     from olatbench.datasets.errors import DatasetError
-    from olatbench.metrics.evaluate import EvaluationError, evaluate_folder, write_result
+    from olatbench.metrics.evaluate import EvaluationError
     from olatbench.metrics.weights import WeightsError
 
     protocol = _protocol(protocol_name)
@@ -56,11 +58,11 @@ def evaluate(pred_dir: Path, scene_dir: Path, split: str, protocol_name: str, ou
             protocol.require_lpips()
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", UserWarning)
-            result = evaluate_folder(pred_dir, scene_dir, split, protocol, allow_extra, resize_gt, progress=True,
-                                     png_space=png_space)
+            result = evaluation_results(pred_dir, scene_dir, split, protocol, allow_extra=allow_extra,
+                                        resize_gt=resize_gt, progress=True, png_space=png_space)
         for message in dict.fromkeys(str(w.message) for w in caught):
             click.echo(f"warning: {message}", err=True)
-        write_result(result, output, overwrite)
+        write_results(output, result)
     except WeightsError as error:
         raise click.ClickException(str(error)) from None
     except (EvaluationError, DatasetError, ValueError) as error:
@@ -68,7 +70,7 @@ def evaluate(pred_dir: Path, scene_dir: Path, split: str, protocol_name: str, ou
             from None
     mean = result["metrics"][split]["mean"]
     shown = "  ".join(f"{k}={'None' if v is None else f'{v:.4f}'}" for k, v in mean.items())
-    click.echo(f"{protocol.id} v{protocol.version}, {split}, {len(result['inputs'])} images: {shown}")
+    click.echo(f"{protocol.id} v{protocol.version}, {split}, {len(result['files'][split])} images: {shown}")
     click.echo(f"wrote {output}")
 
 

@@ -2,22 +2,19 @@
 
 Predictions are matched to ground-truth frames by file stem = frame id (``renders/<split>/<frame_id>.png``,
 the runner's layout). Missing, ambiguous (two files for one id) and unknown (extra) files are refused with
-the full list; unreadable files are named. The result is written atomically as JSON with per-image values,
-the protocol's id, version and definition, package versions and the sha256 of every input file.
+the full list; unreadable files are named. The result holds per-image values, the protocol's id, version and
+definition, and the sha256 of every file scored; ``olatbench evaluate`` writes it as a results.json of schema
+version 2 with the runner's provenance (`olatbench.bench.evaluate`).
 """
 
 from __future__ import annotations
 
-import datetime
 import hashlib
-import platform
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
 
-import olatbench
-from olatbench.atomic import write_json
 from olatbench.datasets import colour
 from olatbench.datasets.errors import DatasetError
 from olatbench.datasets.formats import display_colourspace
@@ -25,7 +22,6 @@ from olatbench.metrics.protocols import Protocol
 
 IMAGE_SUFFIXES = (".png", ".exr", ".jpg", ".jpeg", ".tif", ".tiff", ".hdr")
 LINEAR_SUFFIXES = (".exr", ".hdr")
-RESULT_SCHEMA = "olatbench-evaluate/1"
 # The space the official pipelines train and score in (see olatbench.datasets.official): protocols with
 # ground_truth="official" score in it.
 
@@ -98,21 +94,6 @@ def sha256_file(path: Path) -> str:
     return digest.hexdigest()
 
 
-def package_versions() -> dict[str, str | None]:
-    """Versions that can change metric values."""
-    import torch
-
-    versions: dict[str, str | None] = {"olatbench": olatbench.__version__, "python": platform.python_version(),
-                                       "numpy": np.__version__, "torch": torch.__version__}
-    try:
-        import OpenImageIO
-
-        versions["OpenImageIO"] = OpenImageIO.__version__
-    except ImportError:  # pragma: no cover - a dependency of olatbench
-        versions["OpenImageIO"] = None
-    return versions
-
-
 def evaluate_matched(protocol: Protocol, matched: Mapping[str, Path],
                      ground_truth: Callable[[str], tuple[np.ndarray, np.ndarray | None, Path | None]],
                      background: np.ndarray, progress: bool = False, batch_size: int = 4,
@@ -122,7 +103,8 @@ def evaluate_matched(protocol: Protocol, matched: Mapping[str, Path],
 
     ``colourspace``: the space predictions are scored in (the data's display space); ``png_space``: how 8-bit
     prediction files are encoded (``srgb``: the runner's renders).
-    Returns (per_image metrics by frame id, inputs with paths and sha256 by frame id).
+    Returns (per_image metrics by frame id, the files scored by frame id: ``{"render", "render_sha256",
+    "ground_truth", "ground_truth_sha256"}``, the results.json ``files`` entries).
     """
     space = colourspace
     ids = list(matched)
@@ -140,9 +122,9 @@ def evaluate_matched(protocol: Protocol, matched: Mapping[str, Path],
                 raise EvaluationError(f"frame {frame_id}: prediction {path.name} is {pred.shape[1]}×{pred.shape[0]} "
                                       f"but the ground truth is {gt.shape[1]}×{gt.shape[0]} (use --resize-gt to "
                                       "score against an area-resized ground truth)")
-            inputs[frame_id] = {"pred": str(path), "pred_sha256": sha256_file(path),
-                                "gt": None if gt_path is None else str(gt_path),
-                                "gt_sha256": None if gt_path is None else sha256_file(gt_path)}
+            inputs[frame_id] = {"render": str(path), "render_sha256": sha256_file(path),
+                                "ground_truth": None if gt_path is None else str(gt_path),
+                                "ground_truth_sha256": None if gt_path is None else sha256_file(gt_path)}
             yield pred, gt, mask
 
     rows = protocol.evaluate_many(pairs(), progress=progress, batch_size=batch_size, total=len(ids))
@@ -152,7 +134,11 @@ def evaluate_matched(protocol: Protocol, matched: Mapping[str, Path],
 def evaluate_folder(pred_dir: str | Path, scene_dir: str | Path, split: str = "test", protocol: Protocol | None = None,
                     allow_extra: bool = False, resize_gt: bool = False, progress: bool = False,
                     png_space: str = "srgb") -> dict:
-    """Score ``pred_dir`` against split ``split`` of the scene at ``scene_dir``; return the result dict.
+    """Score ``pred_dir`` against split ``split`` of the scene at ``scene_dir``.
+
+    Returns ``{"protocol": {"id", "version", "definition"}, "source": {"predictions", "scene", "split",
+    "colourspace", "png_space"}, "metrics": {split: {"mean", "per_image"}}, "files": {split: {frame id: ...}}}``:
+    the blocks of a results.json that scoring decides (`olatbench.bench.evaluate` adds the rest).
 
     ``png_space``: encoding of 8-bit prediction files (``srgb`` for olatbench renders; ``gamma22`` for
     renders saved by the official GS³/SSD-GS scripts of GS³ data).
@@ -185,21 +171,10 @@ def evaluate_folder(pred_dir: str | Path, scene_dir: str | Path, split: str = "t
     per_image, inputs = evaluate_matched(protocol, matched, ground_truth, background, progress, colourspace=space,
                                          png_space=png_space)
     return {
-        "schema": RESULT_SCHEMA,
-        "created": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
         "protocol": {"id": protocol.id, "version": protocol.version, "definition": protocol.definition()},
-        "scene": {"name": scene.name, "format": scene.format, "root": str(Path(scene_dir).resolve())},
-        "colourspace": space, "png_space": png_space,
-        "predictions": str(Path(pred_dir).resolve()),
+        "source": {"predictions": str(Path(pred_dir).resolve()),
+                   "scene": {"name": scene.name, "format": scene.format, "root": str(Path(scene_dir).resolve())},
+                   "split": split, "colourspace": space, "png_space": png_space},
         "metrics": {split: {"mean": protocol.mean(list(per_image.values())), "per_image": per_image}},
-        "inputs": inputs,
-        "versions": package_versions(),
+        "files": {split: inputs},
     }
-
-
-def write_result(result: dict, output: str | Path, overwrite: bool = False) -> Path:
-    """Write ``result`` atomically to ``output``; refuse to replace an existing file unless ``overwrite``."""
-    output = Path(output)
-    if output.exists() and not overwrite:
-        raise EvaluationError(f"{output} exists; pass --overwrite to replace it")
-    return write_json(output, result)

@@ -8,7 +8,7 @@ Columns: ``method, variant, suite, scene, seed, split, metric, value, status, pr
 ``metrics.<split>.mean`` (``value`` NaN when the run stored null, e.g. LPIPS without weights) and
 per-job rows with split "-" for ``fps`` (render FPS), ``train_time`` (seconds) and
 ``num_gaussians``. A failed job gives one row with status "failed", empty split and metric, and
-its error in ``error``.
+its error in ``error``. Files written by ``olatbench evaluate`` (``kind: "evaluate"``, no job) give no rows.
 """
 
 from __future__ import annotations
@@ -58,7 +58,9 @@ def _nested(data: dict[str, Any], keys: tuple[str, ...]) -> Any:
 
 
 def result_rows(data: dict[str, Any], path: Path) -> list[dict[str, Any]]:
-    """The long-form rows of one validated results dict."""
+    """The long-form rows of one validated results dict (none for an ``evaluate`` file: it names no job)."""
+    if data["kind"] != "run":
+        return []
     job = data["job"]
     protocol = data.get("protocol") or {}
     base = {"method": job["method"], "variant": job["variant"], "suite": job["suite"], "scene": job["scene"],
