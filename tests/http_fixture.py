@@ -1,10 +1,12 @@
-"""A bounded local HTTP server for download tests: range requests, a Hugging Face-like tree API,
-and injectable faults (a connection dropped mid-file). Listens on 127.0.0.1 only."""
+"""A bounded local HTTP server for download tests: range requests, a Hugging Face-like tree API paginated
+like the Hub's (``Link: <...?cursor=N>; rel="next"``), and injectable faults (a connection dropped mid-file).
+Listens on 127.0.0.1 only."""
 
 from __future__ import annotations
 
 import json
 import threading
+import urllib.parse
 from dataclasses import dataclass, field
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
@@ -20,7 +22,9 @@ class ServerState:
     listings: dict[str, list[dict]] = field(default_factory=dict)
     drop_after: dict[str, int] = field(default_factory=dict)  # path -> bytes sent before dropping (once)
     ignore_range: bool = False
+    page_size: int | None = None  # listings longer than this are served in pages linked by a Link header
     requests: list[tuple[str, str | None]] = field(default_factory=list)
+    authorization: list[tuple[str, str | None]] = field(default_factory=list)  # path, Authorization header
 
 
 def _handler(state: ServerState):
@@ -29,14 +33,23 @@ def _handler(state: ServerState):
             pass
 
         def do_GET(self):
-            path = self.path.split("?", 1)[0]
+            path, _, query = self.path.partition("?")
             state.requests.append((path, self.headers.get("Range")))
+            state.authorization.append((path, self.headers.get("Authorization")))
             if len(state.requests) > MAX_REQUESTS:
                 self.send_error(429, "request budget of the test server exhausted")
                 return
             if path in state.listings:
-                body = json.dumps(state.listings[path]).encode()
+                items = state.listings[path]
+                params = urllib.parse.parse_qs(query)
+                start = int(params.get("cursor", ["0"])[0])
+                end = len(items) if state.page_size is None else start + state.page_size
+                body = json.dumps(items[start:end]).encode()
                 self.send_response(200)
+                if end < len(items):
+                    params["cursor"] = [str(end)]
+                    link = f"{path}?{urllib.parse.urlencode(params, doseq=True)}"
+                    self.send_header("Link", f'<http://{self.headers["Host"]}{link}>; rel="next"')
                 self.send_header("Content-Length", str(len(body)))
                 self.end_headers()
                 self.wfile.write(body)

@@ -115,6 +115,36 @@ def test_file_path_that_already_has_an_extension(tmp_path):
     assert load_scene(tmp_path / "s").split("train")[0].image_path.name == "000.png"
 
 
+def test_gs3_img_path_is_preferred_over_file_path(tmp_path):
+    """As the GS³ loader does: ``img_path`` (relative to the scene folder, extension included, no file_ext added)
+    wins over ``file_path``, and names the frame."""
+    tree = write_gs3_tree(tmp_path / "s", n_test=2)
+    other = tree.frames["test"][1]["stored"]
+    write_image(tmp_path / "s/renamed/view_07.exr", other, "half")
+    _edit(tmp_path / "s/transforms_test.json", lambda m: m["frames"][0].update(img_path="renamed/view_07.exr"))
+    frame = load_scene(tmp_path / "s").split("test")[0]
+    assert frame.image_path == (tmp_path / "s/renamed/view_07.exr").resolve() and frame.frame_id == "view_07"
+    np.testing.assert_allclose(frame.load(background=None, colourspace="linear").rgb * other[..., 3:],
+                               other[..., :3], atol=2e-3)
+
+
+def test_nrhints_frames_with_only_img_path_are_detected_and_read(tmp_path):
+    write_nrhints_tree(tmp_path / "s", n_train=2, n_test=1)
+
+    def to_img_path(meta):
+        for entry in meta["frames"]:
+            entry["img_path"] = entry.pop("file_path").removeprefix("./") + ".png"
+
+    for name in ("transforms_train.json", "transforms_test.json"):
+        _edit(tmp_path / "s" / name, to_img_path)
+    assert detect_format(tmp_path / "s") == "nrhints"
+    scene = load_scene(tmp_path / "s")
+    assert [f.image_path.name for f in scene.split("train")] == ["000.png", "001.png"]
+    with pytest.raises(DatasetError, match="leaves the dataset root"):
+        _edit(tmp_path / "s/transforms_test.json", lambda m: m["frames"][0].update(img_path="../outside.png"))
+        load_scene(tmp_path / "s")
+
+
 def test_transforms_valid_is_a_camera_path_without_images(tmp_path):
     write_nrhints_tree(tmp_path / "s", n_path=3)
     scene = load_scene(tmp_path / "s")
@@ -308,3 +338,19 @@ def test_every_format_module_satisfies_the_format_protocol():
             expected = list(inspect.signature(getattr(FormatModule, member)).parameters)[1:]  # without self
             found = list(inspect.signature(getattr(module, member)).parameters)
             assert found == expected, f"format {name}: {member}{tuple(found)} != the protocol's {tuple(expected)}"
+
+
+def test_sssgs_reads_both_held_out_split_names(tmp_path):
+    """The dataset card names ``transforms_eval.json``, other copies ``transforms_val.json``: both are read, as
+    splits ``eval`` and ``val``; the suite itself trains on ``train`` and scores ``test``."""
+    write_sssgs_tree(tmp_path / "bunny_small")
+    test = json.loads((tmp_path / "bunny_small/transforms_test.json").read_text())
+    (tmp_path / "bunny_small/transforms_eval.json").write_text(json.dumps(test))
+    scene = load_scene(tmp_path / "bunny_small")
+    assert len(scene.split("eval")) == len(scene.split("test")) == 3 and "val" not in scene.splits
+    (tmp_path / "bunny_small/transforms_eval.json").rename(tmp_path / "bunny_small/transforms_val.json")
+    scene = load_scene(tmp_path / "bunny_small")
+    assert len(scene.split("val")) == 3 and "eval" not in scene.splits
+    from olatbench.datasets.suites import SUITES
+
+    assert (SUITES["sssgs"].train_split, SUITES["sssgs"].test_split) == ("train", "test")

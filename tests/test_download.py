@@ -25,9 +25,14 @@ from olatbench.datasets.download.sources import (
     GS3_REPO,
     GS3_REVISION,
     NRHINTS_BASE_URL,
+    SOURCES,
+    SSDGS_DATASET_URL,
     SSSGS_REPO,
+    SSSGS_REVISION,
     sources_for,
 )
+
+SSSGS_COMMIT = SSSGS_REVISION + "0" * (40 - len(SSSGS_REVISION))  # the full id the stand-in Hub knows
 
 
 def _zip_folder(folder: Path, arcname: str) -> bytes:
@@ -75,6 +80,14 @@ def _hub_state(files: dict[str, bytes], *, repo: str = GS3_REPO, revision: str =
     return state
 
 
+def _sssgs_hub(files: dict[str, bytes], state: ServerState | None = None) -> ServerState:
+    """The SSS-GS stand-in: files at the full commit of the pinned revision, found in main's commit listing."""
+    state = _hub_state(files, repo=SSSGS_REPO, revision=SSSGS_COMMIT, state=state)
+    later = [{"id": f"{index:040x}", "title": "README"} for index in range(1, 4)]
+    state.listings[f"/api/datasets/{SSSGS_REPO}/commits/main"] = [*later, {"id": SSSGS_COMMIT, "title": "card"}]
+    return state
+
+
 def test_hub_source_fetches_the_exact_file_validates_and_normalises_the_alias(tmp_path, scene_zip, nrhints_tree):
     other = _zip_folder(nrhints_tree, "Cat")
     state = _hub_state({"NRHints/Cat_on_Decor.zip": scene_zip, "NRHints/Cat.zip": other})
@@ -117,13 +130,20 @@ def test_url_sources_default_to_the_official_locations():
         assert [f.url for f in fetch.resolve_files(source)] == [f"{NRHINTS_BASE_URL}/{scene}.zip"]
 
 
-def test_unusable_source_falls_back_to_the_next(tmp_path, scene_zip):
-    """nrhints-project answers 404, so the GS³ repack on the (stand-in) Hub is used instead."""
-    state = _hub_state({"NRHints/Cat_on_Decor.zip": scene_zip})
+def test_nrhints_defaults_to_the_papers_copy_then_the_authors_zips():
+    """SSD-GS trains on the GS³ re-pack of NRHints: it is tried first; the SSD-GS authors' copy is listed last."""
+    for scene in SOURCES["nrhints"]:
+        assert [s.name for s in sources_for("nrhints", scene)] == ["gs3-hf", "nrhints-project", "ssdgs-release"]
+
+
+def test_unusable_source_falls_back_to_the_next(tmp_path, nrhints_tree):
+    """The (stand-in) Hub answers 404 for the GS³ re-pack, so the NRHints project's zip is used instead."""
+    state = ServerState(files={"/CatSmall.zip": _zip_folder(nrhints_tree, "CatSmall")})
     with LocalServer(state) as server:
         folder = fetch.download_scene("nrhints", "CatSmall", tmp_path, mirror=server.url, progress=False)
-    assert json.loads((folder / manifest.MANIFEST_NAME).read_text())["source"] == "gs3-hf"
-    assert state.requests[0] == ("/CatSmall.zip", None)
+    assert json.loads((folder / manifest.MANIFEST_NAME).read_text())["source"] == "nrhints-project"
+    assert state.requests[0] == (f"/api/datasets/{GS3_REPO}/tree/{GS3_REVISION}", None)
+    assert state.requests[-1] == ("/CatSmall.zip", None)
 
 
 def test_missing_hub_file_names_what_the_repository_holds(tmp_path):
@@ -140,7 +160,7 @@ def test_pattern_matched_two_part_archive_is_joined_and_aliased(tmp_path):
     half = len(data) // 2
     parts = {"synthetic/bunny_small.tar.002": data[half:], "synthetic/bunny_small.tar.001": data[:half],
              "synthetic/bunny_small/transforms_train.json": b"{}", "real_world/bunny.tar": b"x"}
-    state = _hub_state(parts, repo=SSSGS_REPO, revision="main")
+    state = _sssgs_hub(parts)
     with LocalServer(state) as server:
         folder = fetch.download_scene("sssgs", "Bunny", tmp_path / "data", source="sssgs-hf", mirror=server.url,
                                       progress=False)
@@ -151,8 +171,7 @@ def test_pattern_matched_two_part_archive_is_joined_and_aliased(tmp_path):
 
 
 def test_several_matching_archives_are_refused(tmp_path):
-    state = _hub_state({"synthetic/bunny_small.tar": b"a", "synthetic/bunny_small_hdr.zip": b"b"},
-                       repo=SSSGS_REPO, revision="main")
+    state = _sssgs_hub({"synthetic/bunny_small.tar": b"a", "synthetic/bunny_small_hdr.zip": b"b"})
     (source,) = sources_for("sssgs", "Bunny", "sssgs-hf")
     with LocalServer(state) as server, pytest.raises(transfer.DownloadError, match="several archives match"):
         fetch.resolve_files(source, server.url)
@@ -236,20 +255,22 @@ def test_server_error_is_reported_with_the_url(tmp_path):
 def test_unreachable_hub_then_manual_sources_fail_cleanly_with_instructions(tmp_path, monkeypatch):
     """SSS-GS: the Hub (a local stand-in answering 404) fails, the mirror-only source prints how to use it."""
     with LocalServer(ServerState()) as server:
-        monkeypatch.setattr(fetch, "HF_ENDPOINT", server.url)
+        monkeypatch.setenv("HF_ENDPOINT", server.url)  # the Hub's own variable points olatbench at the stand-in
         result = CliRunner().invoke(main, ["datasets", "download", "sssgs", "--scenes", "Bunny",
                                            "--root", str(tmp_path)])
     assert result.exit_code != 0 and "Traceback" not in result.output
-    assert "[sssgs-hf]" in result.output and "404" in result.output
-    assert "--mirror" in result.output and "[ssdgs-converted]" in result.output
+    assert "[sssgs-hf]" in result.output and "404" in result.output and server.url in result.output
+    assert "--mirror" in result.output and "[ssdgs-release]" in result.output
     assert "rerun the same command to resume" in result.output  # the Hub failure was a download error
 
 
 def test_manual_only_sources_say_so_instead_of_suggesting_a_rerun(tmp_path):
     result = CliRunner().invoke(main, ["datasets", "download", "sssgs", "--scenes", "Bunny", "--root", str(tmp_path),
-                                       "--source", "ssdgs-converted"])
+                                       "--source", "ssdgs-release"])
     assert result.exit_code != 0 and "Traceback" not in result.output
     assert "NEEDS A MANUAL STEP" in result.output and "follow the instructions above" in result.output
+    assert SSDGS_DATASET_URL in result.output.replace("\n", "").replace(" ", "")
+    assert "Synthetic_SSS-GS" in result.output
     assert "resume" not in result.output
 
 
@@ -267,3 +288,70 @@ def test_verify_reports_a_damaged_file(tmp_path, nrhints_tree):
     victim.write_bytes(victim.read_bytes()[:-3])
     result = runner.invoke(main, ["datasets", "verify", str(root)])
     assert result.exit_code != 0 and victim.name in result.output and "DAMAGED" in result.output
+
+
+def test_ssdgs_release_is_offered_for_every_suite_with_its_folder():
+    for suite, folder in (("nrhints", "Real_NRHints"), ("gs3", "Synthetic_GS3"), ("sssgs", "Synthetic_SSS-GS")):
+        for scene in SOURCES[suite]:
+            (source,) = sources_for(suite, scene, "ssdgs-release")
+            assert source.kind == "manual" and SSDGS_DATASET_URL in source.instructions
+            assert f"--data-root /path/to/data/{folder}" in source.instructions
+
+
+def test_hub_listings_are_followed_page_by_page_and_the_revision_is_resolved(tmp_path):
+    """The Hub pages its tree and commit listings (Link: rel="next"); the archive is on the last tree page and
+    the pinned commit on the last commit page, so a reader of the first page only would find neither."""
+    write_sssgs_tree(tmp_path / "src")
+    data = _tar_folder(tmp_path / "src", "bunny_small")
+    files = {f"synthetic/other_{index}.json": b"{}" for index in range(5)}
+    files["synthetic/bunny_small.tar"] = data
+    state = _sssgs_hub(files)
+    state.page_size = 2
+    (source,) = sources_for("sssgs", "Bunny", "sssgs-hf")
+    with LocalServer(state) as server:
+        (remote,) = fetch.resolve_files(source, server.url)
+    assert remote.url == f"{server.url}/datasets/{SSSGS_REPO}/resolve/{SSSGS_COMMIT}/synthetic/bunny_small.tar"
+    assert remote.sha256 == hashlib.sha256(data).hexdigest()
+    pages = [path for path, _ in state.requests]
+    assert pages.count(f"/api/datasets/{SSSGS_REPO}/commits/main") == 2
+    assert pages.count(f"/api/datasets/{SSSGS_REPO}/tree/{SSSGS_COMMIT}") == 4  # 7 entries, 2 per page
+
+
+def test_a_pinned_revision_missing_from_the_history_stops(tmp_path):
+    state = _sssgs_hub({"synthetic/bunny_small.tar": b"a"})
+    state.listings[f"/api/datasets/{SSSGS_REPO}/commits/main"] = [{"id": "f" * 40}]
+    (source,) = sources_for("sssgs", "Bunny", "sssgs-hf")
+    with LocalServer(state) as server, pytest.raises(transfer.DownloadError, match=f"revision {SSSGS_REVISION}"):
+        fetch.resolve_files(source, server.url)
+
+
+def test_hf_token_is_sent_to_the_hub_only(tmp_path, monkeypatch, scene_zip):
+    """$HF_TOKEN goes to every Hub request (listing and download) as a Bearer token; never to a URL source."""
+    monkeypatch.setenv("HF_TOKEN", "hf_test_token")
+    state = _hub_state({"NRHints/Cat_on_Decor.zip": scene_zip})
+    with LocalServer(state) as server:
+        fetch.download_scene("nrhints", "CatSmall", tmp_path / "hub", source="gs3-hf", mirror=server.url,
+                             progress=False)
+    assert state.authorization and all(value == "Bearer hf_test_token" for _, value in state.authorization)
+    plain = ServerState(files={"/CatSmall.zip": scene_zip})
+    with LocalServer(plain) as server:
+        fetch.download_scene("nrhints", "CatSmall", tmp_path / "url", source="nrhints-project", mirror=server.url,
+                             progress=False)
+    assert plain.authorization == [("/CatSmall.zip", None)]
+    monkeypatch.delenv("HF_TOKEN")
+    assert fetch.hub_headers() == {}
+
+
+def test_hub_endpoint_order(monkeypatch):
+    monkeypatch.delenv("HF_ENDPOINT", raising=False)
+    assert fetch.hub_endpoint() == "https://huggingface.co"
+    monkeypatch.setenv("HF_ENDPOINT", "https://hf-mirror.example/")
+    assert fetch.hub_endpoint() == "https://hf-mirror.example"
+    assert fetch.hub_endpoint("http://127.0.0.1:9") == "http://127.0.0.1:9"  # --mirror wins
+
+
+def test_link_header_parsing():
+    assert transfer.next_link('<https://huggingface.co/api/x?cursor=abc>; rel="next"') == \
+        "https://huggingface.co/api/x?cursor=abc"
+    assert transfer.next_link('<https://a/prev>; rel="prev", <https://a/next>; rel="next"') == "https://a/next"
+    assert transfer.next_link(None) is None and transfer.next_link('<https://a/p>; rel="prev"') is None

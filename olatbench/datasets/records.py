@@ -23,7 +23,7 @@ from olatbench.datasets import colour
 from olatbench.datasets.cameras import scale_intrinsics
 from olatbench.datasets.errors import DatasetError
 
-Split = str  # "train", "val", "test", or "path" (a camera path without images)
+Split = str  # "train", "val", "test", "eval" (SSS-GS), or "path" (a camera path without images)
 
 
 @dataclass(frozen=True, eq=False)

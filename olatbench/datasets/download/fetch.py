@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import fnmatch
 import json
+import os
 import re
 import shutil
 import tempfile
@@ -28,12 +29,26 @@ class ManualStepRequired(RuntimeError):
 
 @dataclass(frozen=True)
 class RemoteFile:
-    """One file to fetch: its archive name, URL, and size/sha256 when the host publishes them."""
+    """One file to fetch: its archive name, URL, size/sha256 when the host publishes them, and whether the
+    request carries the Hub token (`hub_headers`)."""
 
     name: str
     url: str
     size: int | None = None
     sha256: str | None = None
+    hub: bool = False
+
+
+def hub_endpoint(mirror: str | None = None) -> str:
+    """The Hub to ask: ``mirror``, else ``$HF_ENDPOINT``, else ``https://huggingface.co`` (no trailing slash)."""
+    return (mirror or os.environ.get("HF_ENDPOINT") or HF_ENDPOINT).rstrip("/")
+
+
+def hub_headers() -> dict[str, str]:
+    """``Authorization: Bearer $HF_TOKEN`` when ``$HF_TOKEN`` is set (gated or private repositories), else none.
+    Sent to the Hub endpoint only: `transfer` drops it when the Hub redirects a download to its CDN."""
+    token = os.environ.get("HF_TOKEN", "").strip()
+    return {"Authorization": f"Bearer {token}"} if token else {}
 
 
 def resolve_files(source: Source, mirror: str | None = None) -> list[RemoteFile]:
@@ -54,13 +69,29 @@ def resolve_files(source: Source, mirror: str | None = None) -> list[RemoteFile]
     return _one_archive(source, files)
 
 
+def resolve_revision(source: Source, endpoint: str) -> str:
+    """The full commit id of ``source.revision``: itself when it is one (40 hex digits) or not hex (a branch), else
+    the commit of ``main``'s history (every page of the Hub's commit listing) whose id starts with it."""
+    revision = source.revision
+    if len(revision) == 40 or not re.fullmatch(r"[0-9a-f]{4,39}", revision):
+        return revision
+    commits = transfer.fetch_json_pages(f"{endpoint}/api/datasets/{source.repo}/commits/main", headers=hub_headers())
+    matches = sorted({str(c.get("id")) for c in commits if isinstance(c, dict)
+                      and str(c.get("id", "")).startswith(revision)})
+    if len(matches) != 1:
+        found = "no commit" if not matches else f"{len(matches)} commits ({', '.join(matches)})"
+        raise transfer.DownloadError(f"{source.repo}: {found} of main's history ({len(commits)} commits) starts "
+                                     f"with the pinned revision {revision}")
+    return matches[0]
+
+
 def _hub_files(source: Source, mirror: str | None) -> list[RemoteFile]:
     """The scene's files as the Hub's tree API lists them (exact paths, or the archives matching the pattern)."""
-    endpoint = (mirror or HF_ENDPOINT).rstrip("/")
-    where = f"{source.repo}@{source.revision}"
-    listing = transfer.fetch_json(f"{endpoint}/api/datasets/{source.repo}/tree/{source.revision}?recursive=true")
-    if not isinstance(listing, list):
-        raise transfer.DownloadError(f"{endpoint}: unexpected answer listing {where}")
+    endpoint = hub_endpoint(mirror)
+    revision = resolve_revision(source, endpoint)
+    where = f"{source.repo}@{revision}"
+    listing = transfer.fetch_json_pages(f"{endpoint}/api/datasets/{source.repo}/tree/{revision}?recursive=true",
+                                        headers=hub_headers())
     entries = {str(e.get("path")): e for e in listing if isinstance(e, dict) and e.get("type") == "file"}
     held = ", ".join(sorted(entries)[:20]) or "nothing"
     if source.files:
@@ -73,12 +104,12 @@ def _hub_files(source: Source, mirror: str | None) -> list[RemoteFile]:
         if not chosen:
             raise transfer.DownloadError(f"{where}: no archive matches '{source.pattern}'; "
                                          f"the repository holds: {held}")
-    resolve = f"{endpoint}/datasets/{source.repo}/resolve/{source.revision}"
+    resolve = f"{endpoint}/datasets/{source.repo}/resolve/{revision}"
     files = []
     for path in chosen:
         lfs = entries[path].get("lfs") or {}
         files.append(RemoteFile(path.rsplit("/", 1)[-1], f"{resolve}/{path}", size=entries[path].get("size"),
-                                sha256=lfs.get("oid") or lfs.get("sha256")))
+                                sha256=lfs.get("oid") or lfs.get("sha256"), hub=True))
     return files
 
 
@@ -102,7 +133,8 @@ def _fetch_verified(remote: RemoteFile, folder: Path, expected: str | None, prog
     """Download one file (resuming) and check it against the published or recorded sha256."""
     target = folder / remote.name
     if not target.exists():
-        transfer.download(remote.url, target, expected_size=remote.size, progress=progress)
+        transfer.download(remote.url, target, expected_size=remote.size, progress=progress,
+                          headers=hub_headers() if remote.hub else None)
     digest = manifest.sha256_file(target)
     expected = remote.sha256 or expected
     if expected and digest != expected:

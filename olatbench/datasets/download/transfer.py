@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import http.client
 import json
+import re
 import shutil
 import time
 import urllib.error
@@ -13,34 +14,69 @@ from pathlib import Path
 
 CHUNK = 1 << 20
 USER_AGENT = "olatbench-downloader/1"
+MAX_PAGES = 10_000  # a listing that never ends is an error, not a hang
+_NEXT_LINK = re.compile(r'<([^>]+)>\s*;\s*rel="?next"?')
+
+Headers = dict[str, str]
 
 
 class DownloadError(OSError):
     """A download that failed after its retries; names the URL and the partial file kept for resuming."""
 
 
-def _open(url: str, start: int = 0, timeout: float = 30.0):
+def _open(url: str, start: int = 0, timeout: float = 30.0, headers: Headers | None = None):
+    """Open ``url``; ``headers`` (e.g. ``Authorization``) go to this host only, never to one it redirects to."""
     request = urllib.request.Request(url, headers={"User-Agent": USER_AGENT})
+    for name, value in (headers or {}).items():
+        request.add_unredirected_header(name, value)
     if start:
         request.add_header("Range", f"bytes={start}-")
     return urllib.request.urlopen(request, timeout=timeout)
 
 
-def fetch_json(url: str, timeout: float = 30.0) -> object:
+def next_link(value: str | None) -> str | None:
+    """The ``rel="next"`` URL of an HTTP ``Link`` header (RFC 8288), or None."""
+    match = _NEXT_LINK.search(value or "")
+    return match.group(1) if match else None
+
+
+def fetch_json(url: str, timeout: float = 30.0, headers: Headers | None = None) -> object:
     """GET a JSON document."""
+    return _fetch_page(url, timeout, headers)[0]
+
+
+def _fetch_page(url: str, timeout: float, headers: Headers | None) -> tuple[object, str | None]:
+    """(JSON document, URL of the next page from the ``Link`` header or None)."""
     try:
-        with _open(url, timeout=timeout) as response:
-            return json.loads(response.read().decode("utf-8"))
+        with _open(url, timeout=timeout, headers=headers) as response:
+            return json.loads(response.read().decode("utf-8")), next_link(response.headers.get("Link"))
     except (urllib.error.URLError, OSError, json.JSONDecodeError) as error:
         raise DownloadError(f"{url}: cannot read JSON ({error})") from error
 
 
+def fetch_json_pages(url: str, timeout: float = 30.0, headers: Headers | None = None) -> list:
+    """GET a paginated JSON list: every page's items, following ``Link: <...>; rel="next"`` until none is left
+    (the Hugging Face Hub's tree and commit listings are paginated so)."""
+    items: list = []
+    page_url: str | None = url
+    for _ in range(MAX_PAGES):
+        page, next_url = _fetch_page(page_url, timeout, headers)
+        if not isinstance(page, list):
+            raise DownloadError(f"{page_url}: expected a JSON list, found {type(page).__name__}")
+        items += page
+        if next_url is None:
+            return items
+        page_url = urllib.parse.urljoin(page_url, next_url)
+    raise DownloadError(f"{url}: more than {MAX_PAGES} pages; stopping")
+
+
 def download(url: str, target: Path, *, expected_size: int | None = None, retries: int = 5,
-             progress=None, timeout: float = 30.0, backoff: float = 0.5) -> Path:
+             progress=None, timeout: float = 30.0, backoff: float = 0.5, headers: Headers | None = None) -> Path:
     """Download ``url`` to ``target``, resuming from ``target.with_suffix(+'.part')``.
 
     Each retry asks for the remaining bytes with a ``Range`` header; a server that ignores it
-    (status 200) restarts the file. ``progress`` is a tqdm-like object updated with byte counts.
+    (status 200) restarts the file. ``progress`` is a tqdm-like object updated with byte counts. ``headers`` are
+    sent to ``url``'s host only (not across redirects).
     The finished file is renamed onto ``target``; the ``.part`` file survives failures.
     """
     target = Path(target)
@@ -60,7 +96,7 @@ def download(url: str, target: Path, *, expected_size: int | None = None, retrie
         if expected_size is not None and start == expected_size:
             break
         try:
-            with _open(url, start, timeout) as response:
+            with _open(url, start, timeout, headers) as response:
                 if start and response.status != 206:
                     start = 0  # the server ignored the range: start over
                 with open(partial, "ab" if start else "wb") as handle:

@@ -1,7 +1,9 @@
 """Reader and writer of the NeRF-style ``transforms_<split>.json`` layout shared by NRHints and GS³.
 
 One JSON file per split holds ``frames`` with ``file_path`` (no extension; ``file_ext`` per frame
-or the format default), ``transform_matrix`` (camera-to-world, OpenGL/Blender axes), ``pl_pos`` and
+or the format default) or ``img_path`` (relative to the scene folder, extension included; preferred over
+``file_path`` when a frame has both, as the GS³ loader ``scene/dataset_readers.py`` does; its stem is then the
+frame id), ``transform_matrix`` (camera-to-world, OpenGL/Blender axes), ``pl_pos`` and
 optionally ``pl_intensity``. Intrinsics are ``camera_intrinsics`` = **[cx, cy, fx, fy]** (top level
 or per frame) or ``camera_angle_x`` (square pixels, centred principal point). ``transforms_valid.json``
 (the GS³ re-pack) is a camera path without images: split ``path``, frames with ``image_path=None``.
@@ -77,13 +79,26 @@ def _image_size(root: Path, metas: dict[str, tuple[Path, dict]], flavour: NerfFl
         path, meta = metas[split]
         frames = c.frames_of(meta, path)
         if frames:
-            first = frames[0]
-            image = c.image_file(root, c.require(first, "file_path", path=path, frame=0), first.get("file_ext"),
-                                 flavour.default_ext, path=path, frame=0)
+            image = frame_image(root, frames[0], flavour.default_ext, path=path, frame=0)
             if not image.is_file():
                 raise DatasetError("image file not found (needed for the image size)", path=image, frame=0)
             return image_size(image)
     raise DatasetError("cannot determine the image size: no image split and no 'w'/'h' keys", path=root)
+
+
+def frame_image(root: Path, raw: Mapping[str, Any], default_ext: str, *, path: Path, frame: str | int) -> Path:
+    """A frame's image: ``img_path`` as written (relative to ``root``) when present, else ``file_path`` with
+    ``file_ext`` or ``default_ext``."""
+    if raw.get("img_path") is not None:
+        return c.resolve_inside(root, raw["img_path"], path=path, frame=frame, key="img_path")
+    return c.image_file(root, c.require(raw, "file_path", path=path, frame=frame), raw.get("file_ext"), default_ext,
+                        path=path, frame=frame)
+
+
+def _frame_stem(raw: Mapping[str, Any], default: str) -> str:
+    """The stem the frame id comes from: ``img_path``'s when present, else ``file_path``'s, else ``default``."""
+    name = raw.get("img_path") if raw.get("img_path") is not None else raw.get("file_path", default)
+    return Path(str(name)).stem
 
 
 def _optional_positive(meta: Mapping[str, Any], key: str, path: Path) -> float | None:
@@ -115,7 +130,7 @@ def read_nerf_scene(root: Path, flavour: NerfFlavour, name: str,
         split_K = fallback["K"] if split_K is None else split_K
         near = _optional_positive(meta, "camera_near", path) or fallback["near"]
         far = _optional_positive(meta, "camera_far", path) or fallback["far"]
-        stems = [Path(str(raw.get("file_path", f"{split}_{i:04d}"))).stem if split != "path" else f"path_{i:04d}"
+        stems = [_frame_stem(raw, f"{split}_{i:04d}") if split != "path" else f"path_{i:04d}"
                  for i, raw in enumerate(raw_frames)]
         parsed = []
         for index, (raw, frame_id) in enumerate(zip(raw_frames, c.unique_ids(stems), strict=True)):
@@ -147,8 +162,7 @@ def _read_frame(root: Path, path: Path, split: str, index: int, frame_id: str, r
     intensity = c.as_rgb(raw["pl_intensity"], key="pl_intensity", **where) if intensity_known else np.ones(3)
     image_path = None
     if split != "path":
-        image_path = c.image_file(root, c.require(raw, "file_path", **where), raw.get("file_ext"),
-                                  flavour.default_ext, **where)
+        image_path = frame_image(root, raw, flavour.default_ext, **where)
     extras: dict[str, Any] = {}
     if raw.get("R_opt") is not None or raw.get("T_opt") is not None:
         extras["R_opt"] = c.as_array(c.require(raw, "R_opt", **where), (3, 3), key="R_opt", **where)

@@ -27,18 +27,21 @@ FLAVOUR = NerfFlavour(format_name=FORMAT_NAME, default_ext=".png", colourspace="
 
 
 def detect(root: Path) -> bool:
-    """A NeRF-style tree whose frames have one ``file_path`` and PNG (not EXR) images."""
+    """A NeRF-style tree whose frames have one ``file_path`` (or ``img_path``) and PNG (not EXR) images."""
     root = Path(root)
     found = c.first_frame(root, (SPLIT_FILES["train"], SPLIT_FILES["test"], SPLIT_FILES["val"]))
     if found is None:
         return False
     _, _, frame = found
-    return "file_path" in frame and "file_paths" not in frame and not _is_exr(root, frame)
+    return ("file_path" in frame or "img_path" in frame) and "file_paths" not in frame and not _is_exr(root, frame)
 
 
 def _is_exr(root: Path, frame: Mapping[str, Any]) -> bool:
-    """Whether a frame's image is an EXR: its ``file_ext``, its ``file_path`` suffix, or the file on disk."""
+    """Whether a frame's image is an EXR: its ``img_path`` suffix (which wins, as in the reader), its ``file_ext``,
+    its ``file_path`` suffix, or the file on disk."""
     ext, file_path = frame.get("file_ext"), frame.get("file_path")
+    if isinstance(frame.get("img_path"), str):
+        return frame["img_path"].lower().endswith(".exr")
     if isinstance(ext, str):
         return ext.lower().lstrip(".") == "exr"
     if not isinstance(file_path, str):

@@ -1,6 +1,9 @@
 """SSS-GS (Dihlmann et al. 2025) synthetic subsurface-scattering scenes (the public 256² release).
 
-Files: ``transforms_{train,val,test}.json`` whose frames are *cameras*, each with lists ``file_paths`` and
+Files: ``transforms_{train,test}.json`` and the held-out split, named ``transforms_eval.json`` by the dataset card
+(huggingface.co/datasets/CGTuebingen/SSS-GS) and ``transforms_val.json`` in copies seen elsewhere: both are read,
+as splits ``eval`` and ``val``. The ``sssgs`` suite trains on ``train`` and scores ``test``; neither held-out split
+is used by it. The frames of every file are *cameras*, each with lists ``file_paths`` and
 ``light_positions`` (and optionally ``light_intensities``), ``width``/``height`` and per-frame ``fl_x``,
 ``fl_y``, ``cx``, ``cy`` (or a top-level ``camera_angle_x``). Every (camera, light) pair becomes one record.
 ``exclude_list.txt`` names images to skip. Light positions are used as stored: the official loader flips
@@ -28,7 +31,8 @@ from olatbench.datasets.suites import canonical_scene_name
 
 FORMAT_NAME = "sssgs"
 DISPLAY_COLOURSPACE = "srgb"  # trained and scored in: 8-bit sRGB PNGs, used as stored
-SPLIT_FILES = {"train": "transforms_train.json", "val": "transforms_val.json", "test": "transforms_test.json"}
+SPLIT_FILES = {"train": "transforms_train.json", "val": "transforms_val.json", "eval": "transforms_eval.json",
+               "test": "transforms_test.json"}
 EXCLUDE_FILE = "exclude_list.txt"
 DEFAULT_EXT = ".png"
 
