@@ -175,4 +175,6 @@ def render(run, kind, count, start_frame, component, fps, device, resolution, ou
     except (JobFolderError, DatasetError, RuntimeError, OSError, ValueError) as error:
         raise click.ClickException(f"{error}\nCheck the job with 'olatbench status {run.parent.parent.parent}'.") \
             from None
-    click.echo(f"wrote {result.video} and {result.frames} frames in {result.frames_dir}")
+    codec = "H.264" if result.encoder != "opencv" else "MPEG-4 Part 2 (mp4v; browsers do not play it: install " \
+        "'olatbench[video]')"
+    click.echo(f"wrote {result.video} ({codec}, {result.encoder}) and {result.frames} frames in {result.frames_dir}")

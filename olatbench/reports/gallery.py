@@ -1,7 +1,8 @@
 """The figures of an HTML report, gathered from the job folders next to each results.json.
 
 Per scene: a comparison grid (ground truth | each method | error maps) for the chosen test frames,
-the SSD-GS decomposition when the job saved components, and the training curves of every job.
+the SSD-GS decomposition when the job saved components, the training curves of every job, and the relighting
+sweeps ``olatbench render`` wrote to a job's ``videos/`` (H.264 MP4s only: browsers do not play mp4v).
 A figure that cannot be made (data moved, renders missing) is skipped with a note saying why.
 """
 
@@ -97,4 +98,21 @@ def report_figures(frame: pd.DataFrame, frame_ids: Sequence[str] = ()) -> tuple[
                 notes.append(f"{job.label}: training curve skipped ({error})")
         if logs:
             figures.append((f"{suite}/{scene}: training curves", training_curves(logs)))
+        for job in jobs:
+            videos, skipped = sweep_videos(job)
+            figures += videos
+            notes += skipped
+    return figures, notes
+
+
+def sweep_videos(job: JobFolder) -> tuple[list[Figure], list[str]]:
+    """The H.264 sweeps in the job's ``videos/`` folder, and notes on the others (mp4v: not playable)."""
+    figures, notes = [], []
+    for path in sorted((job.folder / "videos").glob("*.mp4")):
+        data = path.read_bytes()
+        if b"avc1" not in data[:1 << 16] and b"avc1" not in data[-(1 << 16):]:  # the H.264 sample entry
+            notes.append(f"{job.label}: {path.name} is not H.264 (browsers cannot play it); render it again with "
+                         "'olatbench[video]' installed")
+            continue
+        figures.append((f"{job.label}: {path.stem} sweep", data))
     return figures, notes

@@ -1,4 +1,5 @@
-"""A self-contained HTML report: tables with the paper's cell colours, figures embedded as base64 PNG."""
+"""A self-contained HTML report: tables with the paper's cell colours, figures embedded as base64 PNG and
+relighting sweeps as base64 H.264 MP4 (``<video>``, played by every current browser)."""
 
 from __future__ import annotations
 
@@ -55,11 +56,20 @@ def table_html(table: Table, colours: Sequence[str] = PAPER_COLOURS) -> str:
     return "\n".join(parts)
 
 
-def figure_html(title: str, png: bytes) -> str:
-    """A PNG embedded as a base64 data URI with its caption."""
-    data = base64.b64encode(png).decode("ascii")
-    return (f'<figure><img alt="{html.escape(title)}" src="data:image/png;base64,{data}">'
-            f"<figcaption>{html.escape(title)}</figcaption></figure>")
+def is_mp4(data: bytes) -> bool:
+    """Whether ``data`` is an MP4 (ISO base media file: an ``ftyp`` box first)."""
+    return data[4:8] == b"ftyp"
+
+
+def figure_html(title: str, data: bytes) -> str:
+    """A PNG, or an MP4 as a looping muted ``<video>``, embedded as a base64 data URI with its caption."""
+    encoded = base64.b64encode(data).decode("ascii")
+    if is_mp4(data):
+        media = (f'<video controls loop muted playsinline style="max-width:100%" title="{html.escape(title)}" '
+                 f'src="data:video/mp4;base64,{encoded}"></video>')
+    else:
+        media = f'<img alt="{html.escape(title)}" src="data:image/png;base64,{encoded}">'
+    return f"<figure>{media}<figcaption>{html.escape(title)}</figcaption></figure>"
 
 
 def to_html(tables: Sequence[Table], figures: Sequence[tuple[str, bytes]] = (), title: str = "olatbench report",

@@ -3,7 +3,8 @@
 The trained method is rebuilt from the job's final checkpoint by `olatbench.bench.restore.restore` (the
 runner's restore path: no training image is read for methods that need none), then
 ``method.render(camera, light)`` draws each frame. Renders are converted from the job's colour space to sRGB and
-written as 8-bit PNGs (``<sweep>_frames/00000.png`` …) and an ``mp4v`` MP4 (OpenCV).
+written as 8-bit PNGs (``<sweep>_frames/00000.png`` …) and an MP4 (`olatbench.reports.encode`: H.264 when PyAV
+or imageio-ffmpeg is installed, else OpenCV's ``mp4v`` with a logged warning).
 """
 
 from __future__ import annotations
@@ -17,17 +18,20 @@ from tqdm.auto import tqdm
 from olatbench.atomic import atomic_path
 from olatbench.datasets import colour
 from olatbench.datasets.images import write_image
+from olatbench.reports.encode import open_video
 from olatbench.reports.jobfolder import JobFolder, JobFolderError
 from olatbench.reports.sweeps import SweepFrame, orbit_frame, subsample, trajectory
 
 
 @dataclass(frozen=True)
 class SweepOutput:
-    """Where a sweep went: the video, the frame folder and the number of frames."""
+    """Where a sweep went: the video, the frame folder, the number of frames and the encoder used
+    (`olatbench.reports.encode.ENCODERS`)."""
 
     video: Path
     frames_dir: Path
     frames: int
+    encoder: str = ""
 
 
 def load_trained_method(job: JobFolder, device: str = "cpu", progress: bool = True):
@@ -83,7 +87,6 @@ def render_sweep(job: JobFolder, kind: str, out_dir: str | Path, *, count: int |
     ``method`` and ``frames`` may be given to skip loading them from the job (tests, notebooks, the viewer);
     ``video`` names the MP4 instead (its frames then go to ``<video stem>_frames/`` beside it).
     """
-    import cv2
     import torch
 
     out_dir = Path(out_dir)
@@ -94,9 +97,7 @@ def render_sweep(job: JobFolder, kind: str, out_dir: str | Path, *, count: int |
     frames_dir.mkdir(parents=True, exist_ok=True)
     width, height = frames[0].camera.width, frames[0].camera.height
     with atomic_path(video_path) as temporary:
-        writer = cv2.VideoWriter(str(temporary), cv2.VideoWriter_fourcc(*"mp4v"), float(fps), (width, height))
-        if not writer.isOpened():
-            raise OSError(f"{video_path}: OpenCV cannot open an mp4v video writer")
+        writer = open_video(temporary, fps, width, height)
         try:
             with torch.no_grad():
                 for index, frame in enumerate(tqdm(frames, desc=f"{job.label}: {kind}", disable=not progress)):
@@ -106,8 +107,7 @@ def render_sweep(job: JobFolder, kind: str, out_dir: str | Path, *, count: int |
                                              f"it renders {', '.join(sorted(output))}")
                     image = display_image(output[component], job.job["colourspace"])
                     write_image(frames_dir / f"{index:05d}.png", image)
-                    bgr = colour.quantize_8bit(image)[..., ::-1]
-                    writer.write(np.ascontiguousarray(bgr))
+                    writer.write(colour.quantize_8bit(image))
         finally:
-            writer.release()
-    return SweepOutput(video_path, frames_dir, len(frames))
+            writer.close()
+    return SweepOutput(video_path, frames_dir, len(frames), writer.encoder)
