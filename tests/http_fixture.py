@@ -19,7 +19,7 @@ class ServerState:
     """Files served (URL path -> bytes), the API listings, faults to inject, and a request log."""
 
     files: dict[str, bytes] = field(default_factory=dict)
-    listings: dict[str, list[dict]] = field(default_factory=dict)
+    listings: dict[str, list[dict] | dict] = field(default_factory=dict)  # JSON answers; lists are paged
     drop_after: dict[str, int] = field(default_factory=dict)  # path -> bytes sent before dropping (once)
     ignore_range: bool = False
     page_size: int | None = None  # listings longer than this are served in pages linked by a Link header
@@ -43,8 +43,8 @@ def _handler(state: ServerState):
                 items = state.listings[path]
                 params = urllib.parse.parse_qs(query)
                 start = int(params.get("cursor", ["0"])[0])
-                end = len(items) if state.page_size is None else start + state.page_size
-                body = json.dumps(items[start:end]).encode()
+                end = len(items) if state.page_size is None or not isinstance(items, list) else start + state.page_size
+                body = json.dumps(items[start:end] if isinstance(items, list) else items).encode()
                 self.send_response(200)
                 if end < len(items):
                     params["cursor"] = [str(end)]

