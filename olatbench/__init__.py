@@ -4,4 +4,4 @@ Layers (each imports only those above it):
 ``datasets`` (numpy only) -> ``metrics`` -> ``gaussians`` -> ``methods`` -> ``bench`` -> ``reports``.
 """
 
-__version__ = "0.1.0"
+__version__ = "0.1.0"  # the only place: pyproject.toml reads it (tool.setuptools.dynamic)

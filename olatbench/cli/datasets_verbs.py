@@ -7,6 +7,7 @@ from pathlib import Path
 
 import click
 
+from olatbench.cli.options import quiet_option, show_progress
 from olatbench.datasets.errors import DatasetError
 
 
@@ -58,7 +59,8 @@ def info(path: Path, fmt: str | None, as_json: bool) -> None:
 @click.option("--no-decode", is_flag=True, help="Check files and keys but do not decode the images.")
 @click.option("--json", "as_json", is_flag=True, help="Print the reports as JSON.")
 @click.option("--max-issues", default=20, show_default=True, help="Issues listed per scene in the text output.")
-def validate(path: Path, fmt: str | None, no_decode: bool, as_json: bool, max_issues: int) -> None:
+@quiet_option
+def validate(path: Path, fmt: str | None, no_decode: bool, as_json: bool, max_issues: int, quiet: bool) -> None:
     """Check every frame of a scene folder (or of every scene folder inside PATH).
 
     Exits with status 1 when any error is found.
@@ -69,7 +71,7 @@ def validate(path: Path, fmt: str | None, no_decode: bool, as_json: bool, max_is
     """
     from olatbench.datasets.validate import validate_folder
 
-    reports = [validate_folder(folder, fmt, decode=not no_decode, progress=not as_json)
+    reports = [validate_folder(folder, fmt, decode=not no_decode, progress=show_progress(quiet or as_json))
                for folder in _scene_folders(path)]
     if as_json:
         click.echo(json.dumps([report.to_dict() for report in reports], indent=2))
@@ -101,7 +103,8 @@ def validate(path: Path, fmt: str | None, no_decode: bool, as_json: bool, max_is
 @click.option("--format", "fmt", type=click.Choice(["nrhints", "gs3", "sssgs"]), default=None,
               help="Format of SRC (default: auto-detected).")
 @click.option("--overwrite", is_flag=True, help="Write over an existing scene in DST.")
-def convert(src: Path, dst: Path, target: str, fmt: str | None, overwrite: bool) -> None:
+@quiet_option
+def convert(src: Path, dst: Path, target: str, fmt: str | None, overwrite: bool, quiet: bool) -> None:
     """Write the scene in SRC into DST in another format.
 
     Cameras and lights are kept exactly; pixels go through linear light with straight alpha and are
@@ -123,7 +126,7 @@ def convert(src: Path, dst: Path, target: str, fmt: str | None, overwrite: bool)
             click.echo(f"note: dropping the {len(scene.frames['path'])} camera-path frames (no SSS-GS file)")
             scene.frames.pop("path")
         images = sum(frame.image_path is not None for frame in scene)
-        with tqdm(total=images, desc=f"convert {scene.name}", unit="image") as bar:
+        with tqdm(total=images, desc=f"convert {scene.name}", unit="image", disable=not show_progress(quiet)) as bar:
             def pixels(frame):
                 bar.update(1)
                 return frame_pixels(frame)

@@ -3,12 +3,15 @@
 from __future__ import annotations
 
 import importlib.util
+import json
 import platform
 import tempfile
 from collections.abc import Callable
 from pathlib import Path
 
 import click
+
+from olatbench.cli.options import json_option
 
 Check = tuple[str, bool, str, str]  # name, ok, detail, fix
 
@@ -132,7 +135,8 @@ def official_code_checks(code: tuple[str, ...] = ()) -> list[Check]:
 @click.option("--code", multiple=True, metavar="METHOD.KEY=VALUE",
               help="Settings of an official implementation to check, over olatbench.toml and the environment "
                    "(e.g. gs3-official.checkout=~/src/gs-relight; see docs/official.md).")
-def doctor(code: tuple[str, ...]) -> None:
+@json_option
+def doctor(code: tuple[str, ...], as_json: bool) -> None:
     """Show what this machine supports and how to fix what is missing; for each configured official
     implementation: its checkout and commit, its interpreter, the GPU it sees.
 
@@ -140,7 +144,14 @@ def doctor(code: tuple[str, ...]) -> None:
     Example:
       olatbench doctor
       olatbench doctor --code gs3-official.checkout=~/src/gs-relight --code gs3-official.conda_env=gs3
+      olatbench doctor --json
     """
+    if as_json:
+        checks = [{"name": name, "ok": ok, "detail": detail, "fix": fix or None}
+                  for name, ok, detail, fix in run_checks() + official_code_checks(code)]
+        click.echo(json.dumps({"python": platform.python_version(), "machine": platform.machine(),
+                               "checks": checks}, indent=2))
+        return
     click.echo(f"olatbench on Python {platform.python_version()} ({platform.machine()})")
     for name, ok, detail, fix in run_checks() + official_code_checks(code):
         click.echo(f"  {'ok ' if ok else 'NO '} {name:<32} {detail}")

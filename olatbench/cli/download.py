@@ -7,6 +7,7 @@ from pathlib import Path
 
 import click
 
+from olatbench.cli.options import option, quiet_option, show_progress
 from olatbench.datasets.download import fetch, manifest, transfer
 from olatbench.datasets.download.archives import UnsafeArchiveError
 from olatbench.datasets.download.sources import SOURCES
@@ -21,14 +22,15 @@ def default_data_root() -> Path:
 @click.command()
 @click.argument("suite", type=click.Choice(sorted(SOURCES)))
 @click.option("--scenes", help="Comma-separated canonical scene names (default: all of the suite).")
-@click.option("--root", type=click.Path(file_okay=False, path_type=Path), default=None,
+@option("--data-root", "root", aliases=("--root",), type=click.Path(file_okay=False, path_type=Path), default=None,
               help="Data root (default: $OLATBENCH_DATA or ./data). Scenes land in ROOT/<Scene>.")
 @click.option("--source", help="Use only this source (see the suite's sources in docs/downloads.md).")
 @click.option("--mirror", help="Base URL replacing the host: a folder URL (http:// or file://) for url "
                                "sources, or a Hugging Face compatible endpoint for hf sources.")
 @click.option("--jobs", default=4, show_default=True, help="Files downloaded in parallel.")
+@quiet_option
 def download(suite: str, scenes: str | None, root: Path | None, source: str | None, mirror: str | None,
-             jobs: int) -> None:
+             jobs: int, quiet: bool) -> None:
     """Fetch, verify and lay out the official scenes of SUITE.
 
     Downloads resume where they stopped; archives are checked against published or first-seen sha256
@@ -36,7 +38,7 @@ def download(suite: str, scenes: str | None, root: Path | None, source: str | No
 
     \b
     Example:
-      olatbench datasets download gs3 --scenes Translucent,Lego --root ~/olat
+      olatbench datasets download gs3 --scenes Translucent,Lego --data-root ~/olat
     """
     root = root or default_data_root()
     names = [s.strip() for s in scenes.split(",")] if scenes else list(SOURCES[suite])
@@ -47,7 +49,8 @@ def download(suite: str, scenes: str | None, root: Path | None, source: str | No
     failed, manual = 0, 0
     for name in names:
         try:
-            folder = fetch.download_scene(suite, name, root, source=source, mirror=mirror, jobs=jobs)
+            folder = fetch.download_scene(suite, name, root, source=source, mirror=mirror, jobs=jobs,
+                                          progress=show_progress(quiet))
             click.echo(f"{suite}/{name}: ready at {folder}")
         except fetch.ManualStepRequired as error:
             failed, manual = failed + 1, manual + 1
@@ -74,7 +77,7 @@ def verify(root: Path) -> None:
     folders = sorted(p.parent for p in root.glob(f"*/{manifest.MANIFEST_NAME}"))
     if not folders:
         raise click.ClickException(f"{root}: no scene downloaded by olatbench here "
-                                   f"(try: olatbench datasets download SUITE --root {root})")
+                                   f"(try: olatbench datasets download SUITE --data-root {root})")
     found = {folder: manifest.verify_folder(folder) for folder in folders}
     for folder, folder_problems in found.items():
         click.echo(f"{folder.name}: {'DAMAGED' if folder_problems else 'ok'}")

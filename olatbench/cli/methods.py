@@ -3,8 +3,11 @@
 from __future__ import annotations
 
 import dataclasses
+import json
 
 import click
+
+from olatbench.cli.options import json_option
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
@@ -42,20 +45,40 @@ def _official_code(spec):
     return import_reference(spec.implementation)
 
 
+def _method_json(name: str) -> dict:
+    """One method as data (``available: false`` with the reason when its spec cannot be loaded)."""
+    try:
+        spec = _spec(name)
+    except click.ClickException as error:
+        return {"name": name, "available": False, "error": error.message}
+    return {"name": name, "available": True, "kind": spec.kind,
+            "status": spec.source.status if spec.source is not None else None,
+            "description": spec.description.strip(), "implementation": spec.implementation,
+            "presets": list(spec.presets), "ablations": {grid: list(v) for grid, v in spec.ablations.items()},
+            "outputs": list(spec.outputs), "capabilities": sorted(spec.capabilities),
+            "source": None if spec.source is None else {"repository": spec.source.repository,
+                                                        "commit": spec.source.commit}}
+
+
 @methods.command("list")
-def list_methods() -> None:
+@json_option
+def list_methods(as_json: bool) -> None:
     """Every method: the built-in ones, official implementations and plugins (``olatbench.methods`` entry
     points), with its kind, a one-line description and its presets.
 
     \b
     Example:
       olatbench methods list
+      olatbench methods list --json
     """
     from olatbench.methods.registry import method_names
 
     names = method_names()
     if not names:
         raise click.ClickException("no methods found; reinstall olatbench: pip install -e .")
+    if as_json:
+        click.echo(json.dumps([_method_json(name) for name in names], indent=2))
+        return
     width = max(len(name) for name in names)
     for name in names:
         try:

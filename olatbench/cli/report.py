@@ -7,6 +7,7 @@ from pathlib import Path
 import click
 
 from olatbench.atomic import write_text
+from olatbench.cli.options import quiet_option, show_progress
 
 LAYOUTS = ("scenes", "overview", "ablation")
 
@@ -156,7 +157,8 @@ def _parse_resolution(text: str | None) -> tuple[int, int] | None:
 @click.option("--resolution", help="WIDTHxHEIGHT of the frames (default: the job's).")
 @click.option("-o", "--output", type=click.Path(file_okay=False, path_type=Path),
               help="Folder for <sweep>.mp4 and <sweep>_frames/ (default: RUN/videos).")
-def render(run, kind, count, start_frame, component, fps, device, resolution, output) -> None:
+@quiet_option
+def render(run, kind, count, start_frame, component, fps, device, resolution, output, quiet) -> None:
     """Render a relighting sweep of a finished job to an MP4 and a frame folder.
 
     \b
@@ -171,7 +173,8 @@ def render(run, kind, count, start_frame, component, fps, device, resolution, ou
     try:
         job = JobFolder.open(run)
         result = render_sweep(job, kind, output or run / "videos", count=count, frame_id=start_frame,
-                              component=component, fps=fps, device=device, resolution=_parse_resolution(resolution))
+                              component=component, fps=fps, device=device, resolution=_parse_resolution(resolution),
+                              progress=show_progress(quiet))
     except (JobFolderError, DatasetError, RuntimeError, OSError, ValueError) as error:
         raise click.ClickException(f"{error}\nCheck the job with 'olatbench status {run.parent.parent.parent}'.") \
             from None

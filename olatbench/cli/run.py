@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import shutil
 import sys
 from pathlib import Path
@@ -10,6 +11,7 @@ import click
 
 from olatbench.bench.executors import EXECUTORS
 from olatbench.bench.plan import PlanError
+from olatbench.cli.options import json_option, option, quiet_option, show_progress
 
 
 def _parse_resolution(value: str | None) -> tuple[int, int] | None:
@@ -93,8 +95,8 @@ def _metric(metrics: dict, key: str) -> str:
 @click.option("--resolution", help="Image size WIDTHxHEIGHT (default: the suite's, else native).")
 @click.option("--data-root", type=click.Path(file_okay=False, path_type=Path),
               help="Folder holding the suite's scene folders (default: $OLATBENCH_DATA; mini: its cache).")
-@click.option("--out", "-o", default=Path("runs"), show_default=True, type=click.Path(file_okay=False, path_type=Path),
-              help="Output root of the run folders.")
+@option("-o", "--output", "out", aliases=("--out",), default=Path("runs"), show_default=True,
+       type=click.Path(file_okay=False, path_type=Path), help="Output root of the run folders.")
 @click.option("--device", default="auto", show_default=True, help="torch device: auto, cpu, cuda, cuda:1, ...")
 @click.option("--executor", type=click.Choice(EXECUTORS),
               help="inline (this process), local (process pool), slurm (job array via submitit). "
@@ -119,16 +121,16 @@ def _metric(metrics: dict, key: str) -> str:
 @click.option("--slurm-array-parallelism", default=64, show_default=True, help="Tasks running at once.")
 @click.option("--wait/--no-wait", default=False, show_default=True,
               help="With --executor slurm: wait for the array and print the summary.")
-@click.option("--quiet", "-q", is_flag=True, help="No progress bars.")
+@quiet_option
+@click.option("--json", "as_json", is_flag=True, help="With --dry-run: print the plan as JSON (one object per job).")
 def run(method, suite, scenes, variants, ablation, seeds, iterations, overrides, code_settings, resolution, data_root,
-        out, device, executor,
-        workers, dry_run, calibrate, force, checkpoint_every, save_components, slurm_partition, slurm_time, slurm_gpus,
-        slurm_cpus, slurm_array_parallelism, wait, quiet) -> None:
+        out, device, executor, workers, dry_run, calibrate, force, checkpoint_every, save_components, slurm_partition,
+        slurm_time, slurm_gpus, slurm_cpus, slurm_array_parallelism, wait, quiet, as_json) -> None:
     """Train and evaluate METHOD on every scene of SUITE; rerunning skips finished jobs and resumes
     interrupted ones from their last checkpoint.
 
     Jobs are method × scene × variant × seed. Each writes to
-    OUT/<suite>/<method>/<variant>/<scene>/seed<k>/ (results.json, renders, checkpoints, logs).
+    OUTPUT/<suite>/<method>/<variant>/<scene>/seed<k>/ (results.json, renders, checkpoints, logs).
     Exit code: 0 when every job is done, 1 when any failed (the count is printed), 2 for a usage error.
 
     \b
@@ -146,7 +148,9 @@ def run(method, suite, scenes, variants, ablation, seeds, iterations, overrides,
     from olatbench.datasets.errors import DatasetError
     from olatbench.methods.official.settings import SettingsError, parse_code_options
 
-    progress = not quiet
+    progress = show_progress(quiet or as_json)
+    if as_json and not dry_run:
+        raise click.UsageError("--json goes with --dry-run")
     if executor is None:
         executor = "local" if workers > 1 else "inline"
     # a dry run leaves "auto" unresolved (the device enters no job id, and resolving it would import torch)
@@ -178,15 +182,17 @@ def run(method, suite, scenes, variants, ablation, seeds, iterations, overrides,
             estimates = plan_estimates(jobs, measure=calibrate, progress=progress)
         except ValueError as error:
             raise click.ClickException(str(error)) from None
-        _print_plan(jobs, states, out, estimates)
+        if as_json:
+            click.echo(json.dumps(plan_json(jobs, states, out, estimates), indent=2))
+        else:
+            _print_plan(jobs, states, out, estimates)
         return
 
     stale = [state for state in states if state.state == "stale"]
     if stale and not force:
         listing = "\n  ".join(f"{s.folder}: {s.message}" for s in stale[:10])
         raise click.ClickException(f"{len(stale)} job folder(s) hold results of a different job (config, data or "
-                                   f"code changed):\n  {listing}\nRerun with --force to replace them, or choose "
-                                   f"another --out.")
+                                   f"code changed):\n  {listing}\nRerun with --force to replace them, or x")
     to_run, skipped, running = [], [], []
     for job, state in zip(jobs, states, strict=True):
         if state.state == "done" and not force:
@@ -258,12 +264,25 @@ def _write_pending(jobs) -> None:
             write_json(path, job.to_json())
 
 
+def _state_text(state) -> str:
+    return state.state if state.state != "absent" else "pending"
+
+
+def plan_json(jobs, states, out: Path, estimates: list[float | None]) -> list[dict]:
+    """The dry run's table as data: one object per job, with its resolved config."""
+    return [{"index": index, "id": job.id or None, "suite": job.suite, "method": job.method, "variant": job.variant,
+             "scene": job.scene, "seed": job.seed, "iterations": job.iterations, "state": _state_text(state),
+             "step": state.step, "train_seconds_estimate": seconds, "folder": str(Path(job.folder).relative_to(out)),
+             "config": job.config}
+            for index, (job, state, seconds) in enumerate(zip(jobs, states, estimates, strict=True))]
+
+
 def _print_plan(jobs, states, out: Path, estimates: list[float | None]) -> None:
     from olatbench.bench.estimate import DAY_SECONDS, format_duration
 
     rows = []
     for index, (job, state, seconds) in enumerate(zip(jobs, states, estimates, strict=True)):
-        status = state.state if state.state != "absent" else "pending"
+        status = _state_text(state)
         if state.state == "partial":
             status = f"partial ({state.step}/{state.iterations})"
         rows.append([str(index), job.suite, job.method, job.variant, job.scene, str(job.seed), str(job.iterations),
@@ -311,12 +330,14 @@ def _print_summary(jobs, out: Path) -> None:
 
 @click.command(context_settings={"help_option_names": ["-h", "--help"]})
 @click.argument("runs", type=click.Path(exists=True, file_okay=False, path_type=Path), default=Path("runs"))
-def status(runs: Path) -> None:
+@json_option
+def status(runs: Path, as_json: bool) -> None:
     """Show the state of every job below RUNS: done, failed, partial (last checkpoint step) or pending.
 
     \b
     Example:
       olatbench status runs/
+      olatbench status runs/ --json     # one object per job folder
     """
     from collections import Counter
 
@@ -325,7 +346,12 @@ def status(runs: Path) -> None:
     states = scan_runs(runs)
     if not states:
         raise click.ClickException(f"no job folders (job.json) below {runs}; start one with: "
-                                   f"olatbench run --method ssdgs --suite mini --out {runs}")
+                                   f"olatbench run --method ssdgs --suite mini --output {runs}")
+    if as_json:
+        click.echo(json.dumps([{"job": str(state.folder.relative_to(runs)), "state": state.state,
+                                "id": state.job_id, "step": state.step, "iterations": state.iterations,
+                                "message": state.message} for state in states], indent=2))
+        return
     rows = []
     for state in states:
         step = "—" if state.step is None else f"{state.step}/{state.iterations}"

@@ -6,6 +6,7 @@ from pathlib import Path
 
 import click
 
+from olatbench.cli.options import option, quiet_option, show_progress
 from olatbench.datasets.errors import DatasetError
 
 
@@ -16,10 +17,10 @@ def _resolution(value: str | None) -> tuple[int, int] | None:
         width, _, height = value.lower().partition("x")
         size = (int(width), int(height or width))
     except ValueError:
-        raise click.BadParameter(f"expected N or WxH (e.g. 64 or 96x64), found {value!r}", param_hint="--res") \
+        raise click.BadParameter(f"expected N or WxH (e.g. 64 or 96x64), found {value!r}", param_hint="--resolution") \
             from None
     if min(size) < 4:
-        raise click.BadParameter(f"must be at least 4 pixels, found {value!r}", param_hint="--res")
+        raise click.BadParameter(f"must be at least 4 pixels, found {value!r}", param_hint="--resolution")
     return size
 
 
@@ -50,9 +51,10 @@ def _report_reference(root: Path, write: bool) -> None:
               help="A built-in recipe (see --list) or a recipe JSON file.")
 @click.option("--format", "fmt", type=click.Choice(["nrhints", "gs3", "sssgs"]), default="nrhints",
               show_default=True, help="Output format.")
-@click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path), default=None,
-              help="Output scene folder (with --mini: the suite root; default the cache).")
-@click.option("--res", "res", default=None, metavar="N|WxH", help="Image size (default: the recipe's).")
+@option("-o", "--output", "out_dir", aliases=("--out",), type=click.Path(file_okay=False, path_type=Path),
+       default=None, help="Output scene folder (with --mini: the suite root; default the cache).")
+@option("--resolution", "res", aliases=("--res",), default=None, metavar="N|WxH",
+        help="Image size (default: the recipe's).")
 @click.option("--spp", type=click.IntRange(min=1), default=None, help="Samples per pixel.")
 @click.option("--train", "n_train", type=click.IntRange(min=1), default=None, help="Number of training images.")
 @click.option("--test", "n_test", type=click.IntRange(min=0), default=None, help="Number of test images.")
@@ -65,15 +67,16 @@ def _report_reference(root: Path, write: bool) -> None:
               help="With --mini, for maintainers: make this machine's mini renders the packaged reference "
                    "(after a generator or Mitsuba pin change; commit the result).")
 @click.option("--list", "list_recipes", is_flag=True, help="List the built-in recipes and exit.")
+@quiet_option
 def synth(recipe_name: str | None, fmt: str, out_dir: Path | None, res: str | None, spp: int | None,
           n_train: int | None, n_test: int | None, seed: int | None, novel_views: bool | None, no_geometry: bool,
-          mini: bool, write_reference: bool, list_recipes: bool) -> None:
+          mini: bool, write_reference: bool, list_recipes: bool, quiet: bool) -> None:
     """Render a synthetic OLAT scene with Mitsuba 3 (needs: pip install 'olatbench[synth]').
 
     \b
     Examples:
-      olatbench datasets synth --recipe aniso_metal --out data/synth/aniso_metal
-      olatbench datasets synth --recipe my_recipe.json --format gs3 --out data/synth/mine --res 128 --spp 256
+      olatbench datasets synth --recipe aniso_metal -o data/synth/aniso_metal
+      olatbench datasets synth --recipe my_recipe.json --format gs3 -o data/synth/mine --resolution 128 --spp 256
       olatbench datasets synth --mini                # the mini suite into ~/.cache/olatbench/mini
 
     With --mini each scene is compared with the packaged reference renders and the command says whether
@@ -93,20 +96,20 @@ def synth(recipe_name: str | None, fmt: str, out_dir: Path | None, res: str | No
         if mini:
             from olatbench.datasets.synth.mini import ensure_mini_suite
 
-            root = ensure_mini_suite(out_dir, progress=True, compare=not write_reference)
+            root = ensure_mini_suite(out_dir, progress=show_progress(quiet), compare=not write_reference)
             _report_reference(root, write_reference)
             click.echo(f"mini suite ready in {root}. Next: olatbench run --method ssdgs --suite mini")
             return
         if write_reference:
             raise click.UsageError("--write-reference needs --mini")
         if recipe_name is None or out_dir is None:
-            raise click.UsageError("give --recipe and --out (or --mini, or --list)")
+            raise click.UsageError("give --recipe and --output (or --mini, or --list)")
         from olatbench.datasets.synth.generate import generate
 
         recipe = get_recipe(recipe_name).with_overrides(
             resolution=_resolution(res), spp=spp, train=n_train, test=n_test, seed=seed,
             novel_views=novel_views).validate()
-        generate(recipe, out_dir, fmt, progress=True, geometry=not no_geometry)
+        generate(recipe, out_dir, fmt, progress=show_progress(quiet), geometry=not no_geometry)
     except MitsubaMissing as error:
         raise click.ClickException(str(error)) from None
     except (ValueError, FileNotFoundError, DatasetError) as error:

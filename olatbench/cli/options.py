@@ -1,0 +1,55 @@
+"""Options shared by the verbs, so they are spelled alike everywhere.
+
+* ``-o/--output`` for what a verb writes, ``--data-root`` for where scenes live, ``--resolution`` for image
+  sizes; the spellings used before (``--out``, ``--root``, ``--res``, ``--dest``) are still accepted but no
+  longer shown in ``--help`` (`option` with ``aliases``).
+* ``-q/--quiet`` on every verb with progress bars; ``TQDM_DISABLE`` (tqdm's own variable, any value but
+  ``""``, ``0``, ``false``, ``no``) turns them off too (`show_progress`).
+* ``--json`` on the verbs that list things (`json_option`).
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable
+from typing import Any
+
+import click
+
+FALSE_WORDS = ("", "0", "false", "no", "off")
+
+
+class AliasedOption(click.Option):
+    """A click option accepting extra spellings (``hidden_aliases``) that ``--help`` does not show."""
+
+    def __init__(self, *args: Any, hidden_aliases: tuple[str, ...] = (), **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self.hidden_aliases = hidden_aliases
+
+    def get_help_record(self, ctx: click.Context) -> tuple[str, str] | None:
+        shown = self.opts
+        self.opts = [name for name in shown if name not in self.hidden_aliases]
+        try:
+            return super().get_help_record(ctx)
+        finally:
+            self.opts = shown
+
+
+def option(*names: str, aliases: tuple[str, ...] = (), **kwargs: Any) -> Callable:
+    """``click.option(*names, **kwargs)`` that also accepts the hidden old spellings ``aliases``."""
+    return click.option(*names, *aliases, cls=AliasedOption, hidden_aliases=tuple(aliases), **kwargs)
+
+
+def tqdm_disabled() -> bool:
+    """Whether ``$TQDM_DISABLE`` asks for no progress bars."""
+    return os.environ.get("TQDM_DISABLE", "").strip().lower() not in FALSE_WORDS
+
+
+def show_progress(quiet: bool) -> bool:
+    """Progress bars on unless ``--quiet`` or ``$TQDM_DISABLE``."""
+    return not quiet and not tqdm_disabled()
+
+
+quiet_option = click.option("--quiet", "-q", is_flag=True,
+                            help="No progress bars (also: TQDM_DISABLE=1 in the environment).")
+json_option = click.option("--json", "as_json", is_flag=True, help="Print JSON instead of text.")
