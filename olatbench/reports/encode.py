@@ -26,7 +26,6 @@ import numpy as np
 log = logging.getLogger(__name__)
 
 ENCODERS = ("av", "imageio-ffmpeg", "opencv")
-CODEC_NAMES = {"av": "h264", "imageio-ffmpeg": "h264", "opencv": "mpeg4"}  # what ffprobe / PyAV call the stream
 CRF = 18  # visually lossless for renders; x264's default is 23
 FALLBACK_WARNING = ("no H.264 encoder found (install 'olatbench[video]': PyAV or imageio-ffmpeg); writing MPEG-4 "
                     "Part 2 (mp4v) with OpenCV, which browsers do not play")
