@@ -111,7 +111,7 @@ def test_quiet_and_tqdm_disable_turn_progress_off(monkeypatch, tmp_path):
 
 
 @pytest.mark.parametrize("verb", [["run"], ["evaluate"], ["render"], ["datasets", "download"], ["datasets", "synth"],
-                                  ["datasets", "validate"], ["datasets", "convert"]])
+                                  ["datasets", "validate"], ["datasets", "convert"], ["view"]])
 def test_every_verb_with_progress_bars_has_quiet(verb):
     assert "--quiet" in CliRunner().invoke(main, [*verb, "--help"]).output
 

@@ -8,6 +8,8 @@ from pathlib import Path
 
 import click
 
+from olatbench.cli.options import quiet_option, show_progress
+
 
 @click.command("view")
 @click.argument("folder", type=click.Path(exists=True, file_okay=False, path_type=Path))
@@ -22,7 +24,8 @@ import click
 @click.option("--component", default="rgb", show_default=True, help="With --record: the output to record.")
 @click.option("--frames", "count", type=click.IntRange(min=1), help="With --record: spread this many frames.")
 @click.option("--start-frame", help="With --record: test frame id whose camera and light start (default: first).")
-def view(folder, port, host, device, drag_scale, record, component, count, start_frame) -> None:
+@quiet_option
+def view(folder, port, host, device, drag_scale, record, component, count, start_frame, quiet) -> None:
     """Open a web viewer on a trained job (or every finished job of a run folder).
 
     \b
@@ -48,7 +51,8 @@ def view(folder, port, host, device, drag_scale, record, component, count, start
     except RestoreError as error:
         raise click.ClickException(str(error)) from None
     if record is not None:
-        _record(first, *record, component=component, count=count, start_frame=start_frame)
+        _record(first, *record, component=component, count=count, start_frame=start_frame,
+                progress=show_progress(quiet))
         return
     try:
         from olatbench.viewer.server import ViewerApp
@@ -66,13 +70,14 @@ def view(folder, port, host, device, drag_scale, record, component, count, start
         app.stop()
 
 
-def _record(model, kind: str, out: Path, *, component: str, count: int | None, start_frame: str | None) -> None:
+def _record(model, kind: str, out: Path, *, component: str, count: int | None, start_frame: str | None,
+            progress: bool) -> None:
     from olatbench.reports.jobfolder import JobFolder, JobFolderError
     from olatbench.reports.video import render_sweep
 
     try:
         result = render_sweep(JobFolder.open(model.folder), kind, out.parent, count=count, frame_id=start_frame,
-                              component=component, method=model.method, video=out)
+                              component=component, method=model.method, video=out, progress=progress)
     except (JobFolderError, OSError, ValueError) as error:
         raise click.ClickException(str(error)) from None
-    click.echo(f"wrote {result.video} ({result.frames} frames; frames in {result.frames_dir})")
+    click.echo(f"wrote {result.video} ({result.frames} frames, {result.encoder}; frames in {result.frames_dir})")
