@@ -52,9 +52,13 @@ def cpu_flags() -> list[str]:
 
 
 def cpu_numerics() -> dict[str, object]:
-    """What decides CPU rounding in this process: torch's kernel width, threads, the pin, the CPU flags."""
-    import torch
-
-    return {"torch_cpu_capability": torch.backends.cpu.get_cpu_capability(),
-            "torch_threads": torch.get_num_threads(), CAPABILITY_ENV: os.environ.get(CAPABILITY_ENV),
-            "cpu_flags": cpu_flags(), "machine": platform.machine()}
+    """What decides CPU rounding in this process: torch's kernel width and threads (None without torch), the
+    pin, the CPU flags."""
+    try:
+        import torch
+    except ImportError:
+        capability, threads = None, None
+    else:
+        capability, threads = torch.backends.cpu.get_cpu_capability(), torch.get_num_threads()
+    return {"torch_cpu_capability": capability, "torch_threads": threads,
+            CAPABILITY_ENV: os.environ.get(CAPABILITY_ENV), "cpu_flags": cpu_flags(), "machine": platform.machine()}

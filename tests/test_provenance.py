@@ -28,4 +28,8 @@ def test_missing_cpuinfo_gives_nulls_not_an_error(tmp_path):
 
 def test_hardware_identity_has_every_key():
     identity = hardware_identity()
-    assert set(identity) == {"machine", "cpu", "gpus"} and isinstance(identity["gpus"], list)
+    assert set(identity) == {"machine", "cpu", "gpus", "numerics"} and isinstance(identity["gpus"], list)
+    import torch
+
+    assert identity["numerics"]["torch_cpu_capability"] == torch.backends.cpu.get_cpu_capability()
+    assert identity["numerics"]["torch_threads"] == torch.get_num_threads()

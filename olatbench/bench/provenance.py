@@ -7,7 +7,9 @@ One implementation for ``olatbench run`` (`olatbench.bench.execute`) and ``olatb
 * Hardware: the CPU model (Linux ``/proc/cpuinfo`` "model name", else ``platform.processor()``), physical
   cores (distinct (physical id, core id) pairs of ``/proc/cpuinfo``; ``null`` where that file does not say),
   logical threads (``os.cpu_count()``), threads this process may use (its CPU affinity), and every CUDA device
-  torch sees, with its name and total memory in MiB (an empty list without CUDA or without torch).
+  torch sees, with its name and total memory in MiB (an empty list without CUDA or without torch), and
+  what decides CPU rounding (`olatbench.numerics.cpu_numerics`: torch's ATen kernel width, its thread count,
+  ``ATEN_CPU_CAPABILITY``, the relevant CPU flags).
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ from typing import Any
 import numpy as np
 
 from olatbench import __version__
+from olatbench.numerics import cpu_numerics
 
 CPUINFO = Path("/proc/cpuinfo")
 
@@ -73,8 +76,10 @@ def gpu_identity() -> list[dict[str, Any]]:
 
 
 def hardware_identity() -> dict[str, Any]:
-    """``{"machine", "cpu": cpu_identity(), "gpus": gpu_identity()}``."""
-    return {"machine": platform.machine(), "cpu": cpu_identity(), "gpus": gpu_identity()}
+    """``{"machine", "cpu": cpu_identity(), "gpus": gpu_identity(), "numerics": cpu_numerics()}`` (numerics:
+    torch's CPU kernel width and threads, ``$ATEN_CPU_CAPABILITY`` and the CPU flags that change rounding)."""
+    return {"machine": platform.machine(), "cpu": cpu_identity(), "gpus": gpu_identity(),
+            "numerics": cpu_numerics()}
 
 
 def library_versions() -> dict[str, str | None]:

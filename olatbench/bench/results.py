@@ -124,6 +124,7 @@ class Hardware(TypedDict):
     machine: str  # platform.machine(): x86_64, arm64, ...
     cpu: CpuIdentity
     gpus: list[GpuIdentity]
+    numerics: NotRequired[dict[str, Any]]  # olatbench.numerics.cpu_numerics(): torch_cpu_capability, threads, ...
 
 
 class ModelInfo(TypedDict):
