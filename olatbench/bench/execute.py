@@ -122,6 +122,10 @@ def _run(job: Job, folder: Path, log: JobLog, progress: bool, position: int) -> 
 
     method_class = load_method_class(job)
     method = method_class(method_class.resolve_config(None, **job.config))
+    if method.test_pose_fitting is not None:  # the method fits the test views' poses/lights while it trains
+        test_views = load_views(scene.split(job.test_split), job, progress, position)
+        method.attach_test_views(test_views)
+        log(f"loaded {len(test_views)} test views for test_pose_fitting={method.test_pose_fitting}")
     train_seconds = _train(method, train_views, job, folder, log, progress, position)
 
     metrics: dict[str, Any] = {}
@@ -138,6 +142,9 @@ def _run(job: Job, folder: Path, log: JobLog, progress: bool, position: int) -> 
 
     results = _done_results(job, metrics, train_seconds, render_fps, method)
     results["evaluation"]["test_time_refinement"] = refinement
+    if method.test_pose_fitting is not None:
+        results["evaluation"]["test_pose_fitting"] = {"mode": method.test_pose_fitting, "split": job.test_split,
+                                                      "frames": method.fitted_test_views() or {}}
     write_results(folder / RESULTS_FILE, results)
     prune_checkpoints(folder, keep=1)
     write_text(folder / DONE_FILE, job.id + "\n")
@@ -348,7 +355,7 @@ def _base_results(job: Job, status: str) -> dict[str, Any]:
         "versions": library_versions(),
         "hashes": {"data_manifest": job.data_manifest, "config": hash_json(job.config), "code": job.code,
                    "data_matches_reference": data_matches_reference(job.scene_path) if job.suite == "mini" else None},
-        "evaluation": {"test_time_refinement": None},
+        "evaluation": {"test_time_refinement": None, "test_pose_fitting": None},
         "error": None,
     }
 

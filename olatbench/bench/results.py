@@ -16,14 +16,19 @@ Schema version 1 (every key present; unknown values are ``null``)::
       "versions": {"olatbench": str, "python": str, "numpy": str, "torch": str | null, ...},
       "hashes": {"data_manifest": str, "config": str, "code": str, "data_matches_reference": bool | null},
       "evaluation": {"test_time_refinement": null | {"split": str, "seconds": float,
-                                                     "frames": {"<frame_id>": {"loss_before": ..., ...}}}},
+                                                     "frames": {"<frame_id>": {"loss_before": ..., ...}}},
+                     "test_pose_fitting": null | {"mode": str, "split": str,
+                                                  "frames": {"<frame_id>": {"translation": ..., ...}}}},
       "error": null | {"type": str, "message": str}
     }
 
 ``evaluation.test_time_refinement`` is set when the method fitted each test view's pose/light to its image
-before scoring it (e.g. SSD-GS ``test_time_refinement=true``); files written before it existed lack the key,
-which reads as ``null``. ``hashes.data_matches_reference`` (``mini`` only, else ``null``; absent in older
-files) says whether the scene's files are byte-identical to the package's reference renders.
+before scoring it (e.g. SSD-GS ``test_time_refinement=true``); ``evaluation.test_pose_fitting`` when the method
+fitted the test views' poses/lights *during training* (``mode``, e.g. SSD-GS ``"interleaved"``, the official
+real-data protocol) and scored them with those fits (per frame: ``translation``, ``rotation_deg``,
+``light_offset``). Files written before these keys existed lack them, which reads as ``null``.
+``hashes.data_matches_reference`` (``mini`` only, else ``null``; absent in older files) says whether the scene's
+files are byte-identical to the package's reference renders.
 
 Official implementations (``olatbench.bench.official``) add ``"method_kind": "official"`` and ``"official"``:
 the repository, the pinned commit and the one checked out, the launcher settings, and each command with its exit
@@ -96,6 +101,7 @@ class Hashes(TypedDict):
 
 class Evaluation(TypedDict):
     test_time_refinement: dict[str, Any] | None  # {"split", "seconds", "frames": {frame id: {...}}}
+    test_pose_fitting: NotRequired[dict[str, Any] | None]  # {"mode", "split", "frames": {frame id: {...}}}
 
 
 class ResultsFailure(TypedDict):
