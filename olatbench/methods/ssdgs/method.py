@@ -322,7 +322,6 @@ class SSDGS(GaussianMethod, spec=SPEC):
             "steps": float(cfg.test_time_steps), "loss_before": losses[0], "loss_after": best[0],
             **_offset_summary(delta, shift)})
 
-    # ----------------------------------------------------------------------------------------- checkpoints
     # ------------------------------------------------------------------------------- test-view fitting
     def attach_test_views(self, test: Views) -> None:
         """Give the test views to ``test_pose_fitting="interleaved"`` (call before `setup`; the runner does).
@@ -359,6 +358,7 @@ class SSDGS(GaussianMethod, spec=SPEC):
         return {frame_id: _offset_summary(*self.test_fit.deltas(i, self.refine_from, step))
                 for i, frame_id in enumerate(self.test_fit.views.views.frame_ids)}
 
+    # ----------------------------------------------------------------------------------------- checkpoints
     def module_state(self) -> dict[str, Any]:
         state: dict[str, Any] = {"shader": self.shader.state_dict(), "near_cap": self.near_cap}
         if self.test_fit is not None:
