@@ -71,6 +71,30 @@ def test_test_time_refinement_is_run_and_recorded(data, tmp_path):
     assert results["job"]["config"]["test_time_refinement"] is True
 
 
+def test_interleaved_test_pose_fitting_is_run_recorded_and_footnoted(data, tmp_path):
+    """The runner gives the test views to the method, which fits them while training (4 training views: test passes
+    after steps 4 and 8); results.json records the mode and each frame's offsets; the report footnotes the test
+    numbers (not the train ones)."""
+    from olatbench.reports.collect import collect
+    from olatbench.reports.runs_tables import scene_table
+
+    job = smaller(plan(data, tmp_path / "runs", iterations=10)[0], num_init_gaussians=200, shadow_resolution=24,
+                  refine_camera=True, refine_light=True, refine_camera_from=0, refine_light_from=0,
+                  test_pose_fitting="interleaved")
+    assert run_job(job, progress=False).status == "done", (Path(job.folder) / "error.txt").read_text()
+    results = read_results(Path(job.folder) / "results.json")
+    record = results["evaluation"]["test_pose_fitting"]
+    assert record["mode"] == "interleaved" and record["split"] == "test"
+    assert set(record["frames"]) == set(results["metrics"]["test"]["per_image"])
+    assert all(frame["rotation_deg"] > 0 and frame["light_offset"] > 0 for frame in record["frames"].values())
+    table = scene_table(collect(tmp_path / "runs"), suite=job.suite, metrics=("psnr",))
+    assert any(note.startswith("f:") and "test_pose_fitting=interleaved" in note for note in table.footnotes)
+    marks = {column: cell.marks for block in table.blocks for row in block.rows
+             for column, cell in zip(table.columns, row.cells, strict=True)}
+    assert {column: "f" in cell_marks for column, cell_marks in marks.items()} == {
+        column: column.endswith("/Test") for column in marks}
+
+
 @pytest.mark.slow
 def test_ssdgs_mini_preset_runs_end_to_end(data, tmp_path):
     job = plan(data, tmp_path / "runs", options=PlanOptions(save_components=True))[0]

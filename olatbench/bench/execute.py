@@ -122,6 +122,10 @@ def _run(job: Job, folder: Path, log: JobLog, progress: bool, position: int, sta
 
     method_class = load_method_class(job)
     method = method_class(method_class.resolve_config(None, **job.config))
+    if method.test_pose_fitting is not None:  # the method fits the test views' poses/lights while it trains
+        test_views = load_views(scene.split(job.test_split), job, progress, position)
+        method.attach_test_views(test_views)
+        log(f"loaded {len(test_views)} test views for test_pose_fitting={method.test_pose_fitting}")
     train_seconds = _train(method, train_views, job, folder, log, progress, position)
 
     metrics: dict[str, Any] = {}
@@ -143,6 +147,9 @@ def _run(job: Job, folder: Path, log: JobLog, progress: bool, position: int, sta
     checkpoints = list_checkpoints(folder)
     results["hashes"]["checkpoint"] = sha256_file(checkpoints[-1][1]) if checkpoints else None
     results["evaluation"]["test_time_refinement"] = refinement
+    if method.test_pose_fitting is not None:
+        results["evaluation"]["test_pose_fitting"] = {"mode": method.test_pose_fitting, "split": job.test_split,
+                                                      "frames": method.fitted_test_views() or {}}
     write_results(folder / RESULTS_FILE, results)
     prune_checkpoints(folder, keep=1)
     write_text(folder / DONE_FILE, job.id + "\n")
@@ -350,7 +357,7 @@ def _base_results(job: Job, status: str, started: str) -> dict[str, Any]:
                    "checkpoint": None},
         "files": {},
         "source": None,
-        "evaluation": {"test_time_refinement": None},
+        "evaluation": {"test_time_refinement": None, "test_pose_fitting": None},
         "error": None,
     }
 

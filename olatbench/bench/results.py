@@ -26,7 +26,9 @@ Schema version 2 (unknown values are ``null``; blocks marked *run* are ``null`` 
       "source": null (run) | {"predictions": str, "scene": {"name": str, "format": str, "root": str},
                               "split": str, "colourspace": str, "png_space": str},
       "evaluation": {"test_time_refinement": null | {"split": str, "seconds": float,
-                                                     "frames": {"<frame_id>": {"loss_before": ..., ...}}}},
+                                                     "frames": {"<frame_id>": {"loss_before": ..., ...}}},
+                     "test_pose_fitting": null | {"mode": str, "split": str,
+                                                  "frames": {"<frame_id>": {"translation": ..., ...}}}},
       "error": null | {"type": str, "message": str}
     }
 
@@ -39,9 +41,12 @@ absolute). Runs and ``olatbench evaluate`` write the same keys through the same 
 (`olatbench.bench.provenance`).
 
 ``evaluation.test_time_refinement`` is set when the method fitted each test view's pose/light to its image
-before scoring it (e.g. SSD-GS ``test_time_refinement=true``). ``hashes.data_matches_reference`` (``mini`` only,
-else ``null``; absent in older files) says whether the scene's files are byte-identical to the package's
-reference renders.
+before scoring it (e.g. SSD-GS ``test_time_refinement=true``); ``evaluation.test_pose_fitting`` when the method
+fitted the test views' poses/lights *during training* (``mode``, e.g. SSD-GS ``"interleaved"``, the official
+real-data protocol) and scored them with those fits (per frame: ``translation``, ``rotation_deg``,
+``light_offset``). Files written before these keys existed lack them, which reads as ``null``.
+``hashes.data_matches_reference`` (``mini`` only, else ``null``; absent in older files) says whether the scene's
+files are byte-identical to the package's reference renders.
 
 Official implementations (``olatbench.bench.official``) add ``"method_kind": "official"`` and ``"official"``:
 the repository, the pinned commit and the one checked out, the launcher settings, and each command with its exit
@@ -157,6 +162,7 @@ class EvaluationSource(TypedDict):
 
 class Evaluation(TypedDict):
     test_time_refinement: dict[str, Any] | None  # {"split", "seconds", "frames": {frame id: {...}}}
+    test_pose_fitting: NotRequired[dict[str, Any] | None]  # {"mode", "split", "frames": {frame id: {...}}}
 
 
 class ResultsFailure(TypedDict):

@@ -117,6 +117,21 @@ class Method(ABC):
         """
         return None
 
+    @property
+    def test_pose_fitting(self) -> str | None:
+        """The name of the evaluation mode in which the method fits the test views' poses/lights during training
+        (e.g. ``"interleaved"``), or None (the default). The runner then gives it the test views with
+        `attach_test_views` before `setup` and records `fitted_test_views` in results.json."""
+        return None
+
+    def attach_test_views(self, test: Views) -> None:
+        """Receive the test views (images included) for `test_pose_fitting`; called before `setup`."""
+        raise NotImplementedError(f"{type(self).__name__} does not fit test views")
+
+    def fitted_test_views(self) -> dict[str, dict[str, float]] | None:
+        """Per test frame id, plain floats saying how far its pose/light were fitted (None: no fitting)."""
+        return None
+
     @abstractmethod
     def state_dict(self) -> dict[str, Any]:
         """Everything needed to resume training: tensors and plain Python values only."""

@@ -21,7 +21,11 @@ class GaussianConfig:
     reference_iterations: int = 30_000
     # Initialisation and size.
     num_init_gaussians: int = 10_000
-    init_radius: float | None = 1.0  # None: fitted to the cameras (see methods.initialisation.initial_ball)
+    # Uniform in the ball of init_radius around the origin (the paper's "unit sphere"), or with init_shape="box"
+    # in the cube of half-side init_radius / 2 (the official codes' [-0.5, 0.5]³ at 1.0); None: the ball (and the
+    # cube) around the point nearest every camera axis, fitted to the cameras (methods.initialisation).
+    init_shape: str = "ball"
+    init_radius: float | None = 1.0
     init_opacity: float = 0.1
     max_gaussians: int | None = None
     # Loss: (1 - λ) L1 + λ (1 - SSIM).
@@ -45,6 +49,8 @@ class GaussianConfig:
     def __post_init__(self) -> None:
         if self.iterations <= 0 or self.reference_iterations <= 0:
             raise ValueError(f"{self.label} config: iterations and reference_iterations must be positive")
+        if self.init_shape not in ("ball", "box"):
+            raise ValueError(f"{self.label} config: init_shape must be 'ball' or 'box', not {self.init_shape!r}")
 
     def steps(self, value: int) -> int:
         """An iteration count given at ``reference_iterations``, scaled to ``iterations``."""

@@ -4,9 +4,10 @@ A `GaussianMethod` owns what the three share: the set-up order (checks, ``torch.
 views, the initial model, the method's own modules, the optimisers, the densifier), two Adam optimisers — one group
 per per-Gaussian parameter (resized by densification) and the method's global groups, declared as data by
 `global_groups` — whose rates come every step from the method's learning-rate table `learning_rates`, the training
-step (frozen parameters, forward, the 3DGS photometric loss, backward, update, densification), and the checkpoint
-(its format string and config checked on load). A method supplies its initial per-Gaussian attributes, its modules,
-its global groups, its rate table, its forward pass and its rendering.
+step (frozen parameters, forward, the 3DGS photometric loss, backward, then update and densification in the order
+`densify_before_update` says), and the checkpoint (its format string and config checked on load). A method supplies
+its initial per-Gaussian attributes, its modules, its global groups, its rate table, its forward pass and its
+rendering.
 
 The order of every call that consumes random numbers is fixed here, so methods moved onto this base train to the
 same numbers as before.
@@ -143,6 +144,15 @@ class GaussianMethod(Method):
         return {"loss": float(loss.detach()), "l1": float(l1.detach()), "psnr": psnr_of(image, target),
                 "projected": out["projected"], "light_weight": out["light_weight"]}
 
+    @property
+    def densify_before_update(self) -> bool:
+        """Whether density control runs before the Adam update (the official codes' order: its surgery drops the
+        gradients of the parameters it resizes, so they skip that update) instead of after it (default)."""
+        return False
+
+    def after_density_control(self, step: int, report: dict[str, int | bool]) -> None:
+        """Called after each step's density control with the `Densifier.step` report (default: nothing)."""
+
     def step_summary(self, step: int) -> dict[str, float]:
         """Extra scalars of `train_step` (default: none)."""
         return {}
@@ -154,12 +164,19 @@ class GaussianMethod(Method):
                 group["lr"] = rates[group["name"]]
         result = self.compute_gradients(step)
         projected, light_weight = result.pop("projected"), result.pop("light_weight")
+
+        def density_control() -> dict[str, int | bool]:
+            return self.densifier.observe_and_step(self.model, self.gaussian_optimizer, projected, step,
+                                                   self.train_views.scene_extent, priority=light_weight)
+
+        report = density_control() if self.densify_before_update else None
         for optimizer in self.optimizers:
             optimizer.step()
         for optimizer in self.optimizers:
             optimizer.zero_grad(set_to_none=True)
-        self.densifier.observe_and_step(self.model, self.gaussian_optimizer, projected, step,
-                                        self.train_views.scene_extent, priority=light_weight)
+        if report is None:
+            report = density_control()
+        self.after_density_control(step, report)
         self.step = step + 1
         result["num_gaussians"] = float(self.model.num_gaussians)
         result.update(self.step_summary(step))

@@ -10,7 +10,8 @@ from olatbench.methods.base import Views
 def initial_ball(views: Views, radius: float | None) -> tuple[np.ndarray, float]:
     """Centre (3,) and radius of the ball holding the initial random Gaussians, in world units.
 
-    With ``radius`` given: the origin and that radius (the official codes' unit-sphere initialisation).
+    With ``radius`` given: the origin and that radius (1.0: the SSD-GS paper's "unit sphere"; the official code's
+    box [-0.5, 0.5]³ is the cube of half-side radius / 2 around the centre, ``init_shape="box"``).
     With ``None``: the point closest, in least squares, to all cameras' optical axes, and 0.55 × the median
     camera distance to it (for scenes whose object is not at the origin).
     """
@@ -21,3 +22,4 @@ def initial_ball(views: Views, radius: float | None) -> tuple[np.ndarray, float]
     projector = np.eye(3)[None] - axes[:, :, None] * axes[:, None, :]  # (N, 3, 3) I - d dᵀ
     centre = np.linalg.lstsq(projector.sum(0), (projector @ origins[:, :, None]).sum(0)[:, 0], rcond=None)[0]
     return centre, 0.55 * float(np.median(np.linalg.norm(origins - centre, axis=1)))
+

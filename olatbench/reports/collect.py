@@ -3,12 +3,14 @@
 Only ``results.json`` files are read (through `olatbench.bench.results.read_results`, which
 refuses unknown schema versions), so a laptop, CI and a cluster build the same tables.
 
-Columns: ``method, variant, suite, scene, seed, split, metric, value, status, protocol`` plus
-``device, job_id, error, path``. A finished job gives one row per (split, metric) of its
-``metrics.<split>.mean`` (``value`` NaN when the run stored null, e.g. LPIPS without weights) and
-per-job rows with split "-" for ``fps`` (render FPS), ``train_time`` (seconds) and
-``num_gaussians``. A failed job gives one row with status "failed", empty split and metric, and
-its error in ``error``. Files written by ``olatbench evaluate`` (``kind: "evaluate"``, no job) give no rows.
+Columns: ``method, variant, suite, scene, seed, split, metric, value, status, protocol`` plus ``device, job_id,
+error, path`` and ``test_poses``: how the split's views were posed when they were scored — "" (as given),
+``"fitted"`` (the method fitted them during training, ``evaluation.test_pose_fitting``), ``"refined"`` (post-hoc
+test-time refinement, ``evaluation.test_time_refinement``) or ``"fitted+refined"``. A finished job gives one row
+per (split, metric) of its ``metrics.<split>.mean`` (``value`` NaN when the run stored null, e.g. LPIPS without
+weights) and per-job rows with split "-" for ``fps`` (render FPS), ``train_time`` (seconds) and ``num_gaussians``.
+A failed job gives one row with status "failed", empty split and metric, and its error in ``error``. Files
+written by ``olatbench evaluate`` (``kind: "evaluate"``, no job) give no rows.
 """
 
 from __future__ import annotations
@@ -24,7 +26,7 @@ from olatbench.bench.results import read_results
 from olatbench.bench.store import find_results
 
 COLUMNS = ("method", "variant", "suite", "scene", "seed", "split", "metric", "value", "status", "protocol",
-           "device", "job_id", "error", "path")
+           "device", "job_id", "error", "path", "test_poses")
 JOB_FACTS = (("fps", ("timing", "render_fps")), ("train_time", ("timing", "train_seconds")),
              ("num_gaussians", ("model", "num_gaussians")))
 
@@ -70,14 +72,29 @@ def result_rows(data: dict[str, Any], path: Path) -> list[dict[str, Any]]:
     if data["status"] == "failed":
         error = data.get("error") or {}
         text = f"{error.get('type', 'error')}: {error.get('message', '')}".strip()
-        return [{**base, "split": "", "metric": "", "value": math.nan, "error": text}]
+        return [{**base, "split": "", "metric": "", "value": math.nan, "error": text, "test_poses": ""}]
+    posed = posed_splits(data)
     rows = []
     for split, block in data["metrics"].items():
         for metric, value in block["mean"].items():
-            rows.append({**base, "split": split, "metric": metric, "value": _number(value), "error": ""})
+            rows.append({**base, "split": split, "metric": metric, "value": _number(value), "error": "",
+                         "test_poses": posed.get(split, "")})
     for metric, keys in JOB_FACTS:
-        rows.append({**base, "split": "-", "metric": metric, "value": _number(_nested(data, keys)), "error": ""})
+        rows.append({**base, "split": "-", "metric": metric, "value": _number(_nested(data, keys)), "error": "",
+                     "test_poses": ""})
     return rows
+
+
+def posed_splits(data: dict[str, Any]) -> dict[str, str]:
+    """Split -> ``"fitted"``, ``"refined"`` or ``"fitted+refined"`` for the splits whose views were scored with
+    poses/lights fitted to their own images (see the module docstring); splits scored as given are absent."""
+    evaluation = data.get("evaluation") or {}
+    modes: dict[str, list[str]] = {}
+    for key, name in (("test_pose_fitting", "fitted"), ("test_time_refinement", "refined")):
+        block = evaluation.get(key)
+        if isinstance(block, dict) and block.get("split"):
+            modes.setdefault(block["split"], []).append(name)
+    return {split: "+".join(names) for split, names in modes.items()}
 
 
 def collect(runs: str | Path | Iterable[str | Path]) -> pd.DataFrame:

@@ -8,7 +8,9 @@
 
 Missing or failed runs never silently change a number: a cell without a finished run prints "—"
 with a footnote mark, a mean over fewer seeds than expected is marked, and an average over scenes
-is only computed when every scene has a value. With ``published=True`` each run row that the
+is only computed when every scene has a value. Numbers scored with test poses/lights fitted to the test
+images (interleaved fitting during training, or post-hoc test-time refinement) carry their own marks, also
+on every average that includes one. With ``published=True`` each run row that the
 paper also reports gets a "(paper)" row and a "Δ" row (run − paper) beneath it; those rows are
 never ranked.
 """
@@ -49,7 +51,13 @@ NOTE_TEXTS = {
           "sample std over seeds: the effect exceeds seed noise"),
     "n": (f"differs from the full model (D; I for schedules) by at most {SIGNIFICANCE_FACTOR:g}× the pooled "
           "sample std over seeds: within seed noise"),
+    "f": "scored with the test views' poses and lights fitted to the test images during training "
+         "(test_pose_fitting=interleaved, the official code's real-data protocol); not comparable with raw poses",
+    "g": "scored after post-hoc test-time refinement of the test views' poses and lights against their images "
+         "(test_time_refinement); not comparable with raw poses",
 }
+#: Footnote of each way of posing scored views (the ``test_poses`` column of `collect`).
+POSE_NOTES = {"fitted": "f", "refined": "g"}
 ABLATION_PREFIXES = ("ablation-", "schedule-")
 
 
@@ -164,7 +172,15 @@ class RunCells:
             return Cell(None, marks=mark("e" if not values.empty else "b"))
         complete = self._complete(row, scene, split, metric)
         std = float(numbers.std(ddof=1)) if with_std and len(numbers) > 1 else None
-        return Cell(float(numbers.mean()), std=std, marks=() if complete else mark("c"))
+        marks = (() if complete else mark("c")) + self._pose_marks(values, note)
+        return Cell(float(numbers.mean()), std=std, marks=marks)
+
+    def _pose_marks(self, values: pd.DataFrame, note: bool = True) -> tuple[str, ...]:
+        """Footnote marks for the ways the scored views in ``values`` were posed (none for raw poses)."""
+        modes = {part for text in values.get("test_poses", pd.Series(dtype=str)).fillna("") for part in
+                 str(text).split("+") if part}
+        letters = sorted(POSE_NOTES[mode] for mode in modes if mode in POSE_NOTES)
+        return tuple(m for letter in letters for m in self.notes.mark(letter)) if note else tuple(letters)
 
     def seed_values(self, row: str, scenes: Sequence[str], split: str, metric: str) -> dict[int, float]:
         """Per seed, the mean over ``scenes`` of one (row, split, metric); seeds missing a scene are left out."""
@@ -176,16 +192,19 @@ class RunCells:
 
     def average(self, row: str, scenes: Sequence[str], split: str, metric: str, with_std: bool = False) -> Cell:
         """Mean (± population std) over scenes of the per-scene means; "—" unless every scene has a value."""
-        numbers, partial = [], False
+        numbers, partial, posed = [], False, set()
         for scene in scenes:
             cell = self.cell(row, scene, split, metric, note=False)
             if cell.number is None:
                 return Cell(None, marks=self.notes.mark("d"))
             numbers.append(cell.number)
             partial |= not self._complete(row, scene, split, metric)
+            posed |= set(cell.marks) & set(POSE_NOTES.values())
         mean = sum(numbers) / len(numbers)
         std = math.sqrt(sum((n - mean) ** 2 for n in numbers) / len(numbers)) if with_std else None
-        return Cell(mean, std=std, marks=self.notes.mark("c") if partial else ())
+        marks = (self.notes.mark("c") if partial else ()) + tuple(m for letter in sorted(posed)
+                                                                  for m in self.notes.mark(letter))
+        return Cell(mean, std=std, marks=marks)
 
     def _complete(self, row: str, scene: str, split: str, metric: str) -> bool:
         """Whether every seed of the row has a value for this scene (else the seed mean is partial)."""

@@ -60,8 +60,12 @@ class ASGMixture(nn.Module):
             scales[:, 0] *= 0.5
             self.raw_scales = nn.Parameter(scales)  # λ, μ = 10 · sigmoid(raw)
 
-    def lobe_parameters(self) -> list[nn.Parameter]:
-        """The lobe shape parameters (frames and widths) that Schedule I freezes early in the specular phase."""
+    def lobe_parameters(self, include_sigma: bool = True) -> list[nn.Parameter]:
+        """The lobe shape parameters that Schedule I freezes early in the specular phase: frames and widths, and in
+        the ``"official"`` form σ unless ``include_sigma`` is False (the official code freezes only its
+        ``asg_scales`` and ``asg_rotation``)."""
+        if self.form == "official" and not include_sigma:
+            return [self.rotation, self.raw_scales]
         return list(self.parameters())
 
     def frames(self) -> torch.Tensor:

@@ -30,12 +30,13 @@ from olatbench.methods.ssdgs.config import SSDGSConfig
 from olatbench.methods.ssdgs.schedule import Schedule
 from olatbench.methods.ssdgs.shader import Components, Shader
 from olatbench.methods.ssdgs.spec import SPEC
+from olatbench.methods.ssdgs.test_fitting import TestViewFitting, view_key
 from olatbench.methods.training import camera_centre, shaded_subset
 
 if TYPE_CHECKING:
     from olatbench.datasets.records import Camera, PointLight
 
-STATE_FORMAT = "olatbench.methods.ssdgs/2"  # 2: view order kept by TrainingViews
+STATE_FORMAT = "olatbench.methods.ssdgs/3"  # 2: view order kept by TrainingViews; 3: near-cap flag, test-view fits
 COMPONENT_CHANNELS = (("rgb", 3), ("diffuse", 3), ("specular", 3), ("sss", 3), ("shadow", 1), ("shadow_coarse", 1))
 
 
@@ -48,6 +49,7 @@ class SSDGS(GaussianMethod, spec=SPEC):
     label: ClassVar[str] = "SSD-GS"
 
     config: SSDGSConfig
+    _test_views: Views | None = None  # for test_pose_fitting="interleaved" (`attach_test_views`)
 
     # ------------------------------------------------------------------------------------------- setup
     def prepare(self, train: Views) -> None:
@@ -58,10 +60,16 @@ class SSDGS(GaussianMethod, spec=SPEC):
                              f"views' {tuple(background.tolist())}; the images are composited on the latter")
         self.background = torch.as_tensor(background, device=self.device)
         self.schedule: Schedule = cfg.resolved_schedule()
+        self.refine_from = {  # first step of camera / light refinement: the config's, else the schedule's
+            "camera": cfg.steps(cfg.refine_camera_from) if cfg.refine_camera_from is not None
+            else self.schedule.refine_camera_from,
+            "light": cfg.steps(cfg.refine_light_from) if cfg.refine_light_from is not None
+            else self.schedule.refine_light_from}
+        self.near_cap = False  # official `prune_visibility`: a densification left > 95 % of max_gaussians
         self.terms_in_model = frozenset(
             t for t, on in (("shadow", cfg.use_shadow), ("sss", cfg.use_sss), ("specular", cfg.use_specular)) if on)
         pairs = zip(train.cameras, train.lights, strict=True)
-        self._train_keys = {_view_key(c, lt): i for i, (c, lt) in enumerate(pairs)}
+        self._train_keys = {view_key(c, lt): i for i, (c, lt) in enumerate(pairs)}
 
     def initial_attributes(self, n: int) -> dict[str, torch.Tensor]:
         cfg = self.config
@@ -82,6 +90,9 @@ class SSDGS(GaussianMethod, spec=SPEC):
         self.shader = Shader(cfg).to(self.device)
         self.pose_refinement = PoseRefinement(len(train), self.device) if cfg.refine_camera else None
         self.light_refinement = LightRefinement(len(train), self.device) if cfg.refine_light else None
+        test = self._test_views if cfg.test_pose_fitting == "interleaved" else None
+        self.test_fit = TestViewFitting(test, cfg, self.device, self.train_views.generator.initial_seed()) \
+            if test is not None and len(test) > 0 else None
 
     def global_groups(self) -> list[ParameterGroup]:
         cfg = self.config
@@ -105,6 +116,13 @@ class SSDGS(GaussianMethod, spec=SPEC):
         asg = decayed(cfg.asg_lr_init, cfg.asg_lr_final, cfg.asg_lr_decay_from, cfg.asg_lr_max_steps)
         mlp = decayed(cfg.mlp_lr_init, cfg.mlp_lr_final, cfg.mlp_lr_decay_from, cfg.mlp_lr_max_steps)
         refine_length = max(1, s(cfg.refinement_lr_max_steps))
+
+        def refinement(init: float, final: float, start: int, delay_steps: int, delay_mult: float) -> float:
+            if step < start:
+                return 0.0
+            clock = step if cfg.refinement_lr_clock == "absolute" else step - start
+            return exponential_lr(clock, init, final, refine_length, s(delay_steps), delay_mult)
+
         return {
             "means": exponential_lr(step, cfg.position_lr_init * self.train_views.scene_extent,
                                     cfg.position_lr_final * self.train_views.scene_extent,
@@ -113,10 +131,10 @@ class SSDGS(GaussianMethod, spec=SPEC):
             "attributes.diffuse": cfg.colour_lr, "attributes.specular": cfg.colour_lr, "attributes.sss": cfg.colour_lr,
             "attributes.asg_weights": asg, "attributes.shading_quat": asg, "attributes.material": mlp,
             "asg_lobes": asg, "sss_mlp": mlp, "shadow_mlp": mlp,
-            "camera": exponential_lr(step - self.schedule.refine_camera_from, cfg.camera_lr_init,
-                                     cfg.camera_lr_final, refine_length),
-            "light": exponential_lr(step - self.schedule.refine_light_from, cfg.light_lr_init,
-                                    cfg.light_lr_final, refine_length),
+            "camera": refinement(cfg.camera_lr_init, cfg.camera_lr_final, self.refine_from["camera"],
+                                 cfg.camera_lr_delay_steps, cfg.camera_lr_delay_mult),
+            "light": refinement(cfg.light_lr_init, cfg.light_lr_final, self.refine_from["light"],
+                                cfg.light_lr_delay_steps, cfg.light_lr_delay_mult),
         }
 
     def active_terms(self, step: int) -> frozenset[str]:
@@ -128,7 +146,7 @@ class SSDGS(GaussianMethod, spec=SPEC):
         groups = {
             "shadow_mlp": list(self.shader.shadow_net.parameters()),
             "sss_mlp": list(self.shader.sss_net.parameters()),
-            "asg_lobes": list(self.shader.asg.parameters()),
+            "asg_lobes": self.shader.asg.lobe_parameters(include_sigma=self.config.asg_freeze_sigma),
             "material": [self.model.attributes["material"]],
             "specular": [self.model.attributes["specular"], self.model.attributes["asg_weights"]],
         }
@@ -136,12 +154,12 @@ class SSDGS(GaussianMethod, spec=SPEC):
 
     # ------------------------------------------------------------------------------------- forward pass
     def _camera(self, index: int | None, w2c: torch.Tensor, step: int) -> torch.Tensor:
-        if index is not None and self.pose_refinement is not None and step >= self.schedule.refine_camera_from:
+        if index is not None and self.pose_refinement is not None and step >= self.refine_from["camera"]:
             return self.pose_refinement.apply(index, w2c)
         return w2c
 
     def _light(self, index: int | None, position: torch.Tensor, step: int) -> torch.Tensor:
-        if index is not None and self.light_refinement is not None and step >= self.schedule.refine_light_from:
+        if index is not None and self.light_refinement is not None and step >= self.refine_from["light"]:
             return self.light_refinement.apply(index, position)
         return position
 
@@ -193,8 +211,36 @@ class SSDGS(GaussianMethod, spec=SPEC):
         camera = views.views.cameras[index]
         w2c = self._camera(index, views.w2cs[index], step)
         light = self._light(index, views.light_positions[index], step)
-        return self._forward(w2c, views.Ks[index], camera.width, camera.height, light, views.light_intensities[index],
-                             step, components=False)
+        out = self._forward(w2c, views.Ks[index], camera.width, camera.height, light, views.light_intensities[index],
+                            step, components=False)
+        if self.config.light_weight_accumulation == "near_cap" and not self.near_cap:
+            out["light_weight"] = None  # the official kernel accumulates it only near the cap (`is_train`)
+        return out
+
+    @property
+    def densify_before_update(self) -> bool:
+        return bool(self.config.densify_before_update)
+
+    def after_density_control(self, step: int, report: dict[str, int | bool]) -> None:
+        """Track the official ``prune_visibility``: set by a densification that leaves more than 95 % of
+        ``max_gaussians``, cleared once densification is over."""
+        cap = self.config.max_gaussians
+        if not self.densifier.active(step + 1):
+            self.near_cap = False
+        elif report["densified"] and cap is not None and self.model.num_gaussians > 0.95 * cap:
+            self.near_cap = True
+
+    def train_step(self, step: int) -> dict[str, float]:
+        """One training step; with interleaved test-view fitting, a pass over the test views first whenever a
+        training epoch has just ended (the official code's alternation)."""
+        fitted = None
+        if self.test_fit is not None and step > 0 and self.train_views.cursor >= len(self.train_views):
+            fitted = self.test_fit.epoch(lambda index, w2c, position: self._test_view_loss(index, w2c, position, step),
+                                         self.learning_rates(step), self.refine_from, step)
+        result = super().train_step(step)
+        if fitted is not None:
+            result["test_fit_loss"] = fitted
+        return result
 
     def clamp_render(self, render: torch.Tensor) -> torch.Tensor:
         """The render the loss sees: clamped to [0, 1] when ``clamp_output`` (the official code's choice)."""
@@ -203,12 +249,15 @@ class SSDGS(GaussianMethod, spec=SPEC):
     # ----------------------------------------------------------------------------------------- rendering
     @torch.no_grad()
     def render(self, camera: Camera, light: PointLight) -> dict[str, torch.Tensor]:
-        """Every component at the current step; training views (same pose and light) use their refinements."""
+        """Every component at the current step; training views (same pose and light) use their refinements, and
+        so do test views fitted by ``test_pose_fitting="interleaved"``."""
         f32 = dict(dtype=torch.float32, device=self.device)
-        index = self._train_keys.get(_view_key(camera, light))
-        step = max(self.step - 1, 0)
+        key, step = view_key(camera, light), max(self.step - 1, 0)
+        index = self._train_keys.get(key)
         w2c = self._camera(index, torch.as_tensor(camera.w2c(), **f32), step)
         position = self._light(index, torch.as_tensor(light.position, **f32), step)
+        if index is None and self.test_fit is not None and key in self.test_fit.keys:
+            w2c, position = self.test_fit.apply(self.test_fit.keys[key], w2c, position, self.refine_from, step)
         out = self._forward(w2c, torch.as_tensor(camera.K, **f32), camera.width, camera.height, position,
                             torch.as_tensor(light.intensity, **f32), step, components=True)
         image, result, start = out["image"], {}, 0
@@ -225,15 +274,17 @@ class SSDGS(GaussianMethod, spec=SPEC):
     def refine_view(self, camera: Camera, light: PointLight, image: np.ndarray) -> RefinedView | None:
         """Test-time refinement (``test_time_refinement``): fit this view's pose and/or light to ``image``.
 
-        A fresh zero SO3×R3 pose delta and light offset (as in training, per ``refine_camera`` /
-        ``refine_light``) take ``test_time_steps`` Adam steps on the training loss at the training
-        refinement's initial rates, every other parameter frozen; the iterate with the lowest loss is kept.
+        Starting from the view's interleaved fit when there is one (`fitted_view`), a fresh zero SO3×R3 pose delta
+        and light offset (as in training, per ``refine_camera`` / ``refine_light``) take ``test_time_steps`` Adam
+        steps on the training loss at the training refinement's initial rates, every other parameter frozen; the
+        iterate with the lowest loss is kept.
         Summary: ``loss_before``/``loss_after`` (of the returned view),
         ``translation`` and ``light_offset`` (scene units), ``rotation_deg``.
         """
         cfg = self.config
         if not cfg.test_time_refinement:
             return None
+        camera, light = self.fitted_view(camera, light)  # from the interleaved fit, if the view has one
         f32 = dict(dtype=torch.float32, device=self.device)
         w2c, K = torch.as_tensor(camera.w2c(), **f32), torch.as_tensor(camera.K, **f32)
         position, intensity = torch.as_tensor(light.position, **f32), torch.as_tensor(light.intensity, **f32)
@@ -267,15 +318,51 @@ class SSDGS(GaussianMethod, spec=SPEC):
         shift = offset.offsets[0].detach().double().cpu().numpy() if offset is not None else np.zeros(3)
         refined_camera = replace(camera, c2w=np.linalg.inv(delta @ camera.w2c()))
         refined_light = replace(light, position=np.asarray(light.position, dtype=np.float64) + shift)
-        angle = float(np.degrees(np.arccos(np.clip((np.trace(delta[:3, :3]) - 1.0) / 2.0, -1.0, 1.0))))
         return RefinedView(refined_camera, refined_light, {
             "steps": float(cfg.test_time_steps), "loss_before": losses[0], "loss_after": best[0],
-            "translation": float(np.linalg.norm(delta[:3, 3])), "rotation_deg": angle,
-            "light_offset": float(np.linalg.norm(shift))})
+            **_offset_summary(delta, shift)})
+
+    # ------------------------------------------------------------------------------- test-view fitting
+    def attach_test_views(self, test: Views) -> None:
+        """Give the test views to ``test_pose_fitting="interleaved"`` (call before `setup`; the runner does).
+        Without them (or with the option off) training has no test passes."""
+        self._test_views = test
+
+    def _test_view_loss(self, index: int, w2c: torch.Tensor, position: torch.Tensor, step: int) -> torch.Tensor:
+        """Training loss of test view ``index`` rendered with the given pose and light at ``step``."""
+        views = self.test_fit.views
+        camera = views.views.cameras[index]
+        out = self._forward(w2c, views.Ks[index], camera.width, camera.height, position,
+                            views.light_intensities[index], step, components=False)
+        return self.loss(out["image"], views.image(index))[1]
+
+    @property
+    def test_pose_fitting(self) -> str | None:
+        return "interleaved" if self.config.test_pose_fitting == "interleaved" else None
+
+    def fitted_view(self, camera: Camera, light: PointLight) -> tuple[Camera, PointLight]:
+        """The camera and light a test view is scored with: its interleaved fit, else as given."""
+        index = None if self.test_fit is None else self.test_fit.keys.get(view_key(camera, light))
+        if index is None:
+            return camera, light
+        delta, shift = self.test_fit.deltas(index, self.refine_from, max(self.step - 1, 0))
+        return (replace(camera, c2w=np.linalg.inv(delta @ camera.w2c())),
+                replace(light, position=np.asarray(light.position, dtype=np.float64) + shift))
+
+    def fitted_test_views(self) -> dict[str, dict[str, float]] | None:
+        """Per test frame id: the fitted ``translation`` (scene units), ``rotation_deg`` and ``light_offset`` (scene
+        units) of ``test_pose_fitting="interleaved"``; None when the option is off or had no test views."""
+        if self.test_fit is None:
+            return None
+        step = max(self.step - 1, 0)
+        return {frame_id: _offset_summary(*self.test_fit.deltas(i, self.refine_from, step))
+                for i, frame_id in enumerate(self.test_fit.views.views.frame_ids)}
 
     # ----------------------------------------------------------------------------------------- checkpoints
     def module_state(self) -> dict[str, Any]:
-        state: dict[str, Any] = {"shader": self.shader.state_dict()}
+        state: dict[str, Any] = {"shader": self.shader.state_dict(), "near_cap": self.near_cap}
+        if self.test_fit is not None:
+            state["test_fit"] = self.test_fit.state_dict()
         if self.pose_refinement is not None:
             state["pose_refinement"] = self.pose_refinement.state_dict()
         if self.light_refinement is not None:
@@ -284,15 +371,21 @@ class SSDGS(GaussianMethod, spec=SPEC):
 
     def load_module_state(self, state: dict[str, Any]) -> None:
         self.shader.load_state_dict(state["shader"])
+        self.near_cap = bool(state["near_cap"])
+        if self.test_fit is not None:
+            self.test_fit.load_state_dict(state["test_fit"])
         if self.pose_refinement is not None:
             self.pose_refinement.load_state_dict(state["pose_refinement"])
         if self.light_refinement is not None:
             self.light_refinement.load_state_dict(state["light_refinement"])
 
 
-def _view_key(camera: Camera, light: PointLight) -> bytes:
-    """Exact identity of a (pose, light position) pair, to recognise training views at render time."""
-    return np.asarray(camera.c2w, dtype=np.float64).tobytes() + np.asarray(light.position, dtype=np.float64).tobytes()
+def _offset_summary(delta: np.ndarray, shift: np.ndarray) -> dict[str, float]:
+    """How far a camera-space delta (4, 4) and a light shift (3,) move a view: ``translation``, ``rotation_deg``,
+    ``light_offset``."""
+    angle = float(np.degrees(np.arccos(np.clip((np.trace(delta[:3, :3]) - 1.0) / 2.0, -1.0, 1.0))))
+    return {"translation": float(np.linalg.norm(delta[:3, 3])), "rotation_deg": angle,
+            "light_offset": float(np.linalg.norm(shift))}
 
 
 __all__ = ["SSDGS"]
