@@ -19,9 +19,9 @@ from dataclasses import dataclass
 
 import torch
 
-from .backends import resolve_backend
 from .projection import Projected
-from .tiles import TileBins, bin_gaussians
+from .rasterize import backend_and_bins
+from .tiles import TileBins
 
 
 @dataclass
@@ -48,10 +48,7 @@ def max_weights(
     if opacities.shape != (n,):
         raise ValueError(f"opacities must be (N={n},), got {tuple(opacities.shape)}")
     dtype = projected.means2d.dtype
-    name = resolve_backend(backend, projected.means2d.device, dtype)
-    if bins is None:
-        bins = bin_gaussians(projected.means2d, projected.radii, projected.depths, projected.width, projected.height,
-                             backend="cpu" if name == "cpu" else "torch")
+    name, bins = backend_and_bins(projected, backend, bins)
     args = (projected.means2d.detach(), projected.conics.detach(), opacities.detach().to(dtype), bins)
     if name == "cpu":
         from .backends.cpu import max_weights_cpu

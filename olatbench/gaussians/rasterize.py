@@ -61,6 +61,16 @@ def composite(
     raise ValueError(f"unknown concrete backend {backend!r}")
 
 
+def backend_and_bins(projected: Projected, backend: str, bins: TileBins | None) -> tuple[str, TileBins]:
+    """The compositing backend resolved for ``projected`` and its tile bins (``bins``, or made by the C++
+    binning when that backend is "cpu" and by torch otherwise)."""
+    name = resolve_backend(backend, projected.means2d.device, projected.means2d.dtype)
+    if bins is None:
+        bins = bin_gaussians(projected.means2d, projected.radii, projected.depths, projected.width, projected.height,
+                             backend="cpu" if name == "cpu" else "torch")
+    return name, bins
+
+
 def rasterize(
     projected: Projected,
     opacities: torch.Tensor,
@@ -85,10 +95,7 @@ def rasterize(
     if background.shape != (channels,):
         raise ValueError(f"background must be (C={channels},), got {tuple(background.shape)}")
     dtype = projected.means2d.dtype
-    name = resolve_backend(backend, projected.means2d.device, dtype)
-    if bins is None:
-        bins = bin_gaussians(projected.means2d, projected.radii, projected.depths, projected.width, projected.height,
-                             backend="cpu" if name == "cpu" else "torch")
+    name, bins = backend_and_bins(projected, backend, bins)
     feats = features.to(dtype)
     if return_depth:
         feats = torch.cat([feats, projected.depths.to(dtype)[:, None]], dim=1)
