@@ -183,3 +183,23 @@ def test_the_lint_finds_leaks():
     assert [what for _, what in device_leaks("x = torch.zeros(3)\ny = torch.ones(2, device=d)\n")] == [
         "torch.zeros(...) without device="]
     assert len(device_leaks("a = t.detach().numpy()\nb = t.detach().cpu().numpy()\n")) == 1
+
+
+@pytest.mark.parametrize("torch_path", [False, True], ids=["cpp", "torch"])
+def test_reported_backends_are_the_ones_that_run(torch_path, views, monkeypatch):
+    """`Method.backends()` (what doctor and the run log show) names the backends the stages actually pick."""
+    from olatbench.gaussians.projection import project
+    from olatbench.gaussians.rasterize import rasterize
+    from olatbench.gaussians.shadow import shadow_gather
+
+    method = make("ssdgs", views, torch_path, monkeypatch)
+    reported = method.backends()
+    assert set(reported.values()) == {"torch" if torch_path else "cpu"}
+    model, camera = method.model, views.cameras[0]
+    w2c, K = (torch.as_tensor(a, dtype=torch.float32) for a in (camera.w2c(), camera.K))
+    projected = project(model.means, model.quats, model.scales, w2c, K, camera.width, camera.height)
+    out = rasterize(projected, model.opacities, torch.zeros(model.num_gaussians, 3), torch.zeros(3))
+    assert out.backend == reported["rasterizer"]
+    light = shadow_gather(model.means, model.quats, model.scales, model.opacities, torch.ones(3), torch.zeros(3),
+                          resolution=16)
+    assert light.backend == reported["light_pass"]

@@ -25,6 +25,7 @@ gsplat's kernels are float32 only: the methods train in float32 on CUDA.
 
 from __future__ import annotations
 
+import functools
 import importlib.util
 
 import torch
@@ -35,9 +36,42 @@ from ..tiles import TileBins
 GSPLAT_ALPHA_MAX = 0.999
 
 
+def gsplat_version() -> str | None:
+    """The installed gsplat's version, or None when it is not installed (imports nothing)."""
+    if importlib.util.find_spec("gsplat") is None:
+        return None
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("gsplat")
+    except PackageNotFoundError:
+        return "unknown version"
+
+
+@functools.cache
+def gsplat_status() -> tuple[bool, str]:
+    """(usable, detail) of the CUDA backend, checked once per process.
+
+    Usable when gsplat is installed, a CUDA device is present and gsplat's CUDA extension loads. Loading it is
+    attempted only when CUDA is present; gsplat compiles it with the CUDA toolkit on first use (minutes, cached in
+    torch's extension folder) and, without a toolkit, leaves it unset after printing a warning."""
+    found = gsplat_version()
+    if found is None:
+        return False, "gsplat not installed (pip install 'olatbench[cuda]')"
+    if not torch.cuda.is_available():
+        return False, f"gsplat {found}; no CUDA device, so its extension was not compiled"
+    try:
+        from gsplat.cuda._backend import _C
+    except Exception as error:  # a failed JIT build raises from inside torch.utils.cpp_extension
+        return False, f"gsplat {found}; its CUDA extension failed to build: {type(error).__name__}: {error}"
+    if _C is None:
+        return False, f"gsplat {found}; its CUDA extension is unavailable (no CUDA toolkit found: install nvcc)"
+    return True, f"gsplat {found}; CUDA extension loaded"
+
+
 def gsplat_available() -> bool:
-    """True when gsplat is importable and a CUDA device is present."""
-    return importlib.util.find_spec("gsplat") is not None and torch.cuda.is_available()
+    """True when the CUDA backend can run: gsplat installed, a CUDA device present, its extension loaded."""
+    return gsplat_status()[0]
 
 
 def rasterize_cuda(
@@ -65,4 +99,4 @@ def rasterize_cuda(
     return colours[0], 1.0 - alphas[0, ..., 0]
 
 
-__all__ = ["gsplat_available", "rasterize_cuda"]
+__all__ = ["GSPLAT_ALPHA_MAX", "gsplat_available", "gsplat_status", "gsplat_version", "rasterize_cuda"]

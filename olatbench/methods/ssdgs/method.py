@@ -249,6 +249,9 @@ class SSDGS(GaussianMethod, spec=SPEC):
 
     # ----------------------------------------------------------------------------------------- rendering
     @torch.no_grad()
+    def backends(self) -> dict[str, str]:
+        return {**super().backends(), "shading": self.shader.backend_for(self.device)}
+
     def render(self, camera: Camera, light: PointLight) -> dict[str, torch.Tensor]:
         """Every component at the current step; training views (same pose and light) use their refinements, and
         so do test views fitted by ``test_pose_fitting="interleaved"``."""
