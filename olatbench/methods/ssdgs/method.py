@@ -247,11 +247,11 @@ class SSDGS(GaussianMethod, spec=SPEC):
         """The render the loss sees: clamped to [0, 1] when ``clamp_output`` (the official code's choice)."""
         return render.clamp(0.0, 1.0) if self.config.clamp_output else render
 
-    # ----------------------------------------------------------------------------------------- rendering
-    @torch.no_grad()
     def backends(self) -> dict[str, str]:
         return {**super().backends(), "shading": self.shader.backend_for(self.device)}
 
+    # ----------------------------------------------------------------------------------------- rendering
+    @torch.no_grad()
     def render(self, camera: Camera, light: PointLight) -> dict[str, torch.Tensor]:
         """Every component at the current step; training views (same pose and light) use their refinements, and
         so do test views fitted by ``test_pose_fitting="interleaved"``."""
