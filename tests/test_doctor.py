@@ -1,7 +1,11 @@
 """`olatbench doctor` reports every capability and never crashes on a broken one."""
 
 import importlib
+import sys
+import types
 
+import pytest
+import torch
 from click.testing import CliRunner
 
 from olatbench.cli import doctor as doctor_module
@@ -11,7 +15,8 @@ from olatbench.cli import main
 def test_doctor_lists_every_capability():
     result = CliRunner().invoke(main, ["doctor"])
     assert result.exit_code == 0, result.output
-    for name in ("torch", "C++ rasterizer", "C++ SSIM loss", "C++ SSD-GS shading", "Mitsuba", "LPIPS weights", "EXR",
+    for name in ("torch", "CUDA", "C++ rasterizer", "C++ SSIM loss", "C++ SSD-GS shading", "gsplat", "Stage backends",
+                 "Mitsuba", "LPIPS weights", "EXR",
                  "Slurm", "MP4"):
         assert name in result.output
 
@@ -40,3 +45,57 @@ def test_a_failing_check_is_reported_not_raised(monkeypatch):
     result = CliRunner().invoke(main, ["doctor"])
     assert result.exit_code == 0
     assert "NO" in result.output and "probe exploded" in result.output
+
+
+@pytest.fixture
+def fresh_gsplat_status():
+    from olatbench.gaussians.backends.cuda import gsplat_status
+
+    gsplat_status.cache_clear()
+    yield
+    gsplat_status.cache_clear()
+
+
+def test_without_cuda_gsplat_is_reported_and_not_compiled(fresh_gsplat_status, monkeypatch):
+    pytest.importorskip("gsplat")
+    monkeypatch.setattr(torch.cuda, "is_available", lambda: False)
+    monkeypatch.delitem(sys.modules, "gsplat.cuda._backend", raising=False)
+    _, ok, detail, fix = doctor_module._gsplat()
+    assert ok and fix == "" and "no CUDA device" in detail
+    assert detail.startswith(f"gsplat {__import__('gsplat').__version__}")
+    assert "gsplat.cuda._backend" not in sys.modules  # the extension build was not attempted
+
+
+@pytest.mark.parametrize(("extension", "expected"), [
+    ("loaded", "CUDA extension loaded"),
+    (None, "no CUDA toolkit found"),
+    ("raises", "failed to build: OSError: nvcc exploded"),
+])
+def test_with_cuda_the_extension_build_is_reported(fresh_gsplat_status, monkeypatch, extension, expected):
+    """On a GPU machine the check imports gsplat's extension module (which compiles it) and says what happened."""
+    pytest.importorskip("gsplat")
+    monkeypatch.setattr(torch.cuda, "is_available", lambda: True)
+    if extension == "raises":
+        class Exploding(types.ModuleType):
+            def __getattr__(self, name):
+                raise OSError("nvcc exploded")
+
+        fake = Exploding("gsplat.cuda._backend")
+    else:
+        fake = types.ModuleType("gsplat.cuda._backend")
+        fake._C = None if extension is None else object()
+    monkeypatch.setitem(sys.modules, "gsplat.cuda._backend", fake)
+    _, ok, detail, fix = doctor_module._gsplat()
+    assert expected in detail
+    assert ok == (extension == "loaded") and (fix == "") == ok
+    from olatbench.gaussians.backends import resolve_backend
+
+    assert resolve_backend("auto", "cuda") == ("cuda" if ok else "torch")  # auto only picks a loadable gsplat
+
+
+def test_stage_backends_follow_the_environment(monkeypatch):
+    for variable in ("OLATBENCH_RASTERIZER", "OLATBENCH_SSIM", "OLATBENCH_SHADING"):
+        monkeypatch.setenv(variable, "torch")
+    _, ok, detail, _ = doctor_module._stage_backends()
+    assert ok and detail == ("cpu: rasterizer=torch, projection=torch, binning=torch, light_pass=torch, ssim=torch, "
+                             "shading=torch")

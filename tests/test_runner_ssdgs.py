@@ -51,6 +51,11 @@ def test_ssdgs_runs_end_to_end_at_a_few_iterations(data, tmp_path):
     components = {p.name for p in (Path(job.folder) / "components" / "test").iterdir()}
     assert {"diffuse", "specular", "sss", "shadow"} <= components
     assert len(list((Path(job.folder) / "renders" / "test").glob("*.png"))) == 2
+    # The C++ kernels build here, so every stage runs them; the log says so after set-up.
+    stages = ("rasterizer", "projection", "binning", "light_pass", "ssim", "shading")
+    assert results["resources"]["device"] == "cpu"
+    assert results["resources"]["backends"] == dict.fromkeys(stages, "cpu")
+    assert "device cpu; backends: rasterizer=cpu, projection=cpu" in (Path(job.folder) / "log.txt").read_text()
 
 
 def test_test_time_refinement_is_run_and_recorded(data, tmp_path):

@@ -42,6 +42,7 @@ from olatbench.datasets.formats._common import safe_file_stem
 from olatbench.datasets.images import write_image
 from olatbench.datasets.records import Frame
 from olatbench.datasets.synth.mini import data_matches_reference
+from olatbench.methods.backends import format_backends
 from olatbench.methods.base import Method, Views
 from olatbench.metrics.evaluate import sha256_file
 
@@ -168,6 +169,7 @@ def _train(method: Method, views: Views, job: Job, folder: Path, log: JobLog, pr
     clock = time.perf_counter()
     method.setup(views, job.device, job.seed)
     setup_seconds = time.perf_counter() - clock
+    log(f"device {job.device}; backends: {format_backends(method.backends()) or 'not reported by the method'}")
     start, train_seconds = 0, setup_seconds
     checkpoints = list_checkpoints(folder)
     if checkpoints:
@@ -371,7 +373,13 @@ def _done_results(job: Job, started: str, metrics: dict[str, Any], train_seconds
     if torch.device(job.device).type == "cuda":
         results["resources"]["cuda_peak_mb"] = round(torch.cuda.max_memory_allocated(job.device) / 2**20, 1)
     results["model"]["num_gaussians"] = method.num_gaussians
+    results["resources"].update(backend_fields(job, method))
     return results
+
+
+def backend_fields(job: Job, method: Method) -> dict[str, Any]:
+    """``device`` and ``backends`` (stage -> implementation, see `olatbench.methods.backends`) for results.json."""
+    return {"device": job.device, "backends": method.backends()}
 
 
 def _failed_results(job: Job, error: BaseException, started: str) -> dict[str, Any]:

@@ -12,7 +12,8 @@ Schema version 2 (unknown values are ``null``; blocks marked *run* are ``null`` 
       "metrics": {"<split>": {"mean": {"psnr": float, "ssim": float, "lpips": float | null, ...},
                                "per_image": {"<frame_id>": {"psnr": ..., ...}}}},
       "timing": {"started": str, "finished": str, "train_seconds": float | null, "render_fps": float | null},
-      "resources": {"device": str, "peak_rss_mb": float, "cuda_peak_mb": float | null},
+      "resources": {"device": str, "peak_rss_mb": float, "cuda_peak_mb": float | null,
+                    "backends": {stage: backend} (done runs; e.g. {"rasterizer": "cuda", "ssim": "torch"})},
       "hardware": {"machine": str, "cpu": {"model": str | null, "cores": int | null, "threads": int | null,
                                            "usable_threads": int | null},
                    "gpus": [{"index": int, "name": str, "memory_mb": float}]},
@@ -110,6 +111,7 @@ class Resources(TypedDict):
     device: str
     peak_rss_mb: float
     cuda_peak_mb: float | None
+    backends: NotRequired[dict[str, str]]  # stage -> implementation (olatbench.methods.backends); done runs only
 
 
 class CpuIdentity(TypedDict):

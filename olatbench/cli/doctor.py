@@ -46,10 +46,53 @@ def _native_check(module: str, name: str) -> Callable[[], Check]:
     return check
 
 
+def _cuda() -> Check:
+    if importlib.util.find_spec("torch") is None:
+        return "CUDA", False, "needs torch", "pip install torch==2.13.0"
+    import torch
+
+    if not torch.cuda.is_available():
+        build = f"torch built with CUDA {torch.version.cuda}" if torch.version.cuda else "CPU-only torch build"
+        return "CUDA", False, f"no CUDA device ({build})", "on a GPU machine: a CUDA build of torch (pytorch.org)"
+    names = ", ".join(f"{torch.cuda.get_device_name(i)} {torch.cuda.get_device_properties(i).total_memory / 2**30:.0f}"
+                      " GiB" for i in range(torch.cuda.device_count()))
+    return "CUDA", True, f"CUDA {torch.version.cuda}: {names}", ""
+
+
 def _gsplat() -> Check:
-    found = importlib.util.find_spec("gsplat") is not None
-    return ("gsplat (CUDA backend)", found, "installed" if found else "not installed (only needed on a GPU)",
-            "" if found else "pip install gsplat  (on a CUDA machine)")
+    """gsplat's version and, on a CUDA machine only, whether its extension compiles/loads."""
+    if importlib.util.find_spec("torch") is None:
+        return "gsplat (CUDA rasterizer)", False, "needs torch", "pip install torch==2.13.0"
+    import torch
+
+    from olatbench.gaussians.backends.cuda import gsplat_status, gsplat_version
+
+    ok, detail = gsplat_status()
+    if gsplat_version() is None:
+        fix = "pip install 'olatbench[cuda]'  (only needed on a GPU)"
+    elif not torch.cuda.is_available():
+        ok, fix = True, ""  # nothing to fix on a CPU machine: the extension is compiled on first CUDA use
+    else:
+        fix = "" if ok else "install the CUDA toolkit matching torch.version.cuda (nvcc on PATH), then rerun"
+    return "gsplat (CUDA rasterizer)", ok, detail, fix
+
+
+def _stage_backends() -> Check:
+    """The backend each training stage will use, on every device present."""
+    if importlib.util.find_spec("torch") is None:
+        return "Stage backends", False, "needs torch", "pip install torch==2.13.0"
+    import torch
+
+    from olatbench.methods.backends import format_backends, stage_backends
+    from olatbench.methods.ssdgs.config import SSDGSConfig
+    from olatbench.methods.ssdgs.shader import Shader
+
+    shader = Shader(SSDGSConfig())
+    lines = []
+    for device in ["cpu"] + (["cuda"] if torch.cuda.is_available() else []):
+        stages = {**stage_backends(device), "shading": shader.backend_for(device)}
+        lines.append(f"{device}: {format_backends(stages)}")
+    return "Stage backends (float32)", True, "; ".join(lines), ""
 
 
 def _mitsuba() -> Check:
@@ -103,8 +146,8 @@ def _video() -> Check:
 
 
 CHECKS: tuple[Callable[[], Check], ...] = (
-    _torch, *(_native_check(module, name) for module, name in NATIVE_LIBRARIES), _gsplat, _mitsuba, _lpips, _exr,
-    _slurm, _video)
+    _torch, _cuda, *(_native_check(module, name) for module, name in NATIVE_LIBRARIES), _gsplat, _stage_backends,
+    _mitsuba, _lpips, _exr, _slurm, _video)
 
 
 def run_checks() -> list[Check]:

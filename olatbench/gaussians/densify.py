@@ -255,7 +255,7 @@ class Densifier:
         count = cfg.split_count
         params = model.per_gaussian_parameters()
         scales = model.scales[split].repeat(count, 1)
-        noise = torch.randn(scales.shape, generator=self.generator, dtype=scales.dtype).to(scales.device)
+        noise = torch.randn(scales.shape, generator=self.generator, dtype=scales.dtype, device="cpu").to(scales.device)
         rotations = quat_to_rotmat(model.quats[split]).repeat(count, 1, 1)
         offsets = (rotations @ (noise * scales)[..., None]).squeeze(-1)
         rows = {name: value[split].repeat(count, *([1] * (value.ndim - 1))) for name, value in params.items()}

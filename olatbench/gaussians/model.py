@@ -98,7 +98,7 @@ class GaussianModel(nn.Module):
         ``colours`` (N, 3), if given, becomes the attribute ``"colour"``. ``attributes`` maps names to either a
         trailing shape (zeros of shape (N, *shape)) or a tensor (N, ...) used as is.
         """
-        means = torch.as_tensor(np.asarray(points) if isinstance(points, np.ndarray) else points)
+        means = torch.as_tensor(np.asarray(points), device="cpu") if isinstance(points, np.ndarray) else points
         means = means.to(device=device, dtype=dtype)
         if means.ndim != 2 or means.shape[1] != 3 or means.shape[0] == 0:
             raise ValueError(f"points must be a non-empty (N, 3) array, got shape {tuple(means.shape)}")
@@ -117,7 +117,7 @@ class GaussianModel(nn.Module):
         opacity_logits = torch.full((n,), math.log(opacity / (1.0 - opacity)), device=means.device, dtype=dtype)
         values = _build_attributes(attributes, n, means.device, dtype)
         if colours is not None:
-            rgb = torch.as_tensor(np.asarray(colours) if isinstance(colours, np.ndarray) else colours)
+            rgb = torch.as_tensor(np.asarray(colours), device="cpu") if isinstance(colours, np.ndarray) else colours
             rgb = rgb.to(device=means.device, dtype=dtype)
             _check_rows("colours", rgb, n, (3,))
             values["colour"] = rgb
@@ -135,11 +135,12 @@ class GaussianModel(nn.Module):
         opacity: float = 0.1,
     ) -> GaussianModel:
         """``n`` Gaussians uniform in the ball of ``radius`` around ``center`` (SSD-GS: 10K in the unit ball)."""
-        generator = torch.Generator().manual_seed(seed)
-        direction = torch.randn(n, 3, generator=generator, dtype=torch.float64)
+        generator = torch.Generator().manual_seed(seed)  # on the CPU: the same points on every device
+        cpu64 = dict(generator=generator, dtype=torch.float64, device="cpu")
+        direction = torch.randn(n, 3, **cpu64)
         direction /= direction.norm(dim=1, keepdim=True).clamp_min(1e-12)
-        r = radius * torch.rand(n, 1, generator=generator, dtype=torch.float64) ** (1.0 / 3.0)
-        points = (direction * r + torch.tensor(center, dtype=torch.float64)).float()
+        r = radius * torch.rand(n, 1, **cpu64) ** (1.0 / 3.0)
+        points = (direction * r + torch.tensor(center, dtype=torch.float64, device="cpu")).float()
         return cls.from_points(points, attributes=attributes, opacity=opacity, device=device)
 
     @classmethod
@@ -155,11 +156,11 @@ class GaussianModel(nn.Module):
     ) -> GaussianModel:
         """``n`` Gaussians uniform in the axis-aligned box [low, high] (3DGS Blender / SSD-GS code: 100K in ±0.5)."""
         generator = torch.Generator().manual_seed(seed)
-        lo = torch.tensor(low, dtype=torch.float64)
-        hi = torch.tensor(high, dtype=torch.float64)
+        lo = torch.tensor(low, dtype=torch.float64, device="cpu")
+        hi = torch.tensor(high, dtype=torch.float64, device="cpu")
         if not bool((hi > lo).all()):
             raise ValueError(f"random_in_box needs high > low per axis, got low={low}, high={high}")
-        points = (lo + (hi - lo) * torch.rand(n, 3, generator=generator, dtype=torch.float64)).float()
+        points = (lo + (hi - lo) * torch.rand(n, 3, generator=generator, dtype=torch.float64, device="cpu")).float()
         return cls.from_points(points, attributes=attributes, opacity=opacity, device=device)
 
     @classmethod
@@ -340,7 +341,7 @@ def _initial_cell_size(points: torch.Tensor, k: int) -> float:
     """Starting cell size: the lower quartile of the k-th neighbour distance of a random sample of points."""
     n = points.shape[0]
     generator = torch.Generator().manual_seed(0)
-    sample = torch.randperm(n, generator=generator)[: min(n, 64)].to(points.device)
+    sample = torch.randperm(n, generator=generator, device="cpu")[: min(n, 64)].to(points.device)
     kth = _brute_force_knn(points, sample, k)[:, -1].sqrt()
     positive = kth[kth > 0]
     if positive.numel() == 0:
@@ -362,7 +363,7 @@ def _brute_force_knn(points: torch.Tensor, queries: torch.Tensor, k: int) -> tor
     return torch.cat(out)
 
 
-_NEIGHBOUR_OFFSETS = torch.tensor([(i, j, l) for i in (-1, 0, 1) for j in (-1, 0, 1) for l in (-1, 0, 1)])
+_NEIGHBOUR_OFFSETS = torch.tensor([(i, j, l) for i in (-1, 0, 1) for j in (-1, 0, 1) for l in (-1, 0, 1)], device="cpu")
 # A query whose 27 cells hold more candidates than this is sent to a finer grid, down to cells of
 # diagonal / 2**_FINEST_GRID_BITS (cell keys must fit in int64; clusters of duplicates end in brute force).
 _MAX_CANDIDATES = 2048

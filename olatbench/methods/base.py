@@ -149,3 +149,8 @@ class Method(ABC):
     def num_gaussians(self) -> int | None:
         """Current primitive count, when the method has one."""
         return None
+
+    def backends(self) -> dict[str, str]:
+        """The implementation each stage runs after `setup` (stage -> backend, e.g. ``{"rasterizer": "cuda"}``), for
+        the run's log and results; empty when the method does not say."""
+        return {}

@@ -23,6 +23,7 @@ import numpy as np
 import torch
 
 from olatbench.gaussians.optim import make_adam
+from olatbench.methods.backends import stage_backends
 from olatbench.methods.base import Method, Views
 from olatbench.methods.training import (
     TrainingViews,
@@ -185,6 +186,10 @@ class GaussianMethod(Method):
     @property
     def num_gaussians(self) -> int | None:
         return self.model.num_gaussians if hasattr(self, "model") else None
+
+    def backends(self) -> dict[str, str]:
+        """The shared stages' backends on the method's device (float32, as the methods train)."""
+        return stage_backends(self.device)
 
     # ------------------------------------------------------------------------------------- checkpoints
     def module_state(self) -> dict[str, Any]:

@@ -86,7 +86,7 @@ class TrainingViews:
         # 3DGS's cameras_extent: 1.1 × the largest camera distance from the mean camera centre.
         self.scene_extent = float(1.1 * np.linalg.norm(centres - centres.mean(0), axis=1).max())
         self.generator = torch.Generator().manual_seed(seed)
-        self.order = torch.randperm(len(views), generator=self.generator)
+        self.order = torch.randperm(len(views), generator=self.generator, device="cpu")
         self.cursor = 0
 
     def __len__(self) -> int:
@@ -95,7 +95,7 @@ class TrainingViews:
     def next_index(self) -> int:
         """The next training view (every view once per epoch, in a fresh random order)."""
         if self.cursor >= len(self.order):
-            self.order = torch.randperm(len(self.views), generator=self.generator)
+            self.order = torch.randperm(len(self.views), generator=self.generator, device="cpu")
             self.cursor = 0
         index = int(self.order[self.cursor])
         self.cursor += 1

@@ -32,6 +32,7 @@ from olatbench.metrics.ssim_cpu import LIBRARY, ssim_loss_cpu, unsupported_reaso
 SSIMVariant = Literal["wang", "3dgs"]
 SSIM_VARIANTS: tuple[str, ...] = ("wang", "3dgs")
 SSIMBackend = Literal["auto", "torch", "cpu"]
+SSIM_ENV = "OLATBENCH_SSIM"  # overrides backend="auto" (e.g. "torch": the path CUDA tensors take, on the CPU)
 WINDOW_SIZE = 11
 SIGMA = 1.5
 K1, K2 = 0.01, 0.03
@@ -40,7 +41,7 @@ K1, K2 = 0.01, 0.03
 def gaussian_taps(size: int = WINDOW_SIZE, sigma: float = SIGMA, dtype: torch.dtype = torch.float32,
                   device: torch.device | str | None = None) -> torch.Tensor:
     """Normalised 1D Gaussian (size,) centred on the middle tap: ``exp(-(i - size//2)² / 2σ²)``."""
-    offsets = torch.arange(size, dtype=torch.float64) - size // 2
+    offsets = torch.arange(size, dtype=torch.float64, device="cpu") - size // 2  # float64 taps, then moved
     taps = torch.exp(-(offsets**2) / (2 * sigma**2))
     return (taps / taps.sum()).to(dtype=dtype, device=device)
 
@@ -129,7 +130,8 @@ def resolve_ssim_backend(pred: torch.Tensor, gt: torch.Tensor, variant: SSIMVari
     ``gt`` does not require grad. ``backend="auto"`` picks it for such inputs when the C++ library builds and
     otherwise ``"torch"``; a failed build falls back to torch with one RuntimeWarning saying why
     (``olatbench._native.choose_backend``). ``backend="cpu"`` raises ValueError for other inputs and
-    RuntimeError when the library cannot be built; ``"torch"`` always uses the torch code."""
+    RuntimeError when the library cannot be built; ``"torch"`` always uses the torch code. The environment
+    variable ``OLATBENCH_SSIM`` (``auto``, ``torch`` or ``cpu``) overrides ``"auto"``."""
     _check_variant(variant)
 
     def cpu_check() -> Unavailable | None:
@@ -141,7 +143,8 @@ def resolve_ssim_backend(pred: torch.Tensor, gt: torch.Tensor, variant: SSIMVari
             reason = unsupported_reason(pred, gt)
         return Unavailable(reason) if reason is not None else LIBRARY.unavailable()
 
-    return choose_backend(backend, pred.device.type, {"cpu": cpu_check, "torch": always}, kind="SSIM")
+    return choose_backend(backend, pred.device.type, {"cpu": cpu_check, "torch": always}, kind="SSIM",
+                          env_var=SSIM_ENV)
 
 
 def ssim_loss(pred: torch.Tensor, gt: torch.Tensor, variant: SSIMVariant = "3dgs", channels_last: bool = False,

@@ -7,7 +7,7 @@ Every backend implements ``(means2d (N,2), conics (N,3), opacities (N,), feature
 - ``cpu``: ``cpu.rasterize_cpu``, the C++/OpenMP kernel with a hand-written backward (built on first use);
 - ``cuda``: ``cuda.rasterize_cuda``, gsplat's CUDA kernel.
 
-``resolve_backend("auto", device)`` picks ``cuda`` (gsplat) for CUDA tensors when gsplat is importable and
+``resolve_backend("auto", device)`` picks ``cuda`` (gsplat) for CUDA tensors when gsplat's CUDA extension loads and
 ``cpu`` for CPU float32/float64 tensors when the C++ library builds, else ``torch``; a missing gsplat or a
 failed build falls back to ``torch`` with one warning saying why (``olatbench._native.choose_backend``). The
 environment variable ``OLATBENCH_RASTERIZER`` (``torch``, ``cpu``, ``cuda`` or ``auto``) overrides ``"auto"``;
@@ -28,7 +28,7 @@ import torch
 from olatbench._native import Unavailable, always, choose_backend
 
 from .cpu import LIBRARY
-from .cuda import gsplat_available
+from .cuda import gsplat_available, gsplat_status
 
 BACKENDS = ("torch", "cpu", "cuda")
 ENV_VAR = "OLATBENCH_RASTERIZER"
@@ -50,7 +50,7 @@ def _cpu_check(dtype: torch.dtype) -> Unavailable | None:
 def _cuda_check() -> Unavailable | None:
     if gsplat_available():
         return None
-    return Unavailable("it needs gsplat (`pip install gsplat`) and a CUDA device", missing=True)
+    return Unavailable(f"it needs gsplat with its CUDA extension: {gsplat_status()[1]}", missing=True)
 
 
 def resolve_backend(requested: str, device: torch.device | str, dtype: torch.dtype = torch.float32) -> str:

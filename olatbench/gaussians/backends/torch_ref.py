@@ -81,12 +81,12 @@ def _chunks(counts: torch.Tensor, pixels_per_tile: int) -> list[torch.Tensor]:
     for tile in order:
         longest_if_added = max(longest, counts_list[tile])
         if current and (len(current) + 1) * longest_if_added * pixels_per_tile > CHUNK_ELEMENTS:
-            chunks.append(torch.tensor(current, dtype=torch.int64))
+            chunks.append(torch.tensor(current, dtype=torch.int64, device="cpu"))
             current, longest_if_added = [], counts_list[tile]
         current.append(tile)
         longest = longest_if_added
     if current:
-        chunks.append(torch.tensor(current, dtype=torch.int64))
+        chunks.append(torch.tensor(current, dtype=torch.int64, device="cpu"))
     return chunks
 
 

@@ -53,11 +53,11 @@ class GS3(GaussianMethod, spec=SPEC):
 
     # ------------------------------------------------------------------------------------------- set-up
     def initial_attributes(self, n: int) -> dict[str, torch.Tensor]:
-        identity = torch.zeros(n, 4)
+        identity = torch.zeros(n, 4, device="cpu")
         identity[:, 0] = 1.0
-        return {"diffuse": torch.full((n, 3), 0.5), "specular": torch.full((n, 3), 0.5),
-                "asg_weights": torch.zeros(n, self.config.num_asg), "shading_quat": identity,
-                "material": torch.ones(n, self.config.material_dim)}
+        return {"diffuse": torch.full((n, 3), 0.5, device="cpu"), "specular": torch.full((n, 3), 0.5, device="cpu"),
+                "asg_weights": torch.zeros(n, self.config.num_asg, device="cpu"), "shading_quat": identity,
+                "material": torch.ones(n, self.config.material_dim, device="cpu")}
 
     def build_modules(self, train: Views) -> None:
         cfg = self.config

@@ -41,7 +41,7 @@ class GaussianSplatting3D(GaussianMethod, spec=SPEC):
     # ------------------------------------------------------------------------------------------- set-up
     def initial_attributes(self, n: int) -> dict[str, torch.Tensor]:
         rest = sh.num_coefficients(self.config.sh_degree) - 1
-        return {"sh_dc": torch.zeros(n, 1, 3), "sh_rest": torch.zeros(n, rest, 3)}
+        return {"sh_dc": torch.zeros(n, 1, 3, device="cpu"), "sh_rest": torch.zeros(n, rest, 3, device="cpu")}
 
     def learning_rates(self, step: int) -> dict[str, float]:
         """Per parameter group at ``step``: exponential decay for positions, constants otherwise (3DGS)."""

@@ -31,7 +31,7 @@ _INIT_ANISOTROPY = 2.5  # official init: λ = 2.5, μ = 1.0 (sigmoid(-1.0986)·1
 
 
 def _official_sigma_ratio(num_bases: int) -> torch.Tensor:
-    return F.softplus(torch.linspace(-2.0, 0.0, steps=num_bases))
+    return F.softplus(torch.linspace(-2.0, 0.0, steps=num_bases, device="cpu"))
 
 
 class ASGMixture(nn.Module):
@@ -43,7 +43,7 @@ class ASGMixture(nn.Module):
             raise ValueError(f"asg_form must be 'xu' or 'official', not {form!r}")
         self.form = form
         self.num_bases = num_bases
-        rotation = torch.zeros(num_bases, 4)
+        rotation = torch.zeros(num_bases, 4, device="cpu")
         rotation[:, 0] = 1.0
         self.rotation = nn.Parameter(rotation)  # (N, 4) wxyz, lobe frames in the Gaussian's frame
         # Official angular std of basis j along y: σ_j = sigmoid(0) · softplus(linspace(-2, 0)).
@@ -55,8 +55,8 @@ class ASGMixture(nn.Module):
             self.log_sharpness = nn.Parameter(torch.stack([lam.log(), mu.log()], dim=-1))  # (N, 2)
         else:
             self.register_buffer("sigma_ratio", _official_sigma_ratio(num_bases), persistent=False)
-            self.raw_sigma = nn.Parameter(torch.zeros(num_bases))
-            scales = torch.full((num_bases, 2), -2.1972)
+            self.raw_sigma = nn.Parameter(torch.zeros(num_bases, device="cpu"))
+            scales = torch.full((num_bases, 2), -2.1972, device="cpu")
             scales[:, 0] *= 0.5
             self.raw_scales = nn.Parameter(scales)  # λ, μ = 10 · sigmoid(raw)
 

@@ -73,11 +73,12 @@ class SSDGS(GaussianMethod, spec=SPEC):
 
     def initial_attributes(self, n: int) -> dict[str, torch.Tensor]:
         cfg = self.config
-        colour = torch.full((n, 3), 0.5)  # raw; softplus(0.5) = 0.97 as in the official code
+        colour = torch.full((n, 3), 0.5, device="cpu")  # raw; softplus(0.5) = 0.97 as in the official code
         attributes = {"diffuse": colour, "specular": colour.clone(), "sss": colour.clone(),
-                      "asg_weights": torch.zeros(n, cfg.num_asg), "material": torch.ones(n, cfg.material_dim)}
+                      "asg_weights": torch.zeros(n, cfg.num_asg, device="cpu"),
+                      "material": torch.ones(n, cfg.material_dim, device="cpu")}
         if cfg.shading_frame == "learned":
-            quat = torch.zeros(n, 4)
+            quat = torch.zeros(n, 4, device="cpu")
             quat[:, 0] = 1.0
             attributes["shading_quat"] = quat
         return attributes
@@ -85,7 +86,7 @@ class SSDGS(GaussianMethod, spec=SPEC):
     def build_modules(self, train: Views) -> None:
         cfg = self.config
         with torch.no_grad():  # random orientations: isotropic identity-rotated Gaussians would share one normal
-            random = torch.randn(self.model.num_gaussians, 4, generator=self.train_views.generator)
+            random = torch.randn(self.model.num_gaussians, 4, generator=self.train_views.generator, device="cpu")
             self.model.quats.copy_(F.normalize(random, dim=-1).to(self.device))
         self.shader = Shader(cfg).to(self.device)
         self.pose_refinement = PoseRefinement(len(train), self.device) if cfg.refine_camera else None
@@ -245,6 +246,9 @@ class SSDGS(GaussianMethod, spec=SPEC):
     def clamp_render(self, render: torch.Tensor) -> torch.Tensor:
         """The render the loss sees: clamped to [0, 1] when ``clamp_output`` (the official code's choice)."""
         return render.clamp(0.0, 1.0) if self.config.clamp_output else render
+
+    def backends(self) -> dict[str, str]:
+        return {**super().backends(), "shading": self.shader.backend_for(self.device)}
 
     # ----------------------------------------------------------------------------------------- rendering
     @torch.no_grad()

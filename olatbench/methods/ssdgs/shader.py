@@ -12,7 +12,8 @@ torch modules called between them) and raises ValueError when it cannot take the
 CPU, not one float32/float64 dtype, ``asg_form`` "official" — the kernels implement the "xu" ASG only) and
 RuntimeError when its C++ library does not build; ``"auto"`` (default) uses ``"cpu"`` when it can and
 ``"torch"`` otherwise, with one RuntimeWarning when the reason is a failed build (``olatbench._native``'s
-``choose_backend``). Both give the same components and gradients up to rounding.
+``choose_backend``); the environment variable ``OLATBENCH_SHADING`` (``auto``, ``torch`` or ``cpu``) overrides
+``"auto"``. Both give the same components and gradients up to rounding.
 """
 
 from __future__ import annotations
@@ -62,6 +63,7 @@ class Components:
 
 
 BACKENDS = ("auto", "torch", "cpu")
+SHADING_ENV = "OLATBENCH_SHADING"
 
 
 class Shader(nn.Module):
@@ -102,8 +104,7 @@ class Shader(nn.Module):
                        *(attributes[name] for name in self._attribute_names(terms))]
             if "specular" in terms:
                 tensors += list(self.asg.parameters())
-            available = {"cpu": lambda: self.cpu_unsupported(tensors), "torch": always}
-            if choose_backend(self.backend, positions.device.type, available, kind="SSD-GS shading") == "cpu":
+            if self.choose(positions.device.type, tensors) == "cpu":
                 return self._forward_cpu(positions, quats, scales, attributes, camera_position, light_position,
                                          intensity, terms, coarse_visibility)
         wi, incident = inverse_square_irradiance(positions, light_position, intensity)
@@ -136,6 +137,16 @@ class Shader(nn.Module):
         else:
             colour = (diffuse + specular) * shadow + sss
         return Components(colour, diffuse, specular, sss, shadow, coarse)
+
+    def choose(self, device_type: str, tensors: list[torch.Tensor]) -> str:
+        """The backend for input ``tensors`` on ``device_type``: "cpu" (the C++ kernels) or "torch"."""
+        available = {"cpu": lambda: self.cpu_unsupported(tensors), "torch": always}
+        return choose_backend(self.backend, device_type, available, kind="SSD-GS shading", env_var=SHADING_ENV)
+
+    def backend_for(self, device: torch.device | str, dtype: torch.dtype = torch.float32) -> str:
+        """The backend `forward` runs for ``dtype`` inputs on ``device`` (for doctor and the run log)."""
+        device = torch.device(device)
+        return self.choose(device.type, [torch.zeros(1, device=device, dtype=dtype)])
 
     def _attribute_names(self, terms: frozenset[str]) -> list[str]:
         """The per-Gaussian attributes shading with ``terms`` reads."""

@@ -98,7 +98,7 @@ class TestViewFitting:
         for group in self.optimizer.param_groups:
             group["lr"] = rates[group["name"]] if active[group["name"]] else 0.0
         views, losses = self.views, []
-        for index in torch.randperm(len(self), generator=self.generator).tolist():
+        for index in torch.randperm(len(self), generator=self.generator, device="cpu").tolist():
             params = ([self.poses[index].tangents] if active["camera"] else []) + \
                      ([self.lights[index].offsets] if active["light"] else [])
             with torch.enable_grad():
