@@ -37,19 +37,14 @@ BACKENDS = ("cpu", "torch")
 
 
 def light_pass_call(count: int, size: int, backend: str):
+    from bench_shadow import make_scene  # the same random ball of Gaussians and light as bench_shadow.py
+
     from olatbench.gaussians.shadow import shadow_gather
 
-    g = torch.Generator().manual_seed(0)
-    direction = torch.nn.functional.normalize(torch.randn(count, 3, generator=g), dim=-1)
-    means = direction * torch.rand(count, 1, generator=g) ** (1 / 3)
-    quats = torch.randn(count, 4, generator=g)
-    scales = torch.exp(torch.empty(count, 3).uniform_(math.log(0.005), math.log(0.04), generator=g))
-    opacities = torch.empty(count).uniform_(0.05, 0.95, generator=g)
-    light = torch.tensor([2.0, -3.0, 1.8])
-    light = light / light.norm() * 4.0
+    scene = make_scene(count)
 
     def run() -> None:
-        shadow_gather(means, quats, scales, opacities, light, torch.zeros(3), resolution=size, backend=backend)
+        shadow_gather(*scene, resolution=size, backend=backend)
 
     return run
 
