@@ -29,13 +29,12 @@ def _report_reference(root: Path, write: bool) -> None:
     import json
     import platform
 
-    from olatbench.datasets.synth.mini import MANIFEST, MINI_SCENES, compare_with_reference
+    from olatbench.datasets.synth.mini import MINI_SCENES, compare_with_reference, manifest_files
     from olatbench.datasets.synth.reference import load_reference, write_reference
 
     if write:
         synth_info = json.loads((root / MINI_SCENES[0] / "synth.json").read_text(encoding="utf-8"))
-        scenes = {name: json.loads((root / name / MANIFEST).read_text(encoding="utf-8"))["files"]
-                  for name in MINI_SCENES}
+        scenes = {name: manifest_files(root / name) for name in MINI_SCENES}
         path = write_reference(root, scenes, {
             "generator_version": synth_info["generator_version"], "mitsuba_version": synth_info["mitsuba_version"],
             "mitsuba_variant": synth_info["mitsuba_variant"],

@@ -147,7 +147,8 @@ def ensure_mini_suite(root: Path | None = None, progress: bool = True,
     return root
 
 
-def _manifest_files(folder: Path) -> dict[str, str] | None:
+def manifest_files(folder: Path) -> dict[str, str] | None:
+    """The ``files`` (relpath -> sha256) of a scene's manifest, or None when it is missing or unreadable."""
     try:
         return json.loads((Path(folder) / MANIFEST).read_text(encoding="utf-8"))["files"]
     except (OSError, ValueError, KeyError):
@@ -156,7 +157,7 @@ def _manifest_files(folder: Path) -> dict[str, str] | None:
 
 def compare_with_reference(folder: Path, reference: dict[str, Any] | None = None) -> SceneComparison:
     """A rendered mini scene (``folder``, named after its scene, with its manifest) against the reference."""
-    files = _manifest_files(folder)
+    files = manifest_files(folder)
     if files is None:
         raise FileNotFoundError(f"{Path(folder) / MANIFEST}: no readable manifest; render the scene first")
     return compare_scene(Path(folder), Path(folder).name, files, reference)
@@ -169,7 +170,7 @@ def data_matches_reference(folder: str | Path) -> bool | None:
     costs one small JSON read.
     """
     folder = Path(folder)
-    files = _manifest_files(folder)
+    files = manifest_files(folder)
     if folder.name not in MINI_SCENES or files is None:
         return None
-    return compare_scene(folder, folder.name, files).identical
+    return compare_scene(folder, folder.name, files, measure_pixels=False).identical

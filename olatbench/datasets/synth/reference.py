@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from olatbench.atomic import write_json
+from olatbench.datasets.images import read_image
 
 REFERENCE_FORMAT = 1
 #: Sampled images per scene whose pixels the package carries (the first two of each split).
@@ -83,29 +84,13 @@ class SceneComparison:
                      f"mean |Δ| = {mean:.5f} (pixel values in [0, 1])")
         return text
 
-    def to_json(self) -> dict[str, Any]:
-        return {"identical": self.identical, "missing": self.missing, "extra": self.extra,
-                "differing": self.differing,
-                "pixels": [{"path": d.path, "max_abs": d.max_abs, "mean_abs": d.mean_abs} for d in self.pixels]}
-
-
-def _read_unit(path: Path) -> np.ndarray:
-    """An 8- or 16-bit PNG as float32 in [0, 1], shape (H, W, C) (channels as stored)."""
-    import cv2
-
-    image = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
-    if image is None:
-        raise ValueError(f"{path}: not a readable image")
-    scale = 65535.0 if image.dtype == np.uint16 else 255.0
-    return image.astype(np.float32).reshape(image.shape[0], image.shape[1], -1) / scale
-
 
 def compare_scene(folder: Path, scene: str, files: dict[str, str], reference: dict[str, Any] | None = None,
-                  root: Path | None = None) -> SceneComparison:
+                  root: Path | None = None, measure_pixels: bool = True) -> SceneComparison:
     """Compare a scene's file hashes (``files``: relpath -> sha256, as in its manifest) with the reference.
 
-    Sampled images that differ are read from ``folder`` and compared pixel by pixel with the packaged
-    copies below ``root`` (default `reference_root`).
+    With ``measure_pixels``, sampled images that differ are read from ``folder`` and compared pixel by pixel
+    with the packaged copies below ``root`` (default `reference_root`); without, only hashes are compared.
     """
     reference = reference or load_reference(root)
     if scene not in reference["scenes"]:
@@ -115,10 +100,12 @@ def compare_scene(folder: Path, scene: str, files: dict[str, str], reference: di
                                  missing=sorted(set(expected) - set(files)),
                                  extra=sorted(set(files) - set(expected)),
                                  differing=sorted(p for p in set(expected) & set(files) if expected[p] != files[p]))
+    if not measure_pixels:
+        return comparison
     samples = (root or reference_root()) / "mini_reference" / scene
     for relpath in reference["scenes"][scene]["samples"]:
         if relpath in comparison.differing:
-            ours, theirs = _read_unit(Path(folder) / relpath), _read_unit(samples / relpath)
+            ours, theirs = read_image(Path(folder) / relpath), read_image(samples / relpath)
             if ours.shape != theirs.shape:
                 comparison.pixels.append(PixelDifference(relpath, float("inf"), float("inf")))
                 continue
