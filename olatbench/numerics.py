@@ -61,4 +61,4 @@ def cpu_numerics() -> dict[str, object]:
     else:
         capability, threads = torch.backends.cpu.get_cpu_capability(), torch.get_num_threads()
     return {"torch_cpu_capability": capability, "torch_threads": threads,
-            CAPABILITY_ENV: os.environ.get(CAPABILITY_ENV), "cpu_flags": cpu_flags(), "machine": platform.machine()}
+            CAPABILITY_ENV: os.environ.get(CAPABILITY_ENV), "cpu_flags": cpu_flags()}
