@@ -102,3 +102,32 @@ def test_data_matches_reference_reads_the_manifest(tmp_path):
     other = tmp_path / "Pixiu"
     other.mkdir()
     assert data_matches_reference(other) is None  # not a mini scene
+
+
+RENDER_TINY = """
+import json, sys
+from pathlib import Path
+from olatbench.datasets.synth.mini import MANIFEST, ensure_mini_suite
+from olatbench.datasets.synth.recipe import RECIPES
+recipe = RECIPES["diffuse_shadow"].with_overrides(resolution=(24, 24), spp=4, train=3, test=2, max_depth=2)
+root = ensure_mini_suite(Path(sys.argv[1]), progress=False, recipes={"diffuse_shadow": recipe})
+print(json.dumps(json.loads((root / "diffuse_shadow" / MANIFEST).read_text())["files"]))
+"""
+
+
+def test_the_bytes_do_not_depend_on_the_cpus_blas_kernel(tmp_path, monkeypatch):
+    """The same tiny scene (blob mesh, checker texture: every generator path) under OpenBLAS's Haswell (FMA) and
+    Prescott (SSE3) kernels is byte-identical: the generator never calls BLAS (or numpy's CPU-dispatched
+    transcendentals, which this AVX2 machine cannot switch; `olatbench.datasets.portable`). With `@` in the
+    blob's displacement or `np.linalg.norm` in `look_at`, geometry and images differed here."""
+    import subprocess
+    import sys
+
+    monkeypatch.delenv(backend.VARIANT_ENV, raising=False)
+    manifests = []
+    for core in ("Haswell", "Prescott"):
+        env = {**__import__("os").environ, "OPENBLAS_CORETYPE": core}
+        out = subprocess.run([sys.executable, "-c", RENDER_TINY, str(tmp_path / core)], env=env, check=True,
+                             capture_output=True, text=True).stdout
+        manifests.append(json.loads(out.strip().splitlines()[-1]))
+    assert manifests[0] == manifests[1]

@@ -16,6 +16,8 @@ import math
 
 import numpy as np
 
+from olatbench.datasets import portable
+
 # diag(1, -1, -1, 1): right-multiplying a camera-to-world matrix flips its camera y and z axes.
 _FLIP_YZ = np.diag([1.0, -1.0, -1.0, 1.0])
 
@@ -69,12 +71,12 @@ def look_at(eye: np.ndarray, target: np.ndarray, up: np.ndarray = (0.0, 0.0, 1.0
     """
     eye = np.asarray(eye, dtype=np.float64)
     forward = np.asarray(target, dtype=np.float64) - eye
-    forward /= np.linalg.norm(forward)
+    forward /= portable.norm(forward)
     up = np.asarray(up, dtype=np.float64)
     right = np.cross(forward, up)
-    if np.linalg.norm(right) < 1e-8:
+    if portable.norm(right) < 1e-8:
         right = np.cross(forward, np.array([0.0, 1.0, 0.0]) if abs(up[1]) < 0.9 else np.array([1.0, 0.0, 0.0]))
-    right /= np.linalg.norm(right)
+    right /= portable.norm(right)
     down = np.cross(forward, right)
     c2w = np.eye(4)
     c2w[:3, 0], c2w[:3, 1], c2w[:3, 2], c2w[:3, 3] = right, down, forward, eye

@@ -26,7 +26,8 @@ from olatbench.datasets.synth.recipe import Recipe
 from olatbench.datasets.synth.render import SceneRenderer
 from olatbench.datasets.synth.rigs import make_rig
 
-GENERATOR_VERSION = 2  # bump when a change of code changes the pixels (v2: cameras aim at the real centre)
+GENERATOR_VERSION = 3  # bump when a change of code changes the pixels (v2: cameras aim at the real centre;
+#                       v3: no CPU-dependent numpy/BLAS arithmetic, `olatbench.datasets.portable`)
 
 
 @dataclass(eq=False)

@@ -14,6 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
+from olatbench.datasets import portable
+
 
 @dataclass(frozen=True, eq=False)
 class TriangleMesh:
@@ -28,7 +30,7 @@ class TriangleMesh:
     def bounding_sphere(self) -> tuple[np.ndarray, float]:
         """(centre (3,), radius): centred on the bounding box, radius to the farthest vertex."""
         centre = 0.5 * (self.vertices.min(axis=0) + self.vertices.max(axis=0))
-        return centre, float(np.max(np.linalg.norm(self.vertices - centre, axis=1)))
+        return centre, float(np.max(portable.norm(self.vertices - centre)))
 
 
 def weld(vertices: np.ndarray, decimals: int = 9) -> np.ndarray:
@@ -46,7 +48,7 @@ def vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     for corner in range(3):
         np.add.at(accumulated, representative[faces[:, corner]], face_normals)
     normals = accumulated[representative]
-    return normals / np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-12)
+    return normals / np.maximum(portable.norm(normals, keepdims=True), 1e-12)
 
 
 def is_watertight(mesh: TriangleMesh) -> bool:
@@ -84,7 +86,8 @@ def _sphere_directions(resolution: int) -> tuple[np.ndarray, np.ndarray]:
     theta = np.linspace(0.0, np.pi, resolution + 1)
     phi = np.linspace(0.0, 2.0 * np.pi, 2 * resolution + 1)
     T, P = np.meshgrid(theta, phi, indexing="ij")
-    directions = np.stack([np.sin(T) * np.cos(P), np.sin(T) * np.sin(P), np.cos(T)], axis=-1)
+    sin_t = portable.sin(T)
+    directions = np.stack([sin_t * portable.cos(P), sin_t * portable.sin(P), portable.cos(T)], axis=-1)
     directions[:, -1] = directions[:, 0]  # exact seam, so welding finds it
     directions[0, :] = (0.0, 0.0, 1.0)
     directions[-1, :] = (0.0, 0.0, -1.0)
@@ -105,9 +108,10 @@ def blob(resolution: int = 64, amplitude: float = 0.18, seed: int = 3) -> Triang
     radius = np.ones(directions.shape[:2])
     for _ in range(6):
         axis = rng.normal(size=3)
-        axis /= np.linalg.norm(axis)
+        axis /= portable.norm(axis)
         frequency = rng.uniform(1.5, 3.5)
-        radius += amplitude / 3.0 * np.sin(frequency * np.pi * (directions @ axis) + rng.uniform(0, 2 * np.pi))
+        phase = rng.uniform(0, 2 * np.pi)
+        radius += amplitude / 3.0 * portable.sin(frequency * np.pi * portable.dot(directions, axis) + phase)
     return _grid_mesh(directions * radius[..., None], uvs)
 
 
@@ -122,11 +126,11 @@ def rounded_box(resolution: int = 64, half_extents: tuple[float, float, float] =
 
     def signed_distance(points: np.ndarray) -> np.ndarray:
         outside = np.maximum(np.abs(points) - inner, 0.0)
-        return np.linalg.norm(outside, axis=-1) + np.minimum(np.max(np.abs(points) - inner, axis=-1), 0.0) \
+        return portable.norm(outside) + np.minimum(np.max(np.abs(points) - inner, axis=-1), 0.0) \
             - corner_radius
 
     low = np.zeros(directions.shape[:2])
-    high = np.full(directions.shape[:2], float(np.linalg.norm(half_extents)) + 1.0)
+    high = np.full(directions.shape[:2], float(portable.norm(np.asarray(half_extents, dtype=np.float64))) + 1.0)
     for _ in range(60):
         middle = 0.5 * (low + high)
         inside = signed_distance(directions * middle[..., None]) < 0
@@ -140,8 +144,8 @@ def torus(resolution: int = 48, major: float = 1.0, minor: float = 0.45) -> Tria
     u = np.linspace(0.0, 2.0 * np.pi, 2 * resolution + 1)
     v = np.linspace(0.0, 2.0 * np.pi, resolution + 1)
     V, U = np.meshgrid(v, u, indexing="ij")
-    ring = major + minor * np.cos(V)
-    points = np.stack([ring * np.cos(U), ring * np.sin(U), minor * np.sin(V)], axis=-1)
+    ring = major + minor * portable.cos(V)
+    points = np.stack([ring * portable.cos(U), ring * portable.sin(U), minor * portable.sin(V)], axis=-1)
     points[:, -1] = points[:, 0]
     points[-1, :] = points[0, :]
     # rows reversed so that d(row) × d(col) points out of the tube
@@ -161,9 +165,9 @@ def procedural_mesh(name: str) -> TriangleMesh:
 def spherical_uvs(vertices: np.ndarray) -> np.ndarray:
     """Latitude-longitude texture coordinates (V, 2) of vertices about their bounding-box centre."""
     centred = vertices - 0.5 * (vertices.min(axis=0) + vertices.max(axis=0))
-    direction = centred / np.maximum(np.linalg.norm(centred, axis=1, keepdims=True), 1e-12)
-    u = (np.arctan2(direction[:, 1], direction[:, 0]) / (2 * np.pi)) % 1.0
-    v = 1.0 - np.arccos(np.clip(direction[:, 2], -1.0, 1.0)) / np.pi
+    direction = centred / np.maximum(portable.norm(centred, keepdims=True), 1e-12)
+    u = (portable.arctan2(direction[:, 1], direction[:, 0]) / (2 * np.pi)) % 1.0
+    v = 1.0 - portable.arccos(np.clip(direction[:, 2], -1.0, 1.0)) / np.pi
     return np.stack([u, v], axis=1)
 
 

@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from olatbench.datasets import colour
+from olatbench.datasets import colour, portable
 from olatbench.datasets.records import Camera, PointLight
 from olatbench.datasets.synth import meshes
 from olatbench.datasets.synth.backend import mitsuba, sensor_dict
@@ -128,10 +128,9 @@ class SceneRenderer:
         coverage = full[..., 3]
         covered = np.maximum(coverage, 1e-8)[..., None]
         normal = full[..., 4:7] / covered
-        normal /= np.maximum(np.linalg.norm(normal, axis=-1, keepdims=True), 1e-8)
+        normal /= np.maximum(portable.norm(normal, keepdims=True), 1e-8)
         position = full[..., 7:10] / covered
-        w2c = camera.w2c()
-        depth = position @ w2c[2, :3] + w2c[2, 3]
+        depth = portable.dot(position - camera.position, camera.c2w[:3, 2])  # along the view axis (OpenCV z)
         hit = coverage > 0
         out = {"A": coverage, "object": only[..., 3], "N.X": normal[..., 0] * hit, "N.Y": normal[..., 1] * hit,
                "N.Z": normal[..., 2] * hit, "Z": depth * hit}

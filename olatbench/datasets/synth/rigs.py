@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from olatbench.datasets import portable
 from olatbench.datasets.cameras import intrinsics_from_fov, look_at
 from olatbench.datasets.records import Camera, PointLight
 from olatbench.datasets.synth.recipe import Recipe
@@ -27,7 +28,7 @@ def band_directions(count: int, elevation_deg: tuple[float, float], rng: np.rand
     z = math.sin(low) + (math.sin(high) - math.sin(low)) * index / max(count, 1)  # area-uniform in z
     azimuth = golden * index + rng.uniform(0.0, 2.0 * math.pi)
     ring = np.sqrt(np.clip(1.0 - z**2, 0.0, None))
-    return np.stack([ring * np.cos(azimuth), ring * np.sin(azimuth), z], axis=1)
+    return np.stack([ring * portable.cos(azimuth), ring * portable.sin(azimuth), z], axis=1)
 
 
 def field_of_view(recipe: Recipe) -> float:
@@ -73,7 +74,7 @@ def make_rig(recipe: Recipe, centre: np.ndarray) -> Rig:
     else:
         test_cameras = train_cameras[rng.choice(n_train, size=n_test, replace=n_test > n_train)]
     all_cameras = np.concatenate([train_cameras, test_cameras])
-    closest = np.min(np.linalg.norm(all_cameras[:, None] - lights[None], axis=-1))
+    closest = np.min(portable.norm(all_cameras[:, None] - lights[None]))
     if closest <= recipe.cameras.near:
         raise ValueError(f"recipe '{recipe.name}': a light is {closest:.3f} from a camera, inside its near "
                          f"plane ({recipe.cameras.near}); separate the camera and light radii")

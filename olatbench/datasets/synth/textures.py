@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from olatbench.datasets import portable
+
 TEXTURES = ("checker", "marble")
 
 
@@ -23,7 +25,7 @@ def procedural_texture(name: str, base: tuple[float, float, float], size: int = 
     for octave in range(1, 5):  # periodic value noise from random Fourier terms
         for _ in range(3):
             ku, kv = rng.integers(1, 3 * octave, size=2)
-            noise += np.sin(2 * np.pi * (ku * u + kv * v) + rng.uniform(0, 2 * np.pi)) / octave
+            noise += portable.sin(2 * np.pi * (ku * u + kv * v) + rng.uniform(0, 2 * np.pi)) / octave
     noise /= np.max(np.abs(noise))
     base_rgb = np.asarray(base, dtype=np.float64)
     if name == "checker":
@@ -32,6 +34,6 @@ def procedural_texture(name: str, base: tuple[float, float, float], size: int = 
         weight = np.clip(tiles + 0.15 * noise, 0.0, 1.0)[..., None]
         texture = base_rgb * (1.0 - weight) + other * weight
     else:
-        stripes = 0.5 + 0.5 * np.sin(2 * np.pi * scale * (u + 0.15 * noise))
+        stripes = 0.5 + 0.5 * portable.sin(2 * np.pi * scale * (u + 0.15 * noise))
         texture = base_rgb * (0.35 + 0.65 * stripes[..., None])
     return np.clip(texture, 0.02, 0.9).astype(np.float32)
