@@ -41,13 +41,18 @@ def views():
     return sphere_views(4, size=24, seed=3)
 
 
-def make(name: str, views, torch_path: bool, monkeypatch: pytest.MonkeyPatch, **overrides):
-    """Method ``name`` set up on the CPU with the torch path (env variables set) or the default C++ path."""
+def use_torch_path(monkeypatch: pytest.MonkeyPatch, torch_path: bool) -> None:
+    """Select the torch path (the env variables set) or the default C++ path (unset)."""
     for key, value in TORCH_PATH.items():
         if torch_path:
             monkeypatch.setenv(key, value)
         else:
             monkeypatch.delenv(key, raising=False)
+
+
+def make(name: str, views, torch_path: bool, monkeypatch: pytest.MonkeyPatch, **overrides):
+    """Method ``name`` set up on the CPU with the torch path or the default C++ path."""
+    use_torch_path(monkeypatch, torch_path)
     cls, config, _ = METHODS[name]
     method = cls(cls.resolve_config(None, **{**config, **overrides}))
     method.setup(views, "cpu", 0)
@@ -128,15 +133,42 @@ def test_torch_path_creates_no_tensor_off_the_device(name, views, monkeypatch):
 @pytest.mark.slow
 @pytest.mark.parametrize("name", list(METHODS))
 def test_200_steps_on_the_torch_path_reach_the_cpp_psnr(name, views, monkeypatch):
-    """Training PSNR after 200 steps within 0.1 dB (the paths' float32 rounding grows over training)."""
+    """Training PSNR after 200 steps (every phase of the schedule) within 0.1 dB, without densification.
+
+    With densification the two paths' last-bit differences flip a clone/split decision near its threshold after
+    ~25 steps and the runs separate: measured 2026-11-24, the C++ path against itself with the initial means
+    perturbed by 1e-7 (relative) ended at 33.6-35.3 dB (SSD-GS, 6 runs) and 36.4-38.9 dB (GS³, 4 runs), the
+    torch path at 34.2-35.5 and 38.3-39.3 dB. Without densification both paths ended equal to 0.001 dB. The
+    densifying steps are held to the C++ path by `test_densifying_steps_match_the_cpp_path`."""
     psnrs = []
     for torch_path in (False, True):
-        method = make(name, views, torch_path, monkeypatch, iterations=200)
+        method = make(name, views, torch_path, monkeypatch, iterations=200, densify_until=0)
         for step in range(200):
             method.train_step(step)
+        assert method.model.num_gaussians == COMMON["num_init_gaussians"]
         psnrs.append(sum(psnr_of(method.render(c, lt)["rgb"].clamp(0, 1), torch.from_numpy(img))
                          for c, lt, img in zip(views.cameras, views.lights, views.images, strict=True)) / len(views))
     assert psnrs[1] == pytest.approx(psnrs[0], abs=0.1)
+
+
+@pytest.mark.parametrize("name", list(METHODS))
+def test_densifying_steps_match_the_cpp_path(name, views, monkeypatch):
+    """Twelve steps from the start, densifying every second step (300 -> ~2900 Gaussians): the torch
+    path clones, splits and prunes the same Gaussians (same count after every step), its loss stays within 1e-5
+    relative and its renders after step 12 within 1e-3 (parameters are not compared one by one: Adam turns
+    last-bit differences of near-zero gradients into steps of the learning rate's size)."""
+    cpp, torch_path = (make(name, views, flag, monkeypatch, iterations=200) for flag in (False, True))
+    for step in range(12):
+        losses = []
+        for flag, method in ((False, cpp), (True, torch_path)):
+            use_torch_path(monkeypatch, flag)
+            losses.append(method.train_step(step)["loss"])
+        assert losses[1] == pytest.approx(losses[0], rel=1e-5), step
+        assert torch_path.model.num_gaussians == cpp.model.num_gaussians, step
+    assert cpp.model.num_gaussians > COMMON["num_init_gaussians"]
+    for camera, light in zip(views.cameras, views.lights, strict=True):
+        want, got = (method.render(camera, light)["rgb"] for method in (cpp, torch_path))
+        assert float((got - want).abs().max()) <= 1e-3
 
 
 # The modules whose code can run on CUDA tensors. The C++ wrappers (backends/cpu.py, ssdgs/shading_cpu.py,
