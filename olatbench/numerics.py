@@ -38,16 +38,24 @@ def pin_cpu_capability() -> str | None:
     return PORTABLE_CAPABILITY
 
 
-def cpu_flags() -> list[str]:
-    """The `RELEVANT_FLAGS` this CPU has (empty where /proc/cpuinfo cannot be read)."""
+CPUINFO = "/proc/cpuinfo"
+
+
+def cpuinfo_text(path: str | os.PathLike = CPUINFO) -> str:
+    """The text of Linux's ``/proc/cpuinfo`` (the one reader of it), or "" where it cannot be read."""
     try:
-        with open("/proc/cpuinfo", encoding="utf-8") as handle:
-            for line in handle:
-                if line.startswith(("flags", "Features")):
-                    present = set(line.split(":", 1)[1].split())
-                    return [flag for flag in RELEVANT_FLAGS if flag in present]
-    except OSError:
-        pass
+        with open(path, encoding="utf-8", errors="replace") as handle:
+            return handle.read()
+    except OSError:  # not Linux
+        return ""
+
+
+def cpu_flags(text: str | None = None) -> list[str]:
+    """The `RELEVANT_FLAGS` of the first CPU in ``text`` (default: this machine's `cpuinfo_text`)."""
+    for line in (cpuinfo_text() if text is None else text).splitlines():
+        if line.startswith(("flags", "Features")):
+            present = set(line.split(":", 1)[1].split())
+            return [flag for flag in RELEVANT_FLAGS if flag in present]
     return []
 
 

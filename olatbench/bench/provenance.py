@@ -18,15 +18,12 @@ import os
 import platform
 import sys
 from datetime import datetime, timezone
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from olatbench import __version__
-from olatbench.numerics import cpu_numerics
-
-CPUINFO = Path("/proc/cpuinfo")
+from olatbench.numerics import CPUINFO, cpu_numerics, cpuinfo_text
 
 
 def utc_now() -> str:
@@ -48,12 +45,9 @@ def _cpuinfo(text: str) -> tuple[str | None, int | None]:
     return model, len(cores) or None
 
 
-def cpu_identity(cpuinfo: Path = CPUINFO) -> dict[str, Any]:
+def cpu_identity(cpuinfo: str | os.PathLike = CPUINFO) -> dict[str, Any]:
     """``{"model", "cores", "threads", "usable_threads"}`` of this machine (see the module docstring)."""
-    try:
-        model, cores = _cpuinfo(cpuinfo.read_text(encoding="utf-8", errors="replace"))
-    except OSError:  # not Linux
-        model, cores = None, None
+    model, cores = _cpuinfo(cpuinfo_text(cpuinfo))
     usable = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
     return {"model": model or platform.processor() or None, "cores": cores, "threads": os.cpu_count(),
             "usable_threads": usable}

@@ -95,7 +95,8 @@ def synth(recipe_name: str | None, fmt: str, out_dir: Path | None, res: str | No
         if mini:
             from olatbench.datasets.synth.mini import ensure_mini_suite
 
-            root = ensure_mini_suite(out_dir, progress=show_progress(quiet), compare=False)  # _report_reference prints it
+            # compare=False: _report_reference below prints the comparison
+            root = ensure_mini_suite(out_dir, progress=show_progress(quiet), compare=False)
             _report_reference(root, write_reference)
             click.echo(f"mini suite ready in {root}. Next: olatbench run --method ssdgs --suite mini")
             return
