@@ -56,7 +56,7 @@ def test_end_to_end_layout_and_results(data, tmp_path):
     assert set(results["metrics"]["train"]["per_image"]) == {"000", "001", "002", "003"}
     mean = results["metrics"]["test"]["mean"]
     assert 5 < mean["psnr"] < 40 and mean["lpips"] is None
-    assert results["model"] == {"iterations": 12, "num_gaussians": 64 * 48}
+    assert results["model"] == {"iterations": 12, "num_gaussians": 64 * 48, "reused_from": None}
     assert results["timing"]["train_seconds"] > 0 and results["timing"]["render_fps"] > 0
     assert results["resources"]["peak_rss_mb"] > 50 and results["resources"]["cuda_peak_mb"] is None
     assert results["versions"]["torch"] == torch.__version__
@@ -364,3 +364,99 @@ def test_official_ground_truth_protocols_score_against_the_official_images(data,
     job = make_plan("trivial", suite, tmp_path / "runs", data_root=data, scenes=["Beta"], progress=False)[0]
     run_job(job, progress=False)
     assert sorted(calls) == [(f, "nrhints") for f in ("000", "000", "001", "001", "002", "003")]
+
+
+def _same_experiment_jobs(data, out, **overrides):
+    """Two jobs of one experiment under two variant names: an override equal to the default renames the variant
+    without changing the config."""
+    first = plan(data, out, scenes=["Alpha"], overrides=dict(overrides))[0]
+    second = plan(data, out, scenes=["Alpha"], overrides={**overrides, "lr": 0.1})[0]
+    assert first.variant != second.variant and first.config == second.config and first.id != second.id
+    return first, second
+
+
+def test_a_job_of_a_finished_experiment_evaluates_its_model_instead_of_training(data, tmp_path):
+    from olatbench.bench.reuse import experiment_key
+
+    source, job = _same_experiment_jobs(data, tmp_path / "runs")
+    assert experiment_key(source.identity()) == experiment_key(job.identity())
+    assert run_job(source, progress=False).status == "done"
+    assert run_job(job, progress=False).status == "done"
+    folder, source_folder = Path(job.folder), Path(source.folder)
+    results, source_results = read_results(folder / "results.json"), read_results(source_folder / "results.json")
+    assert results["job"]["id"] == job.id and results["job"]["variant"] == job.variant
+    assert results["model"]["reused_from"] == {"job_id": source.id, "folder": f"../../../{source.variant}/Alpha/seed0"}
+    assert source_results["model"]["reused_from"] is None
+    assert results["metrics"] == source_results["metrics"]  # computed again in this folder, from the same weights
+    assert results["timing"]["train_seconds"] == source_results["timing"]["train_seconds"]  # what the model cost
+    (step, weights), (source_step, source_weights) = _weights(folder), _weights(source_folder)
+    assert step == source_step and torch.equal(weights["logits"], source_weights["logits"])
+    assert torch.load(list_checkpoints(folder)[-1][1], weights_only=True)["job_id"] == job.id
+    assert (folder / "train_log.jsonl").read_text() == (source_folder / "train_log.jsonl").read_text()
+    assert "same experiment as job " + source.id in (folder / "log.txt").read_text()
+    assert job_state(job.folder, job.id).state == "done"
+
+
+def test_reuse_needs_the_same_config_and_can_be_switched_off(data, tmp_path):
+    import dataclasses
+
+    runs = tmp_path / "runs"
+    source = plan(data, runs, scenes=["Alpha"])[0]
+    other = plan(data, runs, scenes=["Alpha"], overrides={"lr": 0.2})[0]  # another experiment
+    assert run_job(source, progress=False).status == "done"
+    assert run_job(other, progress=False).status == "done"
+    assert read_results(Path(other.folder) / "results.json")["model"]["reused_from"] is None
+    same = plan(data, runs, scenes=["Alpha"], overrides={"lr": 0.1})[0]
+    assert run_job(dataclasses.replace(same, reuse=False), progress=False).status == "done"
+    assert read_results(Path(same.folder) / "results.json")["model"]["reused_from"] is None
+    assert "same experiment" not in (Path(same.folder) / "log.txt").read_text()
+
+
+def test_a_job_waits_for_a_running_job_of_its_experiment_with_a_smaller_id(data, tmp_path):
+    import threading
+
+    from olatbench.bench.execute import JobLog, _run
+    from olatbench.bench.store import job_lock
+
+    first, second = _same_experiment_jobs(data, tmp_path / "runs", step_sleep=0.05)
+    leader, follower = sorted((first, second), key=lambda job: job.id)
+    outcome = {}
+    with job_lock(leader.folder) as acquired:  # the leader runs "in another process"
+        assert acquired
+        Path(leader.folder, "job.json").write_text(json.dumps(leader.to_json()))
+        thread = threading.Thread(target=lambda: outcome.update(done=run_job(follower, progress=False)))
+        thread.start()
+        _run(leader, Path(leader.folder), JobLog(Path(leader.folder)), False, 1, "now")
+        assert thread.is_alive()  # it waits for the leader's lock, which is still held
+    thread.join(timeout=60)
+    assert outcome["done"].status == "done"
+    results = read_results(Path(follower.folder) / "results.json")
+    assert results["model"]["reused_from"]["job_id"] == leader.id
+
+
+def test_parallel_executors_run_each_experiment_before_the_jobs_that_reuse_it(data, tmp_path):
+    from olatbench.bench.reuse import order_for_reuse
+
+    runs = tmp_path / "runs"
+    same = plan(data, runs, overrides={"lr": 0.1})  # Alpha, Beta under "default~lr=0.1"
+    jobs = plan(data, runs) + same + plan(data, runs, overrides={"lr": 0.3})
+    ordered = order_for_reuse(jobs)
+    assert [job.id for job in ordered] == [job.id for job in jobs[:2] + jobs[4:] + same]
+
+
+def test_cli_dry_run_shows_which_jobs_reuse_a_model(data, tmp_path, cli_suite):
+    runner = CliRunner()
+    args = ["run", "-m", "trivial", "-s", "tiny", "--data-root", str(data), "--out", str(tmp_path / "runs"),
+            "--scenes", "Alpha", "--quiet"]
+    assert runner.invoke(main, args).exit_code == 0
+    result = runner.invoke(main, [*args, "--set", "lr=0.1", "--set", "noise=0.01", "--dry-run", "--json"])
+    assert result.exit_code == 0, result.output
+    assert [row["reuse"] for row in json.loads(result.output)] == ["reuses default"]
+    result = runner.invoke(main, [*args, "--variant", "tiny", "--variant", "ablation-A", "--dry-run"])
+    assert "pending (reuses default)" in result.output  # the suite's own preset: "tiny" adds nothing to it
+    fresh = ["run", "-m", "trivial", "-s", "tiny", "--data-root", str(data), "--out", str(tmp_path / "fresh"),
+             "--scenes", "Alpha"]
+    result = runner.invoke(main, [*fresh, "--variant", "ablation-A", "--variant", "ablation-A+tiny", "--dry-run"])
+    assert "pending (same experiment as #0)" in result.output and "reuses" not in result.output
+    result = runner.invoke(main, [*args, "--set", "lr=0.1", "--no-reuse", "--dry-run", "--json"])
+    assert [row["reuse"] for row in json.loads(result.output)] == [None]

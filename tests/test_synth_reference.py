@@ -131,3 +131,25 @@ def test_the_bytes_do_not_depend_on_the_cpus_blas_kernel(tmp_path, monkeypatch):
                              capture_output=True, text=True).stdout
         manifests.append(json.loads(out.strip().splitlines()[-1]))
     assert manifests[0] == manifests[1]
+
+
+def test_rendering_the_builtin_suite_says_whether_it_matches_the_reference(tmp_path, monkeypatch, capsys):
+    import olatbench.datasets.synth.mini as mini
+
+    rendered = []
+    monkeypatch.setattr(mini, "scene_is_valid", lambda folder, recipe: (folder.name != "translucent", "missing"))
+    monkeypatch.setattr(mini, "render_mini_scene", lambda root, name, recipe, progress: rendered.append(name))
+    monkeypatch.setattr(mini, "compare_with_reference", lambda folder, reference: _Said(folder.name))
+    mini.ensure_mini_suite(tmp_path, progress=True)
+    assert rendered == ["translucent"]
+    assert capsys.readouterr().err.splitlines() == ["translucent: identical"]  # said for the scene rendered now
+
+
+class _Said:
+    identical = True
+
+    def __init__(self, name):
+        self.name = name
+
+    def summary(self, reference):
+        return f"{self.name}: identical"

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import sys
 import time
 import traceback
@@ -35,7 +36,8 @@ from olatbench.bench.plan import load_method_class
 from olatbench.bench.provenance import hardware_identity, library_versions, peak_rss_mb, utc_now
 from olatbench.bench.restore import load_state
 from olatbench.bench.results import SCHEMA_VERSION, write_results
-from olatbench.bench.store import DONE_FILE, ERROR_FILE, JOB_FILE, RESULTS_FILE, job_lock
+from olatbench.bench.reuse import adopt_finished_model, find_reusable
+from olatbench.bench.store import DONE_FILE, ERROR_FILE, JOB_FILE, RESULTS_FILE, TRAIN_LOG_FILE, job_lock
 from olatbench.bench.views import VIEWS_FILE, load_views, view_camera
 from olatbench.datasets import colour, load_scene
 from olatbench.datasets.formats._common import safe_file_stem
@@ -47,7 +49,6 @@ from olatbench.methods.base import Method, Views
 from olatbench.metrics.evaluate import sha256_file
 
 LOG_FILE = "log.txt"
-TRAIN_LOG_FILE = "train_log.jsonl"
 WARMUP_RENDERS = 1
 
 
@@ -127,6 +128,7 @@ def _run(job: Job, folder: Path, log: JobLog, progress: bool, position: int, sta
         test_views = load_views(scene.split(job.test_split), job, progress, position)
         method.attach_test_views(test_views)
         log(f"loaded {len(test_views)} test views for test_pose_fitting={method.test_pose_fitting}")
+    reused = _adopt_reusable_model(job, folder, log)
     train_seconds = _train(method, train_views, job, folder, log, progress, position)
 
     metrics: dict[str, Any] = {}
@@ -144,6 +146,7 @@ def _run(job: Job, folder: Path, log: JobLog, progress: bool, position: int, sta
         log(f"{split}: " + ", ".join(f"{k} {v:.4f}" for k, v in metrics[split]["mean"].items() if v is not None))
 
     results = _done_results(job, started, metrics, train_seconds, render_fps, method)
+    results["model"]["reused_from"] = reused
     results["files"] = files
     checkpoints = list_checkpoints(folder)
     results["hashes"]["checkpoint"] = sha256_file(checkpoints[-1][1]) if checkpoints else None
@@ -157,6 +160,22 @@ def _run(job: Job, folder: Path, log: JobLog, progress: bool, position: int, sta
     log("done")
     return JobOutcome(job.id, job.label, str(folder), "done", metrics[job.test_split]["mean"], train_seconds,
                       render_fps)
+
+
+def _adopt_reusable_model(job: Job, folder: Path, log: JobLog) -> dict[str, str] | None:
+    """Start from a finished sibling job's model when it is the same experiment (`olatbench.bench.reuse`);
+    returns ``{"job_id", "folder"}`` of the source (folder relative to the job's), or None."""
+    if not job.reuse or list_checkpoints(folder):
+        return None
+    found = find_reusable(job)
+    if found is None:
+        return None
+    source, source_id = found
+    adopt_finished_model(job, source, source_id)
+    relative = os.path.relpath(source, folder)
+    log(f"same experiment as job {source_id} ({relative}: equal config, data, code and seed): its trained model "
+        "is evaluated here instead of training again (--no-reuse trains anyway)")
+    return {"job_id": source_id, "folder": Path(relative).as_posix()}
 
 
 def _train(method: Method, views: Views, job: Job, folder: Path, log: JobLog, progress: bool, position: int

@@ -68,6 +68,7 @@ class Job:
     keep_checkpoints: int = 2
     save_components: bool = False
     official: dict[str, Any] | None = None  # official code only: where it lives and runs (settings.CodeSettings)
+    reuse: bool = True  # start from a finished job of the same experiment under another variant name (bench.reuse)
     id: str = field(default="")
 
     @property

@@ -42,6 +42,7 @@ class PlanOptions:
     keep_checkpoints: int = 2
     save_components: bool = False
     code: Mapping[str, str] = field(default_factory=dict)  # official methods: --code KEY=VALUE settings
+    reuse: bool = True  # reuse a finished job's model for the same experiment under another variant name
 
 
 def expand_variants(spec: MethodSpec, variants: Sequence[str] = (), ablation: str | None = None) -> list[str]:
@@ -256,6 +257,6 @@ def make_plan(method: str, suite: str | Suite, out: str | Path, scenes: Sequence
                           code=code, folder=str(job_folder(out, suite.name, method, label, scene, seed)),
                           device=options.device, checkpoint_every=options.checkpoint_every,
                           checkpoint_minutes=options.checkpoint_minutes, keep_checkpoints=options.keep_checkpoints,
-                          save_components=options.save_components, official=official)
+                          save_components=options.save_components, official=official, reuse=options.reuse)
                 jobs.append(job.with_id() if manifest is not None else job)
     return jobs

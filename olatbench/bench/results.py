@@ -17,7 +17,8 @@ Schema version 2 (unknown values are ``null``; blocks marked *run* are ``null`` 
       "hardware": {"machine": str, "cpu": {"model": str | null, "cores": int | null, "threads": int | null,
                                            "usable_threads": int | null},
                    "gpus": [{"index": int, "name": str, "memory_mb": float}]},
-      "model": {"iterations": int, "num_gaussians": int | null} | null (evaluate),
+      "model": {"iterations": int, "num_gaussians": int | null,
+                "reused_from": {"job_id": str, "folder": str} | null} | null (evaluate),
       "versions": {"olatbench": str, "python": str, "numpy": str, "torch": str | null, "cuda": str | null,
                    "opencv": str | null, "openimageio": str | null, "platform": str},
       "hashes": {"data_manifest": str | null, "config": str | null, "code": str | null,
@@ -134,9 +135,15 @@ class Hardware(TypedDict):
     numerics: NotRequired[dict[str, Any]]  # olatbench.numerics.cpu_numerics(): torch_cpu_capability, threads, ...
 
 
+class ReusedModel(TypedDict):
+    job_id: str
+    folder: str  # relative to the job folder
+
+
 class ModelInfo(TypedDict):
     iterations: int
     num_gaussians: int | None
+    reused_from: NotRequired[ReusedModel | None]  # the finished job of the same experiment whose model this is
 
 
 class Hashes(TypedDict):

@@ -20,6 +20,7 @@ JOB_FILE = "job.json"
 DONE_FILE = "DONE"
 RESULTS_FILE = "results.json"
 ERROR_FILE = "error.txt"
+TRAIN_LOG_FILE = "train_log.jsonl"
 LOCK_FILE = ".lock"
 OFFICIAL_DIR = "official"  # an official implementation's working folder (olatbench.bench.official)
 _CHECKPOINT_NAME = re.compile(r"^step_(\d+)\.pt$")
@@ -138,6 +139,20 @@ def job_lock(folder: str | Path) -> Iterator[bool]:
             yield True
         finally:
             fcntl.flock(handle, fcntl.LOCK_UN)
+
+
+def wait_for_unlock(folder: str | Path) -> None:
+    """Block until no process holds the job folder's lock (returns at once when none does)."""
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover - non-POSIX
+        return
+    path = Path(folder) / LOCK_FILE
+    if not path.is_file():
+        return
+    with open(path, "a") as handle:
+        fcntl.flock(handle, fcntl.LOCK_EX)
+        fcntl.flock(handle, fcntl.LOCK_UN)
 
 
 def is_locked(folder: str | Path) -> bool:

@@ -109,6 +109,10 @@ def _metric(metrics: dict, key: str) -> str:
                    "on its own views: seconds to a minute each) and store it, so dry runs print wall-time "
                    "estimates.")
 @click.option("--force", is_flag=True, help="Rerun jobs from scratch, replacing finished, partial or stale folders.")
+@click.option("--no-reuse", "no_reuse", is_flag=True,
+              help="Train every job even when a finished job of another variant name is the same experiment (same "
+                   "resolved config, data, code and seed, e.g. SSD-GS's ablation-D, schedule-I and default); by "
+                   "default such a job evaluates that job's model instead of training again.")
 @click.option("--checkpoint-every", type=int, help="Checkpoint every N steps (default: iterations/10; also every "
                                                   "10 minutes).")
 @click.option("--save-components", is_flag=True, help="Also save render components (diffuse, shadow, ...) "
@@ -124,8 +128,8 @@ def _metric(metrics: dict, key: str) -> str:
 @quiet_option
 @click.option("--json", "as_json", is_flag=True, help="With --dry-run: print the plan as JSON (one object per job).")
 def run(method, suite, scenes, variants, ablation, seeds, iterations, overrides, code_settings, resolution, data_root,
-        out, device, executor, workers, dry_run, calibrate, force, checkpoint_every, save_components, slurm_partition,
-        slurm_time, slurm_gpus, slurm_cpus, slurm_array_parallelism, wait, quiet, as_json) -> None:
+        out, device, executor, workers, dry_run, calibrate, force, no_reuse, checkpoint_every, save_components,
+        slurm_partition, slurm_time, slurm_gpus, slurm_cpus, slurm_array_parallelism, wait, quiet, as_json) -> None:
     """Train and evaluate METHOD on every scene of SUITE; rerunning skips finished jobs and resumes
     interrupted ones from their last checkpoint.
 
@@ -144,6 +148,7 @@ def run(method, suite, scenes, variants, ablation, seeds, iterations, overrides,
       olatbench run -m gs3-official -s gs3 --code checkout=~/src/gs-relight --code conda_env=gs3
     """
     from olatbench.bench.plan import PlanOptions, make_plan, parse_overrides
+    from olatbench.bench.reuse import order_for_reuse, reuse_notes
     from olatbench.bench.store import job_state
     from olatbench.datasets.errors import DatasetError
     from olatbench.methods.official.settings import SettingsError, parse_code_options
@@ -162,7 +167,7 @@ def run(method, suite, scenes, variants, ablation, seeds, iterations, overrides,
     if unknown:
         raise click.UsageError(f"--code names {', '.join(unknown)}, but this run is of {method}")
     options = PlanOptions(device=device if dry_run and device == "auto" else _device(device),
-                          checkpoint_every=checkpoint_every, save_components=save_components,
+                          checkpoint_every=checkpoint_every, save_components=save_components, reuse=not no_reuse,
                           code=code.get(method, {}))
     try:
         jobs = make_plan(method, suite, out, scenes=_split_names(scenes), variants=_split_names(variants),
@@ -182,17 +187,21 @@ def run(method, suite, scenes, variants, ablation, seeds, iterations, overrides,
             estimates = plan_estimates(jobs, measure=calibrate, progress=progress)
         except ValueError as error:
             raise click.ClickException(str(error)) from None
+        reuse = reuse_notes(jobs) if not no_reuse else [None] * len(jobs)
+        estimates = [0.0 if note and seconds is not None and state.state not in ("done", "running") else seconds
+                     for note, state, seconds in zip(reuse, states, estimates, strict=True)]
         if as_json:
-            click.echo(json.dumps(plan_json(jobs, states, out, estimates), indent=2))
+            click.echo(json.dumps(plan_json(jobs, states, out, estimates, reuse), indent=2))
         else:
-            _print_plan(jobs, states, out, estimates)
+            _print_plan(jobs, states, out, estimates, reuse)
         return
 
     stale = [state for state in states if state.state == "stale"]
     if stale and not force:
         listing = "\n  ".join(f"{s.folder}: {s.message}" for s in stale[:10])
         raise click.ClickException(f"{len(stale)} job folder(s) hold results of a different job (config, data or "
-                                   f"code changed):\n  {listing}\nRerun with --force to replace them, or x")
+                                   f"code changed):\n  {listing}\nRerun with --force to replace them, or choose "
+                                   "another --output")
     to_run, skipped, running = [], [], []
     for job, state in zip(jobs, states, strict=True):
         if state.state == "done" and not force:
@@ -205,6 +214,7 @@ def run(method, suite, scenes, variants, ablation, seeds, iterations, overrides,
             shutil.rmtree(job.folder)
         to_run.append(job)
     _write_pending(to_run)
+    to_run = order_for_reuse(to_run) if not no_reuse else to_run
     busy = f", {len(running)} running in another process" if running else ""
     click.echo(f"{len(jobs)} job(s): {len(skipped)} already done{busy}, {len(to_run)} to run "
                f"({executor}, device {options.device}) -> {out}", err=True)
@@ -268,23 +278,25 @@ def _state_text(state) -> str:
     return state.state if state.state != "absent" else "pending"
 
 
-def plan_json(jobs, states, out: Path, estimates: list[float | None]) -> list[dict]:
+def plan_json(jobs, states, out: Path, estimates: list[float | None], reuse: list[str | None]) -> list[dict]:
     """The dry run's table as data: one object per job, with its resolved config."""
     return [{"index": index, "id": job.id or None, "suite": job.suite, "method": job.method, "variant": job.variant,
              "scene": job.scene, "seed": job.seed, "iterations": job.iterations, "state": _state_text(state),
-             "step": state.step, "train_seconds_estimate": seconds, "folder": str(Path(job.folder).relative_to(out)),
-             "config": job.config}
-            for index, (job, state, seconds) in enumerate(zip(jobs, states, estimates, strict=True))]
+             "step": state.step, "train_seconds_estimate": seconds, "reuse": note,
+             "folder": str(Path(job.folder).relative_to(out)), "config": job.config}
+            for index, (job, state, seconds, note) in enumerate(zip(jobs, states, estimates, reuse, strict=True))]
 
 
-def _print_plan(jobs, states, out: Path, estimates: list[float | None]) -> None:
+def _print_plan(jobs, states, out: Path, estimates: list[float | None], reuse: list[str | None]) -> None:
     from olatbench.bench.estimate import DAY_SECONDS, format_duration
 
     rows = []
-    for index, (job, state, seconds) in enumerate(zip(jobs, states, estimates, strict=True)):
+    for index, (job, state, seconds, note) in enumerate(zip(jobs, states, estimates, reuse, strict=True)):
         status = _state_text(state)
         if state.state == "partial":
             status = f"partial ({state.step}/{state.iterations})"
+        elif note and state.state in ("pending", "absent"):
+            status = f"pending ({note})"
         rows.append([str(index), job.suite, job.method, job.variant, job.scene, str(job.seed), str(job.iterations),
                      "?" if seconds is None else format_duration(seconds), job.id or "(no data yet)", status,
                      str(Path(job.folder).relative_to(out))])

@@ -20,6 +20,7 @@ import json
 import logging
 import os
 import shutil
+import sys
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
@@ -131,6 +132,7 @@ def ensure_mini_suite(root: Path | None = None, progress: bool = True,
         if unknown:
             raise KeyError(f"the mini suite has no scene {', '.join(unknown)}; scenes: {', '.join(recipes)}")
         recipes = {name: recipe for name, recipe in recipes.items() if name in scenes}
+    rendered = set()
     with _locked(root):
         for name, recipe in recipes.items():
             valid, reason = scene_is_valid(root / name, recipe)
@@ -139,11 +141,19 @@ def ensure_mini_suite(root: Path | None = None, progress: bool = True,
             if (root / name).exists():
                 log.warning("mini suite: re-rendering %s (%s)", root / name, reason)
             render_mini_scene(root, name, recipe, progress=progress)
+            rendered.add(name)
     if compare and recipes_are_builtin:
         reference = load_reference()
         for name in recipes:
             comparison = compare_with_reference(root / name, reference)
-            (log.info if comparison.identical else log.warning)("%s", comparison.summary(reference))
+            if not comparison.identical:
+                log.warning("%s", comparison.summary(reference))
+            elif name in rendered and progress:  # said once, when the scene is made; results.json records it always
+                from tqdm.auto import tqdm
+
+                tqdm.write(comparison.summary(reference), file=sys.stderr)
+            else:
+                log.info("%s", comparison.summary(reference))
     return root
 
 
