@@ -13,7 +13,6 @@ import torch.nn.functional as F
 from skimage.metrics import peak_signal_noise_ratio, structural_similarity
 
 from olatbench.metrics import get_protocol, protocol_names, psnr, ssim, ssim_loss, ssim_torch
-from olatbench.metrics.lpips import clear_caches
 from olatbench.metrics.ssim import gaussian_taps
 
 
@@ -200,26 +199,17 @@ def test_evaluate_many_batches_like_singles_and_mean():
         ["lpips"] is None
 
 
-def test_missing_weights_give_none_with_one_warning(monkeypatch, tmp_path):
-    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
-    monkeypatch.setenv("TORCH_HOME", str(tmp_path / "torch"))
-    monkeypatch.delenv("OLATBENCH_WEIGHTS_DIR", raising=False)
-    monkeypatch.setattr("olatbench.metrics.weights._package_dir", lambda name: None)
-    monkeypatch.setattr("olatbench.metrics.protocols._WARNED", set())
-    clear_caches()
-    try:
-        protocol = get_protocol("nrhints")
-        a, b = pair((24, 24, 3))
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always")
-            first = protocol.evaluate(a, b)
-            protocol.evaluate(a, b)
-        assert first["lpips"] is None and first["psnr"] is not None
-        messages = [str(w.message) for w in caught if "LPIPS" in str(w.message)]
-        assert len(messages) == 1 and "olatbench weights install" in messages[0]
-        assert not protocol.lpips_available()
-    finally:
-        clear_caches()
+def test_missing_weights_give_none_with_one_warning(no_lpips_weights):
+    protocol = get_protocol("nrhints")
+    a, b = pair((24, 24, 3))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        first = protocol.evaluate(a, b)
+        protocol.evaluate(a, b)
+    assert first["lpips"] is None and first["psnr"] is not None
+    messages = [str(w.message) for w in caught if "LPIPS" in str(w.message)]
+    assert len(messages) == 1 and "olatbench weights install" in messages[0]
+    assert not protocol.lpips_available()
 
 
 def test_hdr_flip_fixed_exposure_range():

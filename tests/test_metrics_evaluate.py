@@ -119,26 +119,15 @@ def test_cli_refuses_missing_extra_corrupt_and_overwrite(scene, tmp_path):
     assert out.read_bytes() == first  # failed runs leave the result untouched
 
 
-def test_cli_require_lpips_without_weights(scene, tmp_path, monkeypatch):
-    from olatbench.metrics.lpips import clear_caches
-
-    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
-    monkeypatch.setenv("TORCH_HOME", str(tmp_path / "torch"))
-    monkeypatch.delenv("OLATBENCH_WEIGHTS_DIR", raising=False)
-    monkeypatch.setattr("olatbench.metrics.weights._package_dir", lambda name: None)
-    monkeypatch.setattr("olatbench.metrics.protocols._WARNED", set())
-    clear_caches()
-    try:
-        write_predictions(scene, tmp_path / "pred")
-        result = CliRunner().invoke(evaluate, [str(tmp_path / "pred"), "--gt", str(scene), "--require", "lpips"])
-        assert result.exit_code != 0 and "olatbench weights install" in result.output
-        soft = CliRunner().invoke(evaluate, [str(tmp_path / "pred"), "--gt", str(scene), "--protocol", "nrhints"])
-        assert soft.exit_code == 0 and "lpips=None" in soft.output
-        assert soft.output.count("warning: LPIPS-alex is reported as None") == 1
-        shown = CliRunner().invoke(where, [])
-        assert "not found" in shown.output and "olatbench weights install" in shown.output
-    finally:
-        clear_caches()
+def test_cli_require_lpips_without_weights(scene, tmp_path, no_lpips_weights):
+    write_predictions(scene, tmp_path / "pred")
+    result = CliRunner().invoke(evaluate, [str(tmp_path / "pred"), "--gt", str(scene), "--require", "lpips"])
+    assert result.exit_code != 0 and "olatbench weights install" in result.output
+    soft = CliRunner().invoke(evaluate, [str(tmp_path / "pred"), "--gt", str(scene), "--protocol", "nrhints"])
+    assert soft.exit_code == 0 and "lpips=None" in soft.output
+    assert soft.output.count("warning: LPIPS-alex is reported as None") == 1
+    shown = CliRunner().invoke(where, [])
+    assert "not found" in shown.output and "olatbench weights install" in shown.output
 
 
 def test_metrics_list_and_explain():
