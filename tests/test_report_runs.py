@@ -334,13 +334,14 @@ def test_cli_report_formats(tiny_runs, tmp_path):
     runner = CliRunner()
     markdown = runner.invoke(main, ["report", str(tiny_runs), "--suite", "mini", "--average"])
     assert markdown.exit_code == 0, markdown.output
-    assert "| ssdgs | **31.5000** |" in markdown.output and "Protocol: olatbench-v1 v1" in markdown.output
+    assert "| ssdgs | **31.5000 ± 0.7071** |" in markdown.output and "Protocol: olatbench-v1 v1" in markdown.output
+    assert "mean ± sample std over up to 2 seed(s)" in markdown.output  # two seeds: sample std (ddof=1) shown
     out = tmp_path / "t.csv"
     csv = runner.invoke(main, ["report", str(tiny_runs), "--metrics", "psnr", "--splits", "test", "-o", str(out)])
     assert csv.exit_code == 0, csv.output
     lines = out.read_text().splitlines()
     assert lines[0] == "block,method,diffuse_shadow/Test,aniso_metal/Test,translucent/Test"
-    assert lines[3] == "PSNR ↑,ssdgs,30.5000,31.5000,32.0000c"
+    assert lines[3] == "PSNR ↑,ssdgs,30.5000 ± 0.7071,31.5000 ± 0.7071,32.0000c"  # one seed left: no std
     latex = runner.invoke(main, ["report", str(tiny_runs), "--format", "latex", "--standalone", "--booktabs",
                                  "--colours", "0.8,1,0.8;0.9,1,0.9"])
     assert latex.exit_code == 0 and latex_balance_problems(latex.output) == []

@@ -213,10 +213,12 @@ class RunCells:
         return set(values.dropna(subset=["value"])["seed"]) >= set(self.seeds[row])
 
 
-def _protocol_line(frame: pd.DataFrame, suite: str, seeds: str) -> str:
+def _protocol_line(frame: pd.DataFrame, suite: str, seeds: str, seed_std: bool = False) -> str:
+    """``seed_std``: the table's per-scene cells carry the sample std over seeds where they have several."""
     protocols = sorted(set(frame["protocol"]))
     seed_count = frame.groupby(["method", "variant", "scene"])["seed"].nunique().max()
-    seed_text = "every seed as its own row" if seeds == "all" else f"mean over up to {seed_count} seed(s)"
+    spread = " ± sample std" if seed_std and seed_count > 1 else ""
+    seed_text = "every seed as its own row" if seeds == "all" else f"mean{spread} over up to {seed_count} seed(s)"
     text = f"{', '.join(protocols)}; suite {suite}; {seed_text}"
     if len(protocols) > 1:
         text += " — WARNING: mixed metric protocols, numbers are not comparable"
@@ -274,7 +276,7 @@ def scene_table(frame: pd.DataFrame, *, suite: str | None = None, methods: Seque
         for scene in scenes:
             for split in splits:
                 for metric in metrics:
-                    cells[(row, scene, split, metric)] = run_cells.cell(row, scene, split, metric)
+                    cells[(row, scene, split, metric)] = run_cells.cell(row, scene, split, metric, with_std=True)
         if average:
             for split in splits:
                 for metric in metrics:
@@ -292,7 +294,7 @@ def scene_table(frame: pd.DataFrame, *, suite: str | None = None, methods: Seque
         table_notes = []
     table = scenes_layout(CellLookup(cells), rows, columns, splits, metrics, name=f"tab:{suite}",
                           caption=f"Per-scene results on the {suite} suite.",
-                          protocol=_protocol_line(selected, suite, seeds), rank_sets=ranks)
+                          protocol=_protocol_line(selected, suite, seeds, seed_std=True), rank_sets=ranks)
     table.footnotes += table_notes + ([scene_note] if scene_note else []) + run_cells.notes.lines()
     return table
 
@@ -438,7 +440,7 @@ def ablation_table(frame: pd.DataFrame, *, suite: str | None = None, method: str
     sets = {row: ("schedule" if run_cells.source[row][1].startswith("schedule-") else "composition") for row in rows}
     scenes = list(dict.fromkeys(selected["scene"]))
     suites = sorted(set(selected["suite"]))
-    protocol = _protocol_line(selected, ", ".join(suites), seeds)
+    protocol = _protocol_line(selected, ", ".join(suites), seeds, seed_std=True)
     first_schedule = [row for row in rows if sets[row] == "schedule"][:1]
     cells = {}
     for row in rows:
