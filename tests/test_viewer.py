@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import json
+import os
 import shutil
 import subprocess
+import sys
 import time
 import urllib.request
 from pathlib import Path
@@ -212,3 +214,21 @@ def test_the_page_shows_a_canvas_in_headless_chromium(app, tmp_path):
                              "--virtual-time-budget=15000", "--dump-dom", app.url],
                             capture_output=True, text=True, timeout=120)
     assert "<canvas" in result.stdout, result.stderr[-2000:]
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(CHROMIUM is None, reason="needs Debian's chromium (apt-get install chromium)")
+def test_the_browser_latency_benchmark_times_light_moves_in_headless_chromium(trained):
+    """benchmarks/bench_viewer_browser.py: two azimuth-slider drags in headless Chromium, each changing the image,
+    timed from the mousemove to the painted preview and full-resolution image."""
+    root = Path(__file__).resolve().parents[1]
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [str(root), os.environ.get("PYTHONPATH")]))}
+    result = subprocess.run([sys.executable, str(root / "benchmarks" / "bench_viewer_browser.py"), str(trained),
+                             "--moves", "2", "--startup-timeout", "180"],
+                            capture_output=True, text=True, timeout=600, env=env)
+    assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
+    summary = [line for line in result.stdout.splitlines() if line.startswith("SUMMARY bench_viewer_browser ")]
+    fields = dict(field.split("=", 1) for field in summary[0].split()[2:])
+    assert fields["moves"] == fields["valid"] == "2"
+    assert 0 < float(fields["first_painted_ms"]) <= float(fields["full_painted_ms"])
+    assert float(fields["full_arrived_ms"]) <= float(fields["full_painted_ms"])
