@@ -94,6 +94,34 @@ def test_moving_the_light_changes_the_image_in_the_shadowed_region(app):
     assert difference[shadowed].mean() > 3.0  # 8-bit levels, far above JPEG noise (same image twice: 0)
 
 
+def test_a_tab_whose_first_camera_message_beats_its_set_up_still_gets_an_image(app, monkeypatch):
+    """viser sets a tab up in a thread pool beside its connection: the browser's first camera message can arrive
+    before the session's camera handler exists. The session must answer it anyway (found with headless Chromium,
+    where the tab then stayed black or showed the frame's shape stretched)."""
+    from olatbench.viewer import server
+
+    use_model = server.ClientSession.use_model
+
+    def late_set_up(session, model):
+        deadline = time.monotonic() + 30
+        while not server._camera_state_received(session.client.camera) and time.monotonic() < deadline:
+            time.sleep(0.01)  # hold the set-up until the first camera message has come and gone unanswered
+        use_model(session, model)
+
+    monkeypatch.setattr(server.ClientSession, "use_model", late_set_up)
+    model = app.model(app.folders[0])
+    width, height = model.full_size
+    client = ViserTestClient(app.port)
+    wxyz, position, fov = camera_pose(model.home.camera)
+    client.send_camera(wxyz, position, fov, 2 * width, height)  # a canvas twice as wide as the frame
+    try:
+        image = full_image(client, model)
+    finally:
+        client.close()
+    # the canvas's aspect, not the frame's (what the tab showed when the first message went unanswered)
+    assert image.shape[1] / image.shape[0] == pytest.approx(2 * width / height, rel=0.03)
+
+
 def test_snapping_to_a_test_frame_reproduces_the_stored_test_render(app, trained):
     client = connect_home(app)
     try:
@@ -210,8 +238,9 @@ CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 @pytest.mark.skipif(CHROMIUM is None, reason="needs Debian's chromium (apt-get install chromium)")
 def test_the_page_shows_a_canvas_in_headless_chromium(app, tmp_path):
     """The page's JavaScript runs: after it loads, the DOM holds the WebGL canvas viser draws into."""
-    result = subprocess.run([CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--use-gl=swiftshader",
-                             "--virtual-time-budget=15000", "--dump-dom", app.url],
+    # ANGLE's SwiftShader: software WebGL (Chromium 156 has none with the older --disable-gpu --use-gl=swiftshader)
+    result = subprocess.run([CHROMIUM, "--headless", "--no-sandbox", "--use-angle=swiftshader",
+                             "--enable-unsafe-swiftshader", "--virtual-time-budget=15000", "--dump-dom", app.url],
                             capture_output=True, text=True, timeout=120)
     assert "<canvas" in result.stdout, result.stderr[-2000:]
 

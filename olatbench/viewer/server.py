@@ -162,6 +162,13 @@ def _locked(method: Callable[..., None]) -> Callable[..., None]:
     return locked
 
 
+def _camera_state_received(camera: Any) -> bool:
+    """Whether viser has received a camera message from the tab yet (its handle's private state has a timestamp:
+    the public accessors assert on it)."""
+    state = getattr(camera, "_state", None)
+    return bool(getattr(state, "update_timestamp", 0.0))
+
+
 class ClientSession:
     """One browser tab: its model, camera pose, light, output, GUI and scene nodes."""
 
@@ -181,6 +188,11 @@ class ClientSession:
             self._build_gui()
             self.use_model(app.model(app.folders[0]))
             client.camera.on_update(self._camera_moved)
+            # viser runs this set-up in a thread pool beside the connection, so the tab's first camera message
+            # often arrives before the handler exists and reaches nobody; answer it here (a message arriving after
+            # the registration waits for the lock and is handled as an ordinary move).
+            if _camera_state_received(client.camera):
+                self._camera_moved(client.camera)
 
     # ------------------------------------------------------------------------------------------- GUI
     def _build_gui(self) -> None:
