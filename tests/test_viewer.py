@@ -191,9 +191,14 @@ def test_a_run_folder_serves_each_finished_job_and_a_tab_switches_between_them(t
             while session.model.folder != folders[1] and time.monotonic() < deadline:
                 time.sleep(0.05)
             assert session.model.folder == folders[1]
-            full_image(client, session.model, after=mark)
-            assert viewer.scheduler.wait_idle(60)
+            # The model is assigned first and its render submitted at the end of the set-up, so "idle" alone can
+            # still show the old job's image (the two jobs are copies, so their images cannot tell them apart).
+            deadline = time.monotonic() + 60
+            while time.monotonic() < deadline and not (viewer.scheduler.idle() and session.delivered is not None
+                                                       and session.delivered.request.model is session.model):
+                time.sleep(0.01)
             assert session.delivered.request.model is session.model
+            full_image(client, session.model, after=mark)
         finally:
             client.close()
 
