@@ -31,9 +31,9 @@ from olatbench.bench.store import (
     JOB_FILE,
     TRAIN_LOG_FILE,
     is_locked,
+    job_lock,
     list_checkpoints,
     read_job_file,
-    wait_for_unlock,
 )
 
 
@@ -50,15 +50,13 @@ def _sibling_folders(job: Job) -> list[Path]:
                   if path.resolve() != folder.resolve() and (path / JOB_FILE).is_file())
 
 
-def _finished_job(folder: Path) -> dict[str, Any] | None:
-    """The job.json of ``folder`` when the job there is done and its final checkpoint is present, else None."""
-    data = read_job_file(folder)
+def _is_finished(folder: Path, job_file: dict[str, Any]) -> bool:
+    """Whether the job of ``folder`` (its job.json: ``job_file``) is done and its final checkpoint is present."""
     done = folder / DONE_FILE
-    if not data or not done.is_file() or done.read_text().strip() != data.get("id"):
-        return None
-    iterations = data.get("identity", {}).get("config", {}).get("iterations")
+    if not done.is_file() or done.read_text().strip() != job_file.get("id"):
+        return False
     checkpoints = list_checkpoints(folder)
-    return data if checkpoints and checkpoints[-1][0] == iterations else None
+    return bool(checkpoints) and checkpoints[-1][0] == job_file["identity"]["config"].get("iterations")
 
 
 def find_reusable(job: Job, wait: bool = True) -> tuple[Path, str] | None:
@@ -73,9 +71,11 @@ def find_reusable(job: Job, wait: bool = True) -> tuple[Path, str] | None:
         data = read_job_file(folder)
         if not data or "identity" not in data or experiment_key(data["identity"]) != key:
             continue
-        if wait and _finished_job(folder) is None and is_locked(folder) and str(data.get("id")) < job.id:
-            wait_for_unlock(folder)
-        if _finished_job(folder) is not None:
+        finished = _is_finished(folder, data)
+        if wait and not finished and is_locked(folder) and str(data.get("id")) < job.id:
+            with job_lock(folder, wait=True):  # returns once that job's process has let go of its folder
+                finished = _is_finished(folder, data)
+        if finished:
             return folder, str(data["id"])
     return None
 

@@ -118,10 +118,11 @@ def scan_runs(runs_root: str | Path) -> list[JobState]:
 
 
 @contextmanager
-def job_lock(folder: str | Path) -> Iterator[bool]:
+def job_lock(folder: str | Path, wait: bool = False) -> Iterator[bool]:
     """Hold an exclusive advisory lock (``flock``) on the job folder; yields False when another process
-    holds it. The kernel releases it when the process dies (even by SIGKILL), so no lock goes stale.
-    Without ``fcntl`` (Windows) this always yields True."""
+    holds it, or with ``wait`` blocks until it is released and then yields True. The kernel releases it when
+    the process dies (even by SIGKILL), so no lock goes stale. Without ``fcntl`` (Windows) this always yields
+    True."""
     try:
         import fcntl
     except ImportError:  # pragma: no cover - non-POSIX
@@ -131,7 +132,7 @@ def job_lock(folder: str | Path) -> Iterator[bool]:
     path.parent.mkdir(parents=True, exist_ok=True)
     with open(path, "a") as handle:
         try:
-            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            fcntl.flock(handle, fcntl.LOCK_EX if wait else fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
             yield False
             return
@@ -139,20 +140,6 @@ def job_lock(folder: str | Path) -> Iterator[bool]:
             yield True
         finally:
             fcntl.flock(handle, fcntl.LOCK_UN)
-
-
-def wait_for_unlock(folder: str | Path) -> None:
-    """Block until no process holds the job folder's lock (returns at once when none does)."""
-    try:
-        import fcntl
-    except ImportError:  # pragma: no cover - non-POSIX
-        return
-    path = Path(folder) / LOCK_FILE
-    if not path.is_file():
-        return
-    with open(path, "a") as handle:
-        fcntl.flock(handle, fcntl.LOCK_EX)
-        fcntl.flock(handle, fcntl.LOCK_UN)
 
 
 def is_locked(folder: str | Path) -> bool:
