@@ -189,8 +189,10 @@ class ClientSession:
             self.use_model(app.model(app.folders[0]))
             client.camera.on_update(self._camera_moved)
             # viser runs this set-up in a thread pool beside the connection, so the tab's first camera message
-            # often arrives before the handler exists and reaches nobody; answer it here (a message arriving after
-            # the registration waits for the lock and is handled as an ordinary move).
+            # often arrives before the handler exists and reaches nobody; answer it here. A message arriving after
+            # the registration waits for the lock and is handled as an ordinary move; one arriving between the
+            # registration and this check is handled twice, the second time as a move to where the tab still is,
+            # which the tab's next message (after the move to the home frame) supersedes.
             if _camera_state_received(client.camera):
                 self._camera_moved(client.camera)
 
