@@ -57,3 +57,19 @@ def test_external_method_package_runs_through_its_entry_point(tmp_path):
     assert results["job"]["method"] == "mean-image" and results["status"] == "done"
     assert set(results["metrics"]["test"]["per_image"]) == {"000", "001"}
     assert json.dumps(results["metrics"]["test"]["mean"])  # finite, JSON-clean numbers
+
+
+def test_component_shares_example(tmp_path):
+    from trained_jobs import train_tiny_ssdgs
+
+    job = train_tiny_ssdgs(tmp_path, iterations=8, schedule="H")  # every term from step 0: SSS is shaded
+    result = _run([sys.executable, str(EXAMPLES / "component_shares.py"), str(job)])
+    assert result.returncode == 0, result.stderr
+    header, *rows = result.stdout.splitlines()
+    shares = dict(item.split("=") for item in header.split(": ", 1)[1].split())
+    assert set(shares) == {"diffuse", "specular", "sss", "S"}
+    assert float(shares["sss"]) > 0 and 0 < float(shares["S"]) <= 1  # H shades SSS and the shadow term
+    quantiles = {row.split()[0]: [float(x) for x in row.split()[1:]] for row in rows}
+    assert set(quantiles) == {"sigma_s", "sigma_a", "r", "f_sss"}
+    assert all(0.05 <= x <= 2.05 for x in quantiles["sigma_s"] + quantiles["sigma_a"])
+    assert all(0.1 <= x <= 3.1 for x in quantiles["r"]) and quantiles["f_sss"] == sorted(quantiles["f_sss"])
