@@ -19,6 +19,11 @@ summary with the worst peak memory at 512² (target: ≤ 8 GiB with 550K Gaussia
     python benchmarks/bench_scale.py                                  # the three suites, 100K/300K/550K
     python benchmarks/bench_scale.py --suites gs3 --counts 550000 --steps 3
     python benchmarks/bench_scale.py --suites nrhints --images 100    # a quicker stand-in (fewer images)
+    python benchmarks/bench_scale.py --images 100 --fill-stack        # quick render, the suites' full memory
+
+``--fill-stack`` repeats the rendered training frames until the stack has the suite's realistic count
+(`STANDINS`): each image is read and held as often as a distinct one would be, so the stack's memory, its
+float16 switch and the step (which reads one image) are those of the full count, without rendering it.
 """
 
 from __future__ import annotations
@@ -35,7 +40,8 @@ import time
 ALL_ON_STEP = 30_000  # the 100K schedule: every term on, camera/light refinement on, nothing frozen
 
 
-def run_case(suite: str, count: int, steps: int, repeats: int, images: int | None, threads: int) -> dict:
+def run_case(suite: str, count: int, steps: int, repeats: int, images: int | None, threads: int,
+             fill_stack: bool = False) -> dict:
     """One (suite, Gaussian count) case in this process; returns its measurements as plain numbers."""
     import torch
     from bench_ssdgs import (
@@ -54,7 +60,7 @@ def run_case(suite: str, count: int, steps: int, repeats: int, images: int | Non
     from olatbench.bench.plan import resolve_config
     from olatbench.datasets import load_scene
     from olatbench.datasets.suites import get_suite
-    from olatbench.datasets.synth.standins import ensure_standin
+    from olatbench.datasets.synth.standins import STANDINS, ensure_standin
     from olatbench.methods.registry import get_spec
     from olatbench.methods.ssdgs import SSDGS
 
@@ -64,6 +70,9 @@ def run_case(suite: str, count: int, steps: int, repeats: int, images: int | Non
     folder = ensure_standin(suite, train=images, progress=False)
     scene = load_scene(folder)
     frames = scene.split(suite_record.train_split)
+    if fill_stack:  # the rendered frames again and again, up to the suite's realistic training-image count
+        target = STANDINS[suite].train
+        frames = [frames[index % len(frames)] for index in range(target)]
     job = Job(method="ssdgs", method_ref="", suite=suite, scene=folder.name, variant="default", seed=0, config={},
               scene_path=str(folder), scene_format=suite_record.format, colourspace=suite_record.colourspace,
               resolution=suite_record.resolution, train_split=suite_record.train_split,
@@ -110,12 +119,14 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=2, help="rounds of the stage timings (fastest kept)")
     parser.add_argument("--images", type=int, default=None,
                         help="training images of the stand-in (default: the suite's realistic count)")
+    parser.add_argument("--fill-stack", action="store_true",
+                        help="repeat the rendered training frames up to the suite's realistic count (with --images)")
     parser.add_argument("--threads", type=int, default=2)
     parser.add_argument("--case", nargs=2, metavar=("SUITE", "COUNT"), help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.case:  # child process: one case, one JSON line
         print(json.dumps(run_case(args.case[0], int(args.case[1]), args.steps, args.repeats, args.images,
-                                  args.threads)))
+                                  args.threads, args.fill_stack)))
         return
     print(f"{'suite':>8} {'size':>9} {'images':>6} {'N':>7} {'step':>7} {'raster':>7} {'shadow':>7} {'mlp':>7} "
           f"{'optim':>7} {'rest':>7} {'step/rast':>9} {'rss GiB':>8} {'rss/img':>7} {'run at N':>10}")
@@ -126,6 +137,8 @@ def main() -> None:
                        "--repeats", str(args.repeats), "--threads", str(args.threads)]
             if args.images is not None:
                 command += ["--images", str(args.images)]
+            if args.fill_stack:
+                command.append("--fill-stack")
             done = subprocess.run(command, capture_output=True, text=True)
             if done.returncode != 0:
                 raise SystemExit(f"case {suite} N={count} failed:\n{done.stderr[-3000:]}")
@@ -140,7 +153,7 @@ def main() -> None:
                   f"{case['peak_rss_gib'] / case['image_gib']:>7.2f} "
                   f"{format_duration(case['step_seconds'] * get_suite(suite).iterations):>10}", flush=True)
     print(f"SUMMARY bench_scale peak_rss_512_max_gib={worst_512:.2f} (target<=8) threads={args.threads} "
-          f"counts={','.join(map(str, args.counts))}")
+          f"counts={','.join(map(str, args.counts))} stack={'filled' if args.fill_stack else 'rendered'}")
 
 
 if __name__ == "__main__":
