@@ -98,6 +98,21 @@ def test_generator_suites_create_their_data_once(tmp_path, monkeypatch):
     assert calls == [(None, ["Alpha"])]  # only the requested scenes; present data is used as is
 
 
+def test_dry_run_finds_generated_data_in_the_generators_default_folder(tmp_path, monkeypatch):
+    data = support.write_tiny_data(tmp_path / "cache")
+    monkeypatch.setattr(support, "fake_generator", lambda root, progress=True, scenes=None: 1 / 0, raising=False)
+    monkeypatch.setattr(support, "fake_generator_root", lambda: data, raising=False)
+    suite = dataclasses.replace(support.tiny_suite(), generator="test_runner_support:fake_generator",
+                                generator_root="test_runner_support:fake_generator_root")
+    assert resolve_data_root(suite, None, ["Alpha"], generate=False) == data  # found, nothing generated
+    jobs = make_plan("trivial", suite, tmp_path / "runs", generate=False, progress=False)
+    assert all(job.id and job.data_manifest for job in jobs)  # ids, as a real run on that data has
+    assert [job.id for job in jobs] == [job.id for job in make_plan("trivial", suite, tmp_path / "runs",
+                                                                    data_root=data, progress=False)]
+    monkeypatch.setattr(support, "fake_generator_root", lambda: tmp_path / "empty", raising=False)
+    assert resolve_data_root(suite, None, ["Alpha"], generate=False) is None
+
+
 def test_dry_plan_without_data_has_no_ids(tmp_path, monkeypatch):
     monkeypatch.setattr(support, "fake_generator", lambda root, progress=True, scenes=None: 1 / 0, raising=False)
     suite = dataclasses.replace(support.tiny_suite(), generator="test_runner_support:fake_generator")

@@ -144,8 +144,10 @@ def resolve_data_root(suite: Suite, data_root: str | Path | None, scenes: Sequen
     Suites without a generator use ``data_root``, else ``$OLATBENCH_DATA``. A suite with a
     ``generator`` (``mini``) ignores ``$OLATBENCH_DATA`` (which points at real data) and creates its
     data on first use in ``data_root`` when given, else in the generator's default cache (only the
-    requested ``scenes``: the generator is called as ``generator(root, progress=..., scenes=[...])``). Returns
-    None when the data is missing and ``generate`` is False (dry runs).
+    requested ``scenes``: the generator is called as ``generator(root, progress=..., scenes=[...])``). Dry runs
+    (``generate`` False) never create data: they use it where it already is (``data_root``, else the
+    generator's default folder, ``suite.generator_root``) and get None when it is missing. (A real run still
+    re-renders generated data whose recipe or files no longer match; its job ids then differ from the dry run's.)
     """
     root = data_root
     if root is None and suite.generator is None:
@@ -158,7 +160,8 @@ def resolve_data_root(suite: Suite, data_root: str | Path | None, scenes: Sequen
     if root is not None and _all_present(suite, Path(root), scenes):
         return Path(root)
     if not generate:
-        return None
+        default = _import_callable(suite.generator_root)() if root is None and suite.generator_root else None
+        return Path(default) if default is not None and _all_present(suite, Path(default), scenes) else None
     return Path(_import_callable(suite.generator)(None if root is None else Path(root), progress=progress,
                                                   scenes=list(scenes)))
 

@@ -44,6 +44,7 @@ class Suite:
     train_split: str = "train"
     test_split: str = "test"
     generator: str | None = None  # "module:function" creating the data on first use
+    generator_root: str | None = None  # "module:function" returning where the generator keeps its data
 
     @property
     def colourspace(self) -> str:
@@ -96,7 +97,8 @@ SUITES: dict[str, Suite] = {
     "mini": Suite(
         name="mini", format="nrhints", scenes=_MINI_SCENES, aliases={}, background=(0.0, 0.0, 0.0),
         resolution=None, iterations=3000, protocol="olatbench-v1",
-        generator="olatbench.datasets.synth.mini:ensure_mini_suite"),
+        generator="olatbench.datasets.synth.mini:ensure_mini_suite",
+        generator_root="olatbench.datasets.synth.mini:default_root"),
 }
 
 
