@@ -52,6 +52,8 @@ def dipole_parameters(method, camera, light) -> dict[str, torch.Tensor]:
 def main(folders: list[str]) -> None:
     for folder in folders:
         method, job = restore(folder)
+        if job.method != "ssdgs":
+            sys.exit(f"{folder}: a '{job.method}' job; this script reads SSD-GS models only")
         frames = load_scene(job.scene_path, format=job.scene_format).split("test")
         sums = dict.fromkeys(("rgb", "diffuse", "specular", "sss"), 0.0)
         shadow, parameters = 0.0, {}
