@@ -28,6 +28,7 @@ from olatbench.bench.restore import restore
 from olatbench.bench.views import view_camera
 from olatbench.datasets import load_scene
 from olatbench.methods.shading.terms import safe_normalize
+from olatbench.methods.ssdgs.sss import dipole_profile
 from olatbench.methods.training import camera_centre
 
 QUANTILES = (0.1, 0.5, 0.9)
@@ -45,7 +46,7 @@ def dipole_parameters(method, camera, light) -> dict[str, torch.Tensor]:
     normals = shader.frames(attributes, model.quats, model.scales, wo)[:, :, 2]
     net = shader.sss_net
     sigma_s, sigma_a, r = net.parameters_from_input(net.encode(positions, wo, wi, normals, attributes["material"]))
-    f_sss = net(positions, wo, wi, normals, attributes["material"])
+    f_sss = dipole_profile(r, sigma_s, sigma_a, net.eta, net.virtual_factor)  # what net(...) returns, unrecomputed
     return {"sigma_s": sigma_s[:, 0], "sigma_a": sigma_a[:, 0], "r": r[:, 0], "f_sss": f_sss[:, 0]}
 
 
