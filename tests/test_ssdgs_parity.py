@@ -80,6 +80,14 @@ def test_the_paper_stays_the_default_and_mini_keeps_its_choices() -> None:
         SSDGS.resolve_config("gs3", test_pose_fitting="interleaved")
 
 
+@pytest.mark.parametrize("suite", sorted(SUITES))
+def test_mini_as_a_variant_of_a_real_suite_switches_the_test_view_fitting_off(suite: str) -> None:
+    """`olatbench run -s nrhints --variant mini` composes "nrhints+mini": mini turns refinement off, so it must turn
+    the suite's test-view fitting off with it (which otherwise refuses the config)."""
+    config = SSDGS.resolve_config(f"{suite}+mini")
+    assert (config.test_pose_fitting, config.refine_camera, config.refine_light) == ("none", False, False)
+
+
 TINY = {"num_init_gaussians": 200, "max_gaussians": 1_000, "shadow_resolution": 16, "sss_hidden": 16, "num_asg": 4,
         "background": None}
 

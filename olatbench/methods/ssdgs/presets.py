@@ -66,7 +66,7 @@ SUITE_PRESETS: dict[str, dict[str, Any]] = {
              "densify_interval": 100, "densify_grad_threshold": 2e-4, "opacity_reset_interval": 30_000,
              "asg_lr_decay_from": 40_000, "asg_lr_max_steps": 20_000,
              "mlp_lr_decay_from": 40_000, "mlp_lr_max_steps": 20_000,
-             "refine_camera": False, "refine_light": False},
+             "refine_camera": False, "refine_light": False, "test_pose_fitting": "none"},
 }
 
 ABLATION_PRESETS: dict[str, dict[str, Any]] = {
