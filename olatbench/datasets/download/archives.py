@@ -81,15 +81,29 @@ def _open_archive(archive: Path) -> zipfile.ZipFile | tarfile.TarFile:
         return zipfile.ZipFile(archive)
     if tarfile.is_tarfile(archive):
         return tarfile.open(archive)
-    raise ArchiveError(f"{archive.name}: not a zip or tar archive (truncated or of another type)")
+    raise ArchiveError(f"{archive.name}: damaged or truncated archive (neither a zip nor a tar file)")
 
 
-def _members(bundle: zipfile.ZipFile | tarfile.TarFile) -> list[tuple[str, str, object]]:
+def _members(bundle: zipfile.ZipFile | tarfile.TarFile, archive: Path) -> list[tuple[str, str, object]]:
     """(name, kind, handle) of every member; kind is ``file``, ``dir`` or ``link`` (links, devices, fifos)."""
     if isinstance(bundle, zipfile.ZipFile):
         return [(m.filename, "link" if stat.S_ISLNK(m.external_attr >> 16) else "dir" if m.is_dir() else "file", m)
                 for m in bundle.infolist()]
-    return [(m.name, "file" if m.isfile() else "dir" if m.isdir() else "link", m) for m in bundle.getmembers()]
+    members = [(m.name, "file" if m.isfile() else "dir" if m.isdir() else "link", m) for m in bundle.getmembers()]
+    _check_tar_end(bundle, archive)
+    return members
+
+
+def _check_tar_end(bundle: tarfile.TarFile, archive: Path) -> None:
+    """Raise `ArchiveError` unless only zero padding follows the last member. `tarfile` ends its listing quietly at
+    the first damaged header after the first one, so a corrupt tar would otherwise unpack as a shorter tree;
+    reading a compressed stream to its end also checks its CRC."""
+    assert bundle.fileobj is not None
+    bundle.fileobj.seek(bundle.offset)
+    while block := bundle.fileobj.read(CHUNK):
+        if block.count(0) != len(block):
+            raise ArchiveError(f"{archive.name}: damaged or truncated archive (a damaged member header at byte "
+                               f"{bundle.offset} ends the readable part; data follows it)")
 
 
 def _check_members(members: list[tuple[str, str, object]], destination: Path, archive: Path) -> None:
@@ -129,7 +143,7 @@ def extract(archive: Path, destination: Path, max_bytes: int | None = None) -> l
     written: list[Path] = []
     budget = limit
     with _reading(archive), _open_archive(archive) as bundle:
-        members = _members(bundle)
+        members = _members(bundle, archive)
         _check_members(members, destination, archive)
         for name, kind, member in members:
             target = _safe_member_path(destination, name, archive)
