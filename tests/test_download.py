@@ -479,3 +479,18 @@ def test_a_tar_member_named_dot_is_refused(tmp_path):
     archive.write_bytes(_tgz({".": b"x"}, mode="w"))
     with pytest.raises(archives.UnsafeArchiveError, match="without a file name"):
         archives.extract(archive, tmp_path / "out")
+
+
+def test_an_archive_that_is_no_scene_leaves_the_cache_too(tmp_path, nrhints_tree):
+    """A mirror serving the wrong file: the readable archive that holds no scene does not stay cached to fail
+    again; a rerun after the mirror is fixed installs the scene."""
+    buffer = io.BytesIO()
+    with zipfile.ZipFile(buffer, "w") as bundle:
+        bundle.writestr("CatSmall/README.txt", "the scene is elsewhere")
+    mirror = _mirror(tmp_path, "CatSmall.zip", buffer.getvalue())
+    root = tmp_path / "data"
+    result = _download(root, mirror)
+    assert result.exit_code == 1 and "Traceback" not in result.output
+    assert "is not a valid scene" in result.output and "CatSmall.zip.damaged" in result.output
+    (mirror / "CatSmall.zip").write_bytes(_zip_folder(nrhints_tree, "CatSmall"))
+    assert _download(root, mirror).exit_code == 0

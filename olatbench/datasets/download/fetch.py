@@ -245,18 +245,18 @@ def _set_aside(destination: Path) -> Path:
     return aside
 
 
-def _damaged_archive(cache: Path, files: list[RemoteFile], archive: Path, error: Exception) -> ArchiveError:
-    """Move the downloaded files of an archive that cannot be read out of the cache (to ``<name>.damaged``) so
-    that a rerun downloads them again; the error says where they went."""
+def _out_of_the_cache(cache: Path, files: list[RemoteFile], archive: Path, problem: str) -> str:
+    """Move the downloaded files of an archive that failed (cannot be read, or is no valid scene) out of the cache
+    to ``<name>.damaged``, so that a rerun downloads them again; ``problem`` plus where they went and what next."""
     moved = []
-    for path in {archive, *(cache / f.name for f in files)}:
+    for path in sorted({archive, *(cache / f.name for f in files)}):
         if path.exists():
             path.replace(path.with_name(path.name + ".damaged"))
             moved.append(path.name + ".damaged")
     published = all(f.sha256 for f in files)
-    hint = ("its sha256 is the one the host publishes, so the host's copy itself is damaged: try another --source"
-            if published else "rerun to download it again (fix the mirror first if it serves a damaged file)")
-    return ArchiveError(f"{error}; moved to {cache}/{{{','.join(sorted(moved))}}}; {hint}")
+    hint = ("its sha256 is the one the host publishes, so the host's copy itself is at fault: try another --source"
+            if published else "rerun to download it again (fix the mirror first if it serves this file)")
+    return f"{problem}; moved to {cache}/{{{','.join(moved)}}}; {hint}"
 
 
 def download_scene(suite: str, scene: str, root: Path, *, source: str | None = None, mirror: str | None = None,
@@ -314,14 +314,14 @@ def _install(suite: str, scene: str, source: Source, files: list[RemoteFile], re
         try:
             archives.extract(archive, unpacked)
         except ArchiveError as error:
-            raise _damaged_archive(cache, files, archive, error) from None
+            raise ArchiveError(_out_of_the_cache(cache, files, archive, str(error))) from None
         folder = _scene_folder(unpacked)
         report = validate_folder(folder)  # a tree that is not a valid scene is refused before it is put in place
         if not report.ok:
             first = "; ".join(f"{issue.message} ({issue.path or ''} {issue.frame or ''})".strip()
                               for issue in report.errors[:3])
-            raise DatasetError(f"{suite}/{scene}: the unpacked archive is not a valid scene: {first}",
-                               path=archive)
+            raise DatasetError(_out_of_the_cache(cache, files, archive, f"{suite}/{scene}: the unpacked archive "
+                                                 f"is not a valid scene: {first}"), path=archive)
         manifest.write_manifest(folder, source.name, recorded)
         if present(destination):
             _refuse_foreign(destination, command)  # made while the archive downloaded
