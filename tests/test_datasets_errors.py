@@ -86,14 +86,68 @@ def test_file_path_escaping_the_root(nrhints, escape):
     assert error.value.key == "file_path"
 
 
-def test_symlink_escaping_the_root(nrhints, tmp_path):
-    outside = tmp_path / "outside"
-    outside.mkdir()
-    write_image(outside / "x.png", np.zeros((12, 16, 4)), "uint8")
-    os.symlink(outside, nrhints / "link")
-    _edit(nrhints / "transforms_test.json", lambda m: m["frames"][0].update(file_path="link/x"))
+def test_a_folder_the_user_linked_elsewhere_is_followed(nrhints, tmp_path):
+    """#38 item 14: ``train/`` moved to another disk and linked back is the user's to make; only a path written in
+    a transforms file must not leave the root."""
+    other_disk = tmp_path / "other_disk"
+    (nrhints / "train").rename(other_disk)
+    os.symlink(other_disk, nrhints / "train")
+    scene = load_scene(nrhints)
+    assert scene.split("train")[0].load().rgb.shape[:2] == (12, 16)
+    assert validate_folder(nrhints).ok
+    _edit(nrhints / "transforms_test.json", lambda m: m["frames"][0].update(file_path="train/../../other_disk/000"))
     with pytest.raises(DatasetError, match="leaves the dataset root"):
         load_scene(nrhints)
+
+
+@pytest.mark.parametrize("split_file", ["transforms_train.json", "transforms_test.json"])
+@pytest.mark.parametrize("damage", ["folder", "loop", "dangling"])
+def test_a_split_file_that_is_no_file_is_an_error_not_a_missing_split(nrhints, split_file, damage):
+    """#38 item 10: a transforms file replaced by a folder, a link loop or a dangling link fails the scene."""
+    path = nrhints / split_file
+    path.unlink()
+    if damage == "folder":
+        path.mkdir()
+    else:
+        os.symlink(path.name if damage == "loop" else "gone.json", path)
+    expected = {"folder": "is a folder", "loop": "symbolic link loop", "dangling": "link to a missing file"}[damage]
+    with pytest.raises(DatasetError, match=expected) as error:
+        load_scene(nrhints)
+    assert error.value.path == path
+    report = validate_folder(nrhints)
+    assert not report.ok and [issue.path for issue in report.errors] == [str(path)]
+
+
+def test_an_empty_frame_list_is_an_error(nrhints):
+    """#38 item 10: ``"frames": []`` is a file describing nothing, not a valid empty split."""
+    _edit(nrhints / "transforms_test.json", lambda m: m.update(frames=[]))
+    with pytest.raises(DatasetError, match="empty list") as error:
+        load_scene(nrhints)
+    assert (error.value.path.name, error.value.key) == ("transforms_test.json", "frames")
+    assert [issue.key for issue in validate_folder(nrhints).errors] == ["frames"]
+
+
+def test_an_image_that_is_a_link_loop_is_one_error(nrhints):
+    """#38 item 9: a link loop is named as such (Path.resolve raised RuntimeError before)."""
+    image = nrhints / "test/001.png"
+    image.unlink()
+    os.symlink(image.name, image)
+    with pytest.raises(DatasetError, match="symbolic link loop") as error:
+        load_scene(nrhints).split("test")[1].load()
+    assert (error.value.path, error.value.frame) == (image, "001")
+    (issue,) = validate_folder(nrhints).errors
+    assert (issue.path, issue.frame) == (str(image), "001") and "symbolic link loop" in issue.message
+
+
+def test_a_name_that_is_not_utf8_is_one_error(tmp_path):
+    """#38 item 9: OpenImageIO takes UTF-8 names only (it raised TypeError); the error shows the byte as \\xff."""
+    write_nrhints_tree(tmp_path / "s")
+    root = Path(os.fsdecode(os.fsencode(tmp_path / "s") + b"\xff"))
+    (tmp_path / "s").rename(root)
+    with pytest.raises(DatasetError, match="not valid UTF-8") as error:
+        load_scene(root)
+    assert error.value.path == root / "train/000.png" and "s\\xff" in str(error.value)
+    assert not validate_folder(root).ok
 
 
 def test_missing_image(nrhints):

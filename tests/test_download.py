@@ -355,3 +355,142 @@ def test_link_header_parsing():
         "https://huggingface.co/api/x?cursor=abc"
     assert transfer.next_link('<https://a/prev>; rel="prev", <https://a/next>; rel="next"') == "https://a/next"
     assert transfer.next_link(None) is None and transfer.next_link('<https://a/p>; rel="prev"') is None
+
+
+# --- #38: nothing deleted that olatbench did not write; damaged archives never poison the cache ---------------
+
+
+def _mirror(tmp_path: Path, name: str, data: bytes) -> Path:
+    mirror = tmp_path / "mirror"
+    mirror.mkdir(exist_ok=True)
+    (mirror / name).write_bytes(data)
+    return mirror
+
+
+def _download(root: Path, mirror: Path, scene: str = "CatSmall"):
+    return CliRunner().invoke(main, ["datasets", "download", "nrhints", "--scenes", scene, "--data-root", str(root),
+                                     "--source", "nrhints-project", "--mirror", mirror.as_uri()])
+
+
+def test_a_scene_folder_olatbench_did_not_write_is_left_untouched(tmp_path, nrhints_tree):
+    """#38 item 1: ROOT/Cat without olatbench's manifest was removed with shutil.rmtree; now it stays, and the
+    error gives the command that replaces it."""
+    mirror = _mirror(tmp_path, "Cat.zip", _zip_folder(nrhints_tree, "Cat"))
+    root = tmp_path / "data"
+    (root / "Cat").mkdir(parents=True)
+    (root / "Cat" / "NOTES.txt").write_text("mine")
+    result = _download(root, mirror, "Cat")
+    assert result.exit_code == 1 and "Traceback" not in result.output
+    assert (root / "Cat" / "NOTES.txt").read_text() == "mine" and sorted(p.name for p in root.iterdir()) == ["Cat"]
+    assert "was not downloaded by olatbench" in result.output and "left untouched" in result.output
+    assert f"mv {root / 'Cat'} {root / 'Cat'}.mine && olatbench datasets download nrhints --scenes Cat" in \
+        result.output
+    # the command it prints does replace it
+    (root / "Cat").rename(root / "Cat.mine")
+    assert _download(root, mirror, "Cat").exit_code == 0 and manifest.verify_folder(root / "Cat") == []
+
+
+def test_a_downloaded_scene_edited_afterwards_is_moved_aside_not_deleted(tmp_path, nrhints_tree):
+    """#38 item 1: a folder that differs from its manifest is renamed beside the new copy, and the output says
+    where; every file of it survives."""
+    mirror = _mirror(tmp_path, "CatSmall.zip", _zip_folder(nrhints_tree, "CatSmall"))
+    root = tmp_path / "data"
+    assert _download(root, mirror).exit_code == 0
+    (root / "CatSmall" / "NOTES.txt").write_text("mine")
+    edited = next((root / "CatSmall").rglob("*.png"))
+    edited.write_bytes(b"my retouched image")
+    result = _download(root, mirror)
+    assert result.exit_code == 0, result.output
+    (aside,) = root.glob("CatSmall.replaced-*")
+    assert (aside / "NOTES.txt").read_text() == "mine"
+    assert (aside / edited.relative_to(root / "CatSmall")).read_bytes() == b"my retouched image"
+    assert str(aside) in result.output and "nothing in it was deleted" in result.output
+    assert manifest.verify_folder(root / "CatSmall") == []
+
+
+def test_a_truncated_archive_does_not_poison_the_cache(tmp_path, nrhints_tree):
+    """#38 item 2: a truncated mirror file recorded its hash before unpacking and stayed cached, so every rerun
+    repeated a tarfile traceback and the repaired archive was then refused as a sha256 mismatch."""
+    good = _tar_folder(nrhints_tree, "CatSmall")
+    mirror = _mirror(tmp_path, "CatSmall.zip", good[: len(good) // 2])  # the source's name; tar content
+    root = tmp_path / "data"
+    result = _download(root, mirror)
+    assert result.exit_code == 1 and "Traceback" not in result.output
+    assert "CatSmall.zip: damaged or truncated archive" in result.output, result.output
+    assert not (root / fetch.KNOWN_HASHES).exists()  # a damaged download is never the reference
+    cache = root / fetch.DOWNLOADS / "nrhints-project"
+    assert sorted(p.name for p in cache.iterdir()) == ["CatSmall.zip.damaged"]
+    assert "rerun to download it again" in result.output
+    (mirror / "CatSmall.zip").write_bytes(good)  # the mirror is repaired: a plain rerun works
+    result = _download(root, mirror)
+    assert result.exit_code == 0, result.output
+    assert json.loads((root / fetch.KNOWN_HASHES).read_text()) == {
+        "nrhints-project/CatSmall.zip": hashlib.sha256(good).hexdigest()}
+
+
+def test_a_recorded_hash_mismatch_says_how_to_accept_a_changed_source(tmp_path, nrhints_tree):
+    """#38 item 2: "rerun" alone looped; a mismatch with a recorded hash names the entry to delete."""
+    data = _zip_folder(nrhints_tree, "CatSmall")
+    mirror = _mirror(tmp_path, "CatSmall.zip", data)
+    root = tmp_path / "data"
+    assert _download(root, mirror).exit_code == 0
+    shutil.rmtree(root / fetch.DOWNLOADS)
+    (mirror / "CatSmall.zip").write_bytes(_zip_folder(nrhints_tree, "Cat_on_Decor"))
+    (root / "CatSmall" / manifest.MANIFEST_NAME).unlink()
+    shutil.move(root / "CatSmall", tmp_path / "elsewhere")
+    result = _download(root, mirror)
+    assert result.exit_code == 1 and "Traceback" not in result.output
+    assert "entry 'nrhints-project/CatSmall.zip'" in result.output and "delete that entry and rerun" in result.output
+
+
+def _tgz(members: dict[str, bytes], mode: str = "w:gz") -> bytes:
+    buffer = io.BytesIO()
+    with tarfile.open(fileobj=buffer, mode=mode) as bundle:
+        for name, data in members.items():
+            info = tarfile.TarInfo(name)
+            info.size = len(data)
+            bundle.addfile(info, io.BytesIO(data))
+    return buffer.getvalue()
+
+
+def test_an_unreadable_record_of_hashes_is_one_error(tmp_path, nrhints_tree):
+    mirror = _mirror(tmp_path, "CatSmall.zip", _zip_folder(nrhints_tree, "CatSmall"))
+    root = tmp_path / "data"
+    root.mkdir()
+    (root / fetch.KNOWN_HASHES).write_text("{truncated")
+    result = _download(root, mirror)
+    assert result.exit_code == 1 and "Traceback" not in result.output
+    assert fetch.KNOWN_HASHES in result.output and "unreadable record of archive hashes" in result.output
+
+
+def test_a_decompression_bomb_is_refused_while_unpacking(tmp_path):
+    """#38 item 3: 96 MiB of zeros in a ~100 kB tar.gz goes over the limit (20 × the archive, at least 64 MiB)."""
+    archive = tmp_path / "bomb.tar.gz"
+    archive.write_bytes(_tgz({"scene/zeros.bin": bytes(96 << 20)}))
+    assert archive.stat().st_size < 1 << 20
+    with pytest.raises(archives.UnsafeArchiveError, match="decompression bomb"):
+        archives.extract(archive, tmp_path / "out")
+    assert sum(p.stat().st_size for p in (tmp_path / "out").rglob("*") if p.is_file()) <= archives.UNPACK_FLOOR
+
+
+def test_a_tar_member_named_dot_is_refused(tmp_path):
+    """#38 item 3: a file member '.' crashed with IsADirectoryError."""
+    archive = tmp_path / "dot.tar"
+    archive.write_bytes(_tgz({".": b"x"}, mode="w"))
+    with pytest.raises(archives.UnsafeArchiveError, match="without a file name"):
+        archives.extract(archive, tmp_path / "out")
+
+
+def test_an_archive_that_is_no_scene_leaves_the_cache_too(tmp_path, nrhints_tree):
+    """A mirror serving the wrong file: the readable archive that holds no scene does not stay cached to fail
+    again; a rerun after the mirror is fixed installs the scene."""
+    buffer = io.BytesIO()
+    with zipfile.ZipFile(buffer, "w") as bundle:
+        bundle.writestr("CatSmall/README.txt", "the scene is elsewhere")
+    mirror = _mirror(tmp_path, "CatSmall.zip", buffer.getvalue())
+    root = tmp_path / "data"
+    result = _download(root, mirror)
+    assert result.exit_code == 1 and "Traceback" not in result.output
+    assert "is not a valid scene" in result.output and "CatSmall.zip.damaged" in result.output
+    (mirror / "CatSmall.zip").write_bytes(_zip_folder(nrhints_tree, "CatSmall"))
+    assert _download(root, mirror).exit_code == 0

@@ -7,6 +7,8 @@ Each verb lives in its own module and is imported only when it is invoked, so
 from __future__ import annotations
 
 import importlib
+import io
+import sys
 
 import click
 
@@ -57,8 +59,12 @@ class LazyGroup(click.Group):
         self.help_lines = HELP_LINES if help_lines is None else help_lines
 
     def main(self, *args, **kwargs):  # type: ignore[override]
-        """Pin torch's CPU kernel width before any verb can import torch (`olatbench.numerics`)."""
+        """Pin torch's CPU kernel width before any verb can import torch (`olatbench.numerics`), and let output
+        show a file name that is not UTF-8 (as ``\\udcff``) instead of failing on it."""
         pin_cpu_capability()
+        for stream in (sys.stdout, sys.stderr):
+            if isinstance(stream, io.TextIOWrapper) and stream.errors == "strict":
+                stream.reconfigure(errors="backslashreplace")
         return super().main(*args, **kwargs)
 
     def list_commands(self, ctx: click.Context) -> list[str]:

@@ -9,9 +9,8 @@ import click
 
 from olatbench.cli.options import option, quiet_option, show_progress
 from olatbench.datasets.download import fetch, manifest, transfer
-from olatbench.datasets.download.archives import UnsafeArchiveError
 from olatbench.datasets.download.sources import SOURCES
-from olatbench.datasets.errors import DatasetError
+from olatbench.datasets.errors import printable
 
 
 def default_data_root() -> Path:
@@ -34,7 +33,10 @@ def download(suite: str, scenes: str | None, root: Path | None, source: str | No
     """Fetch, verify and lay out the official scenes of SUITE.
 
     Downloads resume where they stopped; archives are checked against published or first-seen sha256
-    hashes; unpacking is safe and atomic; aliases become canonical names.
+    hashes; unpacking is safe, bounded and atomic; aliases become canonical names. Nothing olatbench did not
+    write is deleted: a ROOT/<Scene> it did not download stops that scene, one that differs from its manifest is
+    moved aside to ROOT/<Scene>.replaced-<time>. Exit status: 0 when every scene is ready, 1 when any failed
+    (each failure says what to do next), 2 for a usage error.
 
     \b
     Example:
@@ -46,22 +48,26 @@ def download(suite: str, scenes: str | None, root: Path | None, source: str | No
     if unknown:
         raise click.BadParameter(f"unknown scenes {', '.join(unknown)}; {suite} has {', '.join(SOURCES[suite])}",
                                  param_hint="--scenes")
-    failed, manual = 0, 0
+    hints: list[str] = []  # one per failed scene: what to do next
     for name in names:
         try:
             folder = fetch.download_scene(suite, name, root, source=source, mirror=mirror, jobs=jobs,
-                                          progress=show_progress(quiet))
+                                          progress=show_progress(quiet),
+                                          notify=lambda message: click.echo(message, err=True))
             click.echo(f"{suite}/{name}: ready at {folder}")
         except fetch.ManualStepRequired as error:
-            failed, manual = failed + 1, manual + 1
+            hints.append("follow the instructions above, then rerun")
             click.echo(f"{suite}/{name}: NEEDS A MANUAL STEP\n  {error}", err=True)
-        except (transfer.DownloadError, manifest.IntegrityError, UnsafeArchiveError,
-                DatasetError, ValueError, KeyError) as error:
-            failed += 1
+        except transfer.DownloadError as error:
+            hints.append("rerun the same command to resume")
             click.echo(f"{suite}/{name}: FAILED\n  {error}", err=True)
-    if failed:
-        hint = "follow the instructions above, then rerun" if manual == failed else "rerun the same command to resume"
-        raise click.ClickException(f"{failed} of {len(names)} scenes failed; {hint}")
+        except (fetch.FolderInTheWay, ValueError, KeyError, OSError) as error:
+            # ValueError: IntegrityError, UnsafeArchiveError, ArchiveError, DatasetError; OSError: the disk
+            hints.append("each failure above says what to do")
+            message = error.args[0] if isinstance(error, KeyError) else error
+            click.echo(f"{suite}/{name}: FAILED\n  {printable(message)}", err=True)
+    if hints:
+        raise click.ClickException(f"{len(hints)} of {len(names)} scenes failed; {'; '.join(dict.fromkeys(hints))}")
     click.echo(f"Run on them with: olatbench run --suite {suite} --data-root {root}")
 
 

@@ -2,7 +2,18 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
+
+
+def printable(text: Path | str) -> str:
+    """``text`` (a path, or a message holding one) safe to print: bytes of a file name that are not UTF-8 (from
+    another encoding, kept by Python as lone surrogates) are shown as ``\\xff``, so that printing never fails."""
+    text = str(text)
+    try:
+        return os.fsencode(text).decode("utf-8", "backslashreplace")
+    except UnicodeEncodeError:  # a lone surrogate that is no escaped byte (e.g. "\\ud800" written in a JSON file)
+        return text.encode("utf-8", "backslashreplace").decode("utf-8")
 
 
 class DatasetError(ValueError):
@@ -28,4 +39,4 @@ class DatasetError(ValueError):
             where.append(f"frame {self.frame}")
         if self.key is not None:
             where.append(f"key '{self.key}'")
-        return f"{': '.join([', '.join(where), self.message]) if where else self.message}"
+        return printable(': '.join([', '.join(where), self.message]) if where else self.message)

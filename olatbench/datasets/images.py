@@ -15,6 +15,7 @@ import numpy as np
 
 from olatbench.atomic import atomic_path
 from olatbench.datasets.errors import DatasetError
+from olatbench.datasets.files import require_file, require_utf8_name
 
 BitDepth = Literal["uint8", "uint16", "half", "float"]
 
@@ -45,10 +46,16 @@ def read_channels(path: str | Path) -> dict[str, np.ndarray]:
     return {name: pixels[..., i] for i, name in enumerate(names)}
 
 
+def check_image_file(path: Path) -> None:
+    """Raise `DatasetError` naming ``path`` unless it is a readable file with a name OpenImageIO can open
+    (missing, a folder, a symbolic link loop and a name that is not UTF-8 each say so)."""
+    require_file(path, "image file")
+    require_utf8_name(path)
+
+
 def _decode(path: Path) -> tuple[np.ndarray, list[str]]:
     """Pixels (H, W, C) float32 and channel names of one image file."""
-    if not path.is_file():
-        raise DatasetError("image file not found", path=path)
+    check_image_file(path)
     oiio = _oiio()
     image_input = oiio.ImageInput.open(str(path), _read_config(oiio))
     if image_input is None:
@@ -73,6 +80,7 @@ def _decode(path: Path) -> tuple[np.ndarray, list[str]]:
 def image_size(path: str | Path) -> tuple[int, int]:
     """(width, height) from the file header, without decoding the pixels."""
     path = Path(path)
+    check_image_file(path)
     oiio = _oiio()
     image_input = oiio.ImageInput.open(str(path))
     if image_input is None:

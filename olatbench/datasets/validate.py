@@ -18,6 +18,7 @@ import numpy as np
 
 from olatbench.datasets.errors import DatasetError
 from olatbench.datasets.formats import detect_format, format_module
+from olatbench.datasets.images import check_image_file
 from olatbench.datasets.records import Frame, Scene
 
 
@@ -69,13 +70,13 @@ def check_frame(frame: Frame, decode: bool = True) -> list[Issue]:
     issues: list[Issue] = []
     where = {"path": None if frame.image_path is None else str(frame.image_path), "frame": frame.frame_id}
     if frame.image_path is not None:
-        if not frame.image_path.is_file():
-            issues.append(Issue("error", "image file not found", **where))
-        elif decode:
-            try:
+        try:
+            check_image_file(frame.image_path)
+            if decode:
                 frame.load(background=None)
-            except DatasetError as error:
-                issues.append(Issue.from_error(error))
+        except DatasetError as error:
+            issues.append(Issue.from_error(DatasetError(error.message, path=error.path, frame=frame.frame_id,
+                                                        key=error.key)))
     rotation = frame.camera.c2w[:3, :3]
     if not np.allclose(rotation.T @ rotation, np.eye(3), atol=1e-3):
         issues.append(Issue("error", "camera rotation is not orthonormal", key="transform_matrix", **where))

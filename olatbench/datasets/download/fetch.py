@@ -6,16 +6,21 @@ import fnmatch
 import json
 import os
 import re
-import shutil
+import shlex
 import tempfile
+import warnings
+from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
+from datetime import datetime, timezone
 from pathlib import Path
 
 from olatbench.atomic import write_json
 from olatbench.datasets.download import archives, manifest, transfer
+from olatbench.datasets.download.archives import ArchiveError
 from olatbench.datasets.download.sources import HF_ENDPOINT, Source, sources_for
 from olatbench.datasets.errors import DatasetError
+from olatbench.datasets.files import present
 
 KNOWN_HASHES = ".olatbench-sources.json"
 DOWNLOADS = ".downloads"
@@ -129,44 +134,74 @@ def _one_archive(source: Source, files: list[RemoteFile]) -> list[RemoteFile]:
     return files
 
 
-def _fetch_verified(remote: RemoteFile, folder: Path, expected: str | None, progress) -> str:
-    """Download one file (resuming) and check it against the published or recorded sha256."""
+def _fetch_verified(remote: RemoteFile, folder: Path, recorded: str | None, known_path: Path, key: str,
+                    progress) -> str:
+    """Download one file (resuming) and check it against the published sha256, else the one recorded the first
+    time a scene was installed from this source (``known_path``, entry ``key``)."""
     target = folder / remote.name
     if not target.exists():
         transfer.download(remote.url, target, expected_size=remote.size, progress=progress,
                           headers=hub_headers() if remote.hub else None)
     digest = manifest.sha256_file(target)
-    expected = remote.sha256 or expected
+    expected = remote.sha256 or recorded
     if expected and digest != expected:
         bad = target.with_name(target.name + ".mismatch")
         target.replace(bad)
+        if remote.sha256:
+            hint = "rerun to download it again"
+        else:
+            hint = (f"the hash was recorded in {known_path} (entry '{key}') when a scene was first installed from "
+                    f"this source; if the source has really changed its file, delete that entry and rerun")
         raise manifest.IntegrityError(f"{remote.name}: sha256 mismatch: expected {expected}, got {digest} "
-                                      f"(kept as {bad} for inspection; rerun to download again)")
+                                      f"(kept as {bad} for inspection; {hint})")
     return digest
+
+
+def _known_hashes(root: Path) -> dict[str, str]:
+    """{``<source>/<file>``: sha256} recorded in ``root/.olatbench-sources.json`` (empty when there is none)."""
+    path = root / KNOWN_HASHES
+    if not present(path):
+        return {}
+    try:
+        known = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as error:
+        raise DatasetError(f"unreadable record of archive hashes ({error}); repair it, or delete it to record "
+                           "the hashes afresh at the next download", path=path) from None
+    if not isinstance(known, dict):
+        raise DatasetError("expected a JSON object of archive hashes", path=path)
+    return known
+
+
+def _record_hashes(root: Path, source: Source, recorded: dict[str, str]) -> None:
+    """Add the hashes of archives that unpacked into a valid scene to ``root/.olatbench-sources.json``."""
+    known = _known_hashes(root)
+    known.update({f"{source.name}/{name}": digest for name, digest in recorded.items()})
+    write_json(root / KNOWN_HASHES, known)
 
 
 def _fetch_all(source: Source, files: list[RemoteFile], root: Path, label: str, jobs: int,
                progress: bool) -> dict[str, str]:
     """Download and verify ``files`` into ``root/.downloads/<source>``; return {file name: sha256}.
 
-    Hashes of files the host does not publish are recorded in ``root/.olatbench-sources.json`` under
-    ``<source>/<file>`` the first time and checked on every later download.
+    Hashes of files the host does not publish are checked against ``root/.olatbench-sources.json`` (key
+    ``<source>/<file>``), where `_install` records them once their archive has unpacked into a valid scene: a
+    damaged first download is never taken as the reference.
     """
     from tqdm.auto import tqdm
 
-    known_path = root / KNOWN_HASHES
-    known = json.loads(known_path.read_text()) if known_path.is_file() else {}
+    known = _known_hashes(root)
     cache = root / DOWNLOADS / source.name
     cache.mkdir(parents=True, exist_ok=True)
     total = sum(f.size for f in files if f.size) or None
+
+    def fetch(remote: RemoteFile) -> str:
+        key = f"{source.name}/{remote.name}"
+        return _fetch_verified(remote, cache, known.get(key), root / KNOWN_HASHES, key, bar)
+
     with tqdm(total=total, unit="B", unit_scale=True, desc=label, disable=not progress) as bar, \
             ThreadPoolExecutor(max_workers=max(1, jobs)) as pool:
-        digests = list(pool.map(lambda f: _fetch_verified(f, cache, known.get(f"{source.name}/{f.name}"), bar),
-                                files))
-    recorded = {f.name: d for f, d in zip(files, digests, strict=True)}
-    known.update({f"{source.name}/{name}": digest for name, digest in recorded.items()})
-    write_json(known_path, known)
-    return recorded
+        digests = list(pool.map(fetch, files))
+    return {f.name: d for f, d in zip(files, digests, strict=True)}
 
 
 def _scene_folder(unpacked: Path) -> Path:
@@ -175,20 +210,77 @@ def _scene_folder(unpacked: Path) -> Path:
     return entries[0] if len(entries) == 1 and entries[0].is_dir() else unpacked
 
 
+class FolderInTheWay(RuntimeError):
+    """``ROOT/<scene>`` exists but olatbench did not write it (no manifest): it is left untouched, and the message
+    says how to replace it."""
+
+
+def _replace_command(suite: str, scene: str, root: Path, source: str | None, mirror: str | None) -> str:
+    """The ``olatbench datasets download`` command that fetches this one scene again."""
+    words = ["olatbench", "datasets", "download", suite, "--scenes", scene, "--data-root", str(root)]
+    words += ["--source", source] if source else []
+    words += ["--mirror", mirror] if mirror else []
+    return shlex.join(words)
+
+
+def _refuse_foreign(destination: Path, command: str) -> None:
+    """Raise `FolderInTheWay` when ``destination`` holds something olatbench did not download."""
+    if not (destination / manifest.MANIFEST_NAME).is_file():
+        raise FolderInTheWay(
+            f"{destination} exists and was not downloaded by olatbench (no {manifest.MANIFEST_NAME}); it was left "
+            f"untouched. If it is a copy of the scene you made yourself, olatbench run uses it as it is. To replace "
+            f"it with a download, move it away first: mv {shlex.quote(str(destination))} "
+            f"{shlex.quote(str(destination) + '.mine')} && {command}")
+
+
+def _set_aside(destination: Path) -> Path:
+    """Rename ``destination`` to ``<name>.replaced-<UTC time>`` beside it (never over anything) and return that."""
+    stamp = datetime.now(timezone.utc).strftime("%Y%m%dT%H%M%SZ")
+    aside = destination.with_name(f"{destination.name}.replaced-{stamp}")
+    counter = 1
+    while present(aside):
+        counter += 1
+        aside = destination.with_name(f"{destination.name}.replaced-{stamp}-{counter}")
+    destination.rename(aside)
+    return aside
+
+
+def _out_of_the_cache(cache: Path, files: list[RemoteFile], archive: Path, problem: str) -> str:
+    """Move the downloaded files of an archive that failed (cannot be read, or is no valid scene) out of the cache
+    to ``<name>.damaged``, so that a rerun downloads them again; ``problem`` plus where they went and what next."""
+    moved = []
+    for path in sorted({archive, *(cache / f.name for f in files)}):
+        if path.exists():
+            path.replace(path.with_name(path.name + ".damaged"))
+            moved.append(path.name + ".damaged")
+    published = all(f.sha256 for f in files)
+    hint = ("its sha256 is the one the host publishes, so the host's copy itself is at fault: try another --source"
+            if published else "rerun to download it again (fix the mirror first if it serves this file)")
+    return f"{problem}; moved to {cache}/{{{','.join(moved)}}}; {hint}"
+
+
 def download_scene(suite: str, scene: str, root: Path, *, source: str | None = None, mirror: str | None = None,
-                   jobs: int = 4, progress: bool = True) -> Path:
+                   jobs: int = 4, progress: bool = True, notify: Callable[[str], None] | None = None) -> Path:
     """Fetch one scene into ``root/<scene>`` (canonical name) and return that folder.
 
     Sources are tried in order (`sources_for`); one that needs a manual step or cannot be downloaded
     passes to the next, and the error lists why each failed. An intact earlier download is kept.
-    Archives are checked against published hashes or against the hash recorded the first time
-    (``root/.olatbench-sources.json``); a mismatch stops at once. Unpacking happens in a temporary
+    Archives are checked against published hashes or against the hash recorded the first time one unpacked into
+    a valid scene (``root/.olatbench-sources.json``); a mismatch stops at once. Unpacking happens in a temporary
     folder renamed into place only after the scene validates, so no half-unpacked scene is ever left.
+
+    Nothing olatbench did not write is deleted: a ``root/<scene>`` without olatbench's manifest stops the
+    download (`FolderInTheWay`, saying how to replace it); one that differs from its manifest (damaged or edited)
+    is renamed to ``<scene>.replaced-<time>`` once the new copy is ready, and ``notify`` (default: a warning) is
+    told where it went.
     """
     root = Path(root)
     destination = root / scene
-    if destination.exists() and not manifest.verify_folder(destination):
-        return destination
+    command = _replace_command(suite, scene, root, source, mirror)
+    if present(destination):
+        if not manifest.verify_folder(destination):
+            return destination
+        _refuse_foreign(destination, command)
     errors: list[str] = []
     manual_only = True
     for candidate in sources_for(suite, scene, source):
@@ -201,14 +293,15 @@ def download_scene(suite: str, scene: str, root: Path, *, source: str | None = N
             errors.append(f"[{candidate.name}] {error}")
             manual_only = False
         else:
-            return _install(suite, scene, candidate, files, recorded, root)
+            return _install(suite, scene, candidate, files, recorded, root, command,
+                            notify or (lambda message: warnings.warn(message, stacklevel=3)))
     failure = ManualStepRequired if manual_only else transfer.DownloadError
     raise failure(f"{suite}/{scene}: no source could be used:\n" + "\n".join(errors))
 
 
 def _install(suite: str, scene: str, source: Source, files: list[RemoteFile], recorded: dict[str, str],
-             root: Path) -> Path:
-    """Join the parts, unpack, validate and rename the scene into ``root/<scene>``."""
+             root: Path, command: str, notify: Callable[[str], None]) -> Path:
+    """Join the parts, unpack, validate and rename the scene into ``root/<scene>``; record the archives' hashes."""
     from olatbench.datasets.validate import validate_folder
 
     cache = root / DOWNLOADS / source.name
@@ -218,16 +311,23 @@ def _install(suite: str, scene: str, source: Source, files: list[RemoteFile], re
         archive = archives.join_parts([cache / f.name for f in files], cache / _ARCHIVE.sub(r".\1", files[0].name))
     with tempfile.TemporaryDirectory(prefix=f".unpack-{scene}-", dir=root) as temporary:
         unpacked = Path(temporary) / "content"
-        archives.extract(archive, unpacked)
+        try:
+            archives.extract(archive, unpacked)
+        except ArchiveError as error:
+            raise ArchiveError(_out_of_the_cache(cache, files, archive, str(error))) from None
         folder = _scene_folder(unpacked)
         report = validate_folder(folder)  # a tree that is not a valid scene is refused before it is put in place
         if not report.ok:
             first = "; ".join(f"{issue.message} ({issue.path or ''} {issue.frame or ''})".strip()
                               for issue in report.errors[:3])
-            raise DatasetError(f"{suite}/{scene}: the unpacked archive is not a valid scene: {first}",
-                               path=archive)
+            raise DatasetError(_out_of_the_cache(cache, files, archive, f"{suite}/{scene}: the unpacked archive "
+                                                 f"is not a valid scene: {first}"), path=archive)
         manifest.write_manifest(folder, source.name, recorded)
-        if destination.exists():
-            shutil.rmtree(destination)
+        if present(destination):
+            _refuse_foreign(destination, command)  # made while the archive downloaded
+            aside = _set_aside(destination)
+            notify(f"{suite}/{scene}: the earlier {destination} differed from its manifest (damaged or edited); "
+                   f"it was moved to {aside}, nothing in it was deleted")
         folder.rename(destination)
+    _record_hashes(root, source, recorded)
     return destination

@@ -94,7 +94,10 @@ def download(url: str, target: Path, *, expected_size: int | None = None, retrie
         source = Path(urllib.request.url2pathname(urllib.parse.urlparse(url).path))
         if not source.is_file():
             raise DownloadError(f"{url}: no such file in the mirror folder")
-        shutil.copyfile(source, target)
+        try:
+            shutil.copyfile(source, target)
+        except OSError as error:
+            raise DownloadError(f"{url}: cannot copy from the mirror folder ({error})") from error
         if progress is not None:
             progress.update(target.stat().st_size)
         return target

@@ -7,6 +7,7 @@ read from a JSON file are resolved and must stay inside the dataset root.
 from __future__ import annotations
 
 import json
+import os
 import re
 from collections import Counter
 from collections.abc import Mapping
@@ -17,16 +18,16 @@ import numpy as np
 
 from olatbench.datasets.cameras import opengl_to_opencv
 from olatbench.datasets.errors import DatasetError
+from olatbench.datasets.files import present, require_file
 
 IMAGE_SUFFIXES = (".png", ".exr", ".jpg", ".jpeg", ".tif", ".tiff", ".hdr")
 
 
 def read_json(path: Path) -> dict[str, Any]:
-    """Parse a JSON object; missing, unreadable or malformed files raise `DatasetError`."""
+    """Parse a JSON object; missing, unreadable or malformed files (a folder, a link loop) raise `DatasetError`."""
+    require_file(path, "JSON file")
     try:
         text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise DatasetError("file not found", path=path) from None
     except (OSError, UnicodeDecodeError) as error:
         raise DatasetError(f"cannot read ({error})", path=path) from None
     try:
@@ -44,6 +45,8 @@ def frames_of(meta: Mapping[str, Any], path: Path) -> list[Mapping[str, Any]]:
     frames = require(meta, "frames", path=path)
     if not isinstance(frames, list):
         raise DatasetError("expected a list", path=path, key="frames")
+    if not frames:
+        raise DatasetError("empty list: the file describes no frame", path=path, key="frames")
     for index, frame in enumerate(frames):
         if not isinstance(frame, dict):
             raise DatasetError("expected a JSON object", path=path, frame=index, key="frames")
@@ -99,14 +102,16 @@ def opencv_c2w(value: Any, *, path: Path, frame: str | int | None, key: str = "t
 
 
 def resolve_inside(root: Path, relative: Any, *, path: Path, frame: str | int | None, key: str) -> Path:
-    """Resolve a path read from JSON against ``root``; refuse one that leaves the root (``..``, absolute, symlink)."""
+    """A path read from JSON, joined to ``root``; refuse one that, as written, leaves the root (absolute, or more
+    ``..`` than folders). Symbolic links on disk are not judged: a folder the user linked elsewhere (``train/`` on
+    another disk) is theirs to make, and an archive olatbench unpacks holds no links."""
     if not isinstance(relative, str) or not relative.strip():
         raise DatasetError("expected a non-empty relative path", path=path, frame=frame, key=key)
     base = root.resolve()
-    candidate = (base / relative).resolve()
-    if not candidate.is_relative_to(base):
+    normal = os.path.normpath(relative)
+    if os.path.isabs(normal) or normal == ".." or normal.startswith(".." + os.sep):
         raise DatasetError(f"path '{relative}' leaves the dataset root {base}", path=path, frame=frame, key=key)
-    return candidate
+    return base / normal
 
 
 def image_file(root: Path, file_path: Any, ext: Any, default_ext: str, *, path: Path, frame: str | int | None,
@@ -144,6 +149,13 @@ def unique_ids(stems: list[str]) -> list[str]:
 def safe_file_stem(frame_id: str) -> str:
     """A file name stem for a frame id (path separators and unusual characters become ``_``)."""
     return re.sub(r"[^A-Za-z0-9_.-]", "_", frame_id).lstrip(".") or "frame"
+
+
+def split_files(root: Path, names: Mapping[str, str]) -> dict[str, Path]:
+    """{split: path} of the transforms files present in ``root`` (``names``: split -> file name). Anything at a
+    file's name counts, so a folder or a link loop there becomes an error when read, never a silently missing
+    split."""
+    return {split: root / name for split, name in names.items() if present(root / name)}
 
 
 def first_frame(root: Path, names: tuple[str, ...]) -> tuple[Path, dict[str, Any], Mapping[str, Any]] | None:

@@ -80,9 +80,10 @@ def _image_size(root: Path, metas: dict[str, tuple[Path, dict]], flavour: NerfFl
         frames = c.frames_of(meta, path)
         if frames:
             image = frame_image(root, frames[0], flavour.default_ext, path=path, frame=0)
-            if not image.is_file():
-                raise DatasetError("image file not found (needed for the image size)", path=image, frame=0)
-            return image_size(image)
+            try:
+                return image_size(image)
+            except DatasetError as error:
+                raise DatasetError(f"{error.message} (needed for the image size)", path=image, frame=0) from None
     raise DatasetError("cannot determine the image size: no image split and no 'w'/'h' keys", path=root)
 
 
@@ -112,8 +113,7 @@ def read_nerf_scene(root: Path, flavour: NerfFlavour, name: str,
     With ``errors`` given, a bad frame is recorded there and skipped instead of raising.
     """
     root = Path(root)
-    metas = {split: (root / file, c.read_json(root / file)) for split, file in SPLIT_FILES.items()
-             if (root / file).is_file()}
+    metas = {split: (path, c.read_json(path)) for split, path in c.split_files(root, SPLIT_FILES).items()}
     if not any(split in metas for split in IMAGE_SPLITS):
         raise DatasetError(f"no {', '.join(SPLIT_FILES[s] for s in IMAGE_SPLITS)}", path=root)
     width, height = _image_size(root, metas, flavour)

@@ -24,6 +24,7 @@ import numpy as np
 from olatbench.atomic import write_json
 from olatbench.datasets.cameras import focal_from_fov, intrinsics_matrix, opencv_to_opengl
 from olatbench.datasets.errors import DatasetError
+from olatbench.datasets.files import present, require_file
 from olatbench.datasets.formats import _common as c
 from olatbench.datasets.formats.nrhints import _encode
 from olatbench.datasets.records import Camera, Frame, PointLight, Scene
@@ -46,8 +47,9 @@ def detect(root: Path) -> bool:
 def _exclude_list(root: Path) -> set[str]:
     """Image names to skip (``.png`` stripped, as the official loader does)."""
     path = root / EXCLUDE_FILE
-    if not path.is_file():
+    if not present(path):
         return set()
+    require_file(path, "text file")
     try:
         lines = path.read_text(encoding="utf-8").splitlines()
     except (OSError, UnicodeDecodeError) as error:
@@ -109,7 +111,7 @@ def read_scene(root: Path, errors: list[DatasetError] | None = None) -> Scene:
     references: Counter[Path] = Counter()
     skipped = 0
     background = np.zeros(3)
-    files = {split: root / file for split, file in SPLIT_FILES.items() if (root / file).is_file()}
+    files = c.split_files(root, SPLIT_FILES)
     if not files:
         raise DatasetError(f"no {', '.join(SPLIT_FILES.values())}", path=root)
     for split, path in files.items():
