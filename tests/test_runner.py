@@ -241,9 +241,9 @@ def test_cli_errors_are_one_line_with_a_next_step(data, tmp_path, cli_suite):
     result = runner.invoke(main, ["status", str(tmp_path)])
     assert result.exit_code == 1 and "olatbench run" in result.output
     result = runner.invoke(main, ["run", "-m", "trivial", "-s", "tiny", "--data-root", str(data), "--set", "lr"])
-    assert result.exit_code == 1 and "KEY=VALUE" in result.output and "Traceback" not in result.output
+    assert result.exit_code == 2 and "KEY=VALUE" in result.output and "Traceback" not in result.output
     result = runner.invoke(main, ["run", "-m", "trivial", "-s", "tiny", "--data-root", str(data), "--set", "x=1"])
-    assert result.exit_code == 1 and "no config field x" in result.output
+    assert result.exit_code == 2 and "no config field x" in result.output
 
 
 def test_cli_set_overrides_show_in_the_plan(data, tmp_path, cli_suite):
