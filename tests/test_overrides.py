@@ -110,8 +110,8 @@ def test_cli_refuses_out_of_range_and_non_finite_values_at_plan_time_with_exit_2
 def test_ranges_hold_for_every_preset_and_in_range_values_pass(tmp_path):
     """The declared ranges are checked whenever a config is made; every method's presets respect them."""
     from olatbench.datasets.suites import SUITES
-    from olatbench.methods.registry import builtin_specs, config_class
     from olatbench.methods.ranges import check_ranges
+    from olatbench.methods.registry import builtin_specs, config_class
 
     checked = 0
     for spec in builtin_specs().values():
