@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from waiting import BACKSTOP_SECONDS
 
 from olatbench.bench.results import read_results, write_results
 from olatbench.cli import main
@@ -328,7 +329,7 @@ def test_latex_compiles_with_pdflatex(tmp_path, tiny_runs):
         source = tmp_path / f"tables_{rules}.tex"
         source.write_text(render_tables(tables, "latex", standalone=True, rules=rules))
         run = subprocess.run(["pdflatex", "-interaction=nonstopmode", "-halt-on-error", source.name], cwd=tmp_path,
-                             capture_output=True, text=True, timeout=120)
+                             capture_output=True, text=True, timeout=BACKSTOP_SECONDS)
         assert run.returncode == 0, run.stdout[-2000:]
         assert (tmp_path / f"tables_{rules}.pdf").stat().st_size > 1000
 
