@@ -154,6 +154,9 @@ READ_ONLY_CASES = {
     "report to stdout": (["report", "{out}"], 0, None, "Alpha"),
     "report -o into it": (["report", "{out}", "-o", "{out}/table.md"], 1,
                           ("cannot write", "table.md", "Read-only file system|Permission denied"), None),
+    "evaluate -o into it": (["evaluate", "{tmp}/pred", "--gt", "{tmp}/data/Alpha", "--protocol",
+                             support.FAST_PROTOCOL, "-o", "{out}/scores.json"], 1,
+                            ("cannot write", "scores.json", "Read-only file system|Permission denied"), None),
 }
 
 
@@ -164,11 +167,12 @@ def test_a_read_only_run_folder(data, tmp_path, case, mode):
     with output_folder(tmp_path, mode) as out:
         assert run_cli(*run_args(data, out, "--scenes", "Alpha")).exit_code == 0
         assert run_cli(*run_args(data, out, "--scenes", "Alpha", "--variant", "fails")).exit_code == 1
+        shutil.copytree(job_folder(out) / "renders" / "test", tmp_path / "pred")  # predictions to score
         before = snapshot(out)
         with read_only(out, mode):
             if argv[0] == "run":
                 argv = run_args(data, out, *argv[1:])
-            result = run_cli(*[str(arg).replace("{out}", str(out)) for arg in argv])
+            result = run_cli(*[str(arg).replace("{out}", str(out)).replace("{tmp}", str(tmp_path)) for arg in argv])
             assert result.exit_code == code, result.output
             assert "Traceback" not in result.output
             if error_phrases:
