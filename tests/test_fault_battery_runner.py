@@ -151,6 +151,8 @@ READ_ONLY_CASES = {
     "run of done jobs": (["run", "--scenes", "Alpha"], 0, None, "1 already done, 0 to run"),
     "run of a new job": (["run", "--scenes", "Beta"], 1, ("cannot write", "Read-only file system|Permission denied",
                                                           "--output"), None),
+    "run retrying a failed job": (["run", "--scenes", "Alpha", "--variant", "fails"], 1,
+                                  ("cannot write", "Read-only file system|Permission denied", "--output"), None),
     "report to stdout": (["report", "{out}"], 0, None, "Alpha"),
     "report -o into it": (["report", "{out}", "-o", "{out}/table.md"], 1,
                           ("cannot write", "table.md", "Read-only file system|Permission denied"), None),
@@ -422,6 +424,14 @@ def test_a_run_that_leaves_a_job_to_another_process_exits_3_and_the_rerun_0(data
     rerun = run_cli(*run_args(data, out))
     assert rerun.exit_code == 0, rerun.output
     assert job_state(job_folder(out)).state == "done"
+    # a job that another process locked between the plan and its turn comes back "skipped": the same exit code
+    from olatbench.bench.execute import JobOutcome
+    from olatbench.cli.run import _exit_for
+
+    with pytest.raises(SystemExit) as exited:
+        _exit_for([JobOutcome("id", "Alpha/default/seed0", str(out), "skipped", error="running in another process")],
+                  running=0)
+    assert exited.value.code == 3
 
 
 # ---- the count ------------------------------------------------------------------------------------------------------

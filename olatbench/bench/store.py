@@ -16,6 +16,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from olatbench.bench.results import ResultsError, read_results
+
 JOB_FILE = "job.json"
 DONE_FILE = "DONE"
 RESULTS_FILE = "results.json"
@@ -100,8 +102,6 @@ def _job_file(folder: str | Path) -> dict[str, Any] | None:
 
 def _results_problem(folder: Path, job_id: str) -> str | None:
     """Why the results.json of a job marked done does not record that finished job (None: it does)."""
-    from olatbench.bench.results import ResultsError, read_results
-
     path = folder / RESULTS_FILE
     try:
         results = read_results(path)

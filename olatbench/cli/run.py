@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import errno
 import json
+import os
 import shutil
 import sys
 from pathlib import Path
@@ -218,6 +220,7 @@ def run(method, suite, scenes, variants, ablation, seeds, iterations, overrides,
             continue
         to_run.append(job)
     try:
+        _check_writable(to_run)
         for job in to_run:
             if force and Path(job.folder).exists():
                 shutil.rmtree(job.folder)
@@ -291,6 +294,19 @@ def _exit_for(outcomes, running: int) -> None:
                    "to collect them (olatbench status shows them).", err=True)
         sys.exit(EXIT_RUNNING_ELSEWHERE)
     sys.exit(EXIT_DONE)
+
+
+def _check_writable(jobs) -> None:
+    """An `OSError` naming the first job folder (or its nearest existing parent) this process cannot write: a
+    read-only file system or missing permission stops the run before any job starts, in one line."""
+    for job in jobs:
+        path = Path(job.folder)
+        while not path.exists() and path != path.parent:
+            path = path.parent
+        if not os.access(path, os.W_OK):
+            read_only = bool(os.statvfs(path).f_flag & os.ST_RDONLY)
+            code = errno.EROFS if read_only else errno.EACCES
+            raise WriteError(path, OSError(code, os.strerror(code)))
 
 
 def _os_error_line(error: OSError) -> str:
