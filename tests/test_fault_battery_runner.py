@@ -1,14 +1,14 @@
 """The runner's fault battery (#38): each fault gives one clear error, the documented exit code, no traceback, and
 loses nothing.
 
-Faults: a read-only run folder (`status`, `run`, `report`), a disk that fills up during a run, a damaged
+Faults: a read-only run folder (`status`, `run`, `report`, `evaluate`), a disk that fills up during a run, a damaged
 results.json / job.json of a finished job, an unreadable newest checkpoint, and a job run by another process.
 
-Read-only folders and full disks are real where the machine allows: a tmpfs mounted in the test's folder (root with
-CAP_SYS_ADMIN; remounted read-only for the read-only cases). Elsewhere the read-only cases use file modes (which
-bind a non-root user) and the full disk is simulated at the OS-error level (writes raise ``ENOSPC``); a case that
-cannot run on the machine is skipped with its reason, never passed silently. The number of faults is
-`FAULT_COUNT`, stated in docs/guarantees.md.
+Read-only folders and full disks are each tested up to three ways: a real tmpfs mounted in the test's folder (root
+with CAP_SYS_ADMIN; remounted read-only, or filled up), file modes (read-only cases; they bind a non-root user
+only), and `SimulatedFault` at the OS-error level (writes below the run folder raise ``EROFS`` / ``ENOSPC``), which
+runs everywhere. A way the machine does not allow is skipped with its reason, never passed silently. The number of
+faults is `FAULT_COUNT`, stated in docs/guarantees.md.
 """
 
 from __future__ import annotations
@@ -109,12 +109,20 @@ def job_folder(out: Path, scene: str = "Alpha", seed: int = 0, variant: str = "d
 
 # ---- read-only run folders (#38 item 4) -----------------------------------------------------------------------------
 
-READ_ONLY_MODES = ("tmpfs-ro", "file-modes")
+READ_ONLY_MODES = ("tmpfs-ro", "file-modes", "simulated")
 
 
 @contextmanager
-def read_only(out: Path, mode: str) -> Iterator[None]:
+def read_only(out: Path, mode: str, monkeypatch) -> Iterator[None]:
     """Make ``out`` (a tmpfs mount point for ``tmpfs-ro``) read-only for the duration."""
+    if mode == "simulated":
+        fault = SimulatedFault(monkeypatch, out, errno.EROFS)
+        fault.on()
+        try:
+            yield
+        finally:
+            fault.off()
+        return
     if mode == "tmpfs-ro":
         subprocess.run(["mount", "-o", "remount,ro", str(out)], check=True)
         try:
@@ -123,7 +131,7 @@ def read_only(out: Path, mode: str) -> Iterator[None]:
             subprocess.run(["mount", "-o", "remount,rw", str(out)], check=True)
         return
     if os.geteuid() == 0:
-        pytest.skip("file modes do not bind root; the tmpfs-ro case covers this fault here")
+        pytest.skip("file modes do not bind root; the tmpfs-ro and simulated cases cover this fault")
     paths = [out, *out.rglob("*")]
     modes = {path: path.stat().st_mode for path in paths}
     for path in paths:
@@ -164,14 +172,14 @@ READ_ONLY_CASES = {
 
 @pytest.mark.parametrize("mode", READ_ONLY_MODES)
 @pytest.mark.parametrize("case", list(READ_ONLY_CASES))
-def test_a_read_only_run_folder(data, tmp_path, case, mode):
+def test_a_read_only_run_folder(data, tmp_path, monkeypatch, case, mode):
     argv, code, error_phrases, phrase = READ_ONLY_CASES[case]
     with output_folder(tmp_path, mode) as out:
         assert run_cli(*run_args(data, out, "--scenes", "Alpha")).exit_code == 0
         assert run_cli(*run_args(data, out, "--scenes", "Alpha", "--variant", "fails")).exit_code == 1
         shutil.copytree(job_folder(out) / "renders" / "test", tmp_path / "pred")  # predictions to score
         before = snapshot(out)
-        with read_only(out, mode):
+        with read_only(out, mode, monkeypatch):
             if argv[0] == "run":
                 argv = run_args(data, out, *argv[1:])
             result = run_cli(*[str(arg).replace("{out}", str(out)).replace("{tmp}", str(tmp_path)) for arg in argv])
@@ -203,35 +211,67 @@ def _fill(folder: Path) -> None:
             assert error.errno == errno.ENOSPC
 
 
-class _SimulatedFullDisk:
-    """Once `fill` is called, opening a file for writing, making a temporary file or renaming one onto a name raises
-    ``ENOSPC`` (what a full disk's writes raise), in this process."""
+class SimulatedFault:
+    """Writes below ``folder`` fail with ``code`` (``ENOSPC``: a full disk, ``EROFS``: a read-only file system) once
+    `on` is called, in this process: opening a file for writing, making a temporary file or a folder, renaming onto
+    a name, and ``os.access(..., W_OK)``. The OS-level stand-in where the machine cannot mount a tmpfs."""
 
-    def __init__(self, monkeypatch) -> None:
-        self.full = False
+    def __init__(self, monkeypatch, folder: Path, code: int) -> None:
+        self.active, self.folder, self.code = False, str(folder), code
         real_open, real_mkstemp, real_replace = builtins.open, tempfile.mkstemp, os.replace
+        real_mkdir, real_access = os.mkdir, os.access
 
-        def guarded_open(file, mode="r", *args, **kwargs):
-            if self.full and any(flag in mode for flag in "wax+"):
-                raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(file))
+        def refused(path) -> bool:
+            return self.active and os.path.abspath(os.fspath(path)).startswith(self.folder)
+
+        def error(path) -> OSError:
+            return OSError(self.code, os.strerror(self.code), os.fspath(path))
+
+        def open_(file, mode="r", *args, **kwargs):
+            if isinstance(file, (str, os.PathLike)) and any(flag in mode for flag in "wax+") and refused(file):
+                raise error(file)
             return real_open(file, mode, *args, **kwargs)
 
-        def guarded(real):
-            def call(*args, **kwargs):
-                if self.full:
-                    raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
-                return real(*args, **kwargs)
-            return call
+        def mkstemp(*args, dir=None, **kwargs):
+            if dir is not None and refused(dir):
+                raise error(dir)
+            return real_mkstemp(*args, dir=dir, **kwargs)
 
-        monkeypatch.setattr(builtins, "open", guarded_open)
-        monkeypatch.setattr(tempfile, "mkstemp", guarded(real_mkstemp))
-        monkeypatch.setattr(os, "replace", guarded(real_replace))
+        def replace(source, target, *args, **kwargs):
+            if refused(target):
+                raise error(target)
+            return real_replace(source, target, *args, **kwargs)
+
+        def mkdir(path, *args, **kwargs):
+            if refused(path):
+                raise error(path)
+            return real_mkdir(path, *args, **kwargs)
+
+        def access(path, mode, *args, **kwargs):
+            if mode & os.W_OK and refused(path):
+                return False
+            return real_access(path, mode, *args, **kwargs)
+
+        for owner, name, function in ((builtins, "open", open_), (tempfile, "mkstemp", mkstemp),
+                                      (os, "replace", replace), (os, "mkdir", mkdir), (os, "access", access)):
+            monkeypatch.setattr(owner, name, function)
+
+    def on(self) -> None:
+        self.active = True
+
+    def off(self) -> None:
+        self.active = False
+
+
+class _SimulatedFullDisk:
+    def __init__(self, monkeypatch, folder: Path) -> None:
+        self.fault = SimulatedFault(monkeypatch, folder, errno.ENOSPC)
 
     def fill(self, folder: Path) -> None:
-        self.full = True
+        self.fault.on()
 
     def free(self, folder: Path) -> None:
-        self.full = False
+        self.fault.off()
 
 
 class _RealFullDisk:
@@ -252,7 +292,7 @@ def test_a_full_disk_fails_each_job_cleanly_and_the_rerun_finishes_them(data, tm
     with (tmpfs(tmp_path / "runs", "8m") if mode == "tmpfs" else _nullcontext(tmp_path / "runs")) as out:
         assert run_cli(*run_args(data, out, "--scenes", "Alpha")).exit_code == 0
         finished = snapshot(job_folder(out))
-        disk = _RealFullDisk() if mode == "tmpfs" else _SimulatedFullDisk(monkeypatch)
+        disk = _RealFullDisk() if mode == "tmpfs" else _SimulatedFullDisk(monkeypatch, out)
         real_save = execute.save_checkpoint
 
         def save_on_a_filling_disk(*args, **kwargs):
