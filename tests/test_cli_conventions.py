@@ -15,6 +15,7 @@ import click
 import pytest
 import test_runner_support as support
 from click.testing import CliRunner
+from waiting import BACKSTOP_SECONDS
 
 import olatbench
 from olatbench.cli import main
@@ -119,13 +120,13 @@ def test_every_verb_with_progress_bars_has_quiet(verb):
 def test_python_dash_m_olatbench():
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
     version = subprocess.run([sys.executable, "-m", "olatbench", "--version"], capture_output=True, text=True,
-                             env=env, timeout=120, check=True)
+                             env=env, timeout=BACKSTOP_SECONDS, check=True)
     assert version.stdout.strip() == f"olatbench, version {olatbench.__version__}"
     methods = subprocess.run([sys.executable, "-m", "olatbench", "methods", "list", "--json"], capture_output=True,
-                             text=True, env=env, timeout=120, check=True)
+                             text=True, env=env, timeout=BACKSTOP_SECONDS, check=True)
     assert "ssdgs" in {entry["name"] for entry in json.loads(methods.stdout)}
     usage = subprocess.run([sys.executable, "-m", "olatbench", "--help"], capture_output=True, text=True, env=env,
-                           timeout=120, check=True)
+                           timeout=BACKSTOP_SECONDS, check=True)
     assert usage.stdout.startswith("Usage: olatbench ")
 
 

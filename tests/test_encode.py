@@ -13,6 +13,7 @@ import pytest
 from click.testing import CliRunner
 from test_render_sweep import make_job
 from test_report_snapshots import toy_runs
+from waiting import BACKSTOP_SECONDS
 
 from olatbench.cli import main
 from olatbench.reports import encode
@@ -119,5 +120,6 @@ def test_chromium_plays_the_embedded_video(tmp_path):
     probe.write_text(page.read_text().replace("</body>", PROBE + "</body>"))
     flags = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
              "--autoplay-policy=no-user-gesture-required", "--virtual-time-budget=10000", "--dump-dom"]
-    dom = subprocess.run([CHROMIUM, *flags, probe.as_uri()], capture_output=True, text=True, timeout=120).stdout
+    dom = subprocess.run([CHROMIUM, *flags, probe.as_uri()], capture_output=True, text=True,
+                         timeout=BACKSTOP_SECONDS).stdout
     assert re.search(r'data-probe="played 32x24"', dom), dom[-2000:]

@@ -10,6 +10,7 @@ import sys
 from pathlib import Path
 
 from datasets_trees import write_nrhints_tree
+from waiting import BACKSTOP_SECONDS
 
 from olatbench.bench.results import read_results
 
@@ -17,7 +18,7 @@ EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 
 
 def _run(args: list[str], env: dict[str, str] | None = None) -> subprocess.CompletedProcess:
-    return subprocess.run(args, capture_output=True, text=True, timeout=300, env=env)
+    return subprocess.run(args, capture_output=True, text=True, timeout=BACKSTOP_SECONDS, env=env)
 
 
 def test_numpy_only_loader_example(tmp_path):

@@ -14,6 +14,7 @@ import textwrap
 from pathlib import Path
 
 import pytest
+from waiting import BACKSTOP_SECONDS
 
 from olatbench.bench.jobs import code_hash
 from olatbench.methods import registry
@@ -38,7 +39,8 @@ def _cli_without_torch(args: list[str], env_path: list[str] = ()) -> dict:
         print(json.dumps({{"output": out.getvalue(), "code": code, "torch": "torch" in sys.modules}}))
     """)
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), *env_path])}
-    result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=300, env=env)
+    result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=BACKSTOP_SECONDS,
+                            env=env)
     assert result.returncode == 0, result.stderr[-3000:]
     return json.loads(result.stdout.splitlines()[-1])
 

@@ -12,6 +12,7 @@ import warnings
 from pathlib import Path
 
 import pytest
+from waiting import BACKSTOP_SECONDS
 
 from olatbench import _native
 from olatbench._native import NativeLibrary, Signature, Unavailable, always, build, choose_backend
@@ -148,7 +149,7 @@ def test_parallel_builders_compile_once(cache, monkeypatch):
     env = {**__import__("os").environ, "PYTHONPATH": str(PACKAGE.parent)}
     workers = [subprocess.Popen([sys.executable, "-c", program], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                                 text=True, env=env) for _ in range(2)]
-    outputs = [worker.communicate(timeout=300) for worker in workers]
+    outputs = [worker.communicate(timeout=BACKSTOP_SECONDS) for worker in workers]
     for worker, (out, err) in zip(workers, outputs, strict=True):
         assert worker.returncode == 0, err
         assert out.strip() == "42"

@@ -15,6 +15,7 @@ import pytest
 import test_runner_support as support
 import torch
 from click.testing import CliRunner
+from waiting import BACKSTOP_SECONDS, wait_until
 
 from olatbench.bench.checkpoints import list_checkpoints
 from olatbench.bench.execute import run_job
@@ -133,12 +134,8 @@ def _start_job(job, tmp_path):
     return subprocess.Popen([sys.executable, "-c", script])
 
 
-def _wait_for_checkpoint(process, folder, timeout=90.0):
-    deadline = time.monotonic() + timeout
-    while not list_checkpoints(folder):
-        assert process.poll() is None, "the job process ended before its first checkpoint"
-        assert time.monotonic() < deadline, "no checkpoint in time"
-        time.sleep(0.02)
+def _wait_for_checkpoint(process, folder):
+    wait_until(lambda: list_checkpoints(folder), "first checkpoint of the job process", process=process)
 
 
 @pytest.mark.parametrize("sig", [signal.SIGKILL, pytest.param(signal.SIGINT, marks=pytest.mark.slow)])
@@ -153,7 +150,7 @@ def test_interrupted_job_resumes_to_the_uninterrupted_result(data, tmp_path, sig
     process = _start_job(first_attempt, tmp_path)
     _wait_for_checkpoint(process, interrupted.folder)
     process.send_signal(sig)
-    process.wait(timeout=60)
+    process.wait(timeout=BACKSTOP_SECONDS)
     state = job_state(interrupted.folder, interrupted.id)
     assert state.state == "partial" and 5 <= state.step < 40, state
     assert not (Path(interrupted.folder) / "error.txt").exists()
@@ -241,9 +238,9 @@ def test_cli_errors_are_one_line_with_a_next_step(data, tmp_path, cli_suite):
     result = runner.invoke(main, ["status", str(tmp_path)])
     assert result.exit_code == 1 and "olatbench run" in result.output
     result = runner.invoke(main, ["run", "-m", "trivial", "-s", "tiny", "--data-root", str(data), "--set", "lr"])
-    assert result.exit_code == 1 and "KEY=VALUE" in result.output and "Traceback" not in result.output
+    assert result.exit_code == 2 and "KEY=VALUE" in result.output and "Traceback" not in result.output
     result = runner.invoke(main, ["run", "-m", "trivial", "-s", "tiny", "--data-root", str(data), "--set", "x=1"])
-    assert result.exit_code == 1 and "no config field x" in result.output
+    assert result.exit_code == 2 and "no config field x" in result.output
 
 
 def test_cli_set_overrides_show_in_the_plan(data, tmp_path, cli_suite):
@@ -428,7 +425,7 @@ def test_a_job_waits_for_a_running_job_of_its_experiment_with_a_smaller_id(data,
         thread.start()
         _run(leader, Path(leader.folder), JobLog(Path(leader.folder)), False, 1, "now")
         assert thread.is_alive()  # it waits for the leader's lock, which is still held
-    thread.join(timeout=60)
+    thread.join(timeout=BACKSTOP_SECONDS)
     assert outcome["done"].status == "done"
     results = read_results(Path(follower.folder) / "results.json")
     assert results["model"]["reused_from"]["job_id"] == leader.id

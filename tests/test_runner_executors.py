@@ -12,6 +12,7 @@ from pathlib import Path
 
 import pytest
 import test_runner_support as support
+from waiting import BACKSTOP_SECONDS, wait_until
 
 from olatbench.bench.checkpoints import list_checkpoints
 from olatbench.bench.executors import SlurmOptions, run_local, submit_slurm, wait_slurm
@@ -72,10 +73,8 @@ def test_slurm_preemption_requeues_and_resumes(data, tmp_path, tests_on_pythonpa
     job = plan(data, tmp_path / "runs", scenes=["Alpha"], iterations=60, options=PlanOptions(checkpoint_every=5))[0]
     slow = type(job)(**{**job.__dict__, "config": {**job.config, "step_sleep": 0.05}})
     task = submit_slurm([slow], tmp_path / "runs", SlurmOptions(cluster="local", time_minutes=5, cpus=1))[0]
-    deadline = time.monotonic() + 90
-    while not list_checkpoints(job.folder):
-        assert time.monotonic() < deadline and not task.done(), task.stderr()
-        time.sleep(0.05)
+    wait_until(lambda: list_checkpoints(job.folder) or task.done(), "first checkpoint of the Slurm task")
+    assert not task.done(), task.stderr()
     # Slurm preempts by sending USR2 to the task (submitit then calls checkpoint() and requeues). submitit's
     # local controller does not forward USR2 (LocalJob._interrupt would kill the controller), so signal the task.
     children = Path(f"/proc/{task._process.pid}/task/{task._process.pid}/children").read_text().split()
@@ -121,16 +120,14 @@ def slurm_cluster(tmp_path, monkeypatch):
     processes = [subprocess.Popen(["munged", "-F", "--force", f"--socket={munge / 'munge.socket'}",
                                    f"--pid-file={munge / 'pid'}", f"--log-file={munge / 'log'}",
                                    f"--seed-file={munge / 'seed'}"])]
-    time.sleep(1.0)
+    wait_until(lambda: (munge / "munge.socket").exists(), "munged's socket")
     processes += [subprocess.Popen([daemon, "-D", "-f", str(conf)]) for daemon in ("slurmctld", "slurmd")]
     monkeypatch.setenv("SLURM_CONF", str(conf))
     try:
-        deadline = time.monotonic() + 60
-        while "idle" not in subprocess.run(["sinfo", "-h", "-o", "%t"], capture_output=True, text=True).stdout:
-            assert time.monotonic() < deadline, (root / "ctld.log").read_text()[-2000:]
-            time.sleep(0.5)
+        wait_until(lambda: "idle" in subprocess.run(["sinfo", "-h", "-o", "%t"], capture_output=True,
+                                                    text=True).stdout, "idle Slurm node", poll=0.5)
         yield root
-        deadline = time.monotonic() + 60  # let the job steps finish before their daemons go
+        deadline = time.monotonic() + BACKSTOP_SECONDS  # let the job steps finish before their daemons go
         while subprocess.run(["squeue", "-h"], capture_output=True, text=True).stdout.strip():
             if time.monotonic() > deadline:
                 subprocess.run(["scancel", "--full", "--user=root"], check=False)
@@ -140,7 +137,7 @@ def slurm_cluster(tmp_path, monkeypatch):
         for process in reversed(processes):
             process.terminate()
         for process in processes:
-            process.wait(timeout=30)
+            process.wait(timeout=BACKSTOP_SECONDS)
 
 
 @pytest.mark.slow

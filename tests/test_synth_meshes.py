@@ -8,6 +8,7 @@ import sys
 
 import numpy as np
 import pytest
+from waiting import BACKSTOP_SECONDS
 
 from olatbench.datasets.cameras import project_points
 from olatbench.datasets.synth import meshes
@@ -122,7 +123,7 @@ result = CliRunner().invoke(synth, ['--recipe', 'aniso_metal', '--out', 'never-w
 assert 'mitsuba' not in sys.modules
 print(result.exit_code, result.output)
 """
-    result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
+    result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=BACKSTOP_SECONDS)
     assert result.returncode == 0, result.stderr
     assert result.stdout.startswith("1 ")
     assert "pip install 'olatbench[synth]'" in result.stdout

@@ -7,7 +7,6 @@ import os
 import shutil
 import subprocess
 import sys
-import time
 import urllib.request
 from pathlib import Path
 
@@ -16,6 +15,7 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 from trained_jobs import train_tiny_ssdgs
+from waiting import BACKSTOP_SECONDS, wait_until
 
 from olatbench.cli import main
 from olatbench.datasets import colour
@@ -64,7 +64,7 @@ def connect_home(app: ViewerApp) -> ViserTestClient:
 
 
 def test_server_serves_the_page_on_a_free_port(app):
-    with urllib.request.urlopen(app.url, timeout=30) as response:
+    with urllib.request.urlopen(app.url, timeout=BACKSTOP_SECONDS) as response:
         page = response.read().decode("utf-8", "replace")
     assert response.status == 200 and "<html" in page.lower() and "<script" in page.lower()
 
@@ -105,9 +105,9 @@ def test_a_tab_whose_first_camera_message_beats_its_set_up_still_gets_an_image(a
     use_model = server.ClientSession.use_model
 
     def late_set_up(session, model):
-        deadline = time.monotonic() + 30
-        while not server._camera_state_received(session.client.camera) and time.monotonic() < deadline:
-            time.sleep(0.01)  # hold the set-up until the first camera message has come and gone unanswered
+        # hold the set-up until the first camera message has come and gone unanswered
+        wait_until(lambda: server._camera_state_received(session.client.camera), "first camera message",
+                   poll=0.01)
         use_model(session, model)
 
     monkeypatch.setattr(server.ClientSession, "use_model", late_set_up)
@@ -189,17 +189,12 @@ def test_a_run_folder_serves_each_finished_job_and_a_tab_switches_between_them(t
             assert session.model.folder == folders[0]
             mark = len(client.received)
             client.send(_messages.GuiUpdateMessage(dropdown["uuid"], {"value": str(folders[1])}))
-            deadline = time.monotonic() + 120  # the second job is restored on first use, on viser's thread pool
-            while session.model.folder != folders[1] and time.monotonic() < deadline:
-                time.sleep(0.05)
-            assert session.model.folder == folders[1]
+            # the second job is restored on first use, on viser's thread pool
+            wait_until(lambda: session.model.folder == folders[1], "switch to the second job")
             # The model is assigned first and its render submitted at the end of the set-up, so "idle" alone can
             # still show the old job's image (the two jobs are copies, so their images cannot tell them apart).
-            deadline = time.monotonic() + 60
-            while time.monotonic() < deadline and not (viewer.scheduler.idle() and session.delivered is not None
-                                                       and session.delivered.request.model is session.model):
-                time.sleep(0.01)
-            assert session.delivered.request.model is session.model
+            wait_until(lambda: viewer.scheduler.idle() and session.delivered is not None
+                       and session.delivered.request.model is session.model, "render of the second job", poll=0.01)
             full_image(client, session.model, after=mark)
         finally:
             client.close()
@@ -248,7 +243,7 @@ def test_the_page_shows_a_canvas_in_headless_chromium(app, tmp_path):
     # ANGLE's SwiftShader: software WebGL (Chromium 156 has none with the older --disable-gpu --use-gl=swiftshader)
     result = subprocess.run([CHROMIUM, "--headless", "--no-sandbox", "--use-angle=swiftshader",
                              "--enable-unsafe-swiftshader", "--virtual-time-budget=15000", "--dump-dom", app.url],
-                            capture_output=True, text=True, timeout=120)
+                            capture_output=True, text=True, timeout=BACKSTOP_SECONDS)
     assert "<canvas" in result.stdout, result.stderr[-2000:]
 
 
@@ -260,8 +255,8 @@ def test_the_browser_latency_benchmark_times_light_moves_in_headless_chromium(tr
     root = Path(__file__).resolve().parents[1]
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [str(root), os.environ.get("PYTHONPATH")]))}
     result = subprocess.run([sys.executable, str(root / "benchmarks" / "bench_viewer_browser.py"), str(trained),
-                             "--moves", "2", "--startup-timeout", "180"],
-                            capture_output=True, text=True, timeout=600, env=env)
+                             "--moves", "2", "--startup-timeout", str(int(BACKSTOP_SECONDS))],
+                            capture_output=True, text=True, timeout=2 * BACKSTOP_SECONDS, env=env)
     assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
     summary = [line for line in result.stdout.splitlines() if line.startswith("SUMMARY bench_viewer_browser ")]
     fields = dict(field.split("=", 1) for field in summary[0].split()[2:])

@@ -8,6 +8,7 @@ import time
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
+from waiting import BACKSTOP_SECONDS, wait_until
 
 from olatbench.datasets.cameras import intrinsics_from_fov, look_at
 from olatbench.datasets.records import Camera
@@ -20,6 +21,16 @@ from olatbench.viewer.geometry import (
     render_size,
 )
 from olatbench.viewer.scheduler import RenderScheduler
+
+
+class ManualClock:
+    """The scheduler's clock, moved by the test (seconds)."""
+
+    def __init__(self) -> None:
+        self.now = 0.0
+
+    def __call__(self) -> float:
+        return self.now
 
 
 class Recorder:
@@ -40,7 +51,7 @@ class Recorder:
             self.active += 1
             self.max_active = max(self.max_active, self.active)
         self.started.set()
-        self.gate.wait(10)
+        self.gate.wait(BACKSTOP_SECONDS)
         time.sleep(self.seconds)
         with self.lock:
             self.active -= 1
@@ -63,7 +74,7 @@ def test_one_render_in_flight_across_keys_and_threads():
             thread.start()
         for thread in threads:
             thread.join()
-        assert scheduler.wait_idle(10)
+        assert scheduler.wait_idle(BACKSTOP_SECONDS)
     assert recorder.max_active == 1
     last = {key: [r for k, r, q in recorder.delivered if k == key][-1] for key in ("a", "b", "c")}
     assert last == {"a": 29, "b": 29, "c": 29}  # every tab ends on its newest request
@@ -74,25 +85,30 @@ def test_requests_replaced_before_their_render_are_dropped_and_submit_never_bloc
     recorder.gate.clear()
     with RenderScheduler(recorder.render, recorder.deliver, settle_seconds=0.0) as scheduler:
         scheduler.submit("tab", 0)
-        assert recorder.started.wait(5)  # request 0 is rendering, held at the gate
-        clock = time.perf_counter()
-        for index in range(1, 10):
-            scheduler.submit("tab", index)
-        assert time.perf_counter() - clock < 0.05  # the UI thread is not held by the render in flight
+        assert recorder.started.wait(BACKSTOP_SECONDS)  # request 0 is rendering, held at the gate
+        ui = threading.Thread(target=lambda: [scheduler.submit("tab", index) for index in range(1, 10)])
+        ui.start()
+        ui.join(BACKSTOP_SECONDS)
+        # the UI thread is not held by the render in flight: its submits all returned while the gate is shut
+        assert not ui.is_alive() and not recorder.gate.is_set()
         recorder.gate.set()
-        assert scheduler.wait_idle(5)
+        assert scheduler.wait_idle(BACKSTOP_SECONDS)
     assert [request for _, request, _ in recorder.delivered] == [0, 9]
     assert scheduler.dropped == 8
 
 
 def test_progressive_previews_while_dragging_then_one_full_render_when_still():
     recorder = Recorder(seconds=0.005)
-    with RenderScheduler(recorder.render, recorder.deliver, settle_seconds=0.15) as scheduler:
+    clock = ManualClock()  # the scheduler's time: a busy machine cannot stretch the drag past the settle time
+    with RenderScheduler(recorder.render, recorder.deliver, settle_seconds=0.15, clock=clock) as scheduler:
         for index in range(20):  # a drag: a new request every 10 ms, for 0.2 s
             scheduler.submit("tab", index)
-            time.sleep(0.01)
+            if index == 0:
+                wait_until(lambda: recorder.delivered, "first preview", poll=0.001)
+            clock.now += 0.01
         during = list(recorder.delivered)
-        assert scheduler.wait_idle(5)
+        clock.now += 0.15  # the view stays still for the settle time
+        assert scheduler.wait_idle(BACKSTOP_SECONDS)
     assert during and all(quality == "preview" for _, _, quality in during)
     assert recorder.delivered[-1] == ("tab", 19, "full")
     assert [q for _, _, q in recorder.delivered].count("full") == 1
@@ -100,9 +116,10 @@ def test_progressive_previews_while_dragging_then_one_full_render_when_still():
 
 def test_a_button_request_is_rendered_at_full_quality_at_once():
     recorder = Recorder()
-    with RenderScheduler(recorder.render, recorder.deliver, settle_seconds=5.0) as scheduler:
+    frozen = ManualClock()  # the settle time never passes: only a render that does not wait for it can finish
+    with RenderScheduler(recorder.render, recorder.deliver, settle_seconds=5.0, clock=frozen) as scheduler:
         scheduler.submit("tab", "snap", progressive=False)
-        assert scheduler.wait_idle(2)  # long before the 5 s settle time
+        assert scheduler.wait_idle(BACKSTOP_SECONDS)
     assert recorder.delivered == [("tab", "snap", "full")]
 
 
@@ -119,7 +136,7 @@ def test_render_errors_go_to_on_error_and_the_worker_goes_on():
                          on_error=lambda key, error: errors.append((key, str(error)))) as scheduler:
         scheduler.submit("a", "bad")
         scheduler.submit("b", "good")
-        assert scheduler.wait_idle(5)
+        assert scheduler.wait_idle(BACKSTOP_SECONDS)
     assert errors == [("a", "no such component")] and delivered == ["good"]
 
 

@@ -16,6 +16,7 @@ import numpy as np
 import viser
 import zstandard
 from viser import _messages
+from waiting import BACKSTOP_SECONDS
 from websockets.sync.client import connect
 
 
@@ -54,7 +55,7 @@ class ViserTestClient:
             wxyz=tuple(float(v) for v in wxyz), position=position, fov=fov, near=0.01, far=1000.0,
             image_height=height, image_width=width, look_at=(0.0, 0.0, 0.0), up_direction=(0.0, 0.0, 1.0)))
 
-    def wait_for(self, predicate: Callable[[dict[str, Any]], bool], timeout: float = 60.0,
+    def wait_for(self, predicate: Callable[[dict[str, Any]], bool], timeout: float = BACKSTOP_SECONDS,
                  after: int = 0) -> dict[str, Any]:
         """The first message (from index ``after`` of everything received) matching ``predicate``."""
         deadline = time.monotonic() + timeout

@@ -62,8 +62,13 @@ def save_checkpoint(folder: str | Path, step: int, method_state: dict[str, Any],
     path = checkpoint_dir(folder) / f"step_{step:08d}.pt"
     payload = {"format": CHECKPOINT_FORMAT, "job_id": job_id, "step": int(step), "method": method_state,
                "rng": rng_states(), "train_seconds": float(train_seconds)}
-    with atomic_path(path) as temporary:
-        torch.save(payload, temporary)
+    with atomic_path(path) as temporary, open(temporary, "wb", buffering=0) as handle:
+        try:
+            torch.save(payload, handle)  # unbuffered: a failed write is the OSError of its syscall
+        except RuntimeError as error:  # torch reports a failed write as "unexpected pos"; raise its cause
+            if isinstance(error.__context__, OSError):  # (full disk...), which atomic_path names as a WriteError
+                raise error.__context__ from None
+            raise
     prune_checkpoints(folder, keep)
     return path
 
@@ -74,13 +79,22 @@ def prune_checkpoints(folder: str | Path, keep: int) -> None:
         path.unlink(missing_ok=True)
 
 
+class CheckpointUnreadable(RuntimeError):
+    """A checkpoint file torch cannot load (truncated, zero bytes, not a checkpoint); the message names it."""
+
+
 def load_checkpoint(path: str | Path, job_id: str) -> dict[str, Any]:
-    """Load a checkpoint (``weights_only=True``) and check that it belongs to ``job_id``."""
+    """Load a checkpoint (``weights_only=True``) and check that it belongs to ``job_id``; a file that does not load
+    is a `CheckpointUnreadable`."""
     path = Path(path)
     try:
         payload = torch.load(path, map_location="cpu", weights_only=True)
     except Exception as error:
-        raise RuntimeError(f"{path}: cannot read checkpoint ({error}); delete it or rerun with --force") from error
+        reason = str(error).strip().splitlines()[0] if str(error).strip() else type(error).__name__
+        raise CheckpointUnreadable(f"{path}: cannot read checkpoint ({reason}); delete it or rerun with --force"
+                                   ) from error
+    if not isinstance(payload, dict):
+        raise CheckpointUnreadable(f"{path}: not a checkpoint (holds a {type(payload).__name__})")
     if payload.get("format") != CHECKPOINT_FORMAT:
         raise RuntimeError(f"{path}: checkpoint format {payload.get('format')!r} is not {CHECKPOINT_FORMAT}")
     if payload.get("job_id") != job_id:

@@ -8,6 +8,7 @@ the RNG states restored, so it reaches the result of an uninterrupted run.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import os
@@ -25,6 +26,7 @@ from tqdm.auto import tqdm
 
 from olatbench.atomic import write_json, write_text
 from olatbench.bench.checkpoints import (
+    CheckpointUnreadable,
     list_checkpoints,
     prune_checkpoints,
     restore_rng_states,
@@ -64,6 +66,7 @@ class JobOutcome:
     train_seconds: float | None = None
     render_fps: float | None = None
     error: str | None = None
+    recorded: bool = True  # a failure written to the folder (error.txt); False when the disk refused it
 
 
 class JobLog:
@@ -82,29 +85,49 @@ def run_job(job: Job, progress: bool = True, position: int = 1) -> JobOutcome:
     """Run ``job`` to completion; a failure is recorded in the folder and returned, never raised.
 
     ``KeyboardInterrupt`` is not a failure: the job stays partial and resumes on the next run. A job
-    whose folder is locked by another process (running elsewhere) is returned as ``skipped``.
+    whose folder is locked by another process (running elsewhere) is returned as ``skipped``. A folder that
+    cannot be written (read-only, full disk) fails the job, not the plan: the failure is recorded in the folder
+    where the disk still allows it, and always in the outcome.
     """
     folder = Path(job.folder)
-    folder.mkdir(parents=True, exist_ok=True)
-    log = JobLog(folder)
-    with job_lock(folder) as acquired:
-        if not acquired:
-            return JobOutcome(job.id, job.label, str(folder), "skipped", error="running in another process")
-        started = utc_now()
-        try:
-            if job.official is not None:  # the authors' code in its own process (olatbench.bench.official)
-                from olatbench.bench.official import run_official_job
+    try:
+        with job_lock(folder) as acquired:
+            if not acquired:
+                return JobOutcome(job.id, job.label, str(folder), "skipped", error="running in another process")
+            return _run_locked(job, folder, progress, position)
+    except OSError as error:  # the folder or its lock file cannot be made: nothing was written
+        return JobOutcome(job.id, job.label, str(folder), "failed", recorded=False,
+                          error=f"cannot write the job folder {folder}: {error.strerror or error}")
 
-                return run_official_job(job, folder, log, started)
-            return _run(job, folder, log, progress, position, started)
-        except Exception as error:
-            text = traceback.format_exc()
-            write_text(folder / ERROR_FILE, text)
-            log(f"FAILED: {type(error).__name__}: {error}")
-            write_results(folder / RESULTS_FILE, _failed_results(job, error, started))
-            return JobOutcome(job.id, job.label, str(folder), "failed", error=f"{type(error).__name__}: {error}")
-        finally:
+
+def _run_locked(job: Job, folder: Path, progress: bool, position: int) -> JobOutcome:
+    log = JobLog(folder)
+    started = utc_now()
+    try:
+        if job.official is not None:  # the authors' code in its own process (olatbench.bench.official)
+            from olatbench.bench.official import run_official_job
+
+            return run_official_job(job, folder, log, started)
+        return _run(job, folder, log, progress, position, started)
+    except Exception as error:
+        return _record_failure(job, folder, log, error, started)
+    finally:
+        with contextlib.suppress(OSError):  # a folder that cannot be written holds no views file either
             (folder / VIEWS_FILE).unlink(missing_ok=True)
+
+
+def _record_failure(job: Job, folder: Path, log: JobLog, error: Exception, started: str) -> JobOutcome:
+    """Write error.txt, the log line and a failed results.json, as far as the disk allows; the outcome says what
+    could not be written (the job then stays partial or pending, and the next run retries it)."""
+    outcome = JobOutcome(job.id, job.label, str(folder), "failed", error=f"{type(error).__name__}: {error}")
+    try:
+        write_text(folder / ERROR_FILE, traceback.format_exc())
+        log(f"FAILED: {type(error).__name__}: {error}")
+        write_results(folder / RESULTS_FILE, _failed_results(job, error, started))
+    except OSError as unrecorded:
+        outcome.error += f" (not recorded in the folder: {unrecorded})"
+        outcome.recorded = False
+    return outcome
 
 
 def _run(job: Job, folder: Path, log: JobLog, progress: bool, position: int, started: str) -> JobOutcome:
@@ -190,13 +213,10 @@ def _train(method: Method, views: Views, job: Job, folder: Path, log: JobLog, pr
     setup_seconds = time.perf_counter() - clock
     log(f"device {job.device}; backends: {format_backends(method.backends()) or 'not reported by the method'}")
     start, train_seconds = 0, setup_seconds
-    checkpoints = list_checkpoints(folder)
-    if checkpoints:
-        step, path = checkpoints[-1]
-        payload = load_state(method, path, job.id)
+    payload = _resume(method, folder, job, log)
+    if payload is not None:
         restore_rng_states(payload["rng"])
         start, train_seconds = payload["step"], payload["train_seconds"]
-        log(f"resumed from {path.name} (step {start} of {job.iterations})")
     iterations = job.iterations
     train_log = _TrainLog(folder / TRAIN_LOG_FILE, start)
     every = job.checkpoint_every or max(1, iterations // 10)
@@ -229,6 +249,29 @@ def _train(method: Method, views: Views, job: Job, folder: Path, log: JobLog, pr
     if start >= iterations:
         log("training already complete; evaluating")
     return train_seconds
+
+
+def _resume(method: Method, folder: Path, job: Job, log: JobLog) -> dict[str, Any] | None:
+    """Load the newest checkpoint of the folder that loads into ``method``; returns its payload (None: start
+    from step 0).
+
+    A checkpoint that torch cannot read (cut short by a crash, a full disk, a damaged file) is renamed to
+    ``<name>.unreadable`` (kept, no longer listed or pruned) and the next older one is tried; each such step is
+    said in log.txt and on stderr.
+    """
+    for _, path in reversed(list_checkpoints(folder)):
+        try:
+            payload = load_state(method, path, job.id)
+        except CheckpointUnreadable as error:
+            aside = path.with_name(path.name + ".unreadable")
+            os.replace(path, aside)
+            message = f"{job.label}: {error}; kept as {aside.name}, trying the next older checkpoint"
+            log(message)
+            tqdm.write(message, file=sys.stderr)
+            continue
+        log(f"resumed from {path.name} (step {payload['step']} of {job.iterations})")
+        return payload
+    return None
 
 
 class _TrainLog:

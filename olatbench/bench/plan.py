@@ -10,6 +10,7 @@ variant label (``default~test_time_steps=50``), so they get their own folders an
 from __future__ import annotations
 
 import json
+import math
 import os
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, fields
@@ -29,6 +30,11 @@ DATA_ENV = "OLATBENCH_DATA"
 
 class PlanError(ValueError):
     """A plan that cannot be made (unknown method, preset, scene; missing data): one clear message."""
+
+
+class OverridesError(PlanError):
+    """A ``--set KEY=VALUE`` that cannot be used (malformed, not finite, unknown field, wrong type, out of range):
+    a usage error, one message naming the field."""
 
 
 @dataclass(frozen=True)
@@ -95,24 +101,42 @@ def checked_overrides(spec: MethodSpec, overrides: dict[str, Any] | None) -> dic
     try:
         return check_overrides(config_class(spec), overrides or {}, spec.name)
     except OverrideError as error:
-        raise PlanError(str(error)) from None
+        raise OverridesError(str(error)) from None
 
 
 def parse_overrides(items: Sequence[str]) -> dict[str, Any]:
     """``["key=value", ...]`` -> {key: value}; values are read as JSON (``true``, ``50``, ``[1, 1, 1]``),
     anything that is not JSON stays a string (``shadow_mode=density``, ``use_sss=False``); the plan then fits
-    each to its field's type (`checked_overrides`)."""
+    each to its field's type (`checked_overrides`). A number that is not finite (``NaN``, ``Infinity``, ``1e999``,
+    also inside a list) is an `OverridesError`: it is no config value, and no results.json could hold it."""
     overrides: dict[str, Any] = {}
     for item in items:
         key, sep, text = item.partition("=")
         if not sep or not key.strip():
-            raise PlanError(f"--set expects KEY=VALUE (e.g. test_time_steps=50), not {item!r}")
+            raise OverridesError(f"--set expects KEY=VALUE (e.g. test_time_steps=50), not {item!r}")
         try:
-            value = json.loads(text)
+            value = json.loads(text, parse_constant=_not_finite, parse_float=_finite_float)
         except json.JSONDecodeError:
             value = text
+        except _NotFinite as error:
+            raise OverridesError(f"--set {item}: {error} is not a finite number; give a value such as 0.5") from None
         overrides[key.strip()] = value
     return overrides
+
+
+class _NotFinite(ValueError):
+    """A JSON number that is no finite float (its text is the message)."""
+
+
+def _not_finite(text: str) -> float:
+    raise _NotFinite(text)
+
+
+def _finite_float(text: str) -> float:
+    value = float(text)
+    if not math.isfinite(value):
+        raise _NotFinite(text)
+    return value
 
 
 def variant_label(variant: str, overrides: dict[str, Any] | None) -> str:

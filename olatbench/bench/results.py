@@ -274,6 +274,10 @@ def read_results(path: str | Path) -> Results:
         raise ResultsError(f"{path}: file not found") from None
     except json.JSONDecodeError as error:
         raise ResultsError(f"{path}: malformed JSON ({error})") from None
+    except UnicodeDecodeError as error:
+        raise ResultsError(f"{path}: not UTF-8 text ({error})") from None
+    except OSError as error:
+        raise ResultsError(f"{path}: unreadable ({error.strerror or error})") from None
     if isinstance(data, dict):
         data = upgrade_results(data)
     return validate_results(data, str(path))

@@ -16,6 +16,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from olatbench.bench.results import ResultsError, read_results
+
 JOB_FILE = "job.json"
 DONE_FILE = "DONE"
 RESULTS_FILE = "results.json"
@@ -55,10 +57,12 @@ def find_results(runs_root: str | Path) -> list[Path]:
 class JobState:
     """State of one job folder.
 
-    ``state``: ``done`` (DONE matches the job id), ``running`` (another process holds the job's lock),
-    ``failed``, ``partial`` (checkpoint at ``step`` of ``iterations``; for official code: started, not
-    finished, and rerun from the start), ``pending`` (planned, nothing
-    trained yet), ``stale`` (the folder holds another job id than the one asked for) or ``absent``.
+    ``state``: ``done`` (DONE matches the job id and results.json is a readable record of that finished job),
+    ``running`` (another process holds the job's lock), ``failed``, ``partial`` (checkpoint at ``step`` of
+    ``iterations``; for official code: started, not finished, and rerun from the start), ``pending`` (planned,
+    nothing trained yet), ``stale`` (the folder holds another job id than the one asked for), ``damaged`` (its
+    job.json, or the results.json of a job marked done, cannot be read: ``message`` says which and how to repair
+    it; ``olatbench run`` reruns such a job, re-evaluating its final checkpoint) or ``absent``.
     """
 
     folder: Path
@@ -69,13 +73,44 @@ class JobState:
     message: str = ""
 
 
+REPAIR_HINT = ("rerun the 'olatbench run' command that made it: it re-evaluates the job from its final checkpoint "
+               "(or retrains it if there is none)")
+
+
 def read_job_file(folder: str | Path) -> dict[str, Any] | None:
     """The job.json of a folder, or None when there is none (or it is unreadable)."""
+    try:
+        return _job_file(folder)
+    except ValueError:
+        return None
+
+
+def _job_file(folder: str | Path) -> dict[str, Any] | None:
+    """The job.json of a folder, None when there is none; a `ValueError` naming the file when it is unreadable
+    (truncated, not JSON, not an object)."""
     path = Path(folder) / JOB_FILE
     try:
-        return json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, json.JSONDecodeError):
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
         return None
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as error:
+        raise ValueError(f"{path} is unreadable ({error})") from None
+    if not isinstance(data, dict) or not isinstance(data.get("id", ""), str):
+        raise ValueError(f"{path} is not a job (expected a JSON object with an id)")
+    return data
+
+
+def _results_problem(folder: Path, job_id: str) -> str | None:
+    """Why the results.json of a job marked done does not record that finished job (None: it does)."""
+    path = folder / RESULTS_FILE
+    try:
+        results = read_results(path)
+    except ResultsError as error:
+        return f"marked done, but {error}"
+    recorded = (results.get("job") or {}).get("id")
+    if results["status"] != "done" or recorded != job_id:
+        return f"marked done, but {path} records {results['status']} job {recorded}"
+    return None
 
 
 def job_state(folder: str | Path, expected_id: str | None = None) -> JobState:
@@ -83,17 +118,27 @@ def job_state(folder: str | Path, expected_id: str | None = None) -> JobState:
     folder = Path(folder)
     if not folder.is_dir():
         return JobState(folder, "absent")
-    job = read_job_file(folder)
+    checkpoints = list_checkpoints(folder)
+    step = checkpoints[-1][0] if checkpoints else None
+    try:
+        job = _job_file(folder)
+    except ValueError as error:
+        if is_locked(folder):
+            return JobState(folder, "running", step=step)
+        return JobState(folder, "damaged", step=step, message=f"{error}; {REPAIR_HINT}")
     job_id = job.get("id") if job else None
     iterations = job.get("config", {}).get("iterations") if job else None
     if expected_id is not None and job_id is not None and job_id != expected_id:
         return JobState(folder, "stale", job_id, iterations=iterations,
                         message=f"holds job {job_id}, the plan asks for {expected_id}")
     done = folder / DONE_FILE
-    if done.is_file() and job_id is not None and done.read_text().strip() == job_id:
-        return JobState(folder, "done", job_id, step=iterations, iterations=iterations)
-    checkpoints = list_checkpoints(folder)
-    step = checkpoints[-1][0] if checkpoints else None
+    if done.is_file() and job_id is not None and done.read_text(errors="replace").strip() == job_id:
+        problem = _results_problem(folder, job_id)
+        if problem is None:
+            return JobState(folder, "done", job_id, step=iterations, iterations=iterations)
+        if not is_locked(folder):
+            return JobState(folder, "damaged", job_id, step=step, iterations=iterations,
+                            message=f"{problem}; {REPAIR_HINT}")
     if is_locked(folder):
         return JobState(folder, "running", job_id, step=step, iterations=iterations)
     if (folder / ERROR_FILE).is_file():
@@ -143,8 +188,25 @@ def job_lock(folder: str | Path, wait: bool = False) -> Iterator[bool]:
 
 
 def is_locked(folder: str | Path) -> bool:
-    """True when another process is running the job in ``folder`` (holds its lock)."""
-    if not (Path(folder) / LOCK_FILE).is_file():
+    """True when another process is running the job in ``folder`` (holds its lock).
+
+    Only reads: the lock file is opened read-only and probed with a shared lock (which the runner's exclusive one
+    blocks; a read lock needs no write access, also where ``flock`` is emulated by byte-range locks), so the state
+    of a read-only run folder (a mounted archive, another user's results) can be inspected.
+    """
+    path = Path(folder) / LOCK_FILE
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover - non-POSIX
         return False
-    with job_lock(folder) as acquired:
-        return not acquired
+    try:
+        handle = open(path, "rb")  # noqa: SIM115 - closed below
+    except OSError:  # absent (never run) or unreadable: nobody can hold it through this file
+        return False
+    with handle:
+        try:
+            fcntl.flock(handle, fcntl.LOCK_SH | fcntl.LOCK_NB)
+        except BlockingIOError:
+            return True
+        fcntl.flock(handle, fcntl.LOCK_UN)
+        return False

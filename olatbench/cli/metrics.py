@@ -8,6 +8,7 @@ from pathlib import Path
 
 import click
 
+from olatbench.atomic import WriteError
 from olatbench.cli.options import option, quiet_option, show_progress
 
 
@@ -69,6 +70,8 @@ def evaluate(pred_dir: Path, scene_dir: Path, split: str, protocol_name: str, ou
         write_results(output, result)
     except WeightsError as error:
         raise click.ClickException(str(error)) from None
+    except WriteError as error:  # a read-only folder or a full disk: nothing is written
+        raise click.ClickException(f"{error}; choose another -o") from None
     except (EvaluationError, DatasetError, ValueError) as error:
         raise click.ClickException(f"{error}\nCheck the folder with `olatbench datasets validate {scene_dir}`.") \
             from None

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from olatbench.atomic import write_text
+from olatbench.atomic import WriteError, write_text
 from olatbench.cli.options import quiet_option, show_progress
 
 LAYOUTS = ("scenes", "overview", "ablation")
@@ -22,9 +22,12 @@ def _split_list(text: str | None) -> list[str] | None:
 def _emit(text: str, output: str | None) -> None:
     if output is None:
         click.echo(text, nl=False)
-    else:
+        return
+    try:
         write_text(output, text)
-        click.echo(f"wrote {output}", err=True)
+    except WriteError as error:  # read-only folder, full disk: one line, the old file (if any) untouched
+        raise click.ClickException(f"{error}; choose another -o") from None
+    click.echo(f"wrote {output}", err=True)
 
 
 @click.command("report")
@@ -57,6 +60,10 @@ def _emit(text: str, output: str | None) -> None:
 def report(runs, suite, methods, metrics, splits, layouts, average, fmt, output, standalone, booktabs, colours,
            published, published_only, paper_tables, seeds, figures, frame_ids) -> None:
     """Build the paper's tables (and an HTML page with figures) from results.json files.
+
+    A results.json that cannot be read is named on stderr and left out; the others still make the tables.
+    Exit code: 0 when the report was written, 1 when there is nothing readable to report or the output cannot be
+    written (one line says why), 2 for a usage error.
 
     \b
     Examples:
@@ -103,7 +110,14 @@ def _report_runs(runs, suite, methods, metrics, splits, layouts, average, fmt, s
     from olatbench.reports.ranking import rank_table
     from olatbench.reports.runs_tables import ablation_table, overview_table, scene_table
 
-    frame = collect(runs)
+    unreadable: list[str] = []
+    frame = collect(runs, unreadable)
+    for message in unreadable:
+        click.echo(f"skipped (unreadable): {message}", err=True)
+    if frame.empty and unreadable:
+        raise FileNotFoundError(f"no readable results.json below {', '.join(map(str, runs))} ({len(unreadable)} "
+                                "unreadable, listed above); 'olatbench run' with the same options re-evaluates a "
+                                "finished job whose results.json is damaged")
     if frame.empty:
         raise FileNotFoundError(f"no results.json below {', '.join(map(str, runs))}; run "
                                 "'olatbench run --method ssdgs --suite mini' first")

@@ -2,15 +2,18 @@
 
 from __future__ import annotations
 
+import errno
 import json
+import os
 import shutil
 import sys
 from pathlib import Path
 
 import click
 
+from olatbench.atomic import WriteError
 from olatbench.bench.executors import EXECUTORS
-from olatbench.bench.plan import PlanError
+from olatbench.bench.plan import OverridesError, PlanError
 from olatbench.cli.options import json_option, option, quiet_option, show_progress
 
 
@@ -135,7 +138,10 @@ def run(method, suite, scenes, variants, ablation, seeds, iterations, overrides,
 
     Jobs are method × scene × variant × seed. Each writes to
     OUTPUT/<suite>/<method>/<variant>/<scene>/seed<k>/ (results.json, renders, checkpoints, logs).
-    Exit code: 0 when every job is done, 1 when any failed (the count is printed), 2 for a usage error.
+    Exit code: 0 when every job is done; 1 when any failed (the count is printed) or the output folder cannot be
+    written; 2 for a usage error (including a --set value out of its field's range); 3 when none failed but some
+    are running in another process (rerun once they finish). With --executor slurm --no-wait: 0 once submitted.
+    A finished job whose results.json or job.json is damaged is re-evaluated from its final checkpoint.
 
     \b
     Examples:
@@ -174,6 +180,8 @@ def run(method, suite, scenes, variants, ablation, seeds, iterations, overrides,
                          ablation=ablation, seeds=seeds, iterations=iterations,
                          resolution=_parse_resolution(resolution), data_root=data_root, options=options,
                          generate=not dry_run or calibrate, progress=progress, overrides=parse_overrides(overrides))
+    except OverridesError as error:  # a usage error (exit 2), naming the field
+        raise click.UsageError(str(error)) from None
     except (PlanError, DatasetError, KeyError, FileNotFoundError) as error:
         raise click.ClickException(str(error.args[0] if isinstance(error, KeyError) else error)) from None
 
@@ -210,24 +218,33 @@ def run(method, suite, scenes, variants, ablation, seeds, iterations, overrides,
         if state.state == "running":
             running.append(job)
             continue
-        if force and state.state != "absent":
-            shutil.rmtree(job.folder)
         to_run.append(job)
-    _write_pending(to_run)
+    try:
+        _check_writable(to_run)
+        for job in to_run:
+            if force and Path(job.folder).exists():
+                shutil.rmtree(job.folder)
+        _write_pending(to_run)
+    except OSError as error:  # a read-only or full output folder: nothing has run
+        raise click.ClickException(f"{error if isinstance(error, WriteError) else _os_error_line(error)}; "
+                                   f"the output folder {out} must be writable (choose another with --output)"
+                                   ) from None
     to_run = order_for_reuse(to_run) if not no_reuse else to_run
     busy = f", {len(running)} running in another process" if running else ""
-    click.echo(f"{len(jobs)} job(s): {len(skipped)} already done{busy}, {len(to_run)} to run "
+    damaged = sum(state.state == "damaged" for state in states)
+    repaired = f" ({damaged} damaged: re-evaluated)" if damaged else ""
+    click.echo(f"{len(jobs)} job(s): {len(skipped)} already done{busy}, {len(to_run)} to run{repaired} "
                f"({executor}, device {options.device}) -> {out}", err=True)
     if not to_run:
         _print_summary(jobs, out)
-        return
+        _exit_for(outcomes=[], running=len(running))
 
     def report(outcome) -> None:
         from tqdm.auto import tqdm
 
         if outcome.status == "failed":
-            tqdm.write(f"FAILED {outcome.label}: {outcome.error} (see {Path(outcome.folder) / 'error.txt'})",
-                       file=sys.stderr)
+            where = f" (see {Path(outcome.folder) / 'error.txt'})" if outcome.recorded else ""
+            tqdm.write(f"FAILED {outcome.label}: {outcome.error}{where}", file=sys.stderr)
         elif outcome.status == "skipped":
             tqdm.write(f"skipped {outcome.label}: {outcome.error}", file=sys.stderr)
 
@@ -256,11 +273,45 @@ def run(method, suite, scenes, variants, ablation, seeds, iterations, overrides,
                    f"(olatbench status {out} shows where each job stands).", err=True)
         sys.exit(130)
     _print_summary(jobs, out)
+    _exit_for(outcomes, len(running))
+
+
+EXIT_DONE, EXIT_FAILED, EXIT_USAGE, EXIT_RUNNING_ELSEWHERE = 0, 1, 2, 3
+
+
+def _exit_for(outcomes, running: int) -> None:
+    """Exit with `run`'s documented code (not a count: 2 is click's usage error): 1 when a job failed, else 3 when
+    jobs were left to another process that runs them (planned as running, or locked when their turn came), else 0
+    (every job of the plan is done)."""
     failed = sum(outcome.status == "failed" for outcome in outcomes)
+    elsewhere = running + sum(outcome.status == "skipped" for outcome in outcomes)
     if failed:
         click.echo(f"{failed} job(s) failed; fix the cause (error.txt in each folder) and rerun the same command "
                    f"to retry them.", err=True)
-    sys.exit(1 if failed else 0)  # not the count: 2 is click's usage error
+        sys.exit(EXIT_FAILED)
+    if elsewhere:
+        click.echo(f"{elsewhere} job(s) are running in another process; rerun the same command once they finish "
+                   "to collect them (olatbench status shows them).", err=True)
+        sys.exit(EXIT_RUNNING_ELSEWHERE)
+    sys.exit(EXIT_DONE)
+
+
+def _check_writable(jobs) -> None:
+    """An `OSError` naming the first job folder (or its nearest existing parent) this process cannot write: a
+    read-only file system or missing permission stops the run before any job starts, in one line."""
+    for job in jobs:
+        path = Path(job.folder)
+        while not path.exists() and path != path.parent:
+            path = path.parent
+        if not os.access(path, os.W_OK):
+            read_only = bool(os.statvfs(path).f_flag & os.ST_RDONLY)
+            code = errno.EROFS if read_only else errno.EACCES
+            raise WriteError(path, OSError(code, os.strerror(code)))
+
+
+def _os_error_line(error: OSError) -> str:
+    """One line for a file-system error: the file and the reason."""
+    return f"{error.filename}: {error.strerror}" if error.filename and error.strerror else str(error)
 
 
 def _write_pending(jobs) -> None:
@@ -344,7 +395,12 @@ def _print_summary(jobs, out: Path) -> None:
 @click.argument("runs", type=click.Path(exists=True, file_okay=False, path_type=Path), default=Path("runs"))
 @json_option
 def status(runs: Path, as_json: bool) -> None:
-    """Show the state of every job below RUNS: done, failed, partial (last checkpoint step) or pending.
+    """Show the state of every job below RUNS: done, failed, partial (last checkpoint step), pending, running (in
+    another process) or damaged (an unreadable job.json or results.json; the line below the table says how to
+    repair it). Only reads, so a read-only run folder can be inspected.
+
+    Exit code: 0 when the states are shown (whatever they are), 1 when RUNS holds no job folder, 2 for a usage
+    error.
 
     \b
     Example:
@@ -366,8 +422,11 @@ def status(runs: Path, as_json: bool) -> None:
         return
     rows = []
     for state in states:
-        step = "—" if state.step is None else f"{state.step}/{state.iterations}"
+        step = "—" if state.step is None else f"{state.step}/{'?' if state.iterations is None else state.iterations}"
         rows.append([str(state.folder.relative_to(runs)), state.state, step, state.message[:80]])
     click.echo(_table(rows, ["job", "state", "step", "note"]))
     counts = Counter(state.state for state in states)
     click.echo(", ".join(f"{count} {name}" for name, count in sorted(counts.items())))
+    for state in states:
+        if state.state == "damaged":  # the whole message: what is damaged and the command that repairs it
+            click.echo(f"damaged {state.folder.relative_to(runs)}: {state.message}")

@@ -10,12 +10,22 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass
 from typing import Any, ClassVar
 
+from olatbench.methods.ranges import AT_LEAST_ONE, NON_NEGATIVE, OPEN_UNIT, POSITIVE, RATE, UNIT, Range, check_ranges
+
 
 @dataclass
 class GaussianConfig:
     """Run length, initialisation, loss, the 3DGS learning rates and density control (defaults: 3DGS's)."""
 
     label: ClassVar[str] = "Gaussian method"  # the method's name in messages
+    ranges: ClassVar[dict[str, Range]] = {  # checked when the config is made (olatbench.methods.ranges)
+        "iterations": AT_LEAST_ONE, "reference_iterations": AT_LEAST_ONE, "num_init_gaussians": AT_LEAST_ONE,
+        "init_radius": POSITIVE, "init_opacity": OPEN_UNIT, "max_gaussians": AT_LEAST_ONE, "lambda_dssim": UNIT,
+        "position_lr_init": RATE, "position_lr_final": RATE, "position_lr_delay_mult": NON_NEGATIVE,
+        "position_lr_max_steps": AT_LEAST_ONE, "scaling_lr": RATE, "rotation_lr": RATE, "opacity_lr": RATE,
+        "densify_from": NON_NEGATIVE, "densify_until": NON_NEGATIVE, "densify_interval": AT_LEAST_ONE,
+        "densify_grad_threshold": NON_NEGATIVE, "opacity_reset_interval": AT_LEAST_ONE, "percent_dense": NON_NEGATIVE,
+    }
 
     iterations: int = 30_000
     reference_iterations: int = 30_000
@@ -47,8 +57,7 @@ class GaussianConfig:
     percent_dense: float = 0.01
 
     def __post_init__(self) -> None:
-        if self.iterations <= 0 or self.reference_iterations <= 0:
-            raise ValueError(f"{self.label} config: iterations and reference_iterations must be positive")
+        check_ranges(self, self.label)
         if self.init_shape not in ("ball", "box"):
             raise ValueError(f"{self.label} config: init_shape must be 'ball' or 'box', not {self.init_shape!r}")
 

@@ -7,12 +7,14 @@ run never receives a value of the wrong type (``use_sss=False`` used to arrive a
 
 * ``bool``: ``true`` / ``false`` in any case (``False``, ``TRUE``); nothing else (``1``, ``yes``, ``maybe``);
 * ``int``: a whole number (``50``, ``5e3``); never a bool or a fraction;
-* ``float``: any number; never a bool;
+* ``float``: any finite number; never a bool, NaN or an infinity;
 * ``str``: the text as written (``name=123`` is the text ``"123"``); ``Literal[...]``: one of its choices;
 * ``tuple[X, ...]`` / ``tuple[X, Y, Z]``: a JSON list of fitting items (and of the right length);
 * ``X | None``: ``null`` / ``none`` gives None, anything else must fit X.
 
-Anything that does not fit is one `OverrideError` naming the field, the value and the accepted form.
+A value that fits its type must also lie in the field's declared range (`olatbench.methods.ranges`: e.g. a learning
+rate ≥ 0). Anything that does not fit is one `OverrideError` naming the field, the value and the accepted form or
+range.
 """
 
 from __future__ import annotations
@@ -23,6 +25,8 @@ import types
 import typing
 from dataclasses import fields
 from typing import Any, Literal, Union
+
+from olatbench.methods.ranges import field_range
 
 
 class OverrideError(ValueError):
@@ -44,6 +48,10 @@ def check_overrides(config_type: type, overrides: dict[str, Any], method: str = 
             checked[name] = _fit(value, hints[name])
         except _Mismatch as mismatch:
             raise OverrideError(f"--set {name}={_shown(value)}: field '{name}' of {owner} takes {mismatch}") from None
+        allowed = field_range(config_type, name)
+        if allowed is not None and not allowed.contains(checked[name]):
+            raise OverrideError(f"--set {name}={_shown(value)}: field '{name}' of {owner} must be "
+                                f"{allowed.describe()}")
     return checked
 
 
@@ -96,6 +104,8 @@ def _fit(value: Any, annotation: Any) -> Any:
         raise _Mismatch(_form(int))
     if annotation is float:
         if isinstance(value, (int, float)) and not isinstance(value, bool):
+            if not math.isfinite(value):
+                raise _Mismatch("a finite number")
             return float(value)
         raise _Mismatch(_form(float))
     if annotation is str:

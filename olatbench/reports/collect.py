@@ -1,7 +1,8 @@
 """Read every ``results.json`` below a folder into one long pandas DataFrame.
 
 Only ``results.json`` files are read (through `olatbench.bench.results.read_results`, which
-refuses unknown schema versions), so a laptop, CI and a cluster build the same tables.
+refuses unknown schema versions), so a laptop, CI and a cluster build the same tables. A file that cannot be read
+is reported (named, with the reason) and skipped; the others still make the tables.
 
 Columns: ``method, variant, suite, scene, seed, split, metric, value, status, protocol`` plus ``device, job_id,
 error, path`` and ``test_poses``: how the split's views were posed when they were scored — "" (as given),
@@ -16,19 +17,24 @@ written by ``olatbench evaluate`` (``kind: "evaluate"``, no job) give no rows.
 from __future__ import annotations
 
 import math
+import warnings
 from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
 import pandas as pd
 
-from olatbench.bench.results import read_results
+from olatbench.bench.results import ResultsError, read_results
 from olatbench.bench.store import find_results
 
 COLUMNS = ("method", "variant", "suite", "scene", "seed", "split", "metric", "value", "status", "protocol",
            "device", "job_id", "error", "path", "test_poses")
 JOB_FACTS = (("fps", ("timing", "render_fps")), ("train_time", ("timing", "train_seconds")),
              ("num_gaussians", ("model", "num_gaussians")))
+
+
+class ResultsWarning(UserWarning):
+    """A results.json that `collect` skipped because it cannot be read (the message names the file)."""
 
 
 def find_results_files(runs: str | Path | Iterable[str | Path]) -> list[Path]:
@@ -97,11 +103,25 @@ def posed_splits(data: dict[str, Any]) -> dict[str, str]:
     return {split: "+".join(names) for split, names in modes.items()}
 
 
-def collect(runs: str | Path | Iterable[str | Path]) -> pd.DataFrame:
-    """Long-form results of every results.json below ``runs`` (a folder, a file, or several)."""
+def collect(runs: str | Path | Iterable[str | Path], unreadable: list[str] | None = None) -> pd.DataFrame:
+    """Long-form results of every results.json below ``runs`` (a folder, a file, or several).
+
+    A results.json that cannot be read (truncated, not JSON, unknown schema, missing keys) gives no rows and the
+    others are still read: its `ResultsError` message (naming the file) is appended to ``unreadable`` when a list
+    is given, else issued as a `ResultsWarning`.
+    """
     rows: list[dict[str, Any]] = []
     for path in find_results_files(runs):
-        rows += result_rows(read_results(path), path)
+        try:
+            data = read_results(path)
+        except ResultsError as error:
+            message = str(error)
+            if unreadable is None:
+                warnings.warn(message, ResultsWarning, stacklevel=2)
+            else:
+                unreadable.append(message)
+            continue
+        rows += result_rows(data, path)
     frame = pd.DataFrame(rows, columns=list(COLUMNS))
     frame["seed"] = frame["seed"].astype("int64")
     frame["value"] = frame["value"].astype(float)

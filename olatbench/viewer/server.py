@@ -14,6 +14,7 @@ import functools
 import threading
 import time
 import traceback
+from collections import OrderedDict
 from collections.abc import Callable, Hashable
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -27,6 +28,7 @@ from olatbench.viewer.model import Comparison, ViewerFrame, ViewerModel
 from olatbench.viewer.scheduler import Quality, RenderScheduler
 
 JPEG_QUALITY = 90
+MAX_MODELS = 4  # restored models kept at once; the least recently chosen goes first
 LIGHT_COLOUR = (255, 210, 60)
 CAMERA_COLOUR = (60, 120, 220)
 
@@ -67,16 +69,21 @@ class ViewerApp:
     """The viewer over one or more job folders (the first restored eagerly by the caller, the others on demand).
 
     ``drag_scale`` is the resolution factor while the user drags (1.0: always the scene's resolution);
-    ``settle_seconds`` how long a view must be still before its full-resolution render.
+    ``settle_seconds`` how long a view must be still before its full-resolution render; ``max_models`` how many
+    restored models are kept (a tab keeps showing its model after the cache lets go of it).
+
+    Only the listed ``folders`` are ever opened: a tab chooses among them by name (`listed`), so a browser cannot
+    make the server read another path, even when it is reachable from other machines (``--host 0.0.0.0``).
     """
 
     def __init__(self, folders: list[Path], first: ViewerModel, *, host: str = "127.0.0.1", port: int = 8080,
                  device: str = "cpu", drag_scale: float = 0.5, settle_seconds: float = 0.25,
-                 verbose: bool = False) -> None:
+                 verbose: bool = False, max_models: int = MAX_MODELS) -> None:
         self.folders = [Path(f) for f in folders]
         self.host, self.port, self.device, self.verbose = host, port, device, verbose
         self.drag_scale = drag_scale
-        self._models: dict[Path, ViewerModel] = {self.folders[0]: first}
+        self.max_models = max(1, max_models)
+        self._models: OrderedDict[Path, ViewerModel] = OrderedDict({self.folders[0]: first})
         self._models_lock = threading.Lock()
         self.sessions: dict[int, ClientSession] = {}
         self.scheduler = RenderScheduler(self._render, self._deliver, settle_seconds=settle_seconds,
@@ -112,11 +119,23 @@ class ViewerApp:
     def url(self) -> str:
         return f"http://{self.host}:{self.port}"
 
-    def model(self, folder: Path) -> ViewerModel:
-        """The restored model of a job folder (restored on first use, then kept)."""
+    def listed(self, choice: str | Path) -> Path:
+        """The listed job folder named ``choice`` (as the job menu writes it); a `ValueError` for any other."""
+        for folder in self.folders:
+            if str(folder) == str(choice):
+                return folder
+        raise ValueError("not one of the jobs this viewer serves")
+
+    def model(self, folder: str | Path) -> ViewerModel:
+        """The restored model of a listed job folder (`listed`): restored on first use, then kept while it is among
+        the ``max_models`` most recently used."""
+        folder = self.listed(folder)
         with self._models_lock:
             if folder not in self._models:
                 self._models[folder] = ViewerModel.open(folder, self.device)
+            self._models.move_to_end(folder)
+            while len(self._models) > self.max_models:
+                self._models.popitem(last=False)
             return self._models[folder]
 
     def _connect(self, client: Any) -> None:
@@ -360,11 +379,16 @@ class ClientSession:
     def _job_chosen(self, event: Any) -> None:
         if event.client is None:
             return
-        self.status.content = f"restoring {self.job_dropdown.value} …"
         try:
-            self.use_model(self.app.model(Path(str(self.job_dropdown.value))))
+            folder = self.app.listed(str(self.job_dropdown.value))  # the tab sends the value: only listed ones
+        except ValueError as error:
+            self.status.content = f"**cannot show the chosen job**: {error}"
+            return
+        self.status.content = f"restoring {folder} …"
+        try:
+            self.use_model(self.app.model(folder))
         except Exception as error:  # shown in the tab; the other jobs stay usable
-            self.status.content = f"**cannot show {self.job_dropdown.value}**: {error}"
+            self.status.content = f"**cannot show {folder}**: {error}"
 
     # ------------------------------------------------------------------------------------------- output
     def show(self, request: Any, result: Any, quality: Quality, seconds: float) -> None:

@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import ClassVar
 
+from olatbench.methods.ranges import AT_LEAST_ONE, NON_NEGATIVE, RATE, Range
 from olatbench.methods.shading.config import ShadingConfig
 
 
@@ -14,6 +15,11 @@ class GS3Config(ShadingConfig):
     schedule, networks and rates."""
 
     label: ClassVar[str] = "GS³"
+    ranges: ClassVar[dict[str, Range]] = {
+        "shadow_from": NON_NEGATIVE, "mlp_freeze_from": NON_NEGATIVE, "specular_from": NON_NEGATIVE,
+        "asg_lobes_from": NON_NEGATIVE, "other_hidden": AT_LEAST_ONE, "other_layers": AT_LEAST_ONE,
+        "num_freqs": NON_NEGATIVE, "mlp_lr": RATE,
+    }
 
     iterations: int = 100_000
     reference_iterations: int = 100_000

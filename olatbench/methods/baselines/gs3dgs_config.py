@@ -6,6 +6,7 @@ from dataclasses import dataclass
 from typing import ClassVar
 
 from olatbench.methods.gaussian_config import GaussianConfig
+from olatbench.methods.ranges import AT_LEAST_ONE, RATE, Range
 
 MAX_SH_DEGREE = 3  # the highest degree `olatbench.methods.baselines.sh` evaluates
 
@@ -16,12 +17,10 @@ class GS3DConfig(GaussianConfig):
     cadence and does not scale with ``iterations``."""
 
     label: ClassVar[str] = "3DGS"
+    ranges: ClassVar[dict[str, Range]] = {"sh_degree": Range(0, MAX_SH_DEGREE), "sh_increase_interval": AT_LEAST_ONE,
+                                          "feature_lr": RATE}
 
     sh_degree: int = 3
     sh_increase_interval: int = 1_000
     feature_lr: float = 2.5e-3  # DC; the higher-order coefficients use feature_lr / 20
 
-    def __post_init__(self) -> None:
-        super().__post_init__()
-        if not 0 <= self.sh_degree <= MAX_SH_DEGREE:
-            raise ValueError(f"3DGS config: sh_degree must be in 0..{MAX_SH_DEGREE}, got {self.sh_degree}")

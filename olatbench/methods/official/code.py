@@ -27,6 +27,9 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
+from typing import ClassVar
+
+from olatbench.methods.ranges import AT_LEAST_ONE, Range, check_ranges
 
 SUITE_ARGS = "{*suite_args}"
 ANY_SUITE = "*"
@@ -36,12 +39,17 @@ ANY_SUITE = "*"
 class OfficialConfig:
     """The config of an official method's jobs (enters the job id, as every config does)."""
 
+    ranges: ClassVar[dict[str, Range]] = {"iterations": AT_LEAST_ONE}
+
     iterations: int = 100_000
     """Training iterations handed to the official script (``{iterations}``)."""
     train_args: tuple[str, ...] = ()
     """Extra arguments appended to the train command (``--set train_args='["--foo","1"]'``)."""
     render_args: tuple[str, ...] = ()
     """Extra arguments appended to the render command."""
+
+    def __post_init__(self) -> None:
+        check_ranges(self, "official method")
 
 
 def _frozen(mapping: Mapping) -> Mapping:

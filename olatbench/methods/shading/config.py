@@ -3,14 +3,23 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
 
 from olatbench.methods.gaussian_config import GaussianConfig
+from olatbench.methods.ranges import AT_LEAST_ONE, NON_NEGATIVE, RATE, UNIT, Range
 
 
 @dataclass
 class ShadingConfig(GaussianConfig):
     """The shared Gaussian fields plus the ASG specular lobes, the material embedding, the shadow network, the
     light-view pass and their learning rates (defaults: the official SSD-GS / GS³ code's, which agree)."""
+
+    ranges: ClassVar[dict[str, Range]] = {
+        "num_asg": AT_LEAST_ONE, "material_dim": AT_LEAST_ONE, "fresnel_f0": UNIT, "shadow_hidden": AT_LEAST_ONE,
+        "shadow_layers": AT_LEAST_ONE, "shadow_resolution": AT_LEAST_ONE, "shadow_depth_offset": NON_NEGATIVE,
+        "colour_lr": RATE, "asg_lr_init": RATE, "asg_lr_final": RATE, "asg_lr_decay_from": NON_NEGATIVE,
+        "asg_lr_max_steps": AT_LEAST_ONE, "cull_epsilon": NON_NEGATIVE,
+    }
 
     num_asg: int = 8  # ASG lobes of the specular mixture
     material_dim: int = 6  # per-Gaussian material embedding fed to the networks
@@ -30,11 +39,6 @@ class ShadingConfig(GaussianConfig):
     # results do not change; ε = 1e-4 chosen by measurement (image change < 0.03/255, gradients ≤ 1.2 %).
     cull_shading: bool = False
     cull_epsilon: float = 1e-4
-
-    def __post_init__(self) -> None:
-        super().__post_init__()
-        if not self.cull_epsilon >= 0.0:
-            raise ValueError(f"{self.label} config: cull_epsilon must be ≥ 0, got {self.cull_epsilon}")
 
     def shading_cull_epsilon(self, evaluation: bool) -> float | None:
         """The culling threshold of a forward pass (None: no culling): ``cull_epsilon`` for the passes that take

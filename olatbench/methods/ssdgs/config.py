@@ -12,6 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import ClassVar
 
+from olatbench.methods.ranges import AT_LEAST_ONE, NON_NEGATIVE, POSITIVE, RATE, UNIT, Range
 from olatbench.methods.shading.config import ShadingConfig
 from olatbench.methods.ssdgs.schedule import SCHEDULES, Schedule, get_schedule
 
@@ -35,6 +36,16 @@ class SSDGSConfig(ShadingConfig):
     redeclared here have SSD-GS's defaults."""
 
     label: ClassVar[str] = "SSD-GS"
+    ranges: ClassVar[dict[str, Range]] = {
+        "dipole_eta": POSITIVE, "sss_hidden": AT_LEAST_ONE, "sss_layers": AT_LEAST_ONE, "sss_freqs": NON_NEGATIVE,
+        "shadow_freqs": NON_NEGATIVE, "background": UNIT, "mlp_lr_init": RATE, "mlp_lr_final": RATE,
+        "mlp_lr_decay_from": NON_NEGATIVE, "mlp_lr_max_steps": AT_LEAST_ONE, "camera_lr_init": RATE,
+        "camera_lr_final": RATE, "light_lr_init": RATE, "light_lr_final": RATE,
+        "refinement_lr_max_steps": AT_LEAST_ONE, "refine_camera_from": NON_NEGATIVE,
+        "refine_light_from": NON_NEGATIVE, "camera_lr_delay_steps": NON_NEGATIVE,
+        "camera_lr_delay_mult": NON_NEGATIVE, "light_lr_delay_steps": NON_NEGATIVE,
+        "light_lr_delay_mult": NON_NEGATIVE, "test_time_steps": AT_LEAST_ONE,
+    }
 
     iterations: int = 100_000
     reference_iterations: int = 100_000
@@ -124,8 +135,6 @@ class SSDGSConfig(ShadingConfig):
         if self.test_pose_fitting != "none" and not (self.refine_camera or self.refine_light):
             raise ValueError("SSD-GS config: test_pose_fitting fits what refine_camera / refine_light switch on; "
                              "enable at least one of them")
-        if self.test_time_steps < 1:
-            raise ValueError("SSD-GS config: test_time_steps must be at least 1")
 
     def light_view_size(self, width: int, height: int) -> int:
         """Side (px) of the square light-view pass for a view of ``width`` × ``height``."""

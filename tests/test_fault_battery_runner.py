@@ -1,0 +1,486 @@
+"""The runner's fault battery (#38): each fault gives one clear error, the documented exit code, no traceback, and
+loses nothing.
+
+Faults: a read-only run folder (`status`, `run`, `report`, `evaluate`), a disk that fills up during a run, a damaged
+results.json / job.json of a finished job, an unreadable newest checkpoint, and a job run by another process.
+
+Read-only folders and full disks are each tested up to three ways: a real tmpfs mounted in the test's folder (root
+with CAP_SYS_ADMIN; remounted read-only, or filled up), file modes (read-only cases; they bind a non-root user
+only), and `SimulatedFault` at the OS-error level (writes below the run folder raise ``EROFS`` / ``ENOSPC``), which
+runs everywhere. A way the machine does not allow is skipped with its reason, never passed silently. The number of
+faults is `FAULT_COUNT`, stated in docs/guarantees.md.
+"""
+
+from __future__ import annotations
+
+import builtins
+import errno
+import os
+import shutil
+import stat
+import subprocess
+import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+import pytest
+import test_runner_support as support
+import torch
+from click.testing import CliRunner
+
+from olatbench.bench.checkpoints import list_checkpoints
+from olatbench.bench.execute import run_job
+from olatbench.bench.plan import PlanOptions, make_plan
+from olatbench.bench.results import read_results
+from olatbench.bench.store import job_lock, job_state
+from olatbench.cli import main
+from olatbench.datasets import suites
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+# ---- fixtures -------------------------------------------------------------------------------------------------------
+
+@pytest.fixture()
+def data(tmp_path):
+    return support.write_tiny_data(tmp_path / "data")
+
+
+@pytest.fixture(autouse=True)
+def tiny_suite(monkeypatch):
+    """The tiny suite registered as 'tiny' for the CLI."""
+    monkeypatch.setitem(suites.SUITES, "tiny", support.tiny_suite())
+
+
+def run_cli(*args: str | Path):
+    """``olatbench ARGS`` in this process; the result keeps stdout and stderr apart and together."""
+    return CliRunner().invoke(main, [str(arg) for arg in args])
+
+
+def run_args(data: Path, out: Path, *extra: str | Path) -> list[str | Path]:
+    return ["run", "-m", "trivial", "-s", "tiny", "--data-root", data, "--out", out, "--quiet", "--device", "cpu",
+            *extra]
+
+
+def assert_one_clear_error(result, exit_code: int, *phrases: str) -> None:
+    """The documented exit code, no traceback, exactly one ``Error:`` line holding every phrase."""
+    assert result.exit_code == exit_code, result.output
+    assert "Traceback" not in result.output, result.output
+    assert not isinstance(result.exception, Exception) or isinstance(result.exception, SystemExit), result.exception
+    errors = [line for line in result.output.splitlines() if line.startswith("Error:")]
+    assert len(errors) == 1, result.output
+    for phrase in phrases:
+        assert phrase in errors[0], errors[0]
+
+
+def snapshot(folder: Path) -> dict[str, bytes]:
+    """Every file below ``folder`` (relative path -> bytes): what "nothing lost" compares."""
+    return {str(path.relative_to(folder)): path.read_bytes() for path in sorted(folder.rglob("*")) if path.is_file()}
+
+
+def can_mount() -> bool:
+    return os.geteuid() == 0 and shutil.which("mount") is not None
+
+
+@contextmanager
+def tmpfs(path: Path, size: str) -> Iterator[Path]:
+    """A tmpfs of ``size`` mounted on ``path`` (skips the test when the machine does not allow it)."""
+    path.mkdir(parents=True, exist_ok=True)
+    if not can_mount():
+        pytest.skip("mounting a tmpfs needs root; the simulated case covers this fault here")
+    mounted = subprocess.run(["mount", "-t", "tmpfs", "-o", f"size={size}", "tmpfs", str(path)],
+                             capture_output=True, text=True)
+    if mounted.returncode != 0:
+        pytest.skip(f"cannot mount a tmpfs here ({mounted.stderr.strip()}); the simulated case covers this fault")
+    try:
+        yield path
+    finally:
+        subprocess.run(["umount", "-l", str(path)], check=False)
+
+
+def plan(data: Path, out: Path, **kwargs):
+    return make_plan("trivial", support.tiny_suite(), out, data_root=data, progress=False, **kwargs)
+
+
+def job_folder(out: Path, scene: str = "Alpha", seed: int = 0, variant: str = "default") -> Path:
+    return out / "tiny" / "trivial" / variant / scene / f"seed{seed}"
+
+
+# ---- read-only run folders (#38 item 4) -----------------------------------------------------------------------------
+
+READ_ONLY_MODES = ("tmpfs-ro", "file-modes", "simulated")
+
+
+@contextmanager
+def read_only(out: Path, mode: str, monkeypatch) -> Iterator[None]:
+    """Make ``out`` (a tmpfs mount point for ``tmpfs-ro``) read-only for the duration."""
+    if mode == "simulated":
+        fault = SimulatedFault(monkeypatch, out, errno.EROFS)
+        fault.on()
+        try:
+            yield
+        finally:
+            fault.off()
+        return
+    if mode == "tmpfs-ro":
+        subprocess.run(["mount", "-o", "remount,ro", str(out)], check=True)
+        try:
+            yield
+        finally:
+            subprocess.run(["mount", "-o", "remount,rw", str(out)], check=True)
+        return
+    if os.geteuid() == 0:
+        pytest.skip("file modes do not bind root; the tmpfs-ro and simulated cases cover this fault")
+    paths = [out, *out.rglob("*")]
+    modes = {path: path.stat().st_mode for path in paths}
+    for path in paths:
+        path.chmod(stat.S_IMODE(modes[path]) & ~0o222)
+    try:
+        yield
+    finally:
+        for path in reversed(paths):
+            path.chmod(stat.S_IMODE(modes[path]))
+
+
+@contextmanager
+def output_folder(tmp_path: Path, mode: str) -> Iterator[Path]:
+    if mode == "tmpfs-ro":
+        with tmpfs(tmp_path / "runs", "16m") as out:
+            yield out
+    else:
+        yield tmp_path / "runs"
+
+
+READ_ONLY_CASES = {
+    # name: (argv after the fixed part, exit code, phrases of the one error line or None, phrase of the output)
+    "status": (["status", "{out}"], 0, None, "1 done, 1 failed"),
+    "status --json": (["status", "{out}", "--json"], 0, None, '"state": "failed"'),
+    "run of done jobs": (["run", "--scenes", "Alpha"], 0, None, "1 already done, 0 to run"),
+    "run of a new job": (["run", "--scenes", "Beta"], 1, ("cannot write", "Read-only file system|Permission denied",
+                                                          "--output"), None),
+    "run retrying a failed job": (["run", "--scenes", "Alpha", "--variant", "fails"], 1,
+                                  ("cannot write", "Read-only file system|Permission denied", "--output"), None),
+    "report to stdout": (["report", "{out}"], 0, None, "Alpha"),
+    "report -o into it": (["report", "{out}", "-o", "{out}/table.md"], 1,
+                          ("cannot write", "table.md", "Read-only file system|Permission denied"), None),
+    "evaluate -o into it": (["evaluate", "{tmp}/pred", "--gt", "{tmp}/data/Alpha", "--protocol",
+                             support.FAST_PROTOCOL, "-o", "{out}/scores.json"], 1,
+                            ("cannot write", "scores.json", "Read-only file system|Permission denied"), None),
+}
+
+
+@pytest.mark.parametrize("mode", READ_ONLY_MODES)
+@pytest.mark.parametrize("case", list(READ_ONLY_CASES))
+def test_a_read_only_run_folder(data, tmp_path, monkeypatch, case, mode):
+    argv, code, error_phrases, phrase = READ_ONLY_CASES[case]
+    with output_folder(tmp_path, mode) as out:
+        assert run_cli(*run_args(data, out, "--scenes", "Alpha")).exit_code == 0
+        assert run_cli(*run_args(data, out, "--scenes", "Alpha", "--variant", "fails")).exit_code == 1
+        shutil.copytree(job_folder(out) / "renders" / "test", tmp_path / "pred")  # predictions to score
+        before = snapshot(out)
+        with read_only(out, mode, monkeypatch):
+            if argv[0] == "run":
+                argv = run_args(data, out, *argv[1:])
+            result = run_cli(*[str(arg).replace("{out}", str(out)).replace("{tmp}", str(tmp_path)) for arg in argv])
+            assert result.exit_code == code, result.output
+            assert "Traceback" not in result.output
+            if error_phrases:
+                errors = [line for line in result.output.splitlines() if line.startswith("Error:")]
+                assert len(errors) == 1, result.output
+                for alternatives in error_phrases:
+                    assert any(option in errors[0] for option in alternatives.split("|")), errors[0]
+            else:
+                assert phrase in result.output, result.output
+        assert snapshot(out) == before  # nothing written, nothing lost
+
+
+# ---- a disk that fills up during a run (#38 item 6) -----------------------------------------------------------------
+
+DISK_MODES = ("tmpfs", "simulated")
+
+
+def _fill(folder: Path) -> None:
+    """Write a filler file into ``folder`` until its file system is full."""
+    with open(folder / "filler", "wb") as handle:
+        try:
+            while True:
+                handle.write(b"\0" * 65536)
+                handle.flush()
+        except OSError as error:
+            assert error.errno == errno.ENOSPC
+
+
+class SimulatedFault:
+    """Writes below ``folder`` fail with ``code`` (``ENOSPC``: a full disk, ``EROFS``: a read-only file system) once
+    `on` is called, in this process: opening a file for writing, making a temporary file or a folder, renaming onto
+    a name, and ``os.access(..., W_OK)``. The OS-level stand-in where the machine cannot mount a tmpfs."""
+
+    def __init__(self, monkeypatch, folder: Path, code: int) -> None:
+        self.active, self.folder, self.code = False, str(folder), code
+        real_open, real_mkstemp, real_replace = builtins.open, tempfile.mkstemp, os.replace
+        real_mkdir, real_access = os.mkdir, os.access
+
+        def refused(path) -> bool:
+            return self.active and os.path.abspath(os.fspath(path)).startswith(self.folder)
+
+        def error(path) -> OSError:
+            return OSError(self.code, os.strerror(self.code), os.fspath(path))
+
+        def open_(file, mode="r", *args, **kwargs):
+            if isinstance(file, (str, os.PathLike)) and any(flag in mode for flag in "wax+") and refused(file):
+                raise error(file)
+            return real_open(file, mode, *args, **kwargs)
+
+        def mkstemp(*args, dir=None, **kwargs):
+            if dir is not None and refused(dir):
+                raise error(dir)
+            return real_mkstemp(*args, dir=dir, **kwargs)
+
+        def replace(source, target, *args, **kwargs):
+            if refused(target):
+                raise error(target)
+            return real_replace(source, target, *args, **kwargs)
+
+        def mkdir(path, *args, **kwargs):
+            if refused(path):
+                raise error(path)
+            return real_mkdir(path, *args, **kwargs)
+
+        def access(path, mode, *args, **kwargs):
+            if mode & os.W_OK and refused(path):
+                return False
+            return real_access(path, mode, *args, **kwargs)
+
+        for owner, name, function in ((builtins, "open", open_), (tempfile, "mkstemp", mkstemp),
+                                      (os, "replace", replace), (os, "mkdir", mkdir), (os, "access", access)):
+            monkeypatch.setattr(owner, name, function)
+
+    def on(self) -> None:
+        self.active = True
+
+    def off(self) -> None:
+        self.active = False
+
+
+class _SimulatedFullDisk:
+    def __init__(self, monkeypatch, folder: Path) -> None:
+        self.fault = SimulatedFault(monkeypatch, folder, errno.ENOSPC)
+
+    def fill(self, folder: Path) -> None:
+        self.fault.on()
+
+    def free(self, folder: Path) -> None:
+        self.fault.off()
+
+
+class _RealFullDisk:
+    def fill(self, folder: Path) -> None:
+        _fill(folder)
+
+    def free(self, folder: Path) -> None:
+        (folder / "filler").unlink()
+
+
+@pytest.mark.parametrize("mode", DISK_MODES)
+def test_a_full_disk_fails_each_job_cleanly_and_the_rerun_finishes_them(data, tmp_path, monkeypatch, mode):
+    """The disk fills up at the first checkpoint of the first job to run: that job fails although neither its
+    checkpoint nor its error.txt can be written, and every later job still starts and fails with one line; the job
+    finished before keeps its files; once space is freed, the same command finishes every job."""
+    import olatbench.bench.execute as execute
+
+    with (tmpfs(tmp_path / "runs", "8m") if mode == "tmpfs" else _nullcontext(tmp_path / "runs")) as out:
+        assert run_cli(*run_args(data, out, "--scenes", "Alpha")).exit_code == 0
+        finished = snapshot(job_folder(out))
+        disk = _RealFullDisk() if mode == "tmpfs" else _SimulatedFullDisk(monkeypatch, out)
+        real_save = execute.save_checkpoint
+
+        def save_on_a_filling_disk(*args, **kwargs):
+            disk.fill(out)
+            return real_save(*args, **kwargs)
+
+        monkeypatch.setattr(execute, "save_checkpoint", save_on_a_filling_disk)
+        result = run_cli(*run_args(data, out, "--seeds", "2"))
+        monkeypatch.setattr(execute, "save_checkpoint", real_save)
+        assert result.exit_code == 1, result.output
+        assert "Traceback" not in result.output
+        assert "3 job(s) failed" in result.output
+        failed = [line for line in result.output.splitlines() if line.startswith("FAILED ")]
+        assert len(failed) == 3 and all("No space left on device" in line for line in failed), result.output
+        assert "not recorded in the folder" in failed[0]  # the second failure: error.txt could not be written
+        disk.free(out)
+        assert snapshot(job_folder(out)) == finished
+        rerun = run_cli(*run_args(data, out, "--seeds", "2"))
+        assert rerun.exit_code == 0, rerun.output
+        for scene in ("Alpha", "Beta"):
+            for seed in (0, 1):
+                assert job_state(job_folder(out, scene, seed)).state == "done"
+
+
+@contextmanager
+def _nullcontext(value):
+    yield value
+
+
+# ---- damaged records of a finished job (#38 items 5 and 12) ---------------------------------------------------------
+
+def _truncate(path: Path) -> None:
+    path.write_bytes(path.read_bytes()[: path.stat().st_size // 2])
+
+
+RESULTS_DAMAGE = {
+    "truncated": _truncate,
+    "zero bytes": lambda path: path.write_bytes(b""),
+    "missing": lambda path: path.unlink(),
+    "not UTF-8": lambda path: path.write_bytes(b"\xff\xfe{\x00"),
+    "another job's": lambda path: path.write_text(path.read_text().replace('"id": "', '"id": "0')),
+}
+JOB_FILE_DAMAGE = {
+    "truncated": _truncate,
+    "zero bytes": lambda path: path.write_bytes(b""),
+    "not an object": lambda path: path.write_text("[]"),
+    "not UTF-8": lambda path: path.write_bytes(b"\xff\xfe{\x00"),
+}
+
+
+@pytest.mark.parametrize("damage", list(RESULTS_DAMAGE))
+def test_a_finished_job_with_a_damaged_results_json_is_reported_and_re_evaluated(data, tmp_path, damage):
+    out = tmp_path / "runs"
+    assert run_cli(*run_args(data, out)).exit_code == 0
+    folder = job_folder(out)
+    original = read_results(folder / "results.json")
+    checkpoint = list_checkpoints(folder)[-1][1].read_bytes()
+    RESULTS_DAMAGE[damage](folder / "results.json")
+
+    state = job_state(folder)
+    assert state.state == "damaged" and "results.json" in state.message and "olatbench run" in state.message
+    status = run_cli("status", out)
+    assert status.exit_code == 0 and "damaged" in status.output and "Traceback" not in status.output
+    if damage not in ("missing", "another job's"):  # a missing file is no result; another job's is readable
+        report = run_cli("report", out)
+        assert report.exit_code == 0 and "Traceback" not in report.output, report.output
+        assert "skipped (unreadable)" in report.stderr and str(folder / "results.json") in report.stderr
+        assert "Beta" in report.stdout  # the other job's results still make the table
+
+    rerun = run_cli(*run_args(data, out))
+    assert rerun.exit_code == 0 and "1 damaged: re-evaluated" in rerun.output, rerun.output
+    repaired = read_results(folder / "results.json")
+    assert repaired["metrics"] == original["metrics"]  # the final checkpoint, evaluated again: nothing lost
+    assert list_checkpoints(folder)[-1][1].read_bytes() == checkpoint
+    assert "training already complete" in (folder / "log.txt").read_text()
+    assert job_state(folder).state == "done"
+
+
+@pytest.mark.parametrize("damage", list(JOB_FILE_DAMAGE))
+def test_a_finished_job_with_a_damaged_job_json_is_not_partial_and_is_re_evaluated(data, tmp_path, damage):
+    out = tmp_path / "runs"
+    assert run_cli(*run_args(data, out, "--scenes", "Alpha")).exit_code == 0
+    folder = job_folder(out)
+    job_json, original = (folder / "job.json").read_text(), read_results(folder / "results.json")
+    JOB_FILE_DAMAGE[damage](folder / "job.json")
+
+    state = job_state(folder)
+    assert state.state == "damaged" and "job.json" in state.message and "olatbench run" in state.message
+    status = run_cli("status", out)
+    assert status.exit_code == 0 and "damaged" in status.output and "None" not in status.output, status.output
+    assert "partial" not in status.output
+
+    rerun = run_cli(*run_args(data, out, "--scenes", "Alpha"))
+    assert rerun.exit_code == 0 and "1 damaged: re-evaluated" in rerun.output, rerun.output
+    assert (folder / "job.json").read_text() == job_json
+    assert read_results(folder / "results.json")["metrics"] == original["metrics"]
+
+
+def test_report_lists_each_unreadable_results_json_and_fails_only_when_none_is_readable(data, tmp_path):
+    out = tmp_path / "runs"
+    assert run_cli(*run_args(data, out, "--scenes", "Alpha")).exit_code == 0
+    (job_folder(out) / "results.json").write_text("{")
+    result = run_cli("report", out)
+    assert_one_clear_error(result, 1, "no readable results.json", "1 unreadable")
+    assert "skipped (unreadable)" in result.output and "malformed JSON" in result.output
+
+
+# ---- an unreadable newest checkpoint (#38 item 11) ------------------------------------------------------------------
+
+CHECKPOINT_DAMAGE = {
+    "truncated": _truncate,
+    "zero bytes": lambda path: path.write_bytes(b""),
+    "not a checkpoint": lambda path: path.write_bytes(os.urandom(4096)),
+    "every checkpoint": None,  # all of them truncated: the job starts over
+}
+
+
+@pytest.mark.parametrize("damage", list(CHECKPOINT_DAMAGE))
+def test_an_unreadable_newest_checkpoint_resumes_from_the_newest_that_loads(data, tmp_path, damage):
+    options = PlanOptions(checkpoint_every=4)
+    job = plan(data, tmp_path / "runs", scenes=["Alpha"], iterations=10, options=options)[0]
+    reference = plan(data, tmp_path / "reference", scenes=["Alpha"], iterations=10, options=options)[0]
+    interrupted = type(job)(**{**job.__dict__, "config": {**job.config, "interrupt_at_step": 9}})  # same id
+    with pytest.raises(KeyboardInterrupt):
+        run_job(interrupted, progress=False)
+    folder = Path(job.folder)
+    assert [step for step, _ in list_checkpoints(folder)] == [4, 8]
+    damaged = list_checkpoints(folder) if damage == "every checkpoint" else list_checkpoints(folder)[-1:]
+    for _, path in damaged:
+        (CHECKPOINT_DAMAGE[damage] or _truncate)(path)
+    kept = {path.name + ".unreadable": path.read_bytes() for _, path in damaged}
+
+    result = run_cli(*run_args(data, tmp_path / "runs", "--scenes", "Alpha", "--iterations", "10",
+                               "--checkpoint-every", "4"))
+    assert result.exit_code == 0 and "Traceback" not in result.output, result.output
+    assert "cannot read checkpoint" in result.stderr and "step_00000008.pt.unreadable" in result.stderr
+    log = (folder / "log.txt").read_text()
+    assert ("resumed from step_00000004.pt" in log) == (damage != "every checkpoint")
+    for name, content in kept.items():  # the damaged files are kept aside, not deleted
+        assert (folder / "checkpoints" / name).read_bytes() == content
+
+    assert run_job(reference, progress=False).status == "done"
+    resumed, uninterrupted = (read_results(Path(j.folder) / "results.json") for j in (job, reference))
+    assert resumed["metrics"] == uninterrupted["metrics"]  # exact: the resume is bit-exact
+    weights = [torch.load(list_checkpoints(j.folder)[-1][1], weights_only=True)["method"]["logits"]
+               for j in (job, reference)]
+    assert torch.equal(*weights)
+
+
+# ---- a job run by another process (#38 item 12) ---------------------------------------------------------------------
+
+def test_a_run_that_leaves_a_job_to_another_process_exits_3_and_the_rerun_0(data, tmp_path):
+    out = tmp_path / "runs"
+    help_text = run_cli("run", "--help").output
+    assert "3 when none failed but some" in " ".join(help_text.split())
+    with job_lock(job_folder(out)) as acquired:  # another process (here: another open file) runs Alpha
+        assert acquired
+        from olatbench.cli.run import _write_pending
+
+        _write_pending(plan(data, out, scenes=["Alpha"]))  # as that process has
+        result = run_cli(*run_args(data, out))
+        assert result.exit_code == 3, result.output
+        assert "Traceback" not in result.output and "1 running in another process" in result.output
+        assert "rerun the same command once they finish" in result.output
+        status = run_cli("status", out)
+        assert status.exit_code == 0 and "running" in status.output
+        assert not (job_folder(out) / "results.json").exists()  # untouched
+        assert job_state(job_folder(out, "Beta")).state == "done"
+    rerun = run_cli(*run_args(data, out))
+    assert rerun.exit_code == 0, rerun.output
+    assert job_state(job_folder(out)).state == "done"
+    # a job that another process locked between the plan and its turn comes back "skipped": the same exit code
+    from olatbench.bench.execute import JobOutcome
+    from olatbench.cli.run import _exit_for
+
+    with pytest.raises(SystemExit) as exited:
+        _exit_for([JobOutcome("id", "Alpha/default/seed0", str(out), "skipped", error="running in another process")],
+                  running=0)
+    assert exited.value.code == 3
+
+
+# ---- the count ------------------------------------------------------------------------------------------------------
+
+FAULT_COUNT = (len(READ_ONLY_CASES) + 1 + len(RESULTS_DAMAGE) + len(JOB_FILE_DAMAGE) + 1 + len(CHECKPOINT_DAMAGE)
+               + 1)  # read-only entry points, full disk, results.json, job.json, report, checkpoints, concurrent
+
+
+def test_the_battery_states_its_fault_count_in_the_docs():
+    """docs/guarantees.md says how many runner faults this module checks; the two must agree."""
+    text = (ROOT / "docs" / "guarantees.md").read_text(encoding="utf-8")
+    assert f"runner fault battery: {FAULT_COUNT} faults" in text, FAULT_COUNT
