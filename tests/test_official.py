@@ -325,3 +325,15 @@ def test_doctor_checks_each_configured_checkout(tmp_path, monkeypatch) -> None:
     assert gpu.strip().startswith("ok" if torch.cuda.is_available() else "NO")
     missing = next(line for line in lines if "nrhints-official: checkout" in line)
     assert missing.strip().startswith("NO") and "no checkout" not in missing and "missing" in missing
+
+
+# ---- module layout --------------------------------------------------------------------------------------------------
+
+def test_official_job_runner_does_not_import_the_in_process_runner() -> None:
+    """bench.official and bench.execute share result writing and scoring through bench.outcome, not each other
+    (no import cycle; an official job needs no torch)."""
+    code = ("import sys, olatbench.bench.official; "
+            "print(sorted(m for m in ('olatbench.bench.execute', 'torch') if m in sys.modules))")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
+                          env={**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1])})
+    assert done.stdout.strip() == "[]", done.stdout + done.stderr
