@@ -5,6 +5,7 @@ container template, failure, timeout, interruption, and `olatbench doctor`."""
 from __future__ import annotations
 
 import dataclasses
+import json
 import os
 import signal
 import subprocess
@@ -183,6 +184,40 @@ def test_renders_are_mapped_to_their_frames(tmp_path) -> None:
     run_inline(jobs, progress=False)
     per_image = read_results(Path(jobs[0].folder) / "results.json")["metrics"]["test"]["per_image"]
     assert all(values["psnr"] < 25.0 for values in per_image.values()), per_image
+
+
+def test_renders_of_refined_cameras_are_paired_through_the_file_train_py_saved(tmp_path) -> None:
+    """SSD-GS on real data: train.py saves the test cameras in its seeded shuffled order and render.py --opt_pose
+    renders them in that order; each render is scored against the frame that file names, not by position."""
+    data = write_data(tmp_path / "data")
+    checkout = write_checkout(tmp_path / "checkout", "ssdgs-official")
+    jobs = plan("ssdgs-official", suite_of("nrhints"), data, tmp_path / "runs", checkout=str(checkout),
+                python=sys.executable)
+    [outcome] = run_inline(jobs, progress=False)
+    folder = Path(jobs[0].folder)
+    assert outcome.status == "done", (folder / "log.txt").read_text()
+    saved = next((folder / "official" / "model" / "point_cloud").glob("iteration_*/transforms_test.json"))
+    order = [entry["file_path"] for entry in json.loads(saved.read_text())["frames"]]
+    frame_ids = [frame.frame_id for frame in load_scene(data / "Alpha").split("test")]
+    assert sorted(order) == sorted(frame_ids) and order != frame_ids  # the shuffle is not the identity
+    per_image = read_results(folder / "results.json")["metrics"]["test"]["per_image"]
+    assert all(values["psnr"] > PERFECT_PSNR for values in per_image.values()), per_image
+
+
+def test_a_render_order_file_that_names_a_stranger_is_refused(tmp_path) -> None:
+    from olatbench.methods.official.convert import pair_renders
+    from olatbench.methods.official.process import OfficialRunError
+    from olatbench.methods.official.specs import SSDGS_CODE
+
+    order = tmp_path / "transforms_test.json"
+    order.write_text(json.dumps({"frames": [{"file_path": "b", "img_path": "/x/test/b.png"}, {"file_path": "a"}]}))
+    paired = pair_renders(SSDGS_CODE, order, ["a", "b"], {"model": "/m", "iterations": 7})
+    assert paired == {"a": Path("/m/test/ours_7/renders/00001.png"), "b": Path("/m/test/ours_7/renders/00000.png")}
+    with pytest.raises(OfficialRunError, match=r"left out, e\.g\. c"):
+        pair_renders(SSDGS_CODE, order, ["a", "b", "c"], {"model": "/m", "iterations": 7})
+    order.write_text(json.dumps({"frames": [{"file_path": "./test/z"}]}))
+    with pytest.raises(OfficialRunError, match="names 'z', no test frame"):
+        pair_renders(SSDGS_CODE, order, ["a"], {"model": "/m", "iterations": 7})
 
 
 # ---- container template, CLI, report beside a native method ---------------------------------------------------------

@@ -7,14 +7,20 @@ An `OfficialCode` says, for the authors' scripts:
 - the commands to run, in order: ``(step, argv)`` where ``argv`` starts with the script (``train.py``), never
   with an interpreter — the launcher of `olatbench.methods.official.settings` puts the configured Python, conda
   environment or container command in front;
-- where the renders of the test split land (``renders``) and what their PNGs hold (``render_colourspace``).
+- where the renders of the test split land (``renders``) and what their PNGs hold (``render_colourspace``);
+- which frame each render shows: the render script numbers its renders by the order of the frames of the
+  transforms file it reads. That is the converted scene's ``transforms_test.json`` (``LOADER_ORDER``) unless a
+  command carries a flag of ``render_orders``, which names the file the script then reads instead (SSD-GS and
+  GS³ ``render.py --opt_pose`` read the refined cameras their ``train.py`` saved, in its shuffled order). Renders
+  are paired with frames through that file's ``img_path`` / ``file_path``, never by position in olatbench's split
+  (`olatbench.methods.official.convert.pair_renders`).
 
 Placeholders in ``argv`` and ``renders`` (`str.format` fields), filled per job:
 
 - ``{scene}`` the converted scene folder, ``{model}`` the output folder the scripts write to,
   ``{checkout}`` the user's clone, ``{iterations}`` the job's training length;
-- ``{index}`` (renders only): the frame's position in the converted split, which is the order the official
-  loaders enumerate frames (e.g. ``{index:05d}``);
+- ``{index}`` (renders only): the render's number, i.e. the position of its frame in the transforms file the
+  render script read (e.g. ``{index:05d}``);
 - an argument that is exactly ``{*suite_args}`` expands to ``suite_args[suite][step]`` (``"*"``: any other
   suite), possibly to nothing: e.g. ``--white_background`` for GS³ data.
 
@@ -33,6 +39,7 @@ from olatbench.methods.ranges import AT_LEAST_ONE, Range, check_ranges
 
 SUITE_ARGS = "{*suite_args}"
 ANY_SUITE = "*"
+LOADER_ORDER = "{scene}/transforms_test.json"  # the converted test split, as the official loaders read it
 
 
 @dataclass(frozen=True)
@@ -69,6 +76,7 @@ class OfficialCode:
     render_colourspace: Mapping[str, str] = field(default_factory=dict)  # suite -> what the PNGs hold (srgb)
     suite_args: Mapping[str, Mapping[str, tuple[str, ...]]] = field(default_factory=dict)  # suite -> step -> args
     env: Mapping[str, str] = field(default_factory=dict)  # extra environment variables of every command
+    render_orders: Mapping[str, str] = field(default_factory=dict)  # flag -> transforms file then rendered in order
     needs_val_split: bool = False  # the loader opens transforms_val.json (written from the test split if absent)
     unsupported: str = ""  # why olatbench's scenes cannot be fed to this code ("" = runnable)
 
@@ -78,7 +86,7 @@ class OfficialCode:
         steps = [step for step, _ in self.commands]
         if len(set(steps)) != len(steps):
             raise ValueError(f"official code {self.name!r}: step names repeat: {steps}")
-        for attribute in ("data_formats", "render_colourspace", "suite_args", "env"):
+        for attribute in ("data_formats", "render_colourspace", "suite_args", "env", "render_orders"):
             object.__setattr__(self, attribute, _frozen(getattr(self, attribute)))
 
     @property
@@ -113,6 +121,11 @@ class OfficialCode:
                                  f"{arg!r}; known: {', '.join(sorted(values))}, {SUITE_ARGS}") from None
         return filled + list(extra)
 
+    def render_order(self, commands: list[list[str]]) -> str:
+        """The transforms file (pattern) whose frame order numbers the renders, given the filled-in commands."""
+        flags = {arg for argv in commands for arg in argv}
+        return next((path for flag, path in self.render_orders.items() if flag in flags), LOADER_ORDER)
+
     def describe(self) -> list[str]:
         """The commands and render pattern as text lines, placeholders kept (``olatbench methods show``)."""
         if not self.commands:
@@ -125,6 +138,8 @@ class OfficialCode:
             lines.append(f"suite {suite}: data written as {self.data_format(suite)}, renders hold "
                          f"{self.colourspace_for(suite)}" + (f", {SUITE_ARGS} = {args}" if args else ""))
         lines.append(f"renders: {self.renders}")
+        orders = "".join(f"; with {flag}: of {path}" for flag, path in self.render_orders.items())
+        lines.append(f"render i shows the i-th frame of {LOADER_ORDER}{orders} (paired by img_path/file_path)")
         if self.env:
             lines.append("environment: " + " ".join(f"{k}={v}" for k, v in self.env.items()))
         return lines

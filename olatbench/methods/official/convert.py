@@ -2,22 +2,29 @@
 
 The converted scene holds the suite's train split as ``train`` and its test split as ``test`` (and, for loaders
 that open ``transforms_val.json``, the test frames again as ``val``), in the source order, at the job's
-resolution (cameras resized with `Camera.resized`, images area-resized by `Frame.load`). The official loaders
-enumerate a split in file order, so the render of test frame ``index`` belongs to the ``index``-th test frame of
-the source scene.
+resolution (cameras resized with `Camera.resized`, images area-resized by `Frame.load`), each frame's image named
+after its frame id (`safe_file_stem`).
+
+A render script numbers its renders by the frame order of the transforms file it read (`OfficialCode.render_order`:
+the converted ``transforms_test.json``, or e.g. the refined cameras ``train.py`` saved in its own shuffled order).
+`pair_renders` reads that file after the run and pairs render ``i`` with the frame named by its ``i``-th entry
+(``img_path`` or ``file_path``), so no pairing rests on olatbench's order of the split.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import json
 from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
 
 from olatbench.datasets.convert import write_scene
+from olatbench.datasets.formats._common import safe_file_stem
 from olatbench.datasets.records import Frame, Scene
 from olatbench.methods.official.code import OfficialCode
+from olatbench.methods.official.process import OfficialRunError
 
 
 def converted_scene(source: Scene, train_split: str, test_split: str, resolution: tuple[int, int] | None,
@@ -54,7 +61,43 @@ def write_for_code(code: OfficialCode, source: Scene, out_dir: Path, suite: str,
     return write_scene(scene, out_dir, code.data_format(suite), pixels, overwrite=True)
 
 
-def render_paths(code: OfficialCode, frame_ids: list[str], values: Mapping[str, object]) -> dict[str, Path]:
-    """``{frame id: where code's render script writes that test frame}`` (``{index}`` = position in the split)."""
-    return {frame_id: Path(code.renders.format_map({**values, "index": index}))
-            for index, frame_id in enumerate(frame_ids)}
+def _entry_stem(entry: Mapping[str, object]) -> str | None:
+    """The image file stem a transforms-file frame names: ``img_path``'s (a path with extension, as SSD-GS and GS³
+    save it) or ``file_path``'s last part (written without extension)."""
+    if isinstance(entry.get("img_path"), str):
+        return Path(str(entry["img_path"])).stem
+    if isinstance(entry.get("file_path"), str):
+        return Path(str(entry["file_path"])).name
+    return None
+
+
+def pair_renders(code: OfficialCode, order_file: Path, frame_ids: list[str], values: Mapping[str, object]
+                 ) -> dict[str, Path]:
+    """``{frame id: path of its render}``: render ``i`` (``code.renders`` with ``{index}`` = i) shows the frame of
+    the ``i``-th entry of ``order_file``, the transforms file the render script read (module docstring).
+
+    `OfficialRunError` when the file is missing or unreadable, names an image that is no test frame, names one twice,
+    or leaves a test frame out."""
+    stems = {safe_file_stem(frame_id): frame_id for frame_id in frame_ids}
+    if len(stems) != len(frame_ids):
+        raise OfficialRunError(f"{code.name}: test frames share an image file name, so renders cannot be paired "
+                               f"with them: {sorted(frame_ids)}")
+    try:
+        entries = json.loads(Path(order_file).read_text(encoding="utf-8"))["frames"]
+    except (OSError, ValueError, KeyError, TypeError) as error:
+        raise OfficialRunError(f"{code.name}: cannot read the frame order of the renders from {order_file} "
+                               f"({type(error).__name__}: {error})") from None
+    paired: dict[str, Path] = {}
+    for index, entry in enumerate(entries):
+        stem = _entry_stem(entry) if isinstance(entry, Mapping) else None
+        frame_id = stems.get(stem) if stem is not None else None
+        if frame_id is None or frame_id in paired:
+            problem = "names no image" if stem is None else (
+                f"names {stem!r} a second time" if frame_id in paired else f"names {stem!r}, no test frame")
+            raise OfficialRunError(f"{code.name}: {order_file}, frame {index} {problem}; renders cannot be paired")
+        paired[frame_id] = Path(code.renders.format_map({**values, "index": index}))
+    left_out = [frame_id for frame_id in frame_ids if frame_id not in paired]
+    if left_out:
+        raise OfficialRunError(f"{code.name}: {order_file} lists {len(paired)} of the {len(frame_ids)} test frames; "
+                               f"left out, e.g. {', '.join(left_out[:5])}")
+    return {frame_id: paired[frame_id] for frame_id in frame_ids}

@@ -16,6 +16,12 @@ from olatbench.methods.spec import MethodSpec, SourcePin
 _CONFIG = "olatbench.methods.official.code:OfficialConfig"
 _MODULE = "olatbench.methods.official.specs"
 
+# With --cam_opt/--pl_opt, train.py builds Scene(shuffle=True), which shuffles the test cameras with the seeded
+# `random` of safe_state (scene/__init__.py:75-77), and Scene.save writes them in that order, with the refined
+# poses, to this file (scene/__init__.py:153-199); render.py --opt_pose renders exactly its frames, in its order,
+# as 00000.png, 00001.png, ... The entries name their image by file_path (the stem) and img_path.
+_REFINED_CAMERAS = "{model}/point_cloud/iteration_{iterations}/transforms_test.json"
+
 # ---- GS³ (gsrelight/gs-relight) --------------------------------------------------------------------------------
 # Flags shared by its syn_train.sh and real_train.sh; the per-suite ones are in suite_args.
 _GS3_TRAIN = (
@@ -40,6 +46,7 @@ GS3_CODE = OfficialCode(
                     "--use_nerual_phasefunc", SUITE_ARGS)),
     ),
     renders="{model}/test/ours_{iterations}/renders/{index:05d}.png",
+    render_orders={"--opt_pose": _REFINED_CAMERAS},  # render.py:60-61 reads the cameras train.py saved
     data_formats={"gs3": "gs3", ANY_SUITE: "nrhints"},
     render_colourspace={"gs3": "gamma22"},  # render.py --gamma stores x^(1/2.2) of the linear (EXR-trained) render
     suite_args={
@@ -73,6 +80,7 @@ SSDGS_CODE = OfficialCode(
                     "--use_nerual_phasefunc", SUITE_ARGS)),
     ),
     renders="{model}/test/ours_{iterations}/renders/{index:05d}.png",
+    render_orders={"--opt_pose": _REFINED_CAMERAS},  # render.py:70-71 reads the cameras train.py saved
     data_formats={ANY_SUITE: "nrhints"},  # its loader reads 8-bit RGBA PNGs (its GS³ and SSS-GS data are PNGs too)
     suite_args={
         "gs3": {"train": ("--white_background", *_SSDGS_REAL_WINDOWS)},
