@@ -204,6 +204,24 @@ def test_renders_of_refined_cameras_are_paired_through_the_file_train_py_saved(t
     assert all(values["psnr"] > PERFECT_PSNR for values in per_image.values()), per_image
 
 
+def test_the_refined_sssgs_variant_runs_the_refinement_flags_and_is_the_w_opt_row(tmp_path) -> None:
+    data = write_data(tmp_path / "data")
+    checkout = write_checkout(tmp_path / "checkout", "ssdgs-official")
+    plain, refined = make_plan("ssdgs-official", suite_of("sssgs"), tmp_path / "runs", data_root=data,
+                               progress=False, variants=["default", "opt"],
+                               options=PlanOptions(code={"checkout": str(checkout), "python": sys.executable}))
+    outcomes = run_inline([plain, refined], progress=False)
+    assert [o.status for o in outcomes] == ["done", "done"]
+    rows = {}
+    for job in (plain, refined):
+        results = read_results(Path(job.folder) / "results.json")
+        argv = [arg for c in results["official"]["commands"] for arg in c["argv"]]
+        assert all(values["psnr"] > PERFECT_PSNR for values in results["metrics"]["test"]["per_image"].values())
+        rows[job.variant] = (paper_method(job.method, job.variant, "sssgs"), "--cam_opt" in argv,
+                             "--opt_pose" in argv)
+    assert rows == {"default": ("Ours (w/o Opt)", False, False), "opt": ("Ours (w/ Opt)", True, True)}
+
+
 def test_a_render_order_file_that_names_a_stranger_is_refused(tmp_path) -> None:
     from olatbench.methods.official.convert import pair_renders
     from olatbench.methods.official.process import OfficialRunError

@@ -17,6 +17,8 @@ from pathlib import Path
 
 import pandas as pd
 
+from olatbench.methods.official.specs import SSDGS_REFINED_VARIANT
+
 CSV_NAME = "ssdgs_iclr2026.csv"
 CSV_COLUMNS = ("table", "method", "suite", "scene", "split", "metric", "value", "std", "paper_rank")
 
@@ -116,15 +118,22 @@ def normalise_name(name: str) -> str:
 def paper_method(method: str, variant: str | None = None, suite: str | None = None) -> str | None:
     """The paper's row label for a run's method, variant and suite, or None when the paper has no such row.
 
-    ``ssdgs`` runs map to "Ours" (on the sssgs suite, whose preset refines cameras and lights:
-    "Ours (w/ Opt)"), or to the variant preset's label ("ablation-A" -> "A: Diff", "sssgs-no-opt" ->
-    "Ours (w/o Opt)"); baselines match the paper's names ignoring case and punctuation ("gs3" -> "GS3").
+    ``ssdgs`` runs map to "Ours", or to the variant preset's label ("ablation-A" -> "A: Diff", "sssgs-no-opt" ->
+    "Ours (w/o Opt)"). On the sssgs suite the row follows whether cameras and lights were refined: the native
+    preset refines them ("Ours (w/ Opt)"); ``ssdgs-official`` runs the flags of batch_script_synthetic_sssgs.py,
+    which passes neither --cam_opt nor --pl_opt ("Ours (w/o Opt)"), and its variant ``opt`` adds them
+    ("Ours (w/ Opt)"). Baselines match the paper's names ignoring case and punctuation ("gs3" -> "GS3"), the
+    authors' code (``-official``) the row of its method.
     """
     if variant in VARIANT_LABELS:
         return VARIANT_LABELS[variant]
-    method = method.removesuffix("-official")  # the authors' code run by olatbench: the paper's row too
+    official = method.endswith("-official")
+    method = method.removesuffix("-official")
     if normalise_name(method) == "ssdgs":
-        return "Ours (w/ Opt)" if suite == "sssgs" else "Ours"
+        if suite != "sssgs":
+            return "Ours"
+        refined = (variant or "").split("~")[0] == SSDGS_REFINED_VARIANT if official else True
+        return "Ours (w/ Opt)" if refined else "Ours (w/o Opt)"
     wanted = normalise_name(method)
     for label in load_published()["method"].unique():
         if normalise_name(label) == wanted:
