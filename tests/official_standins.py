@@ -161,7 +161,8 @@ NRHINTS_MAIN = textwrap.dedent('''
     assert len(rest) % 2 == 0 and all(key.startswith("--config.") for key in rest[::2]), rest
     config = dict(zip(rest[::2], rest[1::2]))
     known = {"--config.data.path", "--config.scene-name", "--config.base-dir", "--config.exp-name",
-             "--config.model.end-iter", "--config.data.white-background", "--config.data.view-num-limit"}
+             "--config.model.end-iter", "--config.data.white-background", "--config.data.view-num-limit",
+             "--config.model.geometry-warmup-end"}
     assert set(config) <= known, set(config) - known
     white = {"True": True, "False": False}[config.get("--config.data.white-background", "True")]
     lib.control()

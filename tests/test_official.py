@@ -174,6 +174,45 @@ def test_standin_checkout_runs_end_to_end(tmp_path, method, suite_name, fmt, exp
     assert not (folder / "official" / "scene").exists() and (folder / "official" / "model").is_dir()
 
 
+def test_per_scene_flags_of_the_authors_scripts_reach_their_scenes(tmp_path) -> None:
+    """GS³ real_train.sh: Fish densifies until 100K with threshold 0.00012, Pixiu 0.0002 (the suite's 0.0001 is
+    replaced, not repeated); NRHints train_real.sh:12: Fish's geometry warm-up; other scenes keep the suite's."""
+    data = write_data(tmp_path / "data", scenes=("Fish", "Pixiu"))
+    argvs = {}
+    for method in ("gs3-official", "nrhints-official"):
+        checkout = write_checkout(tmp_path / method, method)
+        jobs = plan(method, suite_of("nrhints", scenes=("Fish", "Pixiu")), data, tmp_path / "runs",
+                    checkout=str(checkout), python=sys.executable)
+        assert [o.status for o in run_inline(jobs, progress=False)] == ["done", "done"]
+        for job in jobs:
+            commands = read_results(Path(job.folder) / "results.json")["official"]["commands"]
+            argvs[method, job.scene] = commands[0]["argv"]
+
+    def value(argv: list[str], flag: str) -> str | None:
+        assert argv.count(flag) <= 1, argv
+        return argv[argv.index(flag) + 1] if flag in argv else None
+
+    assert value(argvs["gs3-official", "Fish"], "--densify_until_iter") == "100000"
+    assert value(argvs["gs3-official", "Fish"], "--densify_grad_threshold") == "0.00012"
+    assert value(argvs["gs3-official", "Pixiu"], "--densify_until_iter") == "90000"
+    assert value(argvs["gs3-official", "Pixiu"], "--densify_grad_threshold") == "0.0002"
+    assert value(argvs["nrhints-official", "Fish"], "--config.model.geometry-warmup-end") == "100000"
+    assert value(argvs["nrhints-official", "Pixiu"], "--config.model.geometry-warmup-end") is None
+    shown = {name: CliRunner().invoke(main, ["methods", "show", name]).output
+             for name in ("gs3-official", "nrhints-official")}
+    assert "scene nrhints/Pixiu: train --densify_grad_threshold 0.0002 (real_train.sh:370-400)" in shown["gs3-official"]
+    assert "scene nrhints/Fish: train --densify_until_iter 100000" in shown["gs3-official"]
+    assert "scene nrhints/Fish: train --config.model.geometry-warmup-end 100000 (scripts/train_real.sh:12)" in \
+        shown["nrhints-official"]
+
+
+def test_a_scene_flag_replaces_the_value_of_the_same_flag() -> None:
+    from olatbench.methods.official.code import apply_scene_args
+
+    assert apply_scene_args(["t.py", "--a", "1", "--s", "--b", "2"], ("--b", "3", "--c", "4", "--s", "--d")) == \
+        ["t.py", "--a", "1", "--s", "--b", "3", "--c", "4", "--d"]
+
+
 def test_renders_are_mapped_to_their_frames(tmp_path) -> None:
     """A render written for the wrong frame (the stand-in shifts them) scores far lower: the mapping is checked."""
     data = write_data(tmp_path / "data")

@@ -24,6 +24,10 @@ Placeholders in ``argv`` and ``renders`` (`str.format` fields), filled per job:
 - an argument that is exactly ``{*suite_args}`` expands to ``suite_args[suite][step]`` (``"*"``: any other
   suite), possibly to nothing: e.g. ``--white_background`` for GS³ data.
 
+Where the authors' scripts give one scene other flags than its suite's (GS³ ``real_train.sh``: Fish densifies until
+100K), ``scene_args`` holds them as `SceneArgs`, keyed by the canonical scene name and citing script and lines; a
+scene's flag replaces the value the command already has for it, or is appended.
+
 A code whose data cannot be fed (it has no point-light input) has ``unsupported`` set to the reason; the
 runner refuses to plan it and `olatbench methods list` shows why.
 """
@@ -65,6 +69,37 @@ def _frozen(mapping: Mapping) -> Mapping:
 
 
 @dataclass(frozen=True)
+class SceneArgs:
+    """Flags the authors' script gives one scene of a suite for one step, instead of (or on top of) the suite's."""
+
+    suite: str
+    scene: str  # canonical scene name (`olatbench.datasets.suites`)
+    step: str
+    args: tuple[str, ...]  # "--flag value" pairs or bare "--switch"es
+    source: str  # where the pinned commit says so: "real_train.sh:306-336"
+
+
+def apply_scene_args(argv: list[str], args: tuple[str, ...]) -> list[str]:
+    """``argv`` with each ``--flag [value]`` of ``args`` replacing that flag's value (its last occurrence), or
+    appended when ``argv`` lacks the flag."""
+    out = list(argv)
+    index = 0
+    while index < len(args):
+        flag = args[index]
+        has_value = index + 1 < len(args) and not args[index + 1].startswith("--")
+        value = [args[index + 1]] if has_value else []
+        index += 1 + len(value)
+        where = max((i for i, arg in enumerate(out) if arg == flag), default=None)
+        if where is None:
+            out += [flag, *value]
+        elif value and where + 1 < len(out) and not out[where + 1].startswith("--"):
+            out[where + 1] = value[0]
+        elif value:
+            out.insert(where + 1, value[0])
+    return out
+
+
+@dataclass(frozen=True)
 class OfficialCode:
     """How to run one official implementation (module docstring)."""
 
@@ -77,6 +112,7 @@ class OfficialCode:
     suite_args: Mapping[str, Mapping[str, tuple[str, ...]]] = field(default_factory=dict)  # suite -> step -> args
     env: Mapping[str, str] = field(default_factory=dict)  # extra environment variables of every command
     render_orders: Mapping[str, str] = field(default_factory=dict)  # flag -> transforms file then rendered in order
+    scene_args: tuple[SceneArgs, ...] = ()  # the scripts' per-scene flags (module docstring)
     needs_val_split: bool = False  # the loader opens transforms_val.json (written from the test split if absent)
     unsupported: str = ""  # why olatbench's scenes cannot be fed to this code ("" = runnable)
 
@@ -106,9 +142,15 @@ class OfficialCode:
         block = self.suite_args.get(suite, self.suite_args.get(ANY_SUITE, {}))
         return tuple(block.get(step, ()))
 
+    def args_for_scene(self, suite: str, scene: str | None, step: str) -> tuple[str, ...]:
+        """The per-scene flags of ``scene`` (canonical name) for ``step`` (empty for other scenes)."""
+        return tuple(arg for entry in self.scene_args if (entry.suite, entry.scene, entry.step) == (suite, scene, step)
+                     for arg in entry.args)
+
     def command(self, step: str, argv: tuple[str, ...], values: Mapping[str, str], suite: str,
-                extra: tuple[str, ...] = ()) -> list[str]:
-        """One command's arguments with the placeholders filled and ``extra`` appended."""
+                extra: tuple[str, ...] = (), scene: str | None = None) -> list[str]:
+        """One command's arguments with the placeholders filled, ``scene``'s own flags applied and ``extra``
+        appended."""
         filled: list[str] = []
         for arg in argv:
             if arg == SUITE_ARGS:
@@ -119,7 +161,7 @@ class OfficialCode:
             except KeyError as error:
                 raise ValueError(f"official code {self.name!r}, step {step!r}: unknown placeholder {error} in "
                                  f"{arg!r}; known: {', '.join(sorted(values))}, {SUITE_ARGS}") from None
-        return filled + list(extra)
+        return apply_scene_args(filled, self.args_for_scene(suite, scene, step)) + list(extra)
 
     def render_order(self, commands: list[list[str]]) -> str:
         """The transforms file (pattern) whose frame order numbers the renders, given the filled-in commands."""
@@ -137,6 +179,8 @@ class OfficialCode:
                              if self.args_for(suite, step))
             lines.append(f"suite {suite}: data written as {self.data_format(suite)}, renders hold "
                          f"{self.colourspace_for(suite)}" + (f", {SUITE_ARGS} = {args}" if args else ""))
+        for entry in self.scene_args:
+            lines.append(f"scene {entry.suite}/{entry.scene}: {entry.step} {' '.join(entry.args)} ({entry.source})")
         lines.append(f"renders: {self.renders}")
         orders = "".join(f"; with {flag}: of {path}" for flag, path in self.render_orders.items())
         lines.append(f"render i shows the i-th frame of {LOADER_ORDER}{orders} (paired by img_path/file_path)")

@@ -55,8 +55,9 @@ def prepare(code: OfficialCode, settings: CodeSettings, source: Scene, work: Pat
                                  "iterations": int(config.iterations)}
     prefix = settings.prefix(work)
     extra = {"train": tuple(config.train_args), "render": tuple(config.render_args)}
-    commands = [CommandRecord(step, prefix + code.command(step, argv, values, suite, extra.get(step, ())),
-                              str(checkout)) for step, argv in code.commands]
+    commands = [CommandRecord(step, prefix + code.command(step, argv, values, suite, extra.get(step, ()),
+                                                          scene=source.name), str(checkout))
+                for step, argv in code.commands]
     order = Path(code.render_order([record.argv for record in commands]).format_map(values))
     return OfficialRun(code=code, settings=settings, work=work, scene_dir=scene_dir, model_dir=model_dir,
                        commands=commands, frame_ids=[frame.frame_id for frame in source.split(test_split)],
