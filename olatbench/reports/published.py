@@ -68,21 +68,22 @@ def load_published(path: str | Path | None = None) -> pd.DataFrame:
 
     Rows keep the CSV's order, which is the paper's row and column order.
     """
-    return _load(str(path or data_path())).copy()
+    return _load(str(path or data_path()))[list(CSV_COLUMNS)].copy()
 
 
 @lru_cache(maxsize=4)
 def _load(path: str) -> pd.DataFrame:
     try:
-        frame = pd.read_csv(path, dtype={"value": str}, keep_default_na=False, na_values={"std": [""],
-                                                                                       "paper_rank": [""]})
+        frame = pd.read_csv(path, dtype={"value": str, "std": str}, keep_default_na=False,
+                            na_values={"paper_rank": [""]})
     except FileNotFoundError:
         raise PublishedError(f"{path}: published numbers not found (is olatbench installed with its data?)") from None
     missing = [column for column in CSV_COLUMNS if column not in frame.columns]
     if missing:
         raise PublishedError(f"{path}: missing columns {', '.join(missing)}")
     frame = frame[list(CSV_COLUMNS)]
-    frame["std"] = pd.to_numeric(frame["std"], errors="raise").astype(float)
+    frame["std_decimals"] = [_decimals(text) for text in frame["std"]]  # as printed: "0.10" has 2
+    frame["std"] = pd.to_numeric(frame["std"].replace("", float("nan")), errors="raise").astype(float)
     frame["paper_rank"] = pd.to_numeric(frame["paper_rank"], errors="raise").astype("Int64")
     return frame
 
@@ -97,8 +98,9 @@ def table_id(name: str) -> str:
 
 
 def published_table(name: str) -> pd.DataFrame:
-    """The rows of one paper table, plus ``number`` (float, NaN for text values) and ``decimals`` (as printed)."""
-    frame = load_published()
+    """The rows of one paper table, plus ``number`` (float, NaN for text values), ``decimals`` and ``std_decimals``
+    (as printed: the CSV keeps the paper's strings, e.g. ``0.040`` and ``61.50``)."""
+    frame = _load(str(data_path())).copy()
     rows = frame[frame["table"] == table_id(name)].copy()
     rows["number"] = pd.to_numeric(rows["value"], errors="coerce")
     rows["decimals"] = [_decimals(text) for text in rows["value"]]
