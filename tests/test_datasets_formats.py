@@ -109,6 +109,21 @@ def test_per_frame_file_ext_is_honoured(tmp_path):
     np.testing.assert_allclose(frame.load(background=None).rgb, tree.frames["train"][0]["stored"][..., :3], atol=1e-6)
 
 
+def test_npy_file_ext_is_read_as_the_nrhints_loader_reads_it(tmp_path):
+    """data_parser.py:92-93 reads a ``file_ext: ".npy"`` frame with np.load (values as stored, no /255)."""
+    tree = write_nrhints_tree(tmp_path / "s")
+    stored = tree.frames["train"][1]["stored"]
+    np.save(tmp_path / "s/train/001.npy", stored.astype(np.float32))
+    (tmp_path / "s/train/001.png").unlink()
+    _edit(tmp_path / "s/transforms_train.json", lambda m: m["frames"][1].update(file_ext=".npy"))
+    frame = load_scene(tmp_path / "s").split("train")[1]
+    assert frame.image_path.name == "001.npy"
+    np.testing.assert_allclose(frame.load(background=None).rgb, stored[..., :3], atol=1e-6)
+    np.save(tmp_path / "s/train/001.npy", np.zeros((2, 2, 7), np.float32))
+    with pytest.raises(DatasetError, match=r"001\.npy.*\(H, W, 1-4\)|\(H, W, 1-4\).*001\.npy"):
+        load_scene(tmp_path / "s").split("train")[1].load()
+
+
 def test_file_path_that_already_has_an_extension(tmp_path):
     write_nrhints_tree(tmp_path / "s")
     _edit(tmp_path / "s/transforms_train.json", lambda m: m["frames"][0].update(file_path="./train/000.png"))

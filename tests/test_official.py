@@ -12,6 +12,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 import test_runner_support as support
 from click.testing import CliRunner
@@ -211,6 +212,41 @@ def test_a_scene_flag_replaces_the_value_of_the_same_flag() -> None:
 
     assert apply_scene_args(["t.py", "--a", "1", "--s", "--b", "2"], ("--b", "3", "--c", "4", "--s", "--d")) == \
         ["t.py", "--a", "1", "--s", "--b", "3", "--c", "4", "--d"]
+
+
+def test_nrhints_data_gets_the_scenes_bounds_instead_of_the_parsers_3_to_10(tmp_path) -> None:
+    """The NRHints parser defaults camera_near/far to 3 and 10 when the first split has none (data_parser.py:41-47);
+    the converted scene carries bounds that hold the unit sphere its rays are clipped to, from every camera."""
+    from olatbench.methods.official.convert import unit_sphere_bounds
+
+    data = write_data(tmp_path / "data")
+    source = load_scene(data / "Alpha")
+    assert source.split("train")[0].camera.near is None
+    checkout = write_checkout(tmp_path / "checkout", "nrhints-official")
+    jobs = plan("nrhints-official", suite_of("sssgs"), data, tmp_path / "runs", checkout=str(checkout),
+                python=sys.executable)
+    [outcome] = run_inline(jobs, progress=False)
+    log = (Path(jobs[0].folder) / "log.txt").read_text()
+    assert outcome.status == "done", log
+    near, far = unit_sphere_bounds(source.split("train") + source.split("test"))
+    distances = [np.linalg.norm(f.camera.position) for f in source.split("train") + source.split("test")]
+    assert near < min(distances) - 0.99 and far > max(distances) + 0.99 and near > 0
+    assert f"zn {near}, zf {far}" in log
+
+
+def test_frames_with_other_intrinsics_are_refused_for_the_nrhints_parser(tmp_path) -> None:
+    """Its parser reads one camera model from transforms_train.json: a test split with other intrinsics would be
+    rendered with the train split's, so the job fails with a message naming the frames."""
+    data = write_data(tmp_path / "data")
+    test_file = data / "Alpha" / "transforms_test.json"
+    meta = json.loads(test_file.read_text())
+    meta["camera_intrinsics"][2] *= 1.5  # fx
+    test_file.write_text(json.dumps(meta))
+    checkout = write_checkout(tmp_path / "checkout", "nrhints-official")
+    jobs = plan("nrhints-official", suite_of("tiny"), data, tmp_path / "runs", checkout=str(checkout),
+                python=sys.executable)
+    [outcome] = run_inline(jobs, progress=False)
+    assert outcome.status == "failed" and "one camera model" in outcome.error and "test/" in outcome.error
 
 
 def test_renders_are_mapped_to_their_frames(tmp_path) -> None:

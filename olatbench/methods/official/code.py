@@ -113,6 +113,7 @@ class OfficialCode:
     env: Mapping[str, str] = field(default_factory=dict)  # extra environment variables of every command
     render_orders: Mapping[str, str] = field(default_factory=dict)  # flag -> transforms file then rendered in order
     scene_args: tuple[SceneArgs, ...] = ()  # the scripts' per-scene flags (module docstring)
+    single_camera_model: bool = False  # the loader reads one camera (intrinsics, size, near/far) for all frames
     needs_val_split: bool = False  # the loader opens transforms_val.json (written from the test split if absent)
     unsupported: str = ""  # why olatbench's scenes cannot be fed to this code ("" = runnable)
 

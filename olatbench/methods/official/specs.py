@@ -138,6 +138,7 @@ NRHINTS_CODE = OfficialCode(
     },
     env={"WANDB_MODE": "offline"},  # it logs every run to wandb
     needs_val_split=True,
+    single_camera_model=True,  # data/data_parser.py:41-66 (top-level intrinsics, near/far of the first split)
     scene_args=(SceneArgs("nrhints", "Fish", "train", ("--config.model.geometry-warmup-end", "100000"),
                           "scripts/train_real.sh:12"),),
 )
