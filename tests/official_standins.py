@@ -1,7 +1,12 @@
 """Stand-in checkouts of the official implementations, for tests: tiny script trees that obey the same command
 lines as the real code, read the converted scene exactly where the official loader reads it, and write renders
-where and how the official render script writes them. (Written from the documented behaviour recorded in
-`olatbench.methods.official.specs`, not from the authors' code.)
+where and how the official render script writes them. (Written from the behaviour recorded, with file and line,
+in `olatbench.methods.official.specs`, not copied from the authors' code.) Behaviours that decide whether olatbench
+scores the right images are reproduced: SSD-GS / GS³ ``train.py`` with ``--cam_opt``/``--pl_opt`` shuffles the test
+cameras with ``random`` seeded to 0 (after the train cameras) and saves them in that order to
+``point_cloud/iteration_<it>/transforms_test.json`` (``file_path`` = image stem, ``img_path``, ``R_opt``/``T_opt``),
+which ``render.py --opt_pose`` renders in its order; the NRHints parser takes one camera model (top-level
+intrinsics, ``camera_near``/``camera_far`` defaulting to 3 and 10) from the first split's file and prints it.
 
 Their "model" is perfect: the render of a test frame is its ground truth composited on the background (as the
 official loaders composite), so a correctly mapped and decoded render scores far above a mismatched one.
@@ -55,11 +60,33 @@ LIB = textwrap.dedent('''
         return np.clip(out, 0, 1) ** (1 / 2.2) if gamma else np.clip(out, 0, 1)
 
     def write_renders(scene, out_dir, name, ext, white, gamma=False):
+        """Render the frames of the scene's transforms_test.json in its order (the loader's order)."""
         test = frames(scene, "test")
         shift = 1 if (CHECKOUT / "SHIFT").exists() else 0
         for index in range(len(test)):
             frame = test[(index + shift) % len(test)]
+            if "img_path" in frame:  # a saved camera file: the image is named by its path, extension included
+                frame = {"file_path": str(Path(frame["img_path"]).with_suffix(""))}
             write_image(Path(out_dir) / name.format(index=index), perfect(scene, frame, ext, white, gamma), "uint8")
+
+    def save_refined_cameras(scene, model, iteration, ext):
+        """As SSD-GS/GS³ train.py with --cam_opt/--pl_opt: safe_state seeds random with 0, Scene(shuffle=True)
+        shuffles the train cameras, then the test cameras, and Scene.save writes each split in that order."""
+        import random
+        random.seed(0)
+        out = Path(model) / "point_cloud" / f"iteration_{iteration}"
+        out.mkdir(parents=True, exist_ok=True)
+        for split in ("train", "test"):
+            cams = []
+            for frame in frames(scene, split):
+                image = Path(scene).resolve() / (frame["file_path"] + ext)
+                c2w = np.array(frame["transform_matrix"], dtype=float)
+                c2w[:3, 1:3] *= -1
+                w2c = np.linalg.inv(c2w)
+                cams.append({"file_path": image.stem, "img_path": str(image), "R_opt": w2c[:3, :3].T.tolist(),
+                             "T_opt": w2c[:3, 3].tolist(), "pl_pos": frame["pl_pos"]})
+            random.shuffle(cams)
+            (out / f"transforms_{split}.json").write_text(json.dumps({"frames": cams}))
 ''')
 
 # GS³ / SSD-GS: 3DGS-style train.py (-s, -m, flags) and render.py (-m, reads the model's stored arguments).
@@ -85,8 +112,8 @@ GAUSSIAN_TRAIN = textwrap.dedent('''
     model = Path(args.model_path)
     model.mkdir(parents=True, exist_ok=True)
     (model / "cfg.json").write_text(json.dumps(vars(args)))
-    if getattr(args, "cam_opt", False):  # the refined poses the render step reads with --opt_pose
-        (model / "point_cloud" / f"iteration_{{args.iterations}}").mkdir(parents=True)
+    if getattr(args, "cam_opt", False) or getattr(args, "pl_opt", False):  # what render.py --opt_pose reads
+        lib.save_refined_cameras(args.source_path, model, args.iterations, ext)
     print(f"trained {{args.iterations}} iterations on {{args.source_path}}")
 ''')
 
@@ -103,10 +130,12 @@ GAUSSIAN_RENDER = textwrap.dedent('''
     args = parser.parse_args()
     model = Path(args.model_path)
     trained = json.loads((model / "cfg.json").read_text())
-    if args.opt_pose:
-        assert (model / "point_cloud" / f"iteration_{args.iteration}").is_dir(), "opt_pose needs cam_opt training"
+    source = trained["source_path"]
+    if args.opt_pose:  # render.py: source_path becomes the saved cameras' folder
+        source = model / "point_cloud" / f"iteration_{args.iteration}"
+        assert (source / "transforms_test.json").is_file(), "opt_pose needs cam_opt/pl_opt training"
     out = model / "test" / f"ours_{args.iteration}" / "renders"
-    lib.write_renders(trained["source_path"], out, "{index:05d}.png", ".exr" if trained.get("hdr") else ".png",
+    lib.write_renders(source, out, "{index:05d}.png", ".exr" if trained.get("hdr") else ".png",
                       trained.get("white_background", False), args.gamma)
     print(f"rendered to {out}")
 ''')
@@ -124,7 +153,7 @@ SSDGS_SWITCHES = ["--use_nerual_phasefunc", "--eval", "--white_background", "--c
 
 # NRHints: main.py <tyro sub-command> --config.<a>.<b> VALUE ...; renders after training.
 NRHINTS_MAIN = textwrap.dedent('''
-    import sys
+    import json, sys
     from pathlib import Path
     import standin_lib as lib
     command, rest = sys.argv[1], sys.argv[2:]
@@ -132,11 +161,16 @@ NRHINTS_MAIN = textwrap.dedent('''
     assert len(rest) % 2 == 0 and all(key.startswith("--config.") for key in rest[::2]), rest
     config = dict(zip(rest[::2], rest[1::2]))
     known = {"--config.data.path", "--config.scene-name", "--config.base-dir", "--config.exp-name",
-             "--config.model.end-iter", "--config.data.white-background", "--config.data.view-num-limit"}
+             "--config.model.end-iter", "--config.data.white-background", "--config.data.view-num-limit",
+             "--config.model.geometry-warmup-end"}
     assert set(config) <= known, set(config) - known
     white = {"True": True, "False": False}[config.get("--config.data.white-background", "True")]
     lib.control()
     scene = config["--config.data.path"]
+    first = json.loads((Path(scene) / "transforms_train.json").read_text())  # data_parser.py: metas[splits[0]]
+    zn, zf = first.get("camera_near", 3.0), first.get("camera_far", 10.0)
+    intrinsics = first["camera_intrinsics"] if "camera_intrinsics" in first else first["camera_angle_x"]
+    print(f"camera model: intrinsics {intrinsics}, zn {zn}, zf {zf}")
     for split in ("train", "val", "test"):
         for frame in lib.frames(scene, split):
             assert (Path(scene) / (frame["file_path"] + frame.get("file_ext", ".png"))).is_file()

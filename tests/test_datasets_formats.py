@@ -109,6 +109,21 @@ def test_per_frame_file_ext_is_honoured(tmp_path):
     np.testing.assert_allclose(frame.load(background=None).rgb, tree.frames["train"][0]["stored"][..., :3], atol=1e-6)
 
 
+def test_npy_file_ext_is_read_as_the_nrhints_loader_reads_it(tmp_path):
+    """data_parser.py:92-93 reads a ``file_ext: ".npy"`` frame with np.load (values as stored, no /255)."""
+    tree = write_nrhints_tree(tmp_path / "s")
+    stored = tree.frames["train"][1]["stored"]
+    np.save(tmp_path / "s/train/001.npy", stored.astype(np.float32))
+    (tmp_path / "s/train/001.png").unlink()
+    _edit(tmp_path / "s/transforms_train.json", lambda m: m["frames"][1].update(file_ext=".npy"))
+    frame = load_scene(tmp_path / "s").split("train")[1]
+    assert frame.image_path.name == "001.npy"
+    np.testing.assert_allclose(frame.load(background=None).rgb, stored[..., :3], atol=1e-6)
+    np.save(tmp_path / "s/train/001.npy", np.zeros((2, 2, 7), np.float32))
+    with pytest.raises(DatasetError, match=r"001\.npy.*\(H, W, 1-4\)|\(H, W, 1-4\).*001\.npy"):
+        load_scene(tmp_path / "s").split("train")[1].load()
+
+
 def test_file_path_that_already_has_an_extension(tmp_path):
     write_nrhints_tree(tmp_path / "s")
     _edit(tmp_path / "s/transforms_train.json", lambda m: m["frames"][0].update(file_path="./train/000.png"))
@@ -235,12 +250,32 @@ def test_gs3_per_frame_intrinsics_override(tmp_path):
     assert frames[1].camera.cx == 8.0
 
 
-def test_gs3_refined_poses_stay_separate(tmp_path):
+def test_gs3_refined_poses_are_the_camera_as_the_official_readers_take_them(tmp_path):
+    """GS³/SSD-GS dataset_readers.py:135-148 use R_opt/T_opt instead of transform_matrix; so does olatbench, and a
+    scene it writes says the same camera in both keys (an official and a native run of it see one camera)."""
     tree = write_gs3_tree(tmp_path / "s")
     frame = load_scene(tmp_path / "s").split("train")[0]
-    np.testing.assert_array_equal(frame.extras["T_opt"], [0.1, 0.2, 0.3])
-    np.testing.assert_array_equal(frame.extras["R_opt"], np.eye(3))
-    np.testing.assert_allclose(frame.camera.position, tree.frames["train"][0]["c2w_gl"][:3, 3])
+    R, T = np.eye(3), np.array([0.1, 0.2, 0.3])
+    np.testing.assert_array_equal(frame.extras["T_opt"], T)
+    np.testing.assert_array_equal(frame.extras["R_opt"], R)
+    np.testing.assert_allclose(frame.camera.position, -R @ T)  # 3DGS: centre = -(w2c rotation)ᵀ T, rotation = Rᵀ
+    np.testing.assert_allclose(frame.extras["transform_matrix_c2w"][:3, 3], tree.frames["train"][0]["c2w_gl"][:3, 3])
+    from olatbench.datasets.convert import write_scene
+
+    write_scene(load_scene(tmp_path / "s"), tmp_path / "out", "gs3")
+    entry = json.loads((tmp_path / "out/transforms_train.json").read_text())["frames"][0]
+    from_matrix = np.asarray(entry["transform_matrix"])[:3, 3]  # what a reader of transform_matrix sees
+    from_opt = -np.asarray(entry["R_opt"]) @ np.asarray(entry["T_opt"])  # what the official readers see
+    np.testing.assert_allclose(from_matrix, from_opt, atol=1e-12)
+    again = load_scene(tmp_path / "out").split("train")[0]
+    np.testing.assert_allclose(again.camera.c2w, frame.camera.c2w, atol=1e-12)
+
+
+def test_gs3_r_opt_that_is_no_rotation_is_an_error(tmp_path):
+    write_gs3_tree(tmp_path / "s")
+    _edit(tmp_path / "s/transforms_train.json", lambda m: m["frames"][0].update(R_opt=np.full((3, 3), 0.5).tolist()))
+    with pytest.raises(DatasetError, match="R_opt is not a rotation"):
+        load_scene(tmp_path / "s")
 
 
 def test_gs3_r_opt_without_t_opt_is_an_error(tmp_path):

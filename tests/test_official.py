@@ -5,12 +5,14 @@ container template, failure, timeout, interruption, and `olatbench doctor`."""
 from __future__ import annotations
 
 import dataclasses
+import json
 import os
 import signal
 import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 import test_runner_support as support
 from click.testing import CliRunner
@@ -173,6 +175,80 @@ def test_standin_checkout_runs_end_to_end(tmp_path, method, suite_name, fmt, exp
     assert not (folder / "official" / "scene").exists() and (folder / "official" / "model").is_dir()
 
 
+def test_per_scene_flags_of_the_authors_scripts_reach_their_scenes(tmp_path) -> None:
+    """GS³ real_train.sh: Fish densifies until 100K with threshold 0.00012, Pixiu 0.0002 (the suite's 0.0001 is
+    replaced, not repeated); NRHints train_real.sh:12: Fish's geometry warm-up; other scenes keep the suite's."""
+    data = write_data(tmp_path / "data", scenes=("Fish", "Pixiu"))
+    argvs = {}
+    for method in ("gs3-official", "nrhints-official"):
+        checkout = write_checkout(tmp_path / method, method)
+        jobs = plan(method, suite_of("nrhints", scenes=("Fish", "Pixiu")), data, tmp_path / "runs",
+                    checkout=str(checkout), python=sys.executable)
+        assert [o.status for o in run_inline(jobs, progress=False)] == ["done", "done"]
+        for job in jobs:
+            commands = read_results(Path(job.folder) / "results.json")["official"]["commands"]
+            argvs[method, job.scene] = commands[0]["argv"]
+
+    def value(argv: list[str], flag: str) -> str | None:
+        assert argv.count(flag) <= 1, argv
+        return argv[argv.index(flag) + 1] if flag in argv else None
+
+    assert value(argvs["gs3-official", "Fish"], "--densify_until_iter") == "100000"
+    assert value(argvs["gs3-official", "Fish"], "--densify_grad_threshold") == "0.00012"
+    assert value(argvs["gs3-official", "Pixiu"], "--densify_until_iter") == "90000"
+    assert value(argvs["gs3-official", "Pixiu"], "--densify_grad_threshold") == "0.0002"
+    assert value(argvs["nrhints-official", "Fish"], "--config.model.geometry-warmup-end") == "100000"
+    assert value(argvs["nrhints-official", "Pixiu"], "--config.model.geometry-warmup-end") is None
+    shown = {name: CliRunner().invoke(main, ["methods", "show", name]).output
+             for name in ("gs3-official", "nrhints-official")}
+    assert "scene nrhints/Pixiu: train --densify_grad_threshold 0.0002 (real_train.sh:370-400)" in shown["gs3-official"]
+    assert "scene nrhints/Fish: train --densify_until_iter 100000" in shown["gs3-official"]
+    assert "scene nrhints/Fish: train --config.model.geometry-warmup-end 100000 (scripts/train_real.sh:12)" in \
+        shown["nrhints-official"]
+
+
+def test_a_scene_flag_replaces_the_value_of_the_same_flag() -> None:
+    from olatbench.methods.official.code import apply_scene_args
+
+    assert apply_scene_args(["t.py", "--a", "1", "--s", "--b", "2"], ("--b", "3", "--c", "4", "--s", "--d")) == \
+        ["t.py", "--a", "1", "--s", "--b", "3", "--c", "4", "--d"]
+
+
+def test_nrhints_data_gets_the_scenes_bounds_instead_of_the_parsers_3_to_10(tmp_path) -> None:
+    """The NRHints parser defaults camera_near/far to 3 and 10 when the first split has none (data_parser.py:41-47);
+    the converted scene carries bounds that hold the unit sphere its rays are clipped to, from every camera."""
+    from olatbench.methods.official.convert import unit_sphere_bounds
+
+    data = write_data(tmp_path / "data")
+    source = load_scene(data / "Alpha")
+    assert source.split("train")[0].camera.near is None
+    checkout = write_checkout(tmp_path / "checkout", "nrhints-official")
+    jobs = plan("nrhints-official", suite_of("sssgs"), data, tmp_path / "runs", checkout=str(checkout),
+                python=sys.executable)
+    [outcome] = run_inline(jobs, progress=False)
+    log = (Path(jobs[0].folder) / "log.txt").read_text()
+    assert outcome.status == "done", log
+    near, far = unit_sphere_bounds(source.split("train") + source.split("test"))
+    distances = [np.linalg.norm(f.camera.position) for f in source.split("train") + source.split("test")]
+    assert near < min(distances) - 0.99 and far > max(distances) + 0.99 and near > 0
+    assert f"zn {near}, zf {far}" in log
+
+
+def test_frames_with_other_intrinsics_are_refused_for_the_nrhints_parser(tmp_path) -> None:
+    """Its parser reads one camera model from transforms_train.json: a test split with other intrinsics would be
+    rendered with the train split's, so the job fails with a message naming the frames."""
+    data = write_data(tmp_path / "data")
+    test_file = data / "Alpha" / "transforms_test.json"
+    meta = json.loads(test_file.read_text())
+    meta["camera_intrinsics"][2] *= 1.5  # fx
+    test_file.write_text(json.dumps(meta))
+    checkout = write_checkout(tmp_path / "checkout", "nrhints-official")
+    jobs = plan("nrhints-official", suite_of("tiny"), data, tmp_path / "runs", checkout=str(checkout),
+                python=sys.executable)
+    [outcome] = run_inline(jobs, progress=False)
+    assert outcome.status == "failed" and "one camera model" in outcome.error and "test/" in outcome.error
+
+
 def test_renders_are_mapped_to_their_frames(tmp_path) -> None:
     """A render written for the wrong frame (the stand-in shifts them) scores far lower: the mapping is checked."""
     data = write_data(tmp_path / "data")
@@ -183,6 +259,58 @@ def test_renders_are_mapped_to_their_frames(tmp_path) -> None:
     run_inline(jobs, progress=False)
     per_image = read_results(Path(jobs[0].folder) / "results.json")["metrics"]["test"]["per_image"]
     assert all(values["psnr"] < 25.0 for values in per_image.values()), per_image
+
+
+def test_renders_of_refined_cameras_are_paired_through_the_file_train_py_saved(tmp_path) -> None:
+    """SSD-GS on real data: train.py saves the test cameras in its seeded shuffled order and render.py --opt_pose
+    renders them in that order; each render is scored against the frame that file names, not by position."""
+    data = write_data(tmp_path / "data")
+    checkout = write_checkout(tmp_path / "checkout", "ssdgs-official")
+    jobs = plan("ssdgs-official", suite_of("nrhints"), data, tmp_path / "runs", checkout=str(checkout),
+                python=sys.executable)
+    [outcome] = run_inline(jobs, progress=False)
+    folder = Path(jobs[0].folder)
+    assert outcome.status == "done", (folder / "log.txt").read_text()
+    saved = next((folder / "official" / "model" / "point_cloud").glob("iteration_*/transforms_test.json"))
+    order = [entry["file_path"] for entry in json.loads(saved.read_text())["frames"]]
+    frame_ids = [frame.frame_id for frame in load_scene(data / "Alpha").split("test")]
+    assert sorted(order) == sorted(frame_ids) and order != frame_ids  # the shuffle is not the identity
+    per_image = read_results(folder / "results.json")["metrics"]["test"]["per_image"]
+    assert all(values["psnr"] > PERFECT_PSNR for values in per_image.values()), per_image
+
+
+def test_the_refined_sssgs_variant_runs_the_refinement_flags_and_is_the_w_opt_row(tmp_path) -> None:
+    data = write_data(tmp_path / "data")
+    checkout = write_checkout(tmp_path / "checkout", "ssdgs-official")
+    plain, refined = make_plan("ssdgs-official", suite_of("sssgs"), tmp_path / "runs", data_root=data,
+                               progress=False, variants=["default", "opt"],
+                               options=PlanOptions(code={"checkout": str(checkout), "python": sys.executable}))
+    outcomes = run_inline([plain, refined], progress=False)
+    assert [o.status for o in outcomes] == ["done", "done"]
+    rows = {}
+    for job in (plain, refined):
+        results = read_results(Path(job.folder) / "results.json")
+        argv = [arg for c in results["official"]["commands"] for arg in c["argv"]]
+        assert all(values["psnr"] > PERFECT_PSNR for values in results["metrics"]["test"]["per_image"].values())
+        rows[job.variant] = (paper_method(job.method, job.variant, "sssgs"), "--cam_opt" in argv,
+                             "--opt_pose" in argv)
+    assert rows == {"default": ("Ours (w/o Opt)", False, False), "opt": ("Ours (w/ Opt)", True, True)}
+
+
+def test_a_render_order_file_that_names_a_stranger_is_refused(tmp_path) -> None:
+    from olatbench.methods.official.convert import pair_renders
+    from olatbench.methods.official.process import OfficialRunError
+    from olatbench.methods.official.specs import SSDGS_CODE
+
+    order = tmp_path / "transforms_test.json"
+    order.write_text(json.dumps({"frames": [{"file_path": "b", "img_path": "/x/test/b.png"}, {"file_path": "a"}]}))
+    paired = pair_renders(SSDGS_CODE, order, ["a", "b"], {"model": "/m", "iterations": 7})
+    assert paired == {"a": Path("/m/test/ours_7/renders/00001.png"), "b": Path("/m/test/ours_7/renders/00000.png")}
+    with pytest.raises(OfficialRunError, match=r"left out, e\.g\. c"):
+        pair_renders(SSDGS_CODE, order, ["a", "b", "c"], {"model": "/m", "iterations": 7})
+    order.write_text(json.dumps({"frames": [{"file_path": "./test/z"}]}))
+    with pytest.raises(OfficialRunError, match="names 'z', no test frame"):
+        pair_renders(SSDGS_CODE, order, ["a"], {"model": "/m", "iterations": 7})
 
 
 # ---- container template, CLI, report beside a native method ---------------------------------------------------------
@@ -325,3 +453,15 @@ def test_doctor_checks_each_configured_checkout(tmp_path, monkeypatch) -> None:
     assert gpu.strip().startswith("ok" if torch.cuda.is_available() else "NO")
     missing = next(line for line in lines if "nrhints-official: checkout" in line)
     assert missing.strip().startswith("NO") and "no checkout" not in missing and "missing" in missing
+
+
+# ---- module layout --------------------------------------------------------------------------------------------------
+
+def test_official_job_runner_does_not_import_the_in_process_runner() -> None:
+    """bench.official and bench.execute share result writing and scoring through bench.outcome, not each other
+    (no import cycle; an official job needs no torch)."""
+    code = ("import sys, olatbench.bench.official; "
+            "print(sorted(m for m in ('olatbench.bench.execute', 'torch') if m in sys.modules))")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
+                          env={**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1])})
+    assert done.stdout.strip() == "[]", done.stdout + done.stderr

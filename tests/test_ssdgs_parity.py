@@ -43,8 +43,11 @@ OFFICIAL = {
     "clamp_output": True,  # render clipped to [0, 1] before the loss
     "max_gaussians": 550_000,  # maximum_gs
 }
-# Per suite: the batch scripts' own values, and whether the test views' poses/lights are fitted during training
-# (the code does so whenever it refines: `opt_test` passes when scene.optimizing).
+# Per suite: the run lengths, windows and backgrounds of the batch scripts, and whether cameras/lights are refined
+# and the test views' poses/lights fitted during training (the code does so whenever it refines: `opt_test` passes
+# when scene.optimizing). Only batch_script_real_nrhints.py refines (--cam_opt --pl_opt); batch_script_synthetic_
+# sssgs.py does not, so it runs "sssgs-no-opt" (the paper's "w/o Opt"); "sssgs" is the paper's "w/ Opt", which adds
+# the refinement the released SSS-GS script leaves out.
 SUITES = {
     "nrhints": {"iterations": 100_000, "refine_camera": True, "refine_light": True, "test_pose_fitting": "interleaved",
                 "position_lr_max_steps": 70_000, "densify_until": 90_000, "background": (0.0, 0.0, 0.0)},
@@ -208,9 +211,54 @@ def test_test_passes_leave_the_model_alone() -> None:
     assert all(torch.equal(models[0][name], models[1][name]) for name in models[0])
 
 
+def test_test_view_offsets_get_warm_adam_moments_before_their_rate_opens() -> None:
+    """As the official scene.optimizer: every test pass steps Adam on every test view's offsets, at rate 0 before
+    refine_from (offsets stay zero, moments and step count grow). Reference: plain (non-fused) torch Adam stepped
+    in every pass with that rate schedule, on gradients that change from pass to pass as a training model's do."""
+    from types import SimpleNamespace
+
+    from olatbench.gaussians.refinement import so3xr3_exp
+    from olatbench.methods.ssdgs.test_fitting import TestViewFitting
+
+    fitting = TestViewFitting(sphere_views(3, size=8, seed=3), SimpleNamespace(refine_camera=True, refine_light=True),
+                              torch.device("cpu"), 0)
+    noise = torch.Generator().manual_seed(0)
+    target_w2c = fitting.views.w2cs + 0.05 * torch.randn(fitting.views.w2cs.shape, generator=noise)
+    target_light = fitting.views.light_positions + 0.3 * torch.randn(fitting.views.light_positions.shape,
+                                                                     generator=noise)
+
+    def loss_at(step: int):
+        weight = 1.0 + 0.8 * math.sin(1.3 * step)
+        return lambda i, w2c, light: (weight * ((w2c - target_w2c[i]) ** 2).sum()
+                                      + weight ** 2 * ((light - target_light[i]) ** 2).sum())
+
+    refine_from, rates, steps = {"camera": 4, "light": 7}, {"camera": 1e-2, "light": 3e-2}, range(12)
+    for step in steps:
+        assert fitting.epoch(loss_at(step), rates, refine_from, step) is not None
+        if step < refine_from["camera"]:
+            assert all(torch.count_nonzero(pose.tangents) == 0 for pose in fitting.poses)
+    tangents = [torch.zeros(1, 6, requires_grad=True) for _ in range(3)]
+    offsets = [torch.zeros(1, 3, requires_grad=True) for _ in range(3)]
+    adam = torch.optim.Adam([{"params": tangents, "name": "camera"}, {"params": offsets, "name": "light"}], lr=0.0,
+                            eps=1e-15, foreach=False, fused=False)
+    for step in steps:
+        for group in adam.param_groups:
+            group["lr"] = rates[group["name"]] if step >= refine_from[group["name"]] else 0.0
+        for i in range(3):  # per-view parameters: one step over all equals one step per view
+            loss_at(step)(i, so3xr3_exp(tangents[i][0]) @ fitting.views.w2cs[i],
+                          fitting.views.light_positions[i] + offsets[i][0]).backward()
+        adam.step()
+        adam.zero_grad()
+    for i in range(3):
+        torch.testing.assert_close(fitting.poses[i].tangents, tangents[i].detach(), rtol=1e-4, atol=1e-7)
+        torch.testing.assert_close(fitting.lights[i].offsets, offsets[i].detach(), rtol=1e-4, atol=1e-7)
+        assert float(fitting.optimizer.state[fitting.poses[i].tangents]["step"]) == len(steps)
+
+
 def test_interleaved_test_view_fitting_lowers_the_scored_error() -> None:
     """Test views 3° / 0.05 units / light 0.2 units off, their images the model's own renders at the true poses
-    (the model is frozen once they are taken): the fitted offsets bring the scored error well below the raw one."""
+    (the model frozen at its start, so the warm-up passes at rate 0 see the gradients of the fit to come): the
+    fitted offsets bring the scored error well below the raw one."""
     train, true = sphere_views(4, size=32, seed=2), sphere_views(3, size=32, seed=3)
     test = _perturbed(true, seed=4)
     method = SSDGS(SSDGS.resolve_config(None, **{**TINY, **FITTING, "iterations": 100, "reference_iterations": 100,
@@ -218,12 +266,13 @@ def test_interleaved_test_view_fitting_lowers_the_scored_error() -> None:
                                                  "camera_lr_init": 1e-2, "light_lr_init": 4e-2}))
     method.attach_test_views(test)
     method.setup(train, "cpu", 0)
-    for step in range(40):  # no test pass yet: their offsets start at 40
-        assert "test_fit_loss" not in method.train_step(step)
     rates = method.learning_rates
     method.learning_rates = lambda step: {k: v if k in ("camera", "light") else 0.0 for k, v in rates(step).items()}
     method.test_fit.views.views.images[:] = np.stack(
         [method.render(c, lt)["rgb"].numpy() for c, lt in zip(true.cameras, true.lights, strict=True)])
+    warm_up = [method.train_step(step).get("test_fit_loss") for step in range(40)]
+    assert sum(fit is not None for fit in warm_up) == 39 // len(train)  # after every epoch, at rate 0 (warm moments)
+    assert all(torch.count_nonzero(pose.tangents) == 0 for pose in method.test_fit.poses)  # offsets start at 40
 
     def error() -> float:
         return float(np.mean([np.mean((method.render(c, lt)["rgb"].numpy() - image) ** 2) for c, lt, image in
@@ -232,7 +281,9 @@ def test_interleaved_test_view_fitting_lowers_the_scored_error() -> None:
     raw = error()  # no offset yet: the perturbed poses as given
     fits = [method.train_step(step).get("test_fit_loss") for step in range(40, 100)]
     assert sum(fit is not None for fit in fits) == 15
-    assert error() < 0.25 * raw, (error(), raw)
+    # with the official warm moments the fit starts slower than with cold ones: error/raw 0.31 at step 100 here,
+    # against 0.08 had the offsets' Adam started cold at step 40 (docs/ssdgs.md, measured 2026-11-25)
+    assert error() < 0.5 * raw, (error(), raw)
     summary = method.fitted_test_views()
     assert set(summary) == set(test.frame_ids)
     assert all(s["rotation_deg"] > 0 and s["light_offset"] > 0 for s in summary.values())

@@ -15,8 +15,6 @@ import os
 import sys
 import time
 import traceback
-from dataclasses import dataclass, field
-from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
@@ -33,11 +31,23 @@ from olatbench.bench.checkpoints import (
     save_checkpoint,
     seed_everything,
 )
-from olatbench.bench.jobs import Job, hash_json
+from olatbench.bench.jobs import Job
+from olatbench.bench.outcome import (
+    JobLog,
+    JobOutcome,
+    base_results,
+    failed_results,
+    finite,
+    ground_truth,
+    mean_scores,
+    save_render,
+    score_image,
+    scored_files,
+)
 from olatbench.bench.plan import load_method_class
-from olatbench.bench.provenance import hardware_identity, library_versions, peak_rss_mb, utc_now
+from olatbench.bench.provenance import utc_now
 from olatbench.bench.restore import load_state
-from olatbench.bench.results import SCHEMA_VERSION, write_results
+from olatbench.bench.results import write_results
 from olatbench.bench.reuse import adopt_finished_model, find_reusable
 from olatbench.bench.store import DONE_FILE, ERROR_FILE, JOB_FILE, RESULTS_FILE, TRAIN_LOG_FILE, job_lock
 from olatbench.bench.views import VIEWS_FILE, load_views, view_camera
@@ -45,40 +55,11 @@ from olatbench.datasets import colour, load_scene
 from olatbench.datasets.formats._common import safe_file_stem
 from olatbench.datasets.images import write_image
 from olatbench.datasets.records import Frame
-from olatbench.datasets.synth.mini import data_matches_reference
 from olatbench.methods.backends import format_backends
 from olatbench.methods.base import Method, Views
 from olatbench.metrics.evaluate import sha256_file
 
-LOG_FILE = "log.txt"
 WARMUP_RENDERS = 1
-
-
-@dataclass
-class JobOutcome:
-    """What an executor reports back for one job (picklable)."""
-
-    job_id: str
-    label: str
-    folder: str
-    status: str  # "done" | "failed" | "skipped"
-    test_metrics: dict[str, Any] = field(default_factory=dict)
-    train_seconds: float | None = None
-    render_fps: float | None = None
-    error: str | None = None
-    recorded: bool = True  # a failure written to the folder (error.txt); False when the disk refused it
-
-
-class JobLog:
-    """Timestamped human-readable lines appended to the job's ``log.txt``."""
-
-    def __init__(self, folder: Path) -> None:
-        self.path = folder / LOG_FILE
-
-    def __call__(self, message: str) -> None:
-        stamp = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M:%S")
-        with open(self.path, "a", encoding="utf-8") as handle:
-            handle.write(f"{stamp} {message}\n")
 
 
 def run_job(job: Job, progress: bool = True, position: int = 1) -> JobOutcome:
@@ -123,7 +104,7 @@ def _record_failure(job: Job, folder: Path, log: JobLog, error: Exception, start
     try:
         write_text(folder / ERROR_FILE, traceback.format_exc())
         log(f"FAILED: {type(error).__name__}: {error}")
-        write_results(folder / RESULTS_FILE, _failed_results(job, error, started))
+        write_results(folder / RESULTS_FILE, failed_results(job, error, started))
     except OSError as unrecorded:
         outcome.error += f" (not recorded in the folder: {unrecorded})"
         outcome.recorded = False
@@ -291,17 +272,13 @@ class _TrainLog:
         self.handle = open(path, "a", encoding="utf-8")  # noqa: SIM115 - closed by close()
 
     def write(self, entry: dict[str, Any]) -> None:
-        self.handle.write(json.dumps({k: _finite(v) for k, v in entry.items()}) + "\n")
+        self.handle.write(json.dumps({k: finite(v) for k, v in entry.items()}) + "\n")
 
     def flush(self) -> None:
         self.handle.flush()
 
     def close(self) -> None:
         self.handle.close()
-
-
-def _finite(value: Any) -> Any:
-    return None if isinstance(value, float) and not math.isfinite(value) else value
 
 
 def _to_numpy(image: torch.Tensor) -> np.ndarray:
@@ -325,11 +302,10 @@ def evaluate_split(method: Method, frames: list[Frame], job: Job, folder: Path, 
     from olatbench.metrics.protocols import get_protocol
 
     protocol = get_protocol(job.protocol)
-    renders = folder / "renders" / split
     cuda = torch.device(job.device).type == "cuda"
     resolution = tuple(job.resolution) if job.resolution else None
     # protocols that reproduce an official pipeline score against its ground truth (e.g. 8-bit truncated),
-    # which exists at the native resolution only
+    # which exists at the native resolution only (`olatbench.bench.outcome.ground_truth`)
     official_gt = protocol.ground_truth == "official" and resolution is None
     with torch.no_grad():
         for frame in frames[:WARMUP_RENDERS]:
@@ -346,7 +322,7 @@ def evaluate_split(method: Method, frames: list[Frame], job: Job, folder: Path, 
                 refined = method.refine_view(camera, light, loaded.rgb)
                 if refined is not None:
                     camera, light = refined.camera, refined.light
-                    refinement["frames"][frame.frame_id] = {k: _finite(float(v)) for k, v in refined.summary.items()}
+                    refinement["frames"][frame.frame_id] = {k: finite(float(v)) for k, v in refined.summary.items()}
                 refinement["seconds"] += time.perf_counter() - clock
             if cuda:
                 torch.cuda.synchronize(job.device)
@@ -356,21 +332,18 @@ def evaluate_split(method: Method, frames: list[Frame], job: Job, folder: Path, 
                 torch.cuda.synchronize(job.device)
             render_seconds += time.perf_counter() - clock
             pred = np.clip(_to_numpy(output["rgb"]), 0.0, 1.0)
-            mask = None
-            if official_gt:
-                gt, mask = protocol.load_ground_truth(frame, job.scene_format)
-            elif gt_images is not None and not protocol.masked:
-                gt = gt_images[index]
-            else:  # the image refine_view was given, when it was loaded for it
-                loaded = loaded or frame.load(colourspace=job.colourspace, background="official", resolution=resolution)
+            if gt_images is not None and not protocol.masked and not official_gt:
+                gt, mask = gt_images[index], None
+            elif loaded is not None and not official_gt:  # the image refine_view was given
                 gt, mask = loaded.rgb, (loaded.alpha if protocol.masked else None)
-            scores = protocol.evaluate(pred, np.clip(gt, 0.0, 1.0), mask, device=str(job.device))
-            per_image[frame.frame_id] = {key: _finite(value) for key, value in scores.items()}
+            else:
+                gt, mask = ground_truth(job, protocol, frame)
+            per_image[frame.frame_id] = score_image(protocol, pred, gt, mask, str(job.device))
+            save_render(folder, split, frame, pred, job.colourspace)
             stem = safe_file_stem(frame.frame_id)
-            write_image(renders / f"{stem}.png", colour.convert_colourspace(pred, job.colourspace, "srgb"))
             if job.save_components and split == job.test_split:
                 _save_components(output, folder / "components" / split, stem, job.colourspace)
-    mean = {key: _finite(value) for key, value in protocol.mean(list(per_image.values())).items()}
+    mean = mean_scores(protocol, per_image)
     if refinement is not None:
         refinement["seconds"] = round(refinement["seconds"], 3)
     fps = len(frames) / render_seconds if render_seconds > 0 else None
@@ -390,45 +363,9 @@ def _save_components(output: dict[str, torch.Tensor], directory: Path, stem: str
         write_image(directory / name / f"{stem}.png", np.clip(image, 0.0, 1.0))
 
 
-def scored_files(frames: list[Frame], folder: Path, split: str) -> dict[str, dict[str, Any]]:
-    """sha256 of each frame's saved render (path relative to the job folder) and of its ground-truth file."""
-    files = {}
-    for frame in frames:
-        render = Path("renders") / split / f"{safe_file_stem(frame.frame_id)}.png"
-        truth = frame.image_path
-        files[frame.frame_id] = {"render": render.as_posix(), "render_sha256": sha256_file(folder / render),
-                                 "ground_truth": None if truth is None else str(Path(truth).resolve()),
-                                 "ground_truth_sha256": None if truth is None else sha256_file(truth)}
-    return files
-
-
-def _base_results(job: Job, status: str, started: str) -> dict[str, Any]:
-    return {
-        "schema_version": SCHEMA_VERSION,
-        "kind": "run",
-        "status": status,
-        "job": {"id": job.id, "method": job.method, "variant": job.variant, "suite": job.suite, "scene": job.scene,
-                "seed": job.seed, "config": job.config},
-        "protocol": {"id": job.protocol, "version": job.protocol_version},
-        "metrics": {},
-        "timing": {"started": started, "finished": utc_now(), "train_seconds": None, "render_fps": None},
-        "resources": {"device": job.device, "peak_rss_mb": round(peak_rss_mb(), 1), "cuda_peak_mb": None},
-        "hardware": hardware_identity(),
-        "model": {"iterations": job.iterations, "num_gaussians": None},
-        "versions": library_versions(),
-        "hashes": {"data_manifest": job.data_manifest, "config": hash_json(job.config), "code": job.code,
-                   "data_matches_reference": data_matches_reference(job.scene_path) if job.suite == "mini" else None,
-                   "checkpoint": None},
-        "files": {},
-        "source": None,
-        "evaluation": {"test_time_refinement": None, "test_pose_fitting": None},
-        "error": None,
-    }
-
-
 def _done_results(job: Job, started: str, metrics: dict[str, Any], train_seconds: float,
                   render_fps: float | None, method: Method) -> dict[str, Any]:
-    results = _base_results(job, "done", started)
+    results = base_results(job, "done", started)
     results["metrics"] = metrics
     results["timing"].update(train_seconds=round(train_seconds, 3),
                              render_fps=round(render_fps, 3) if render_fps else None)
@@ -442,9 +379,3 @@ def _done_results(job: Job, started: str, metrics: dict[str, Any], train_seconds
 def backend_fields(job: Job, method: Method) -> dict[str, Any]:
     """``device`` and ``backends`` (stage -> implementation, see `olatbench.methods.backends`) for results.json."""
     return {"device": job.device, "backends": method.backends()}
-
-
-def _failed_results(job: Job, error: BaseException, started: str) -> dict[str, Any]:
-    results = _base_results(job, "failed", started)
-    results["error"] = {"type": type(error).__name__, "message": str(error)}
-    return results

@@ -20,7 +20,7 @@ from tqdm.auto import tqdm
 from olatbench.bench.jobs import Job
 
 if TYPE_CHECKING:  # the job runner imports torch: loaded when a job runs, not when the CLI lists executors
-    from olatbench.bench.execute import JobOutcome
+    from olatbench.bench.outcome import JobOutcome
 
 EXECUTORS = ("inline", "local", "slurm")
 OnOutcome = Callable[["JobOutcome"], None]
@@ -60,7 +60,7 @@ def run_local(jobs: Sequence[Job], workers: int, progress: bool = True, on_outco
               ) -> list[JobOutcome]:
     """Run the jobs in ``workers`` spawned processes, a fresh one per job on Python ≥ 3.11 (honest peak
     memory, isolation from crashes); torch threads are shared out between the workers."""
-    from olatbench.bench.execute import JobOutcome
+    from olatbench.bench.outcome import JobOutcome
 
     context = multiprocessing.get_context("spawn")
     threads = max(1, (os.cpu_count() or 1) // workers)
@@ -143,7 +143,7 @@ def submit_slurm(jobs: Sequence[Job], out: str | Path, options: SlurmOptions) ->
 def wait_slurm(submitted: list, jobs: Sequence[Job], progress: bool = True, on_outcome: OnOutcome | None = None
                ) -> list[JobOutcome]:
     """Wait for submitted array tasks; a task that died outside `run_job` is reported as failed."""
-    from olatbench.bench.execute import JobOutcome
+    from olatbench.bench.outcome import JobOutcome
 
     outcomes = []
     with tqdm(total=len(submitted), desc="jobs", disable=not progress, unit="job") as bar:

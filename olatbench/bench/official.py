@@ -18,13 +18,20 @@ from typing import Any
 import numpy as np
 
 from olatbench.atomic import write_json, write_text
-from olatbench.bench.execute import JobLog, JobOutcome, _base_results, _finite, scored_files
 from olatbench.bench.jobs import Job
+from olatbench.bench.outcome import (
+    JobLog,
+    JobOutcome,
+    base_results,
+    ground_truth,
+    mean_scores,
+    save_render,
+    score_image,
+    scored_files,
+)
 from olatbench.bench.results import write_results
 from olatbench.bench.store import DONE_FILE, ERROR_FILE, JOB_FILE, OFFICIAL_DIR, RESULTS_FILE
 from olatbench.datasets import colour, load_scene
-from olatbench.datasets.formats._common import safe_file_stem
-from olatbench.datasets.images import write_image
 from olatbench.datasets.records import Frame
 from olatbench.methods.official.code import OfficialCode, OfficialConfig
 from olatbench.methods.official.process import OfficialRunError
@@ -59,7 +66,7 @@ def run_official_job(job: Job, folder: Path, log: JobLog, started: str) -> JobOu
     except OfficialRunError as error:
         return _failed(job, folder, log, error, run, started)
     shutil.rmtree(run.scene_dir, ignore_errors=True)  # a copy of the data; the official outputs stay in model/
-    results = _base_results(job, "done", started)
+    results = base_results(job, "done", started)
     results["metrics"] = metrics
     results["files"] = {job.test_split: scored_files(scene.split(job.test_split), folder, job.test_split)}
     train_seconds = sum(r.seconds or 0.0 for r in run.commands if r.step == "train")
@@ -80,7 +87,7 @@ def _failed(job: Job, folder: Path, log: JobLog, error: OfficialRunError, run: O
     summary, _, details = message.partition("\n")
     write_text(folder / ERROR_FILE, (details + "\n" if details else "") + summary + "\n")
     log(f"FAILED: {summary}")
-    results = _base_results(job, "failed", started)
+    results = base_results(job, "failed", started)
     results["error"] = {"type": type(error).__name__, "message": message}
     settings = CodeSettings.from_json(job.official or {"method": job.method})
     results.update(_provenance(job, run, settings))
@@ -105,15 +112,6 @@ def _provenance(job: Job, run: OfficialRun | None, settings: CodeSettings) -> di
         "commands": [record.to_json() for record in run.commands] if run else []}}
 
 
-def _ground_truth(job: Job, protocol: Any, frame: Frame) -> tuple[np.ndarray, np.ndarray | None]:
-    """The ground truth as the in-process runner scores it (`olatbench.bench.execute.evaluate_split`)."""
-    resolution = tuple(job.resolution) if job.resolution else None
-    if protocol.ground_truth == "official" and resolution is not None:
-        loaded = frame.load(colourspace=job.colourspace, background="official", resolution=resolution)
-        return loaded.rgb, (loaded.alpha if protocol.masked else None)
-    return protocol.load_ground_truth(frame, job.scene_format, resolution)
-
-
 def _score(job: Job, frames: list[Frame], renders: dict[str, Path], encoded_as: str, folder: Path
            ) -> dict[str, Any]:
     """Score each render against its frame under the job's protocol (in ``job.colourspace``) and copy it to
@@ -121,19 +119,15 @@ def _score(job: Job, frames: list[Frame], renders: dict[str, Path], encoded_as: 
     from olatbench.metrics.protocols import get_protocol
 
     protocol = get_protocol(job.protocol)
-    out = folder / "renders" / job.test_split
     per_image = {}
     for frame in frames:
         background = colour.convert_colourspace(np.asarray(frame.background, np.float32), frame.colourspace,
                                                 job.colourspace)
         pred = np.clip(read_prediction(renders[frame.frame_id], job.colourspace, background, encoded_as), 0.0, 1.0)
-        gt, mask = _ground_truth(job, protocol, frame)
+        gt, mask = ground_truth(job, protocol, frame)
         if pred.shape != gt.shape:
             raise OfficialRunError(f"{frame.frame_id}: the official render {renders[frame.frame_id]} is "
                                    f"{pred.shape[1]}×{pred.shape[0]}, the ground truth {gt.shape[1]}×{gt.shape[0]}")
-        scores = protocol.evaluate(pred, np.clip(gt, 0.0, 1.0), mask, device=str(job.device))
-        per_image[frame.frame_id] = {key: _finite(value) for key, value in scores.items()}
-        write_image(out / f"{safe_file_stem(frame.frame_id)}.png",
-                    colour.convert_colourspace(pred, job.colourspace, "srgb"))
-    mean = {key: _finite(value) for key, value in protocol.mean(list(per_image.values())).items()}
-    return {"mean": mean, "per_image": per_image}
+        per_image[frame.frame_id] = score_image(protocol, pred, gt, mask, str(job.device))
+        save_render(folder, job.test_split, frame, pred, job.colourspace)
+    return {"mean": mean_scores(protocol, per_image), "per_image": per_image}

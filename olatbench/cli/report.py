@@ -44,7 +44,8 @@ def _emit(text: str, output: str | None) -> None:
               help="Output format; default from -o's suffix, else markdown.")
 @click.option("-o", "--output", type=click.Path(dir_okay=False), help="Write to this file instead of stdout.")
 @click.option("--standalone", is_flag=True, help="LaTeX: a complete document that compiles with pdflatex.")
-@click.option("--booktabs", is_flag=True, help="LaTeX: booktabs rules instead of the paper's \\hline.")
+@click.option("--booktabs", is_flag=True,
+              help="LaTeX: booktabs rules for every table (default: \\hline, and booktabs where the paper uses it).")
 @click.option("--colours", help='Best;second colours as rgb in [0,1], default "1,0.8,0.8;1,0.9,0.8" (the paper).')
 @click.option("--published", is_flag=True, help="Put the paper's numbers (and a Δ row) beside matching runs.")
 @click.option("--published-only", is_flag=True, help="Regenerate the paper's tables from its numbers alone.")
@@ -81,7 +82,7 @@ def report(runs, suite, methods, metrics, splits, layouts, average, fmt, output,
     try:
         fmt = format_for(output, fmt)
         palette = parse_colours(colours)
-        rules = "booktabs" if booktabs else "hline"
+        rules = "booktabs" if booktabs else None  # None: each table's own (the paper's, for --published-only)
         if published_only:
             from olatbench.reports.paper import paper_table
             from olatbench.reports.published import PAPER_TABLES

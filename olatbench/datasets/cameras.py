@@ -8,6 +8,9 @@ point is the image centre has ``cx = width / 2``.
 The NeRF-style JSON files of NRHints, GS³ and SSS-GS store camera-to-world in
 **OpenGL/Blender axes** (x right, y up, z backward). The two differ by a flip
 of the y and z camera axes, which is its own inverse.
+
+GS³ and SSD-GS save refined poses as ``R_opt``/``T_opt`` in the 3DGS convention: ``R`` is the world-to-camera
+rotation transposed (OpenCV axes) and ``T`` the world-to-camera translation (`c2w_from_refined`).
 """
 
 from __future__ import annotations
@@ -33,6 +36,15 @@ def opengl_to_opencv(c2w: np.ndarray) -> np.ndarray:
 def opencv_to_opengl(c2w: np.ndarray) -> np.ndarray:
     """Camera-to-world (4×4) from OpenCV camera axes to OpenGL/Blender camera axes."""
     return opengl_to_opencv(c2w)
+
+
+def c2w_from_refined(R: np.ndarray, T: np.ndarray) -> np.ndarray:
+    """Camera-to-world (4×4, OpenCV axes) of a 3DGS-style pose: world-to-camera = [[Rᵀ, T], [0, 1]]
+    (GS³/SSD-GS scene/dataset_readers.py: ``R = transpose(w2c[:3, :3])``, ``T = w2c[:3, 3]``)."""
+    w2c = np.eye(4)
+    w2c[:3, :3] = np.asarray(R, dtype=np.float64).T
+    w2c[:3, 3] = np.asarray(T, dtype=np.float64)
+    return np.linalg.inv(w2c)
 
 
 def intrinsics_matrix(fx: float, fy: float, cx: float, cy: float) -> np.ndarray:

@@ -1,7 +1,9 @@
-"""Image files through OpenImageIO (EXR, HDR, PNG, JPEG, TIFF), and resizing.
+"""Image files through OpenImageIO (EXR, HDR, PNG, JPEG, TIFF), NumPy ``.npy`` arrays, and resizing.
 
 Reads return float32 (H, W, C): 8-bit and 16-bit integers are normalised to
-[0, 1], half and float data are returned as stored. OpenImageIO is imported on
+[0, 1], half and float data are returned as stored. A ``.npy`` holds the pixels themselves, (H, W) or (H, W, C)
+(the NRHints loader reads ``file_ext: ".npy"`` frames with ``np.load``, data/data_parser.py:92-93), and is
+returned as stored. OpenImageIO is imported on
 first use so that ``import olatbench.datasets`` needs numpy alone.
 """
 
@@ -53,9 +55,29 @@ def check_image_file(path: Path) -> None:
     require_utf8_name(path)
 
 
+_CHANNELS = {1: ["Y"], 2: ["Y", "A"], 3: ["R", "G", "B"], 4: ["R", "G", "B", "A"]}
+
+
+def _load_npy(path: Path, mmap: bool = False) -> np.ndarray:
+    """The (H, W, C) array of a ``.npy`` image (C in 1-4); `DatasetError` naming the file otherwise."""
+    try:
+        array = np.load(path, mmap_mode="r" if mmap else None, allow_pickle=False)
+    except (OSError, ValueError) as error:
+        raise DatasetError(f"cannot read the array ({error})", path=path) from None
+    if array.ndim == 2:
+        array = array[..., None]
+    if array.ndim != 3 or array.shape[2] not in _CHANNELS or not np.issubdtype(array.dtype, np.number):
+        raise DatasetError(f"expected an image array (H, W) or (H, W, 1-4) of numbers, found {array.dtype} "
+                           f"{array.shape}", path=path)
+    return array
+
+
 def _decode(path: Path) -> tuple[np.ndarray, list[str]]:
     """Pixels (H, W, C) float32 and channel names of one image file."""
     check_image_file(path)
+    if path.suffix.lower() == ".npy":
+        pixels = np.asarray(_load_npy(path), dtype=np.float32)
+        return pixels, list(_CHANNELS[pixels.shape[2]])
     oiio = _oiio()
     image_input = oiio.ImageInput.open(str(path), _read_config(oiio))
     if image_input is None:
@@ -81,6 +103,9 @@ def image_size(path: str | Path) -> tuple[int, int]:
     """(width, height) from the file header, without decoding the pixels."""
     path = Path(path)
     check_image_file(path)
+    if path.suffix.lower() == ".npy":
+        height, width = _load_npy(path, mmap=True).shape[:2]
+        return int(width), int(height)
     oiio = _oiio()
     image_input = oiio.ImageInput.open(str(path))
     if image_input is None:

@@ -2,7 +2,8 @@
 blocks, best / second-best cells as ``\\cellcolor[rgb]{1,0.8,0.8}`` / ``{1,0.9,0.8}``.
 
 Strings in the model are plain text; `latex_text` escapes them and turns the few symbols the
-tables use (↑ ↓ ± – — ≈ < >, "GS3") into LaTeX. ``standalone=True`` wraps the table in a
+tables use (↑ ↓ ± — ≈ < >, "GS3") into LaTeX; the en-dash "–" stays as the paper's source writes it
+(``E: Full – S``; pdflatex reads UTF-8). ``standalone=True`` wraps the table in a
 minimal document that compiles with pdflatex (packages: xcolor[table], colortbl, multirow, diagbox,
 booktabs, graphicx).
 """
@@ -19,7 +20,7 @@ PACKAGES = ("[table]{xcolor}", "{colortbl}", "{multirow}", "{diagbox}", "{bookta
 
 _ESCAPES = {"\\": r"\textbackslash{}", "&": r"\&", "%": r"\%", "$": r"\$", "#": r"\#", "_": r"\_",
             "{": r"\{", "}": r"\}", "^": r"\^{}", "~": r"\textasciitilde{}", "↑": r"$\uparrow$", "↓": r"$\downarrow$",
-            "±": r"$\pm$", "–": "--", "—": "---", "≈": r"$\approx$", "<": r"$<$", ">": r"$>$", "Δ": r"$\Delta$",
+            "±": r"$\pm$", "—": "---", "≈": r"$\approx$", "<": r"$<$", ">": r"$>$", "Δ": r"$\Delta$",
             "−": r"$-$", "×": r"$\times$"}
 
 
@@ -110,9 +111,10 @@ def _body_lines(table: Table, colours: Sequence[str], rules: dict[str, str]) -> 
     return lines
 
 
-def to_latex(table: Table, *, colours: Sequence[str] = PAPER_COLOURS, rules: str = "hline",
+def to_latex(table: Table, *, colours: Sequence[str] = PAPER_COLOURS, rules: str | None = None,
              float_env: str = "table*", standalone: bool = False) -> str:
-    """The table as LaTeX; ``rules`` is "hline" (as the paper) or "booktabs"."""
+    """The table as LaTeX; ``rules`` is "hline" or "booktabs" (None: the table's own, `Table.rules`)."""
+    rules = rules or table.rules
     if rules not in ("hline", "booktabs"):
         raise ValueError(f"rules must be 'hline' or 'booktabs', not {rules!r}")
     rule_set = ({"top": r"\hline", "mid": r"\hline", "bottom": r"\hline"} if rules == "hline"

@@ -83,7 +83,8 @@ class Table:
 
     ``header`` rows are lists of (title, span) whose spans add up to ``len(columns)``; the last
     header row names the leaf columns. ``label_names`` name the label columns (e.g. ("Method",)).
-    ``column_rules`` lists leaf-column indices after which a vertical rule is drawn (LaTeX).
+    ``column_rules`` lists leaf-column indices after which a vertical rule is drawn (LaTeX); ``rules`` is how
+    its horizontal rules are typeset (LaTeX): "hline" (most of the paper's tables) or "booktabs".
     """
 
     name: str
@@ -96,6 +97,7 @@ class Table:
     footnotes: list[str] = field(default_factory=list)
     column_rules: tuple[int, ...] = ()
     corner: tuple[str, str] = ("Method", "Dataset")
+    rules: str = "hline"
 
     def __post_init__(self) -> None:
         for level, header_row in enumerate(self.header):

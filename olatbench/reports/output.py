@@ -45,7 +45,7 @@ def _unit(text: str) -> bool:
 
 
 def render_tables(tables: Sequence[Table], fmt: str, *, standalone: bool = False,
-                  colours: Sequence[str] = PAPER_COLOURS, rules: str = "hline",
+                  colours: Sequence[str] = PAPER_COLOURS, rules: str | None = None,
                   figures: Sequence[tuple[str, bytes]] = (), notes: Sequence[str] = (),
                   title: str = "olatbench report") -> str:
     """All tables in one document of format ``fmt`` (figures and notes are used by HTML only)."""

@@ -23,7 +23,7 @@ from olatbench.reports.layouts import (
     split_title,
 )
 from olatbench.reports.model import Cell, Table
-from olatbench.reports.published import PAPER_TABLES, _decimals, published_table, table_id
+from olatbench.reports.published import PAPER_TABLES, published_table, table_id
 from olatbench.reports.ranking import rank_table
 
 SUITE_TITLES = {"nrhints": "NRHints", "gs3": "GS3", "sssgs": "SSS-GS", "all": "Average"}
@@ -40,6 +40,9 @@ class Ranking:
     min_values: int = 2
     average_only: bool = False
 
+
+# The rules each paper table is typeset with (LaTeX): the appendix ablation tables use booktabs, the others \hline.
+PAPER_RULES: dict[str, str] = {"ablation-scenes": "booktabs", "shadow-on-sss": "booktabs"}
 
 PAPER_RANKING: dict[str, Ranking] = {
     "real": Ranking(),
@@ -72,7 +75,7 @@ def _cells(rows: pd.DataFrame) -> dict[tuple[str, str, str, str], Cell]:
         if pd.isna(number):
             cell = Cell(str(row["value"]))
         elif std is not None or row["metric"] not in RANKED_METRICS:
-            std_decimals = None if std is None else _decimals(repr(std))
+            std_decimals = None if std is None else int(row["std_decimals"])
             cell = Cell(float(number), std=std, decimals=int(row["decimals"]), std_decimals=std_decimals)
         else:
             cell = Cell(float(number), decimals=4)
@@ -183,6 +186,7 @@ def paper_table(name: str) -> Table:
     if name not in PAPER_TABLES:
         raise KeyError(f"unknown paper table {name!r}; choose one of {', '.join(PAPER_TABLES)}")
     table, rows = build_paper_table(name)
+    table.rules = PAPER_RULES.get(name, "hline")
     ranking = PAPER_RANKING[name]
     columns = (lambda column: column.startswith("Average")) if ranking.average_only else None
     rank_table(table, top=ranking.top, min_values=ranking.min_values, columns=columns)

@@ -17,6 +17,8 @@ from pathlib import Path
 
 import pandas as pd
 
+from olatbench.methods.official.specs import SSDGS_REFINED_VARIANT
+
 CSV_NAME = "ssdgs_iclr2026.csv"
 CSV_COLUMNS = ("table", "method", "suite", "scene", "split", "metric", "value", "std", "paper_rank")
 
@@ -66,21 +68,22 @@ def load_published(path: str | Path | None = None) -> pd.DataFrame:
 
     Rows keep the CSV's order, which is the paper's row and column order.
     """
-    return _load(str(path or data_path())).copy()
+    return _load(str(path or data_path()))[list(CSV_COLUMNS)].copy()
 
 
 @lru_cache(maxsize=4)
 def _load(path: str) -> pd.DataFrame:
     try:
-        frame = pd.read_csv(path, dtype={"value": str}, keep_default_na=False, na_values={"std": [""],
-                                                                                       "paper_rank": [""]})
+        frame = pd.read_csv(path, dtype={"value": str, "std": str}, keep_default_na=False,
+                            na_values={"paper_rank": [""]})
     except FileNotFoundError:
         raise PublishedError(f"{path}: published numbers not found (is olatbench installed with its data?)") from None
     missing = [column for column in CSV_COLUMNS if column not in frame.columns]
     if missing:
         raise PublishedError(f"{path}: missing columns {', '.join(missing)}")
     frame = frame[list(CSV_COLUMNS)]
-    frame["std"] = pd.to_numeric(frame["std"], errors="raise").astype(float)
+    frame["std_decimals"] = [_decimals(text) for text in frame["std"]]  # as printed: "0.10" has 2
+    frame["std"] = pd.to_numeric(frame["std"].replace("", float("nan")), errors="raise").astype(float)
     frame["paper_rank"] = pd.to_numeric(frame["paper_rank"], errors="raise").astype("Int64")
     return frame
 
@@ -95,8 +98,9 @@ def table_id(name: str) -> str:
 
 
 def published_table(name: str) -> pd.DataFrame:
-    """The rows of one paper table, plus ``number`` (float, NaN for text values) and ``decimals`` (as printed)."""
-    frame = load_published()
+    """The rows of one paper table, plus ``number`` (float, NaN for text values), ``decimals`` and ``std_decimals``
+    (as printed: the CSV keeps the paper's strings, e.g. ``0.040`` and ``61.50``)."""
+    frame = _load(str(data_path())).copy()
     rows = frame[frame["table"] == table_id(name)].copy()
     rows["number"] = pd.to_numeric(rows["value"], errors="coerce")
     rows["decimals"] = [_decimals(text) for text in rows["value"]]
@@ -116,15 +120,22 @@ def normalise_name(name: str) -> str:
 def paper_method(method: str, variant: str | None = None, suite: str | None = None) -> str | None:
     """The paper's row label for a run's method, variant and suite, or None when the paper has no such row.
 
-    ``ssdgs`` runs map to "Ours" (on the sssgs suite, whose preset refines cameras and lights:
-    "Ours (w/ Opt)"), or to the variant preset's label ("ablation-A" -> "A: Diff", "sssgs-no-opt" ->
-    "Ours (w/o Opt)"); baselines match the paper's names ignoring case and punctuation ("gs3" -> "GS3").
+    ``ssdgs`` runs map to "Ours", or to the variant preset's label ("ablation-A" -> "A: Diff", "sssgs-no-opt" ->
+    "Ours (w/o Opt)"). On the sssgs suite the row follows whether cameras and lights were refined: the native
+    preset refines them ("Ours (w/ Opt)"); ``ssdgs-official`` runs the flags of batch_script_synthetic_sssgs.py,
+    which passes neither --cam_opt nor --pl_opt ("Ours (w/o Opt)"), and its variant ``opt`` adds them
+    ("Ours (w/ Opt)"). Baselines match the paper's names ignoring case and punctuation ("gs3" -> "GS3"), the
+    authors' code (``-official``) the row of its method.
     """
     if variant in VARIANT_LABELS:
         return VARIANT_LABELS[variant]
-    method = method.removesuffix("-official")  # the authors' code run by olatbench: the paper's row too
+    official = method.endswith("-official")
+    method = method.removesuffix("-official")
     if normalise_name(method) == "ssdgs":
-        return "Ours (w/ Opt)" if suite == "sssgs" else "Ours"
+        if suite != "sssgs":
+            return "Ours"
+        refined = (variant or "").split("~")[0] == SSDGS_REFINED_VARIANT if official else True
+        return "Ours (w/ Opt)" if refined else "Ours (w/o Opt)"
     wanted = normalise_name(method)
     for label in load_published()["method"].unique():
         if normalise_name(label) == wanted:

@@ -20,7 +20,7 @@ from olatbench.datasets.cameras import opengl_to_opencv
 from olatbench.datasets.errors import DatasetError
 from olatbench.datasets.files import present, require_file
 
-IMAGE_SUFFIXES = (".png", ".exr", ".jpg", ".jpeg", ".tif", ".tiff", ".hdr")
+IMAGE_SUFFIXES = (".png", ".exr", ".jpg", ".jpeg", ".tif", ".tiff", ".hdr", ".npy")
 
 
 def read_json(path: Path) -> dict[str, Any]:

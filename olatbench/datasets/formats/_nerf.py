@@ -4,9 +4,13 @@ One JSON file per split holds ``frames`` with ``file_path`` (no extension; ``fil
 or the format default) or ``img_path`` (relative to the scene folder, extension included; preferred over
 ``file_path`` when a frame has both, as the GS³ loader ``scene/dataset_readers.py`` does; its stem is then the
 frame id), ``transform_matrix`` (camera-to-world, OpenGL/Blender axes), ``pl_pos`` and
-optionally ``pl_intensity``. Intrinsics are ``camera_intrinsics`` = **[cx, cy, fx, fy]** (top level
-or per frame) or ``camera_angle_x`` (square pixels, centred principal point). ``transforms_valid.json``
-(the GS³ re-pack) is a camera path without images: split ``path``, frames with ``image_path=None``.
+optionally ``pl_intensity``. A frame with refined poses ``R_opt``/``T_opt`` (saved by GS³/SSD-GS training) gets
+its camera from them, as the official readers do (`olatbench.datasets.cameras.c2w_from_refined`); its
+``transform_matrix`` pose stays in ``extras["transform_matrix_c2w"]``, and a written scene's ``transform_matrix``
+is the refined camera, so every reader of it sees one camera. Intrinsics are ``camera_intrinsics`` =
+**[cx, cy, fx, fy]** (top level or per frame) or ``camera_angle_x`` (square pixels, centred principal point).
+``transforms_valid.json`` (the GS³ re-pack) is a camera path without images: split ``path``, frames with
+``image_path=None``.
 """
 
 from __future__ import annotations
@@ -20,7 +24,13 @@ import numpy as np
 
 from olatbench.atomic import write_json
 from olatbench.datasets import colour
-from olatbench.datasets.cameras import fov_from_focal, intrinsics_from_fov, intrinsics_matrix, opencv_to_opengl
+from olatbench.datasets.cameras import (
+    c2w_from_refined,
+    fov_from_focal,
+    intrinsics_from_fov,
+    intrinsics_matrix,
+    opencv_to_opengl,
+)
 from olatbench.datasets.errors import DatasetError
 from olatbench.datasets.formats import _common as c
 from olatbench.datasets.records import Camera, Frame, PointLight, Scene
@@ -165,8 +175,15 @@ def _read_frame(root: Path, path: Path, split: str, index: int, frame_id: str, r
         image_path = frame_image(root, raw, flavour.default_ext, **where)
     extras: dict[str, Any] = {}
     if raw.get("R_opt") is not None or raw.get("T_opt") is not None:
+        # refined pose: the official GS³/SSD-GS readers use it instead of transform_matrix (dataset_readers.py:
+        # 135-148), so the camera is the refined one; transform_matrix's pose is kept aside
         extras["R_opt"] = c.as_array(c.require(raw, "R_opt", **where), (3, 3), key="R_opt", **where)
         extras["T_opt"] = c.as_array(c.require(raw, "T_opt", **where), (3,), key="T_opt", **where)
+        rotation = extras["R_opt"]
+        if not np.allclose(rotation @ rotation.T, np.eye(3), atol=1e-4) or np.linalg.det(rotation) <= 0:
+            raise DatasetError("R_opt is not a rotation matrix", key="R_opt", **where)
+        extras["transform_matrix_c2w"] = c2w
+        c2w = c2w_from_refined(extras["R_opt"], extras["T_opt"])
     if split == "path" and raw.get("file_path") is not None:
         extras["file_path"] = str(raw["file_path"])
     camera = Camera(K=K, c2w=c2w, width=width, height=height, near=near, far=far)

@@ -2,8 +2,9 @@
 
 Files: ``transforms_{train,test}.json`` with ``camera_angle_x``, ``camera_near``/``camera_far``, per frame
 ``file_path`` + ``file_ext`` (".exr"), ``pl_pos``, ``pl_intensity``, optional per-frame
-``camera_intrinsics`` and refined poses ``R_opt``/``T_opt`` (kept in ``Frame.extras``, never mixed into
-the calibration). Images: float RGBA EXR, linear light, premultiplied alpha; official background white.
+``camera_intrinsics`` and refined poses ``R_opt``/``T_opt`` (which, as in the official readers, give the frame's
+camera; ``transform_matrix``'s pose stays in ``Frame.extras``). Images: float RGBA EXR, linear light,
+premultiplied alpha; official background white.
 """
 
 from __future__ import annotations

@@ -7,16 +7,26 @@ An `OfficialCode` says, for the authors' scripts:
 - the commands to run, in order: ``(step, argv)`` where ``argv`` starts with the script (``train.py``), never
   with an interpreter — the launcher of `olatbench.methods.official.settings` puts the configured Python, conda
   environment or container command in front;
-- where the renders of the test split land (``renders``) and what their PNGs hold (``render_colourspace``).
+- where the renders of the test split land (``renders``) and what their PNGs hold (``render_colourspace``);
+- which frame each render shows: the render script numbers its renders by the order of the frames of the
+  transforms file it reads. That is the converted scene's ``transforms_test.json`` (``LOADER_ORDER``) unless a
+  command carries a flag of ``render_orders``, which names the file the script then reads instead (SSD-GS and
+  GS³ ``render.py --opt_pose`` read the refined cameras their ``train.py`` saved, in its shuffled order). Renders
+  are paired with frames through that file's ``img_path`` / ``file_path``, never by position in olatbench's split
+  (`olatbench.methods.official.convert.pair_renders`).
 
 Placeholders in ``argv`` and ``renders`` (`str.format` fields), filled per job:
 
 - ``{scene}`` the converted scene folder, ``{model}`` the output folder the scripts write to,
   ``{checkout}`` the user's clone, ``{iterations}`` the job's training length;
-- ``{index}`` (renders only): the frame's position in the converted split, which is the order the official
-  loaders enumerate frames (e.g. ``{index:05d}``);
+- ``{index}`` (renders only): the render's number, i.e. the position of its frame in the transforms file the
+  render script read (e.g. ``{index:05d}``);
 - an argument that is exactly ``{*suite_args}`` expands to ``suite_args[suite][step]`` (``"*"``: any other
   suite), possibly to nothing: e.g. ``--white_background`` for GS³ data.
+
+Where the authors' scripts give one scene other flags than its suite's (GS³ ``real_train.sh``: Fish densifies until
+100K), ``scene_args`` holds them as `SceneArgs`, keyed by the canonical scene name and citing script and lines; a
+scene's flag replaces the value the command already has for it, or is appended.
 
 A code whose data cannot be fed (it has no point-light input) has ``unsupported`` set to the reason; the
 runner refuses to plan it and `olatbench methods list` shows why.
@@ -33,6 +43,7 @@ from olatbench.methods.ranges import AT_LEAST_ONE, Range, check_ranges
 
 SUITE_ARGS = "{*suite_args}"
 ANY_SUITE = "*"
+LOADER_ORDER = "{scene}/transforms_test.json"  # the converted test split, as the official loaders read it
 
 
 @dataclass(frozen=True)
@@ -58,6 +69,37 @@ def _frozen(mapping: Mapping) -> Mapping:
 
 
 @dataclass(frozen=True)
+class SceneArgs:
+    """Flags the authors' script gives one scene of a suite for one step, instead of (or on top of) the suite's."""
+
+    suite: str
+    scene: str  # canonical scene name (`olatbench.datasets.suites`)
+    step: str
+    args: tuple[str, ...]  # "--flag value" pairs or bare "--switch"es
+    source: str  # where the pinned commit says so: "real_train.sh:306-336"
+
+
+def apply_scene_args(argv: list[str], args: tuple[str, ...]) -> list[str]:
+    """``argv`` with each ``--flag [value]`` of ``args`` replacing that flag's value (its last occurrence), or
+    appended when ``argv`` lacks the flag."""
+    out = list(argv)
+    index = 0
+    while index < len(args):
+        flag = args[index]
+        has_value = index + 1 < len(args) and not args[index + 1].startswith("--")
+        value = [args[index + 1]] if has_value else []
+        index += 1 + len(value)
+        where = max((i for i, arg in enumerate(out) if arg == flag), default=None)
+        if where is None:
+            out += [flag, *value]
+        elif value and where + 1 < len(out) and not out[where + 1].startswith("--"):
+            out[where + 1] = value[0]
+        elif value:
+            out.insert(where + 1, value[0])
+    return out
+
+
+@dataclass(frozen=True)
 class OfficialCode:
     """How to run one official implementation (module docstring)."""
 
@@ -69,6 +111,9 @@ class OfficialCode:
     render_colourspace: Mapping[str, str] = field(default_factory=dict)  # suite -> what the PNGs hold (srgb)
     suite_args: Mapping[str, Mapping[str, tuple[str, ...]]] = field(default_factory=dict)  # suite -> step -> args
     env: Mapping[str, str] = field(default_factory=dict)  # extra environment variables of every command
+    render_orders: Mapping[str, str] = field(default_factory=dict)  # flag -> transforms file then rendered in order
+    scene_args: tuple[SceneArgs, ...] = ()  # the scripts' per-scene flags (module docstring)
+    single_camera_model: bool = False  # the loader reads one camera (intrinsics, size, near/far) for all frames
     needs_val_split: bool = False  # the loader opens transforms_val.json (written from the test split if absent)
     unsupported: str = ""  # why olatbench's scenes cannot be fed to this code ("" = runnable)
 
@@ -78,7 +123,7 @@ class OfficialCode:
         steps = [step for step, _ in self.commands]
         if len(set(steps)) != len(steps):
             raise ValueError(f"official code {self.name!r}: step names repeat: {steps}")
-        for attribute in ("data_formats", "render_colourspace", "suite_args", "env"):
+        for attribute in ("data_formats", "render_colourspace", "suite_args", "env", "render_orders"):
             object.__setattr__(self, attribute, _frozen(getattr(self, attribute)))
 
     @property
@@ -98,9 +143,15 @@ class OfficialCode:
         block = self.suite_args.get(suite, self.suite_args.get(ANY_SUITE, {}))
         return tuple(block.get(step, ()))
 
+    def args_for_scene(self, suite: str, scene: str | None, step: str) -> tuple[str, ...]:
+        """The per-scene flags of ``scene`` (canonical name) for ``step`` (empty for other scenes)."""
+        return tuple(arg for entry in self.scene_args if (entry.suite, entry.scene, entry.step) == (suite, scene, step)
+                     for arg in entry.args)
+
     def command(self, step: str, argv: tuple[str, ...], values: Mapping[str, str], suite: str,
-                extra: tuple[str, ...] = ()) -> list[str]:
-        """One command's arguments with the placeholders filled and ``extra`` appended."""
+                extra: tuple[str, ...] = (), scene: str | None = None) -> list[str]:
+        """One command's arguments with the placeholders filled, ``scene``'s own flags applied and ``extra``
+        appended."""
         filled: list[str] = []
         for arg in argv:
             if arg == SUITE_ARGS:
@@ -111,7 +162,12 @@ class OfficialCode:
             except KeyError as error:
                 raise ValueError(f"official code {self.name!r}, step {step!r}: unknown placeholder {error} in "
                                  f"{arg!r}; known: {', '.join(sorted(values))}, {SUITE_ARGS}") from None
-        return filled + list(extra)
+        return apply_scene_args(filled, self.args_for_scene(suite, scene, step)) + list(extra)
+
+    def render_order(self, commands: list[list[str]]) -> str:
+        """The transforms file (pattern) whose frame order numbers the renders, given the filled-in commands."""
+        flags = {arg for argv in commands for arg in argv}
+        return next((path for flag, path in self.render_orders.items() if flag in flags), LOADER_ORDER)
 
     def describe(self) -> list[str]:
         """The commands and render pattern as text lines, placeholders kept (``olatbench methods show``)."""
@@ -124,7 +180,11 @@ class OfficialCode:
                              if self.args_for(suite, step))
             lines.append(f"suite {suite}: data written as {self.data_format(suite)}, renders hold "
                          f"{self.colourspace_for(suite)}" + (f", {SUITE_ARGS} = {args}" if args else ""))
+        for entry in self.scene_args:
+            lines.append(f"scene {entry.suite}/{entry.scene}: {entry.step} {' '.join(entry.args)} ({entry.source})")
         lines.append(f"renders: {self.renders}")
+        orders = "".join(f"; with {flag}: of {path}" for flag, path in self.render_orders.items())
+        lines.append(f"render i shows the i-th frame of {LOADER_ORDER}{orders} (paired by img_path/file_path)")
         if self.env:
             lines.append("environment: " + " ".join(f"{k}={v}" for k, v in self.env.items()))
         return lines

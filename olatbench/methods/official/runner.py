@@ -13,15 +13,16 @@ from pathlib import Path
 
 from olatbench.datasets.records import Scene
 from olatbench.methods.official.code import OfficialCode, OfficialConfig
-from olatbench.methods.official.convert import render_paths, write_for_code
+from olatbench.methods.official.convert import pair_renders, write_for_code
 from olatbench.methods.official.process import CommandRecord, OfficialRunError, run_command
 from olatbench.methods.official.settings import CodeSettings
 
 
 @dataclass
 class OfficialRun:
-    """What `execute` runs: the filled-in ``commands`` and the expected ``renders`` {frame id: path} of the test
-    split, holding values encoded as ``colourspace``."""
+    """What `execute` runs: the filled-in ``commands``; the test split's ``frame_ids`` and ``render_order``, the
+    transforms file whose frame order numbers the renders (read by `collect`), which hold values encoded as
+    ``colourspace``; ``values`` fill the render pattern."""
 
     code: OfficialCode
     settings: CodeSettings
@@ -29,7 +30,9 @@ class OfficialRun:
     scene_dir: Path
     model_dir: Path
     commands: list[CommandRecord]
-    renders: dict[str, Path]
+    frame_ids: list[str]
+    render_order: Path
+    values: dict[str, object]
     colourspace: str
 
 
@@ -52,11 +55,13 @@ def prepare(code: OfficialCode, settings: CodeSettings, source: Scene, work: Pat
                                  "iterations": int(config.iterations)}
     prefix = settings.prefix(work)
     extra = {"train": tuple(config.train_args), "render": tuple(config.render_args)}
-    commands = [CommandRecord(step, prefix + code.command(step, argv, values, suite, extra.get(step, ())),
-                              str(checkout)) for step, argv in code.commands]
-    renders = render_paths(code, [frame.frame_id for frame in source.split(test_split)], values)
+    commands = [CommandRecord(step, prefix + code.command(step, argv, values, suite, extra.get(step, ()),
+                                                          scene=source.name), str(checkout))
+                for step, argv in code.commands]
+    order = Path(code.render_order([record.argv for record in commands]).format_map(values))
     return OfficialRun(code=code, settings=settings, work=work, scene_dir=scene_dir, model_dir=model_dir,
-                       commands=commands, renders=renders, colourspace=code.colourspace_for(suite))
+                       commands=commands, frame_ids=[frame.frame_id for frame in source.split(test_split)],
+                       render_order=order, values=values, colourspace=code.colourspace_for(suite))
 
 
 def execute(run: OfficialRun, log_path: Path) -> None:
@@ -67,13 +72,15 @@ def execute(run: OfficialRun, log_path: Path) -> None:
 
 
 def collect(run: OfficialRun) -> dict[str, Path]:
-    """The expected renders, checked to exist; `OfficialRunError` listing the missing ones otherwise."""
-    missing = [(frame_id, path) for frame_id, path in run.renders.items() if not path.is_file()]
+    """``{frame id: its render}``, paired through ``run.render_order`` (`pair_renders`) and checked to exist;
+    `OfficialRunError` listing the missing ones otherwise."""
+    renders = pair_renders(run.code, run.render_order, run.frame_ids, run.values)
+    missing = [(frame_id, path) for frame_id, path in renders.items() if not path.is_file()]
     if missing:
         shown = "\n".join(f"  {frame_id}: {path}" for frame_id, path in missing[:5])
         folder = missing[0][1].parent
         found = sorted(p.name for p in folder.iterdir())[:10] if folder.is_dir() else []
-        raise OfficialRunError(f"{run.code.name}: {len(missing)} of {len(run.renders)} test renders are missing "
+        raise OfficialRunError(f"{run.code.name}: {len(missing)} of {len(renders)} test renders are missing "
                                f"(pattern {run.code.renders!r}), e.g.\n{shown}\n{folder} holds: "
                                f"{', '.join(found) if found else 'nothing'}")
-    return dict(run.renders)
+    return renders

@@ -10,8 +10,12 @@ view.
 Each test view owns its own zero-initialised SO3×R3 pose delta and light offset (`PoseRefinement` /
 `LightRefinement` of one view), all in one Adam (eps 1e-15): as in the official code, where every camera holds its
 own parameters, a view not rendered in a step has no gradient and its offsets do not move. The rates are the
-training refinement's at the current step, and an offset takes part only once its refinement has started
-(``refine_from``), like the training views' offsets. Gradients are taken with respect to the offsets alone.
+training refinement's at the current step once that refinement has started (``refine_from``), and 0 before. As in
+the official code, the test passes run from the first epoch on and Adam steps every view's offsets in each of them,
+also while their rate is 0: the official ``scene.optimizer`` steps every camera it renders (train.py:103-111,
+196-203) with its rates held at 0 until ``train_cam_freeze_step`` / ``train_pl_freeze_step``
+(scene/__init__.py:137-151), so Adam's moments and step count are warm when a rate opens (5K / 15K) while the
+offsets stay exactly zero until then. Gradients are taken with respect to the offsets alone.
 """
 
 from __future__ import annotations
@@ -70,13 +74,13 @@ class TestViewFitting:
                 "light": self.lights is not None and step >= refine_from["light"]}
 
     def apply(self, index: int, w2c: torch.Tensor, position: torch.Tensor, refine_from: Mapping[str, int],
-              step: int) -> tuple[torch.Tensor, torch.Tensor]:
+              step: int, every: bool = False) -> tuple[torch.Tensor, torch.Tensor]:
         """Test view ``index``'s fitted w2c (4, 4) and light position (3,) at ``step`` (offsets that have not
-        started yet are not applied)."""
+        started yet are not applied, unless ``every``: they are still zero then, and take part in the graph)."""
         active = self._active(refine_from, step)
-        if active["camera"]:
+        if active["camera"] or (every and self.poses is not None):
             w2c = self.poses[index].apply(0, w2c)
-        if active["light"]:
+        if active["light"] or (every and self.lights is not None):
             position = self.lights[index].apply(0, position)
         return w2c, position
 
@@ -90,19 +94,21 @@ class TestViewFitting:
 
     def epoch(self, view_loss: ViewLoss, rates: Mapping[str, float], refine_from: Mapping[str, int],
               step: int) -> float | None:
-        """One pass over the test views in a fresh random order, one Adam step of the started offsets per view at
-        the training ``rates`` of ``step``; returns the mean loss, or None when no offset has started yet."""
-        active = self._active(refine_from, step)
-        if not any(active.values()):
+        """One pass over the test views in a fresh random order, one Adam step of every view's offsets: at the
+        training ``rates`` of ``step`` for the offsets whose refinement has started, at rate 0 (moments only) for
+        the others (module docstring); returns the mean loss, or None when nothing is refined."""
+        if self.poses is None and self.lights is None:
             return None
+        active = self._active(refine_from, step)
         for group in self.optimizer.param_groups:
             group["lr"] = rates[group["name"]] if active[group["name"]] else 0.0
         views, losses = self.views, []
         for index in torch.randperm(len(self), generator=self.generator, device="cpu").tolist():
-            params = ([self.poses[index].tangents] if active["camera"] else []) + \
-                     ([self.lights[index].offsets] if active["light"] else [])
+            params = ([self.poses[index].tangents] if self.poses is not None else []) + \
+                     ([self.lights[index].offsets] if self.lights is not None else [])
             with torch.enable_grad():
-                w2c, position = self.apply(index, views.w2cs[index], views.light_positions[index], refine_from, step)
+                w2c, position = self.apply(index, views.w2cs[index], views.light_positions[index], refine_from, step,
+                                           every=True)
                 loss = view_loss(index, w2c, position)
                 grads = torch.autograd.grad(loss, params)
             for param, grad in zip(params, grads, strict=True):
