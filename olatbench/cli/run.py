@@ -182,8 +182,8 @@ def run(method, suite, scenes, variants, ablation, seeds, iterations, overrides,
                          generate=not dry_run or calibrate, progress=progress, overrides=parse_overrides(overrides))
     except OverridesError as error:  # a usage error (exit 2), naming the field
         raise click.UsageError(str(error)) from None
-    except (PlanError, DatasetError, KeyError, FileNotFoundError) as error:
-        raise click.ClickException(str(error.args[0] if isinstance(error, KeyError) else error)) from None
+    except (PlanError, DatasetError, KeyError, FileNotFoundError) as error:  # what was asked cannot be planned
+        raise click.UsageError(str(error.args[0] if isinstance(error, KeyError) else error)) from None
 
     states = [job_state(job.folder, job.id or None) for job in jobs]
     if calibrate and not dry_run:
@@ -207,7 +207,7 @@ def run(method, suite, scenes, variants, ablation, seeds, iterations, overrides,
     stale = [state for state in states if state.state == "stale"]
     if stale and not force:
         listing = "\n  ".join(f"{s.folder}: {s.message}" for s in stale[:10])
-        raise click.ClickException(f"{len(stale)} job folder(s) hold results of a different job (config, data or "
+        raise click.UsageError(f"{len(stale)} job folder(s) hold results of a different job (config, data or "
                                    f"code changed):\n  {listing}\nRerun with --force to replace them, or choose "
                                    "another --output")
     to_run, skipped, running = [], [], []
@@ -413,7 +413,7 @@ def status(runs: Path, as_json: bool) -> None:
 
     states = scan_runs(runs)
     if not states:
-        raise click.ClickException(f"no job folders (job.json) below {runs}; start one with: "
+        raise click.UsageError(f"no job folders (job.json) below {runs}; start one with: "
                                    f"olatbench run --method ssdgs --suite mini --output {runs}")
     if as_json:
         click.echo(json.dumps([{"job": str(state.folder.relative_to(runs)), "state": state.state,
