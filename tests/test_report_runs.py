@@ -28,19 +28,21 @@ SCENES = ("diffuse_shadow", "aniso_metal", "translucent")  # the mini suite, in 
 
 def write_run(root: Path, method: str, variant: str, suite: str, scene: str, seed: int,
               metrics: dict[str, dict[str, float | None]] | None = None, status: str = "done",
-              fps: float = 50.0, seconds: float = 1800.0, device: str = "cpu") -> Path:
+              fps: float = 50.0, seconds: float = 1800.0, device: str = "cpu", config: dict | None = None,
+              data: str = "x", resolution: list[int] | None = None) -> Path:
     """One job's results.json in the runner's folder layout."""
     folder = root / suite / method / variant / scene / f"seed{seed}"
     failed = status == "failed"
     data = {"schema_version": 2, "kind": "run", "status": status,
             "job": {"id": f"{method}-{variant}-{scene}-{seed}", "method": method, "variant": variant, "suite": suite,
-                    "scene": scene, "seed": seed, "config": {"iterations": 10}},
+                    "scene": scene, "seed": seed, "config": config or {"iterations": 10},
+                    **({} if resolution is None else {"resolution": resolution})},
             "protocol": {"id": "olatbench-v1", "version": 1},
             "metrics": {} if failed else {split: {"mean": mean, "per_image": {}} for split, mean in metrics.items()},
             "timing": {"train_seconds": None if failed else seconds, "render_fps": None if failed else fps},
             "resources": {"device": device, "peak_rss_mb": 100.0, "cuda_peak_mb": None},
             "model": {"iterations": 10, "num_gaussians": None if failed else 1000},
-            "versions": {"olatbench": "0.1.0"}, "hashes": {"data_manifest": "x", "config": "y", "code": "z"},
+            "versions": {"olatbench": "0.1.0"}, "hashes": {"data_manifest": data, "config": "y", "code": "z"},
             "error": {"type": "RuntimeError", "message": "out of memory"} if failed else None}
     return write_results(folder / "results.json", data)
 
@@ -339,7 +341,8 @@ def test_cli_report_formats(tiny_runs, tmp_path):
     markdown = runner.invoke(main, ["report", str(tiny_runs), "--suite", "mini", "--average"])
     assert markdown.exit_code == 0, markdown.output
     assert "| ssdgs | **31.5000 ± 0.7071** |" in markdown.output and "Protocol: olatbench-v1 v1" in markdown.output
-    assert "mean ± sample std over up to 2 seed(s)" in markdown.output  # two seeds: sample std (ddof=1) shown
+    assert ("mean ± sample std over 1–2 seeds per cell (a one-seed cell has no ±) — seeds per cell: gs3 1; rng 1; "
+            "ssdgs 2 (translucent 1)") in markdown.output  # two seeds: sample std (ddof=1) shown
     out = tmp_path / "t.csv"
     csv = runner.invoke(main, ["report", str(tiny_runs), "--metrics", "psnr", "--splits", "test", "-o", str(out)])
     assert csv.exit_code == 0, csv.output
@@ -376,3 +379,47 @@ def test_latex_escapes_the_tilde_of_override_labels():
 
     assert latex_text("default~use_sss=false") == r"default\textasciitilde{}use\_sss=false"
     assert latex_text("≈ 2 h") == r"$\approx$ 2 h"
+
+
+def test_reports_never_average_different_experiments(tmp_path):
+    """A 5-step and an 8-step run of one method, variant and scene (the issue's 300/3000-step case, in two run
+    folders) are two rows labelled by what differs, each a one-seed mean without ±."""
+    write_run(tmp_path / "a", "ssdgs", "default", "mini", "translucent", 0, metric_values(15.0),
+              config={"iterations": 5, "lr": 0.1})
+    write_run(tmp_path / "b", "ssdgs", "default", "mini", "translucent", 0, metric_values(24.0),
+              config={"iterations": 8, "lr": 0.1})
+    runner = CliRunner()
+    for seeds in ("mean", "all"):
+        result = runner.invoke(main, ["report", str(tmp_path / "a"), str(tmp_path / "b"), "--metrics", "psnr",
+                                      "--splits", "test", "--seeds", seeds])
+        assert result.exit_code == 0, result.output
+        suffix = " seed0" if seeds == "all" else ""
+        assert f"| ssdgs [iterations=5]{suffix} |" in result.output and "15.0000" in result.output
+        assert f"| ssdgs [iterations=8]{suffix} |" in result.output and "24.0000" in result.output
+        assert "±" not in result.output.split("\n\n", 2)[2]  # no cell is a spread over the two experiments
+        assert "19.5" not in result.output  # never their mean
+    assert "mean over 1 seed;" in result.output or "mean over 1 seed\n" in runner.invoke(
+        main, ["report", str(tmp_path / "a"), str(tmp_path / "b"), "--metrics", "psnr", "--splits", "test"]).output
+
+
+def test_report_rows_split_by_data_and_resolution_and_count_seeds_per_cell(tmp_path):
+    runs = tmp_path / "runs"
+    for seed in (0, 1):
+        write_run(runs, "gs3", "default", "mini", "translucent", seed, metric_values(20.0 + seed))
+        write_run(runs, "gs3", "default", "mini", "aniso_metal", seed, metric_values(22.0 + seed))
+    write_run(runs, "gs3", "default", "mini", "translucent", 2, metric_values(30.0), data="re-rendered")
+    frame = collect(runs)
+    table = scene_table(frame, metrics=["psnr"], splits=["test"])
+    rows = [row.labels[0] for row in table.blocks[0].rows]
+    assert rows == ["gs3 [data#1]", "gs3 [data#2]"]  # the seed on other data is not averaged with the first two
+    assert table.cell("PSNR ↑", ("gs3 [data#1]",), "translucent/Test").number == pytest.approx(20.5)
+    second = table.cell("PSNR ↑", ("gs3 [data#2]",), "translucent/Test")
+    assert second.number == 30.0 and second.std is None
+    assert "1–2 seeds per cell" in table.protocol and "gs3 [data#2] 1" in table.protocol
+
+    other = tmp_path / "other"
+    write_run(other, "gs3", "default", "mini", "translucent", 0, metric_values(20.0), resolution=[64, 48])
+    write_run(other, "gs3", "default", "mini", "translucent", 1, metric_values(26.0), resolution=[32, 24])
+    labels = [row.labels[0] for row in scene_table(collect(other), metrics=["psnr"], splits=["test"]).blocks[0].rows]
+    assert labels == ["gs3 [resolution=32x24]", "gs3 [resolution=64x48]"] or labels == [
+        "gs3 [resolution=64x48]", "gs3 [resolution=32x24]"]
