@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import csv as csv_module
 import json
 import re
 import shutil
@@ -346,9 +347,16 @@ def test_cli_report_formats(tiny_runs, tmp_path):
     out = tmp_path / "t.csv"
     csv = runner.invoke(main, ["report", str(tiny_runs), "--metrics", "psnr", "--splits", "test", "-o", str(out)])
     assert csv.exit_code == 0, csv.output
-    lines = out.read_text().splitlines()
-    assert lines[0] == "block,method,diffuse_shadow/Test,aniso_metal/Test,translucent/Test"
-    assert lines[3] == "PSNR ↑,ssdgs,30.5000 ± 0.7071,31.5000 ± 0.7071,32.0000c"  # one seed left: no std
+    rows = list(csv_module.DictReader(out.read_text().splitlines()))  # tidy: one row per job × split × metric
+    psnr = [row for row in rows if row["metric"] == "psnr"]
+    assert {row["split"] for row in psnr} == {"test"}
+    ssdgs = sorted(float(row["value"]) for row in psnr if row["method"] == "ssdgs" and row["scene"] == "aniso_metal")
+    assert ssdgs == [31.0, 32.0]  # every seed, full precision, no display marks
+    assert {row["protocol_id"] for row in rows} == {"olatbench-v1"} and {row["protocol_version"] for row in rows} == {
+        "1"}
+    assert len([row for row in rows if row["status"] == "failed"]) == 2
+    gs3_lpips = runner.invoke(main, ["report", str(tiny_runs), "--metrics", "lpips", "--format", "csv"]).output
+    assert ",lpips,,done," in gs3_lpips  # a metric the run did not compute: an empty field
     latex = runner.invoke(main, ["report", str(tiny_runs), "--format", "latex", "--standalone", "--booktabs",
                                  "--colours", "0.8,1,0.8;0.9,1,0.9"])
     assert latex.exit_code == 0 and latex_balance_problems(latex.output) == []
@@ -356,7 +364,7 @@ def test_cli_report_formats(tiny_runs, tmp_path):
     overview = runner.invoke(main, ["report", str(tiny_runs), "--layout", "overview", "--format", "markdown"])
     assert overview.exit_code == 0 and "Train T." in overview.output
     bad = runner.invoke(main, ["report", str(tiny_runs), "--colours", "red"])
-    assert bad.exit_code == 1 and "three comma-separated numbers" in bad.output
+    assert bad.exit_code == 2 and "three comma-separated numbers" in bad.output  # a usage error
     nothing = runner.invoke(main, ["report"])
     assert nothing.exit_code == 2 and "--published-only" in nothing.output
 
@@ -369,7 +377,8 @@ def test_cli_published_only(tmp_path):
     text = out.read_text()
     assert text.count("\\begin{tabular}") == 2 and latex_balance_problems(text) == []
     every = CliRunner().invoke(main, ["report", "--published-only", "--format", "csv"])
-    assert every.exit_code == 0 and every.output.count("block,method") == len(PAPER_TABLES)
+    assert every.exit_code == 0 and every.output.startswith("table,method,suite,scene,split,metric,value")
+    assert {line.split(",")[0] for line in every.output.splitlines()[1:]} == set(PAPER_TABLES.values())
 
 
 def test_latex_escapes_the_tilde_of_override_labels():
@@ -423,3 +432,25 @@ def test_report_rows_split_by_data_and_resolution_and_count_seeds_per_cell(tmp_p
     labels = [row.labels[0] for row in scene_table(collect(other), metrics=["psnr"], splits=["test"]).blocks[0].rows]
     assert labels == ["gs3 [resolution=32x24]", "gs3 [resolution=64x48]"] or labels == [
         "gs3 [resolution=64x48]", "gs3 [resolution=32x24]"]
+
+
+def test_report_json_is_every_number_with_its_jobs_identity(tiny_runs):
+    result = CliRunner().invoke(main, ["report", str(tiny_runs), "--json", "--metrics", "psnr,lpips"])
+    assert result.exit_code == 0, result.output
+    records = json.loads(result.output)
+    metric_rows = [r for r in records if r["split"] not in ("-", "")]
+    assert {r["metric"] for r in metric_rows} == {"psnr", "lpips"}
+    assert len(metric_rows) == 2 * 2 * (3 + 2 + 3 + 1)  # metrics × splits × finished jobs (ssdgs 5, gs3 3, rng 1)
+    first = next(r for r in records if r["method"] == "ssdgs" and r["scene"] == "aniso_metal" and r["seed"] == 1
+                 and r["split"] == "test" and r["metric"] == "psnr")
+    assert first["value"] == 32.0 and isinstance(first["seed"], int)
+    assert first["protocol"] == {"id": "olatbench-v1", "version": 1} and first["config"] == {"iterations": 10}
+    assert first["job_id"] == "ssdgs-mini-aniso_metal-1" and first["variant"] == "mini"
+    assert all(isinstance(r["value"], float) or r["value"] is None for r in records)
+    missing = [r for r in metric_rows
+               if r["method"] == "gs3" and r["scene"] == "aniso_metal" and r["metric"] == "lpips"]
+    assert [r["value"] for r in missing] == [None, None]  # not computed: null, never NaN
+    assert {r["metric"] for r in records if r["split"] == "-"} == {"fps", "train_time", "num_gaussians"}
+    assert [r["error"] for r in records if r["status"] == "failed"] == ["RuntimeError: out of memory"] * 2
+    published = CliRunner().invoke(main, ["report", "--published-only", "--table", "real", "--format", "csv"])
+    assert published.exit_code == 0 and published.output.startswith("table,method,suite,scene,split,metric,value")

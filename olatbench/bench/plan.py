@@ -180,7 +180,7 @@ def resolve_scenes(suite: Suite, scenes: Sequence[str] = ()) -> list[str]:
 
 def resolve_data_root(suite: Suite, data_root: str | Path | None, scenes: Sequence[str],
                       generate: bool = True, progress: bool = True) -> Path | None:
-    """The folder holding the suite's scene folders.
+    """The folder holding the suite's scene folders (None for a user's suite: its scenes name their folders).
 
     Suites without a generator use ``data_root``, else ``$OLATBENCH_DATA``. A suite with a
     ``generator`` (``mini``) ignores ``$OLATBENCH_DATA`` (which points at real data) and creates its
@@ -190,6 +190,8 @@ def resolve_data_root(suite: Suite, data_root: str | Path | None, scenes: Sequen
     generator's default folder, ``suite.generator_root``) and get None when it is missing. (A real run still
     re-renders generated data whose recipe or files no longer match; its job ids then differ from the dry run's.)
     """
+    if suite.scene_paths:  # a user's suite: every scene names its own folder
+        return None
     root = data_root
     if root is None and suite.generator is None:
         root = os.environ.get(DATA_ENV)
@@ -288,7 +290,7 @@ def make_plan(method: str, suite: str | Suite, out: str | Path, scenes: Sequence
                for variant in variant_names}
     jobs = []
     for scene in scene_names:
-        scene_path = suite.scene_path(root, scene) if root is not None else None
+        scene_path = suite.scene_path(root, scene) if root is not None or suite.scene_paths else None
         manifest = data_manifest_hash(scene_path) if scene_path is not None else None
         for variant in variant_names:
             for seed in range(seeds):
