@@ -155,3 +155,17 @@ def test_done_when_own_gs3_scene_at_the_formats_settings(tmp_path, monkeypatch):
     report = _invoke("report")
     assert report.exit_code == 0 and "data-gs3" in report.output and "| 3dgs |" in report.output, report.output
     shutil.rmtree("runs")
+
+
+def test_own_suites_apply_the_method_preset_of_their_format(tmp_path, monkeypatch):
+    write_nrhints_tree(tmp_path / "Cup", n_train=3, n_test=1, size=(16, 12))
+    from olatbench.methods.registry import get_spec
+
+    preset = get_spec("3dgs").presets["nrhints"]
+    (job,) = _plan("-m", "3dgs", "--data", tmp_path / "Cup", "-o", tmp_path / "runs")
+    assert {key: job["config"][key] for key in preset} == dict(preset)  # as on the nrhints suite
+    _write_toml(tmp_path, '[suites.mine]\nscenes = ["Cup"]\niterations = 7\n')
+    monkeypatch.chdir(tmp_path)
+    (job,) = _plan("-m", "3dgs", "-s", "mine", "-o", "runs")
+    assert job["iterations"] == 7  # the suite's own count wins over the preset's
+    assert job["config"]["position_lr_max_steps"] == preset["position_lr_max_steps"]

@@ -279,7 +279,7 @@ def test_methods_cli_lists_and_shows_presets():
     assert shown.exit_code == 0, shown.output
     assert "iterations" in shown.output and "ablation-A: lr=0.01" in shown.output
     missing = runner.invoke(main, ["methods", "show", "nope"])
-    assert missing.exit_code == 1 and "olatbench methods list" in missing.output
+    assert missing.exit_code == 2 and "olatbench methods list" in missing.output
 
 
 def test_a_job_running_elsewhere_is_skipped_not_touched(data, tmp_path):

@@ -203,7 +203,7 @@ def test_a_run_folder_serves_each_finished_job_and_a_tab_switches_between_them(t
 def test_bad_folders_fail_before_a_server_starts(trained, tmp_path):
     runner = CliRunner()
     empty = runner.invoke(main, ["view", str(tmp_path)])
-    assert empty.exit_code == 1 and "no job.json in or below it" in empty.output
+    assert empty.exit_code == 2 and "no job.json in or below it" in empty.output
     copy = tmp_path / "job"
     shutil.copytree(trained, copy)
     job = json.loads((copy / "job.json").read_text())

@@ -2,7 +2,8 @@
 
 Config resolution order for one job (later wins): the method config's defaults, the suite's
 ``iterations`` (or the method's own, `MethodSpec.iterations`, when its spec fixes one), the method's preset
-named after the suite (when it has one), the variant's preset, then explicit overrides (``--set KEY=VALUE``;
+named after the suite (`Suite.preset`: for a user's own suite, the one of its format; when the method has one;
+a user suite's own ``iterations`` then win over it), the variant's preset, then explicit overrides (``--set KEY=VALUE``;
 ``--iterations N`` is exactly ``--set iterations=N``). The variant ``default`` applies no variant preset; a
 variant ``a+b`` applies the presets ``a`` then ``b``. Overrides are part of the job's variant label
 (``default~iterations=500,test_time_steps=50``), so they get their own folders and report rows.
@@ -90,8 +91,10 @@ def resolve_config(spec: MethodSpec, suite: Suite, variant: str = DEFAULT_VARIAN
     if "iterations" in field_names:
         values["iterations"] = suite.iterations if own is None else own
     try:
-        if suite.name in spec.presets:
-            values.update(preset_overrides(spec.name, spec.presets, suite.name))
+        if suite.preset in spec.presets:
+            values.update(preset_overrides(spec.name, spec.presets, suite.preset))
+            if suite.iterations_given and "iterations" in field_names:
+                values["iterations"] = suite.iterations
         values.update(preset_overrides(spec.name, spec.presets, variant))
         values.update(overrides)
         return config_type(**values)

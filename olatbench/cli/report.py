@@ -228,6 +228,9 @@ def render(run, kind, count, start_frame, component, fps, device, resolution, ou
 
     try:
         job = JobFolder.open(run)
+    except JobFolderError as error:  # RUN is not a finished job folder
+        raise click.UsageError(str(error)) from None
+    try:
         result = render_sweep(job, kind, output or run / "videos", count=count, frame_id=start_frame,
                               component=component, fps=fps, device=device, resolution=_parse_resolution(resolution),
                               progress=show_progress(quiet))

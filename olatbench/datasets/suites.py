@@ -9,7 +9,7 @@ tables of ``olatbench.toml`` (`user_suites`: ``scenes`` = folder paths relative 
 ``format``, ``protocol``, ``resolution``, ``iterations``), and the scene folders given to ``run --data``
 (`data_suite`, named ``data-<format>``, a name no built-in or user suite may take, so their run folders never meet
 a suite's). Whatever such a suite does not say is taken from the built-in suite of its format (the format is
-detected when not given).
+detected when not given), including which method preset its jobs apply (``gs3`` for a GS³-format suite).
 """
 
 from __future__ import annotations
@@ -53,6 +53,13 @@ class Suite:
     generator: str | None = None  # "module:function" creating the data on first use
     generator_root: str | None = None  # "module:function" returning where the generator keeps its data
     scene_paths: dict[str, str] = field(default_factory=dict)  # scene -> its folder (user suites; no data root)
+    method_preset: str | None = None  # the method preset every job applies (None: the one named like the suite)
+    iterations_given: bool = False  # a user suite's own iterations: they win over that preset's
+
+    @property
+    def preset(self) -> str:
+        """The name of the method preset applied to every job of this suite (when the method has one)."""
+        return self.method_preset or self.name
 
     @property
     def colourspace(self) -> str:
@@ -162,13 +169,14 @@ def parse_resolution(value: object, where: str) -> tuple[int, int] | None:
 
 
 def _own_suite(name: str, fmt: str, scene_paths: dict[str, str], **given: object) -> Suite:
-    """A suite of folders of format ``fmt`` with the background and resolution of the built-in suite of that
-    format, and its protocol and iterations unless ``given`` (None: not given)."""
+    """A suite of folders of format ``fmt`` with the background, resolution and method presets of the built-in suite
+    of that format, and its protocol and iterations unless ``given`` (None: not given)."""
     base = SUITES[fmt]
     settings = {key: value for key, value in given.items() if value is not None}
     return Suite(name=name, format=fmt, scenes=tuple(scene_paths), background=base.background,
                  resolution=base.resolution, iterations=int(settings.get("iterations", base.iterations)),  # type: ignore[call-overload]
-                 protocol=str(settings.get("protocol", base.protocol)), scene_paths=scene_paths)
+                 protocol=str(settings.get("protocol", base.protocol)), scene_paths=scene_paths, method_preset=fmt,
+                 iterations_given="iterations" in settings)
 
 
 def _scene_folders(paths: list[Path], fmt: str | None, where: str) -> tuple[str, dict[str, str]]:
