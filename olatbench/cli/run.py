@@ -97,7 +97,8 @@ def _metric(metrics: dict, key: str) -> str:
               help="Expand one of the method's ablation grids (olatbench methods show METHOD lists them); SSD-GS: "
                    "components = ablation-A…F, schedule = schedule-H…K, shadow-on-sss = default + shadow-on-sss.")
 @click.option("--seeds", default=1, show_default=True, help="Seeds 0…N-1 per scene and variant.")
-@click.option("--iterations", type=int, help="Training iterations (the method scales its schedule).")
+@click.option("--iterations", type=int, help="Training iterations (the method scales its schedule); exactly "
+                                            "--set iterations=N: its own folder and report row.")
 @click.option("--set", "overrides", multiple=True, metavar="KEY=VALUE",
               help="Override one config field of every job (repeatable; checked against the field's type: "
                    "true/false, 50, 0.5, [1,1,1], null, text). The overrides join the variant's name, so such "
