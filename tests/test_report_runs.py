@@ -403,8 +403,8 @@ def test_reports_never_average_different_experiments(tmp_path):
                                       "--splits", "test", "--seeds", seeds])
         assert result.exit_code == 0, result.output
         suffix = " seed0" if seeds == "all" else ""
-        assert f"| ssdgs [iterations=5]{suffix} |" in result.output and "15.0000" in result.output
-        assert f"| ssdgs [iterations=8]{suffix} |" in result.output and "24.0000" in result.output
+        assert f"| ssdgs (iterations=5){suffix} |" in result.output and "15.0000" in result.output
+        assert f"| ssdgs (iterations=8){suffix} |" in result.output and "24.0000" in result.output
         assert "±" not in result.output.split("\n\n", 2)[2]  # no cell is a spread over the two experiments
         assert "19.5" not in result.output  # never their mean
     assert "mean over 1 seed;" in result.output or "mean over 1 seed\n" in runner.invoke(
@@ -420,18 +420,18 @@ def test_report_rows_split_by_data_and_resolution_and_count_seeds_per_cell(tmp_p
     frame = collect(runs)
     table = scene_table(frame, metrics=["psnr"], splits=["test"])
     rows = [row.labels[0] for row in table.blocks[0].rows]
-    assert rows == ["gs3 [data#1]", "gs3 [data#2]"]  # the seed on other data is not averaged with the first two
-    assert table.cell("PSNR ↑", ("gs3 [data#1]",), "translucent/Test").number == pytest.approx(20.5)
-    second = table.cell("PSNR ↑", ("gs3 [data#2]",), "translucent/Test")
+    assert rows == ["gs3 (data v1)", "gs3 (data v2)"]  # the seed on other data is not averaged with the first two
+    assert table.cell("PSNR ↑", ("gs3 (data v1)",), "translucent/Test").number == pytest.approx(20.5)
+    second = table.cell("PSNR ↑", ("gs3 (data v2)",), "translucent/Test")
     assert second.number == 30.0 and second.std is None
-    assert "1–2 seeds per cell" in table.protocol and "gs3 [data#2] 1" in table.protocol
+    assert "1–2 seeds per cell" in table.protocol and "gs3 (data v2) 1" in table.protocol
 
     other = tmp_path / "other"
     write_run(other, "gs3", "default", "mini", "translucent", 0, metric_values(20.0), resolution=[64, 48])
     write_run(other, "gs3", "default", "mini", "translucent", 1, metric_values(26.0), resolution=[32, 24])
     labels = [row.labels[0] for row in scene_table(collect(other), metrics=["psnr"], splits=["test"]).blocks[0].rows]
-    assert labels == ["gs3 [resolution=32x24]", "gs3 [resolution=64x48]"] or labels == [
-        "gs3 [resolution=64x48]", "gs3 [resolution=32x24]"]
+    assert labels == ["gs3 (resolution=32x24)", "gs3 (resolution=64x48)"] or labels == [
+        "gs3 (resolution=64x48)", "gs3 (resolution=32x24)"]
 
 
 def test_report_json_is_every_number_with_its_jobs_identity(tiny_runs):

@@ -3,8 +3,8 @@
 Two jobs are the same experiment when they share method, variant, suite, protocol, resolved config (iterations and
 every override are in it), resolution, code hash and official commit (`olatbench.reports.collect.experiment_fields`)
 and, per scene, the data (its manifest hash). A method/variant run as several experiments gets one row per
-experiment, each labelled by what differs from the others, e.g. ``ssdgs [iterations=5]`` and
-``ssdgs [iterations=8]``; a scene whose data changed between jobs of one experiment gives a row ``[data#2]``
+experiment, each labelled by what differs from the others, e.g. ``ssdgs (iterations=5)`` and
+``ssdgs (iterations=8)``; a scene whose data changed between jobs of one experiment gives a row ``(data v2)``
 holding the jobs of the second data version (data versions are numbered per scene in order of first appearance).
 """
 
@@ -22,7 +22,7 @@ _SHOWN: dict[str, Callable[[Any], str]] = {
     "protocol": lambda value: f"protocol {value}",
     "code": lambda value: f"code {value[:7] or '?'}",
     "official_commit": lambda value: f"commit {value[:7] or '?'}",
-    "data_version": lambda value: f"data#{value}",
+    "data_version": lambda value: f"data v{value}",
 }
 
 
@@ -57,7 +57,8 @@ def _difference_labels(keys: list[tuple], facts: dict[tuple, dict[str, str]]) ->
 
 def experiment_rows(frame: pd.DataFrame, base_label: Callable[[str, str], str]) -> pd.Series:
     """The row label of each frame row: ``base_label(method, variant)``, then, where one method/variant was run as
-    several experiments (or on several data versions of a scene), `` [what differs]``.
+    several experiments (or on several data versions of a scene), `` (what differs)`` (parentheses: no format
+    escapes them).
 
     Within each (method, variant, suite) the experiments are numbered by first appearance; a row unites the
     experiments of one number across suites (an ablation table spans suites, whose presets differ by design).
@@ -81,7 +82,7 @@ def experiment_rows(frame: pd.DataFrame, base_label: Callable[[str, str], str]) 
     labels = {}
     for key, label in base.items():
         texts = list(dict.fromkeys(differences.get(key, [])))
-        labels[key] = f"{label} [{' / '.join(texts)}]" if texts else label
+        labels[key] = f"{label} ({' / '.join(texts)})" if texts else label
     if len(set(labels.values())) < len(labels):  # distinct experiments always differ somewhere; never merge silently
-        labels = {key: f"{label} #{key[2]}.{key[3]}" for key, label in labels.items()}
+        labels = {key: f"{label} (experiment {key[2]}.{key[3]})" for key, label in labels.items()}
     return pd.Series([labels[key] for key in row_keys], index=frame.index, dtype=object)
