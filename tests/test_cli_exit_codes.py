@@ -1,6 +1,6 @@
 """Exit codes, verb by verb: 2 for a usage error (an unknown name, a wrong argument or option, something the
-command line must change), 1 when the work failed (a job, a scene that does not validate, an unreadable file),
-0 otherwise."""
+command line must change), 1 when the work failed (a job, a scene that does not validate, an unreadable file) or a
+folder holds nothing to show or report (docs/guarantees.md), 0 otherwise."""
 
 from __future__ import annotations
 
@@ -52,15 +52,15 @@ CASES = [
     ("run -m trivial -s tiny --data-root {data} --variant zzz", 2, "no preset zzz"),
     ("run -m trivial -s tiny --data-root {data} --json", 2, "--json goes with --dry-run"),
     ("status {runs}", 0, "1 done, 1 failed"),
-    ("status {empty}", 2, "no job folders"),
+    ("status {empty}", 1, "no job folders"),  # nothing to show (docs/guarantees.md)
     ("status {runs} -s nope", 2, "unknown suite 'nope'"),
     ("report {runs}", 0, "trivial"),
-    ("report {empty}", 2, "no results.json"),
+    ("report {empty}", 1, "no results.json"),  # nothing to report
     ("report {runs} --suite nope", 2, "unknown suite 'nope'"),
     ("report {runs} --methods nope", 2, "no results match"),
     ("report {runs} --colours red", 2, "three comma-separated numbers"),
     ("render {empty}", 2, "job.json"),
-    ("view {empty}", 2, "no job.json"),
+    ("view {empty}", 1, "no job.json"),  # nothing to show
     ("view {runs} -s nope", 2, "unknown suite 'nope'"),
     ("evaluate {job}/renders/test --gt {data}/Alpha --protocol nope", 2, "unknown metric protocol"),
     ("evaluate {job}/renders/test --gt {data}/Alpha --protocol test-fast -o {tmp}/m.json", 0, "wrote"),

@@ -204,7 +204,7 @@ def test_a_run_folder_serves_each_finished_job_and_a_tab_switches_between_them(t
 def test_bad_folders_fail_before_a_server_starts(trained, tmp_path):
     runner = CliRunner()
     empty = runner.invoke(main, ["view", str(tmp_path)])
-    assert empty.exit_code == 2 and "no job.json in or below it" in empty.output
+    assert empty.exit_code == 1 and "no job.json in or below it" in empty.output
     copy = tmp_path / "job"
     shutil.copytree(trained, copy)
     job = json.loads((copy / "job.json").read_text())
@@ -225,7 +225,7 @@ def test_record_a_light_orbit(trained, tmp_path, monkeypatch):
     from olatbench.datasets import suites
 
     other = CliRunner().invoke(main, ["view", str(trained.parents[4]), "-s", "mini"])  # the run holds a tiny job
-    assert other.exit_code == 2 and "no finished job of suite mini" in other.output
+    assert other.exit_code == 1 and "no finished job of suite mini" in other.output  # nothing to show
     monkeypatch.setitem(suites.SUITES, "tiny", support.tiny_suite())
     out = tmp_path / "orbit.mp4"
     result = CliRunner().invoke(main, ["view", str(trained.parents[4]), "-s", "tiny", "--record", "light-orbit",

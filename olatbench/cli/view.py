@@ -42,14 +42,11 @@ def view(folder, suite, port, host, device, drag_scale, record, component, count
     # native kernels 8x slower with 2 threads (benchmarks/bench_viewer.py, docs/viewer.md). Set before torch loads.
     os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
     from olatbench.bench.restore import RestoreError
-    from olatbench.bench.store import JOB_FILE, in_suite
+    from olatbench.bench.store import in_suite
     from olatbench.viewer.jobs import job_folders
     from olatbench.viewer.model import ViewerModel
 
     suite = checked_suite(suite)
-    if not (folder / JOB_FILE).is_file() and next(folder.rglob(JOB_FILE), None) is None:
-        raise click.UsageError(f"{folder}: no job.json in or below it; pass a job folder "
-                               "(<out>/<suite>/<method>/<variant>/<scene>/seed<k>) or a run folder holding some")
     try:
         folders, skipped = job_folders(folder, device)
         folders = [job for job in folders if in_suite(job, suite)]

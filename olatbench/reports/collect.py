@@ -13,7 +13,7 @@ weights) and per-job rows with split "-" for ``fps`` (render FPS), ``train_time`
 A failed job gives one row with status "failed", empty split and metric, and its error in ``error``. Files
 written by ``olatbench evaluate`` (``kind: "evaluate"``, no job) give no rows.
 
-What makes a job the experiment it is, apart from its seed and scene (`EXPERIMENT_COLUMNS`): ``config`` (the
+What makes a job the experiment it is, apart from its seed and scene (`experiment_fields`): ``config`` (the
 resolved method config as canonical JSON: iterations and every override are in it), ``resolution`` (``WxH``,
 ``native``, or "" in files written before results.json recorded it), ``code`` (the code hash), ``official_commit``
 (the authors' commit an official method ran, else ""), with method, variant, suite and protocol; ``experiment``
@@ -36,7 +36,6 @@ import pandas as pd
 from olatbench.bench.results import ResultsError, read_results
 from olatbench.bench.store import find_results
 
-EXPERIMENT_COLUMNS = ("method", "variant", "suite", "protocol", "config", "resolution", "code", "official_commit")
 COLUMNS = ("method", "variant", "suite", "scene", "seed", "split", "metric", "value", "status", "protocol",
            "device", "job_id", "error", "path", "test_poses", "config", "resolution", "code", "official_commit",
            "data", "experiment")
