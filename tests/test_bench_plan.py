@@ -136,11 +136,51 @@ def test_set_overrides_reach_the_config_label_folder_and_id(tmp_path):
                     variants=["ablation-B"], iterations=5, overrides=overrides)[0]
     assert job.config["lr"] == 0.5 and job.config["noise"] == 0.001  # after the variant preset
     assert job.config["iterations"] == 5  # --iterations still wins
-    assert job.variant == "ablation-B~fail_at_step=-1,lr=0.5,noise=0.001"
+    assert job.variant == "ablation-B~fail_at_step=-1,iterations=5,lr=0.5,noise=0.001"
     assert job.folder == str(job_folder(tmp_path / "runs", "tiny", "trivial", job.variant, job.scene, 0))
     assert job.id != base.id
     assert parse_overrides(["shadow_mode=density", "background=[1, 1, 1]", "flag=true"]) == {
         "shadow_mode": "density", "background": [1, 1, 1], "flag": True}
+
+
+def test_iterations_option_is_exactly_the_iterations_override(tmp_path):
+    data = support.write_tiny_data(tmp_path / "data")
+
+    def job(**kwargs):
+        return make_plan("trivial", support.tiny_suite(), tmp_path / "runs", data_root=data, progress=False,
+                         scenes=["Alpha"], **kwargs)[0]
+
+    spelled = job(iterations=5)
+    assert spelled == job(overrides={"iterations": 5})  # same label, folder, config and id
+    assert spelled.variant == "default~iterations=5" and spelled.iterations == 5
+    full = job()
+    assert full.folder != spelled.folder and full.variant == "default"  # a full run never meets a short one
+    assert job(iterations=8).folder != spelled.folder
+    assert job(iterations=5, overrides={"iterations": 5}) == spelled
+    with pytest.raises(PlanError, match="disagree"):
+        job(iterations=5, overrides={"iterations": 8})
+
+
+def test_a_method_spec_fixes_its_own_iteration_count(tmp_path):
+    from olatbench.methods.registry import register
+    from olatbench.methods.spec import MethodSpec
+
+    data = support.write_tiny_data(tmp_path / "data")
+    trivial = get_spec("trivial")
+    for name, iterations in (("fixed-seven", 7), ("learning-free", 0)):
+        register(MethodSpec(name=name, description="test", implementation=trivial.implementation,
+                            config=trivial.config, iterations=iterations))
+    suite = support.tiny_suite(name="other", iterations=3000)
+    planned = make_plan("fixed-seven", suite, tmp_path / "runs", data_root=data, progress=False)[0]
+    assert planned.iterations == 7  # the method's own count, not the suite's 3000
+    assert make_plan("fixed-seven", suite, tmp_path / "runs", data_root=data, progress=False,
+                     iterations=9)[0].iterations == 9  # an explicit override still wins
+    assert make_plan("learning-free", suite, tmp_path / "runs", data_root=data, progress=False)[0].iterations == 0
+    with pytest.raises(PlanError, match="learns nothing"):
+        make_plan("learning-free", suite, tmp_path / "runs", data_root=data, progress=False, iterations=5)
+    with pytest.raises(ValueError, match="iterations must be"):
+        MethodSpec(name="x", description="", implementation=trivial.implementation, config=trivial.config,
+                   iterations=-1)
 
 
 def test_bad_overrides_are_one_clear_error(tmp_path):

@@ -65,6 +65,25 @@ def test_methods_list_and_doctor_json():
     assert "torch" in names and all(isinstance(check["ok"], bool) for check in doctor["checks"])
 
 
+def test_methods_show_metrics_list_and_evaluate_json(tiny, tmp_path):
+    shown = _json(["methods", "show", "trivial", "--json"])
+    fields = {field["name"]: field for field in shown["config"]}
+    assert fields["lr"]["default"] == 0.1 and fields["iterations"]["default"] == 20  # JSON values, not repr text
+    assert shown["presets"]["ablation-A"] == {"lr": 0.01} and shown["iterations"] is None
+    assert shown["ablations"]["components"][0] == "ablation-A"
+    protocols = {entry["id"]: entry for entry in _json(["metrics", "list", "--json"])}
+    assert protocols["olatbench-v1"]["version"] == 1 and "psnr" in protocols["olatbench-v1"]["metrics"]
+    runs = tmp_path / "runs"
+    ran = CliRunner().invoke(main, ["run", "-m", "trivial", "-s", "tiny", "--data-root", str(tiny), "--scenes",
+                                    "Alpha", "-o", str(runs), "-q", "--device", "cpu"])
+    assert ran.exit_code == 0, ran.output
+    renders = runs / "tiny" / "trivial" / "default" / "Alpha" / "seed0" / "renders" / "test"
+    scored = _json(["evaluate", str(renders), "--gt", str(tiny / "Alpha"), "--protocol", support.FAST_PROTOCOL,
+                    "-o", str(tmp_path / "m.json"), "-q", "--json"])
+    assert scored["kind"] == "evaluate" and isinstance(scored["metrics"]["test"]["mean"]["psnr"], float)
+    assert scored == json.loads((tmp_path / "m.json").read_text())  # what it wrote
+
+
 def _command(path: list[str]) -> click.Command:
     command, context = main, click.Context(main)
     for name in path:

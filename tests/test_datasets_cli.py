@@ -59,7 +59,7 @@ def test_convert(tmp_path):
     assert "dropping the 2 camera-path frames" in result.output
     assert load_scene(tmp_path / "out").format == "sssgs"
     again = run("convert", tmp_path / "Lego", tmp_path / "out", "--to", "sssgs")
-    assert again.exit_code == 1 and "already exists" in again.output
+    assert again.exit_code == 2 and "already exists" in again.output  # a usage error: --overwrite or elsewhere
 
 
 def test_dataset_errors_are_one_line_without_traceback(tmp_path):
@@ -71,7 +71,9 @@ def test_dataset_errors_are_one_line_without_traceback(tmp_path):
         assert "Traceback" not in result.output
         assert "transforms_train.json: malformed JSON" in result.output
         assert "olatbench datasets validate" in result.output  # suggests the next command
-    assert run("info", tmp_path).exit_code == 1  # a folder without scenes
+    assert run("info", tmp_path).exit_code == 1  # the folder holds a broken scene (a/)
+    (tmp_path / "empty").mkdir()
+    assert run("info", tmp_path / "empty").exit_code == 2  # no scene at all: a usage error
 
 
 def test_info_keeps_going_past_a_broken_scene(tmp_path):

@@ -51,11 +51,15 @@ def test_external_method_package_runs_through_its_entry_point(tmp_path):
 
     write_nrhints_tree(tmp_path / "data" / "Pixiu", n_train=3, n_test=2, size=(64, 48))
     run = _run([sys.executable, "-m", "olatbench.cli", "run", "--method", "mean-image", "--suite", "nrhints",
-                "--scenes", "Pixiu", "--data-root", str(tmp_path / "data"), "--iterations", "2",
-                "--out", str(tmp_path / "runs")], env)
+                "--scenes", "Pixiu", "--data-root", str(tmp_path / "data"), "--out", str(tmp_path / "runs")], env)
     assert run.returncode == 0, run.stdout[-2000:] + run.stderr[-2000:]
-    results = read_results(next((tmp_path / "runs").rglob("results.json")))
+    results_file = next((tmp_path / "runs").rglob("results.json"))
+    results = read_results(results_file)
     assert results["job"]["method"] == "mean-image" and results["status"] == "done"
+    # learning-free (training_iterations = 0): no step of the suite's 100000, one checkpoint for restore
+    assert results["model"]["iterations"] == 0 and results["job"]["config"]["iterations"] == 0
+    assert [p.name for p in (results_file.parent / "checkpoints").iterdir()] == ["step_00000000.pt"]
+    assert not (results_file.parent / "train_log.jsonl").read_text().strip()
     assert set(results["metrics"]["test"]["per_image"]) == {"000", "001"}
     assert json.dumps(results["metrics"]["test"]["mean"])  # finite, JSON-clean numbers
 

@@ -79,7 +79,7 @@ def test_official_method_list_show_and_dry_run_import_no_torch(tmp_path):
 def test_unknown_ablation_grid_lists_the_methods_grids(tmp_path):
     result = _cli_without_torch(["run", "--method", "gs3", "--suite", "mini", "--ablation", "components",
                                  "--dry-run", "-o", str(tmp_path / "runs")])
-    assert result["code"] == 1
+    assert result["code"] == 2  # a usage error
     assert "method 'gs3' has no ablation grid 'components'; its grids: none" in result["output"]
     result = _cli_without_torch(["run", "--method", "ssdgs", "--suite", "mini", "--ablation", "lighting",
                                  "--dry-run", "-o", str(tmp_path / "runs")])

@@ -173,4 +173,4 @@ def test_cli_render_component_and_errors(tmp_path):
                                         "-o", str(tmp_path / "w")])
     assert missing.exit_code == 1 and "renders no component 'specular'" in missing.output
     not_a_job = CliRunner().invoke(main, ["render", str(tmp_path)])
-    assert not_a_job.exit_code == 1 and "job.json: not found" in not_a_job.output
+    assert not_a_job.exit_code == 2 and "job.json: not found" in not_a_job.output

@@ -20,7 +20,7 @@ def test_run_then_report_html_and_render(tmp_path):
                                "--data-root", str(tmp_path / "data"), "--iterations", "20", "--save-components",
                                "-o", str(tmp_path / "runs")])
     assert run.exit_code == 0, run.output
-    job = tmp_path / "runs" / "nrhints" / "ssdgs" / "mini" / "Cat" / "seed0"
+    job = tmp_path / "runs" / "nrhints" / "ssdgs" / "mini~iterations=20" / "Cat" / "seed0"
     assert (job / "results.json").is_file()
 
     out = tmp_path / "report.html"

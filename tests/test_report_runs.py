@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import csv as csv_module
 import json
 import re
 import shutil
@@ -28,19 +29,21 @@ SCENES = ("diffuse_shadow", "aniso_metal", "translucent")  # the mini suite, in 
 
 def write_run(root: Path, method: str, variant: str, suite: str, scene: str, seed: int,
               metrics: dict[str, dict[str, float | None]] | None = None, status: str = "done",
-              fps: float = 50.0, seconds: float = 1800.0, device: str = "cpu") -> Path:
+              fps: float = 50.0, seconds: float = 1800.0, device: str = "cpu", config: dict | None = None,
+              data: str = "x", resolution: list[int] | None = None) -> Path:
     """One job's results.json in the runner's folder layout."""
     folder = root / suite / method / variant / scene / f"seed{seed}"
     failed = status == "failed"
     data = {"schema_version": 2, "kind": "run", "status": status,
             "job": {"id": f"{method}-{variant}-{scene}-{seed}", "method": method, "variant": variant, "suite": suite,
-                    "scene": scene, "seed": seed, "config": {"iterations": 10}},
+                    "scene": scene, "seed": seed, "config": config or {"iterations": 10},
+                    **({} if resolution is None else {"resolution": resolution})},
             "protocol": {"id": "olatbench-v1", "version": 1},
             "metrics": {} if failed else {split: {"mean": mean, "per_image": {}} for split, mean in metrics.items()},
             "timing": {"train_seconds": None if failed else seconds, "render_fps": None if failed else fps},
             "resources": {"device": device, "peak_rss_mb": 100.0, "cuda_peak_mb": None},
             "model": {"iterations": 10, "num_gaussians": None if failed else 1000},
-            "versions": {"olatbench": "0.1.0"}, "hashes": {"data_manifest": "x", "config": "y", "code": "z"},
+            "versions": {"olatbench": "0.1.0"}, "hashes": {"data_manifest": data, "config": "y", "code": "z"},
             "error": {"type": "RuntimeError", "message": "out of memory"} if failed else None}
     return write_results(folder / "results.json", data)
 
@@ -339,13 +342,21 @@ def test_cli_report_formats(tiny_runs, tmp_path):
     markdown = runner.invoke(main, ["report", str(tiny_runs), "--suite", "mini", "--average"])
     assert markdown.exit_code == 0, markdown.output
     assert "| ssdgs | **31.5000 ± 0.7071** |" in markdown.output and "Protocol: olatbench-v1 v1" in markdown.output
-    assert "mean ± sample std over up to 2 seed(s)" in markdown.output  # two seeds: sample std (ddof=1) shown
+    assert ("mean ± sample std over 1–2 seeds per cell (a one-seed cell has no ±) — seeds per cell: gs3 1; rng 1; "
+            "ssdgs 2 (translucent 1)") in markdown.output  # two seeds: sample std (ddof=1) shown
     out = tmp_path / "t.csv"
     csv = runner.invoke(main, ["report", str(tiny_runs), "--metrics", "psnr", "--splits", "test", "-o", str(out)])
     assert csv.exit_code == 0, csv.output
-    lines = out.read_text().splitlines()
-    assert lines[0] == "block,method,diffuse_shadow/Test,aniso_metal/Test,translucent/Test"
-    assert lines[3] == "PSNR ↑,ssdgs,30.5000 ± 0.7071,31.5000 ± 0.7071,32.0000c"  # one seed left: no std
+    rows = list(csv_module.DictReader(out.read_text().splitlines()))  # tidy: one row per job × split × metric
+    psnr = [row for row in rows if row["metric"] == "psnr"]
+    assert {row["split"] for row in psnr} == {"test"}
+    ssdgs = sorted(float(row["value"]) for row in psnr if row["method"] == "ssdgs" and row["scene"] == "aniso_metal")
+    assert ssdgs == [31.0, 32.0]  # every seed, full precision, no display marks
+    assert {row["protocol_id"] for row in rows} == {"olatbench-v1"} and {row["protocol_version"] for row in rows} == {
+        "1"}
+    assert len([row for row in rows if row["status"] == "failed"]) == 2
+    gs3_lpips = runner.invoke(main, ["report", str(tiny_runs), "--metrics", "lpips", "--format", "csv"]).output
+    assert ",lpips,,done," in gs3_lpips  # a metric the run did not compute: an empty field
     latex = runner.invoke(main, ["report", str(tiny_runs), "--format", "latex", "--standalone", "--booktabs",
                                  "--colours", "0.8,1,0.8;0.9,1,0.9"])
     assert latex.exit_code == 0 and latex_balance_problems(latex.output) == []
@@ -353,7 +364,7 @@ def test_cli_report_formats(tiny_runs, tmp_path):
     overview = runner.invoke(main, ["report", str(tiny_runs), "--layout", "overview", "--format", "markdown"])
     assert overview.exit_code == 0 and "Train T." in overview.output
     bad = runner.invoke(main, ["report", str(tiny_runs), "--colours", "red"])
-    assert bad.exit_code == 1 and "three comma-separated numbers" in bad.output
+    assert bad.exit_code == 2 and "three comma-separated numbers" in bad.output  # a usage error
     nothing = runner.invoke(main, ["report"])
     assert nothing.exit_code == 2 and "--published-only" in nothing.output
 
@@ -366,7 +377,8 @@ def test_cli_published_only(tmp_path):
     text = out.read_text()
     assert text.count("\\begin{tabular}") == 2 and latex_balance_problems(text) == []
     every = CliRunner().invoke(main, ["report", "--published-only", "--format", "csv"])
-    assert every.exit_code == 0 and every.output.count("block,method") == len(PAPER_TABLES)
+    assert every.exit_code == 0 and every.output.startswith("table,method,suite,scene,split,metric,value")
+    assert {line.split(",")[0] for line in every.output.splitlines()[1:]} == set(PAPER_TABLES.values())
 
 
 def test_latex_escapes_the_tilde_of_override_labels():
@@ -376,3 +388,69 @@ def test_latex_escapes_the_tilde_of_override_labels():
 
     assert latex_text("default~use_sss=false") == r"default\textasciitilde{}use\_sss=false"
     assert latex_text("≈ 2 h") == r"$\approx$ 2 h"
+
+
+def test_reports_never_average_different_experiments(tmp_path):
+    """A 5-step and an 8-step run of one method, variant and scene (the issue's 300/3000-step case, in two run
+    folders) are two rows labelled by what differs, each a one-seed mean without ±."""
+    write_run(tmp_path / "a", "ssdgs", "default", "mini", "translucent", 0, metric_values(15.0),
+              config={"iterations": 5, "lr": 0.1})
+    write_run(tmp_path / "b", "ssdgs", "default", "mini", "translucent", 0, metric_values(24.0),
+              config={"iterations": 8, "lr": 0.1})
+    runner = CliRunner()
+    for seeds in ("mean", "all"):
+        result = runner.invoke(main, ["report", str(tmp_path / "a"), str(tmp_path / "b"), "--metrics", "psnr",
+                                      "--splits", "test", "--seeds", seeds])
+        assert result.exit_code == 0, result.output
+        suffix = " seed0" if seeds == "all" else ""
+        assert f"| ssdgs (iterations=5){suffix} |" in result.output and "15.0000" in result.output
+        assert f"| ssdgs (iterations=8){suffix} |" in result.output and "24.0000" in result.output
+        assert "±" not in result.output.split("\n\n", 2)[2]  # no cell is a spread over the two experiments
+        assert "19.5" not in result.output  # never their mean
+    assert "mean over 1 seed;" in result.output or "mean over 1 seed\n" in runner.invoke(
+        main, ["report", str(tmp_path / "a"), str(tmp_path / "b"), "--metrics", "psnr", "--splits", "test"]).output
+
+
+def test_report_rows_split_by_data_and_resolution_and_count_seeds_per_cell(tmp_path):
+    runs = tmp_path / "runs"
+    for seed in (0, 1):
+        write_run(runs, "gs3", "default", "mini", "translucent", seed, metric_values(20.0 + seed))
+        write_run(runs, "gs3", "default", "mini", "aniso_metal", seed, metric_values(22.0 + seed))
+    write_run(runs, "gs3", "default", "mini", "translucent", 2, metric_values(30.0), data="re-rendered")
+    frame = collect(runs)
+    table = scene_table(frame, metrics=["psnr"], splits=["test"])
+    rows = [row.labels[0] for row in table.blocks[0].rows]
+    assert rows == ["gs3 (data v1)", "gs3 (data v2)"]  # the seed on other data is not averaged with the first two
+    assert table.cell("PSNR ↑", ("gs3 (data v1)",), "translucent/Test").number == pytest.approx(20.5)
+    second = table.cell("PSNR ↑", ("gs3 (data v2)",), "translucent/Test")
+    assert second.number == 30.0 and second.std is None
+    assert "1–2 seeds per cell" in table.protocol and "gs3 (data v2) 1" in table.protocol
+
+    other = tmp_path / "other"
+    write_run(other, "gs3", "default", "mini", "translucent", 0, metric_values(20.0), resolution=[64, 48])
+    write_run(other, "gs3", "default", "mini", "translucent", 1, metric_values(26.0), resolution=[32, 24])
+    labels = [row.labels[0] for row in scene_table(collect(other), metrics=["psnr"], splits=["test"]).blocks[0].rows]
+    assert labels == ["gs3 (resolution=32x24)", "gs3 (resolution=64x48)"] or labels == [
+        "gs3 (resolution=64x48)", "gs3 (resolution=32x24)"]
+
+
+def test_report_json_is_every_number_with_its_jobs_identity(tiny_runs):
+    result = CliRunner().invoke(main, ["report", str(tiny_runs), "--json", "--metrics", "psnr,lpips"])
+    assert result.exit_code == 0, result.output
+    records = json.loads(result.output)
+    metric_rows = [r for r in records if r["split"] not in ("-", "")]
+    assert {r["metric"] for r in metric_rows} == {"psnr", "lpips"}
+    assert len(metric_rows) == 2 * 2 * (3 + 2 + 3 + 1)  # metrics × splits × finished jobs (ssdgs 5, gs3 3, rng 1)
+    first = next(r for r in records if r["method"] == "ssdgs" and r["scene"] == "aniso_metal" and r["seed"] == 1
+                 and r["split"] == "test" and r["metric"] == "psnr")
+    assert first["value"] == 32.0 and isinstance(first["seed"], int)
+    assert first["protocol"] == {"id": "olatbench-v1", "version": 1} and first["config"] == {"iterations": 10}
+    assert first["job_id"] == "ssdgs-mini-aniso_metal-1" and first["variant"] == "mini"
+    assert all(isinstance(r["value"], float) or r["value"] is None for r in records)
+    missing = [r for r in metric_rows
+               if r["method"] == "gs3" and r["scene"] == "aniso_metal" and r["metric"] == "lpips"]
+    assert [r["value"] for r in missing] == [None, None]  # not computed: null, never NaN
+    assert {r["metric"] for r in records if r["split"] == "-"} == {"fps", "train_time", "num_gaussians"}
+    assert [r["error"] for r in records if r["status"] == "failed"] == ["RuntimeError: out of memory"] * 2
+    published = CliRunner().invoke(main, ["report", "--published-only", "--table", "real", "--format", "csv"])
+    assert published.exit_code == 0 and published.output.startswith("table,method,suite,scene,split,metric,value")

@@ -205,15 +205,22 @@ def test_cli_run_skips_done_jobs_and_exits_with_1_when_jobs_fail(data, tmp_path,
     assert done.stat().st_mtime_ns == stamp
     assert "Alpha" in result.output and "done" in result.output  # the summary table
 
-    result = runner.invoke(main, [*args, "--variant", "default", "--iterations", "3"])
-    assert result.exit_code == 1 and "hold results of a different job" in result.output and "--force" in result.output
-    result = runner.invoke(main, [*args, "--variant", "default", "--iterations", "3", "--force"])
+    result = runner.invoke(main, [*args, "--variant", "default", "--iterations", "3"])  # its own folder
     assert result.exit_code == 0, result.output
-    assert read_results(done)["model"]["iterations"] == 3
+    assert done.stat().st_mtime_ns == stamp
+    short = tmp_path / "runs" / "tiny" / "trivial" / "default~iterations=3" / "Alpha" / "seed0" / "results.json"
+    assert read_results(short)["model"]["iterations"] == 3
+
+    (data / "Alpha" / "notes.txt").write_text("changed")  # the scene's data changed: another job, same folder
+    result = runner.invoke(main, [*args, "--variant", "default", "--scenes", "Alpha"])
+    assert result.exit_code == 2 and "hold results of a different job" in result.output and "--force" in result.output
+    result = runner.invoke(main, [*args, "--variant", "default", "--scenes", "Alpha", "--force"])
+    assert result.exit_code == 0, result.output
+    assert read_results(done)["hashes"]["data_manifest"] != read_results(short)["hashes"]["data_manifest"]
 
     status = runner.invoke(main, ["status", str(tmp_path / "runs")])
     assert status.exit_code == 0, status.output
-    assert "2 done, 2 failed" in status.output
+    assert "4 done, 2 failed" in status.output
 
 
 def test_cli_dry_run_prints_the_table_without_running(data, tmp_path, cli_suite):
@@ -230,13 +237,13 @@ def test_cli_dry_run_prints_the_table_without_running(data, tmp_path, cli_suite)
 def test_cli_errors_are_one_line_with_a_next_step(data, tmp_path, cli_suite):
     runner = CliRunner()
     result = runner.invoke(main, ["run", "-m", "nope", "-s", "tiny", "--data-root", str(data)])
-    assert result.exit_code == 1 and "olatbench methods list" in result.output and "Traceback" not in result.output
+    assert result.exit_code == 2 and "olatbench methods list" in result.output and "Traceback" not in result.output
     result = runner.invoke(main, ["run", "-m", "trivial", "-s", "tiny", "--variant", "zzz", "--data-root", str(data)])
     assert "olatbench methods show trivial" in result.output
     result = runner.invoke(main, ["run", "-m", "trivial", "-s", "tiny", "--resolution", "big"])
     assert result.exit_code == 2 and "WIDTHxHEIGHT" in result.output
     result = runner.invoke(main, ["status", str(tmp_path)])
-    assert result.exit_code == 1 and "olatbench run" in result.output
+    assert result.exit_code == 1 and "olatbench run" in result.output  # nothing to show (docs/guarantees.md)
     result = runner.invoke(main, ["run", "-m", "trivial", "-s", "tiny", "--data-root", str(data), "--set", "lr"])
     assert result.exit_code == 2 and "KEY=VALUE" in result.output and "Traceback" not in result.output
     result = runner.invoke(main, ["run", "-m", "trivial", "-s", "tiny", "--data-root", str(data), "--set", "x=1"])
@@ -272,7 +279,7 @@ def test_methods_cli_lists_and_shows_presets():
     assert shown.exit_code == 0, shown.output
     assert "iterations" in shown.output and "ablation-A: lr=0.01" in shown.output
     missing = runner.invoke(main, ["methods", "show", "nope"])
-    assert missing.exit_code == 1 and "olatbench methods list" in missing.output
+    assert missing.exit_code == 2 and "olatbench methods list" in missing.output
 
 
 def test_a_job_running_elsewhere_is_skipped_not_touched(data, tmp_path):

@@ -228,7 +228,7 @@ def test_cli_renders_a_tiny_scene_and_refuses_to_overwrite(tmp_path):
     scene = load_scene(tmp_path / "s")
     assert (scene.split("train")[0].camera.width, scene.split("train")[0].camera.height) == (16, 12)
     again = CliRunner().invoke(synth, args)
-    assert again.exit_code == 1 and "already exists" in again.output
+    assert again.exit_code == 2 and "already exists" in again.output
     bad = CliRunner().invoke(synth, ["--recipe", "glossy_plastic", "--res", "big", "--out", str(tmp_path / "t")])
     assert bad.exit_code == 2 and "--res" in bad.output
 

@@ -13,6 +13,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
+import test_runner_support as support
 from click.testing import CliRunner
 from trained_jobs import train_tiny_ssdgs
 from waiting import BACKSTOP_SECONDS, wait_until
@@ -220,10 +221,15 @@ def test_bad_folders_fail_before_a_server_starts(trained, tmp_path):
     assert "no checkpoint" in unfinished.output
 
 
-def test_record_a_light_orbit(trained, tmp_path):
+def test_record_a_light_orbit(trained, tmp_path, monkeypatch):
+    from olatbench.datasets import suites
+
+    other = CliRunner().invoke(main, ["view", str(trained.parents[4]), "-s", "mini"])  # the run holds a tiny job
+    assert other.exit_code == 1 and "no finished job of suite mini" in other.output  # nothing to show
+    monkeypatch.setitem(suites.SUITES, "tiny", support.tiny_suite())
     out = tmp_path / "orbit.mp4"
-    result = CliRunner().invoke(main, ["view", str(trained), "--record", "light-orbit", str(out), "--frames", "3",
-                                       "--component", "diffuse"])
+    result = CliRunner().invoke(main, ["view", str(trained.parents[4]), "-s", "tiny", "--record", "light-orbit",
+                                       str(out), "--frames", "3", "--component", "diffuse"])
     assert result.exit_code == 0, result.output
     capture = cv2.VideoCapture(str(out))
     count = 0

@@ -227,7 +227,10 @@ def _train(method: Method, views: Views, job: Job, folder: Path, log: JobLog, pr
     finally:
         bar.close()
         train_log.close()
-    if start >= iterations:
+    if iterations == 0 and payload is None:  # learning-free: its one state (built by setup) is what restore loads
+        save_checkpoint(folder, 0, method.state_dict(), job.id, train_seconds, job.keep_checkpoints)
+        log("learning-free method (0 iterations): no training steps; state saved at step 0")
+    elif start >= iterations:
         log("training already complete; evaluating")
     return train_seconds
 

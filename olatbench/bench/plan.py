@@ -1,10 +1,12 @@
 """Plans: method × suite × scene × variant × seed -> a list of `Job`.
 
 Config resolution order for one job (later wins): the method config's defaults, the suite's
-``iterations``, the method's preset named after the suite (when it has one), the variant's preset,
-then explicit overrides (``--set KEY=VALUE``, then ``--iterations``). The variant ``default`` applies no
-variant preset; a variant ``a+b`` applies the presets ``a`` then ``b``. Overrides are part of the job's
-variant label (``default~test_time_steps=50``), so they get their own folders and report columns.
+``iterations`` (or the method's own, `MethodSpec.iterations`, when its spec fixes one), the method's preset
+named after the suite (`Suite.preset`: for a user's own suite, the one of its format; when the method has one;
+a user suite's own ``iterations`` then win over it), the variant's preset, then explicit overrides (``--set KEY=VALUE``;
+``--iterations N`` is exactly ``--set iterations=N``). The variant ``default`` applies no variant preset; a
+variant ``a+b`` applies the presets ``a`` then ``b``. Overrides are part of the job's variant label
+(``default~iterations=500,test_time_steps=50``), so they get their own folders and report rows.
 """
 
 from __future__ import annotations
@@ -80,19 +82,37 @@ def resolve_config(spec: MethodSpec, suite: Suite, variant: str = DEFAULT_VARIAN
     config_type = config_class(spec)
     field_names = {f.name for f in fields(config_type)}
     overrides = checked_overrides(spec, overrides)
+    overrides = with_iterations(overrides, iterations)
+    own = spec.iterations
+    if own == 0 and overrides.get("iterations", 0) != 0:
+        raise PlanError(f"method '{spec.name}' learns nothing (its spec says iterations=0), so it takes no "
+                        f"--iterations / --set iterations (got {overrides['iterations']})")
     values: dict[str, Any] = {}
     if "iterations" in field_names:
-        values["iterations"] = suite.iterations
+        values["iterations"] = suite.iterations if own is None else own
     try:
-        if suite.name in spec.presets:
-            values.update(preset_overrides(spec.name, spec.presets, suite.name))
+        if suite.preset in spec.presets:
+            values.update(preset_overrides(spec.name, spec.presets, suite.preset))
+            if suite.iterations_given and "iterations" in field_names:
+                values["iterations"] = suite.iterations
         values.update(preset_overrides(spec.name, spec.presets, variant))
-        values.update(overrides or {})
-        if iterations is not None:
-            values["iterations"] = int(iterations)
+        values.update(overrides)
         return config_type(**values)
     except (KeyError, TypeError, ValueError) as error:
         raise PlanError(f"method '{spec.name}', variant '{variant}': {error}") from None
+
+
+def with_iterations(overrides: Mapping[str, Any] | None, iterations: int | None) -> dict[str, Any]:
+    """``overrides`` with ``--iterations N`` folded in as ``iterations=N``: one spelling, one label, one folder,
+    one job id with ``--set iterations=N``. Both given and different is a `PlanError`."""
+    merged = dict(overrides or {})
+    if iterations is None:
+        return merged
+    given = merged.get("iterations")
+    if given is not None and given != iterations:
+        raise PlanError(f"--iterations {iterations} and --set iterations={given} disagree; give one of them")
+    merged["iterations"] = int(iterations)
+    return merged
 
 
 def checked_overrides(spec: MethodSpec, overrides: dict[str, Any] | None) -> dict[str, Any]:
@@ -163,7 +183,7 @@ def resolve_scenes(suite: Suite, scenes: Sequence[str] = ()) -> list[str]:
 
 def resolve_data_root(suite: Suite, data_root: str | Path | None, scenes: Sequence[str],
                       generate: bool = True, progress: bool = True) -> Path | None:
-    """The folder holding the suite's scene folders.
+    """The folder holding the suite's scene folders (None for a user's suite: its scenes name their folders).
 
     Suites without a generator use ``data_root``, else ``$OLATBENCH_DATA``. A suite with a
     ``generator`` (``mini``) ignores ``$OLATBENCH_DATA`` (which points at real data) and creates its
@@ -173,6 +193,8 @@ def resolve_data_root(suite: Suite, data_root: str | Path | None, scenes: Sequen
     generator's default folder, ``suite.generator_root``) and get None when it is missing. (A real run still
     re-renders generated data whose recipe or files no longer match; its job ids then differ from the dry run's.)
     """
+    if suite.scene_paths:  # a user's suite: every scene names its own folder
+        return None
     root = data_root
     if root is None and suite.generator is None:
         root = os.environ.get(DATA_ENV)
@@ -264,13 +286,14 @@ def make_plan(method: str, suite: str | Suite, out: str | Path, scenes: Sequence
     variant_names = expand_variants(spec, variants, ablation)
     scene_names = resolve_scenes(suite, scenes)
     root = resolve_data_root(suite, data_root, scene_names, generate=generate, progress=progress)
-    overrides = checked_overrides(spec, overrides)  # typed before they name the variant: use_sss=False -> false
+    # typed before they name the variant (use_sss=False -> false); --iterations N is --set iterations=N
+    overrides = checked_overrides(spec, with_iterations(overrides, iterations))
     code = code_hash(spec.implementation)  # located, not imported: dry runs need no torch
-    configs = {variant: config_to_dict(resolve_config(spec, suite, variant, iterations, overrides))
+    configs = {variant: config_to_dict(resolve_config(spec, suite, variant, overrides=overrides))
                for variant in variant_names}
     jobs = []
     for scene in scene_names:
-        scene_path = suite.scene_path(root, scene) if root is not None else None
+        scene_path = suite.scene_path(root, scene) if root is not None or suite.scene_paths else None
         manifest = data_manifest_hash(scene_path) if scene_path is not None else None
         for variant in variant_names:
             for seed in range(seeds):

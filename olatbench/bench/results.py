@@ -7,7 +7,8 @@ Schema version 2 (unknown values are ``null``; blocks marked *run* are ``null`` 
       "kind": "run" | "evaluate",
       "status": "done" | "failed",
       "job": {"id": str, "method": str, "variant": str, "suite": str, "scene": str, "seed": int,
-              "config": {...resolved method config...}} | null (evaluate),
+              "config": {...resolved method config...}, "resolution": [width, height] | null (native)}
+             | null (evaluate),
       "protocol": {"id": "olatbench-v1", "version": 1[, "definition": {...}]},
       "metrics": {"<split>": {"mean": {"psnr": float, "ssim": float, "lpips": float | null, ...},
                                "per_image": {"<frame_id>": {"psnr": ..., ...}}}},
@@ -88,6 +89,7 @@ class ResultsJob(TypedDict):
     scene: str
     seed: int
     config: dict[str, Any]  # the resolved method config (dataclasses.asdict)
+    resolution: NotRequired[list[int] | None]  # (width, height) trained and scored at; None: native; absent: older
 
 
 class ResultsProtocol(TypedDict):
@@ -226,7 +228,8 @@ SCHEMA_VERSION = 2
 READABLE_VERSIONS = (1, 2)
 KINDS = ("run", "evaluate")
 REQUIRED_KEYS = tuple(key for key in Results.__annotations__ if key in Results.__required_keys__)
-JOB_KEYS = tuple(key for key in ResultsJob.__annotations__ if key != "config")  # in the schema's order
+JOB_KEYS = tuple(key for key in ResultsJob.__annotations__  # the required ones, in the schema's order
+                 if key != "config" and key in ResultsJob.__required_keys__)
 
 
 class ResultsError(ValueError):

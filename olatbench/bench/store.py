@@ -113,6 +113,14 @@ def _results_problem(folder: Path, job_id: str) -> str | None:
     return None
 
 
+def in_suite(folder: str | Path, suite: str | None) -> bool:
+    """Whether the job in ``folder`` belongs to ``suite`` (by its job.json; every job for None)."""
+    if suite is None:
+        return True
+    job = read_job_file(folder)
+    return job is not None and job.get("suite") == suite
+
+
 def job_state(folder: str | Path, expected_id: str | None = None) -> JobState:
     """The state of the job folder; ``expected_id`` (from a new plan) turns a mismatch into ``stale``."""
     folder = Path(folder)

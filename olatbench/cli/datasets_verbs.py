@@ -8,7 +8,7 @@ from pathlib import Path
 import click
 
 from olatbench.cli.options import quiet_option, show_progress
-from olatbench.datasets.errors import DatasetError
+from olatbench.datasets.errors import DatasetError, OutputExistsError
 
 
 def _scene_folders(path: Path) -> list[Path]:
@@ -17,7 +17,7 @@ def _scene_folders(path: Path) -> list[Path]:
     try:
         return find_scene_folders(path)
     except DatasetError as error:
-        raise click.ClickException(f"{error}. Check the path, e.g. olatbench datasets info data/nrhints/Pixiu") \
+        raise click.UsageError(f"{error}. Check the path, e.g. olatbench datasets info data/nrhints/Pixiu") \
             from None
 
 
@@ -132,6 +132,8 @@ def convert(src: Path, dst: Path, target: str, fmt: str | None, overwrite: bool,
                 return frame_pixels(frame)
 
             out = write_scene(scene, dst, target, pixels, overwrite=overwrite)
+    except OutputExistsError as error:
+        raise click.UsageError(f"{error} (--overwrite replaces it)") from None
     except DatasetError as error:
         raise click.ClickException(f"{error}. Run: olatbench datasets validate {src}") from None
     click.echo(f"wrote {scene.name} as {target} to {out}")

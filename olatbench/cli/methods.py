@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+from typing import Any
 
 import click
 
@@ -27,7 +28,7 @@ def _spec(name: str):
     try:
         return get_spec(name)
     except KeyError as error:
-        raise click.ClickException(f"{error.args[0]}. See: olatbench methods list") from None
+        raise click.UsageError(f"{error.args[0]}. See: olatbench methods list") from None
     except ImportError as error:
         raise click.ClickException(f"method '{name}' cannot be loaded: {error}") from None
 
@@ -55,7 +56,7 @@ def _method_json(name: str) -> dict:
             "status": spec.source.status if spec.source is not None else None,
             "description": spec.description.strip(), "implementation": spec.implementation,
             "presets": list(spec.presets), "ablations": {grid: list(v) for grid, v in spec.ablations.items()},
-            "outputs": list(spec.outputs), "capabilities": sorted(spec.capabilities),
+            "outputs": list(spec.outputs), "capabilities": sorted(spec.capabilities), "iterations": spec.iterations,
             "source": None if spec.source is None else {"repository": spec.source.repository,
                                                         "commit": spec.source.commit}}
 
@@ -96,35 +97,72 @@ def list_methods(as_json: bool) -> None:
     click.echo("Details: olatbench methods show NAME")
 
 
-def _config_rows(config_class: type) -> list[tuple[str, str, str, str]]:
+def _config_rows(config_class: type, as_repr: bool = True) -> list[tuple[str, str, Any, str]]:
+    """(name, type, default, help) per config field; the default as ``repr`` text, or with ``as_repr=False`` as the
+    value itself (None when the field is required)."""
     rows = []
     for field in dataclasses.fields(config_class):
         if field.default is not dataclasses.MISSING:
-            default = repr(field.default)
+            default = field.default
         elif field.default_factory is not dataclasses.MISSING:
-            default = repr(field.default_factory())
+            default = field.default_factory()
         else:
-            default = "(required)"
-        kind = field.type if isinstance(field.type, str) else getattr(field.type, "__name__", str(field.type))
-        help_text = field.metadata.get("help", "") if field.metadata else ""
-        rows.append((field.name, kind, default, help_text))
+            default = "(required)" if as_repr else None
+            rows.append((field.name, _type_name(field), default, _help(field)))
+            continue
+        rows.append((field.name, _type_name(field), repr(default) if as_repr else default, _help(field)))
     return rows
+
+
+def _type_name(field: dataclasses.Field) -> str:
+    return field.type if isinstance(field.type, str) else getattr(field.type, "__name__", str(field.type))
+
+
+def _help(field: dataclasses.Field) -> str:
+    return field.metadata.get("help", "") if field.metadata else ""
+
+
+def _show_json(spec) -> dict:
+    """`_method_json` plus the config fields, each preset's values and, for official code, its commands."""
+    from olatbench.methods.registry import config_class
+
+    data = _method_json(spec.name)
+    data["presets"] = {preset: dict(values) for preset, values in spec.presets.items()}
+    try:
+        data["config"] = [{"name": name, "type": kind, "default": default, "help": help_text}
+                          for name, kind, default, help_text in _config_rows(config_class(spec), as_repr=False)]
+    except Exception as error:  # a plugin's config module that does not import: say so
+        data["config"], data["config_error"] = None, f"{type(error).__name__}: {error}"
+    code = _official_code(spec)
+    if code is not None:
+        data["paper"] = code.paper
+        data["runnable"], data["unsupported"] = code.runnable, code.unsupported or None
+        data["commands"] = list(code.describe()) if code.runnable else []
+    return data
 
 
 @methods.command("show")
 @click.argument("name")
-def show(name: str) -> None:
+@json_option
+def show(name: str, as_json: bool) -> None:
     """Config fields (type, default), presets (the fields each one changes), ablation grids, outputs and
     capabilities of method NAME; for an official implementation, the repository and commit it is pinned to.
 
     \b
     Example:
       olatbench methods show ssdgs
+      olatbench methods show ssdgs --json    # the same as data (defaults as JSON values)
     """
     from olatbench.methods.registry import config_class
 
     spec = _spec(name)
+    if as_json:
+        click.echo(json.dumps(_show_json(spec), indent=2, default=str))
+        return
     click.echo(f"{name} [{_kind(spec)}]: {spec.description.strip()}")
+    if spec.iterations is not None:
+        click.echo(f"iterations: {spec.iterations} whatever the suite says"
+                   + (" (learning-free)" if spec.iterations == 0 else ""))
     click.echo(f"implementation: {spec.implementation}")
     if spec.source is not None:
         click.echo(f"source: github.com/{spec.source.repository} @ {spec.source.commit} ({spec.source.status})")

@@ -9,7 +9,7 @@ from pathlib import Path
 import click
 
 from olatbench.atomic import WriteError
-from olatbench.cli.options import option, quiet_option, show_progress
+from olatbench.cli.options import json_option, option, quiet_option, show_progress
 
 
 def _protocol(name: str):
@@ -18,7 +18,7 @@ def _protocol(name: str):
     try:
         return get_protocol(name)
     except ValueError as error:
-        raise click.ClickException(str(error)) from None
+        raise click.UsageError(str(error)) from None
 
 
 @click.command(context_settings={"help_option_names": ["-h", "--help"]})
@@ -38,9 +38,10 @@ def _protocol(name: str):
 @click.option("--png-space", type=click.Choice(["srgb", "gamma22", "linear"]), default="srgb", show_default=True,
               help="Encoding of 8-bit prediction files (gamma22: official GS³/SSD-GS renders of GS³ data).")
 @quiet_option
+@json_option
 def evaluate(pred_dir: Path, scene_dir: Path, split: str, protocol_name: str, output: Path | None,
              required: tuple[str, ...], overwrite: bool, allow_extra: bool, resize_gt: bool, png_space: str,
-             quiet: bool) -> None:
+             quiet: bool, as_json: bool) -> None:
     """Score a folder of renders (<frame_id>.png) against a scene's ground truth.
 
     \b
@@ -57,7 +58,7 @@ def evaluate(pred_dir: Path, scene_dir: Path, split: str, protocol_name: str, ou
     protocol = _protocol(protocol_name)
     output = output or pred_dir / f"metrics_{protocol.id}.json"
     if output.exists() and not overwrite:
-        raise click.ClickException(f"{output} exists; pass --overwrite to replace it or -o to write elsewhere")
+        raise click.UsageError(f"{output} exists; pass --overwrite to replace it or -o to write elsewhere")
     try:
         if "lpips" in required:
             protocol.require_lpips()
@@ -75,6 +76,10 @@ def evaluate(pred_dir: Path, scene_dir: Path, split: str, protocol_name: str, ou
     except (EvaluationError, DatasetError, ValueError) as error:
         raise click.ClickException(f"{error}\nCheck the folder with `olatbench datasets validate {scene_dir}`.") \
             from None
+    if as_json:  # the result file's content (per-image scores, files, protocol), numbers as numbers
+        click.echo(json.dumps(result, indent=2))
+        click.echo(f"wrote {output}", err=True)
+        return
     mean = result["metrics"][split]["mean"]
     shown = "  ".join(f"{k}={'None' if v is None else f'{v:.4f}'}" for k, v in mean.items())
     click.echo(f"{protocol.id} v{protocol.version}, {split}, {len(result['files'][split])} images: {shown}")
@@ -93,17 +98,24 @@ def metrics() -> None:
 
 
 @metrics.command("list")
-def list_protocols() -> None:
+@json_option
+def list_protocols(as_json: bool) -> None:
     """List the protocols with their version and one-line description.
 
     \b
     Example:
       olatbench metrics list
+      olatbench metrics list --json    # id, version, description, metrics, what it reproduces
     """
     from olatbench.metrics.protocols import get_protocol, protocol_names
 
-    for name in protocol_names():
-        protocol = get_protocol(name)
+    protocols = [get_protocol(name) for name in protocol_names()]
+    if as_json:
+        click.echo(json.dumps([{"id": p.id, "version": int(p.version), "description": p.description,
+                                "reproduces": p.reproduces, "metrics": list(p.metrics),
+                                "lpips_primary": p.lpips_primary} for p in protocols], indent=2))
+        return
+    for protocol in protocols:
         click.echo(f"{protocol.id:22s} v{protocol.version}  {protocol.description}")
 
 

@@ -6,6 +6,8 @@
 * ``-q/--quiet`` on every verb with progress bars; ``TQDM_DISABLE`` (tqdm's own variable, any value but
   ``""``, ``0``, ``false``, ``no``) turns them off too (`show_progress`).
 * ``--json`` on the verbs that list things (`json_option`).
+* ``-s/--suite`` to restrict the verbs that read run folders (``status``, ``report``, ``view``) to one suite:
+  built-in, ``[suites.NAME]`` of olatbench.toml or ``data-<format>`` (`suite_filter_option`, `checked_suite`).
 """
 
 from __future__ import annotations
@@ -53,3 +55,21 @@ def show_progress(quiet: bool) -> bool:
 quiet_option = click.option("--quiet", "-q", is_flag=True,
                             help="No progress bars (also: TQDM_DISABLE=1 in the environment).")
 json_option = click.option("--json", "as_json", is_flag=True, help="Print JSON instead of text.")
+
+
+def checked_suite(name: str | None) -> str | None:
+    """``name`` when it names a suite (`olatbench.datasets.suites.get_suite`), else a usage error (exit 2) listing
+    the known suites."""
+    if name is None:
+        return None
+    from olatbench.datasets.errors import DatasetError
+    from olatbench.datasets.suites import get_suite
+
+    try:
+        return get_suite(name).name
+    except DatasetError as error:
+        raise click.UsageError(str(error)) from None
+
+
+suite_filter_option = click.option("--suite", "-s", help="Only jobs of this suite (built-in, a [suites.NAME] of "
+                                                          "olatbench.toml, or data-<format> for run --data).")

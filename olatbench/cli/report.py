@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 
 from olatbench.atomic import WriteError, write_text
-from olatbench.cli.options import quiet_option, show_progress
+from olatbench.cli.options import checked_suite, quiet_option, show_progress
 
 LAYOUTS = ("scenes", "overview", "ablation")
 
@@ -32,7 +32,8 @@ def _emit(text: str, output: str | None) -> None:
 
 @click.command("report")
 @click.argument("runs", nargs=-1, type=click.Path(exists=True, path_type=Path))
-@click.option("--suite", help="Only runs of this suite (nrhints, gs3, sssgs, mini); names its scenes.")
+@click.option("--suite", "-s", help="Only runs of this suite (nrhints, gs3, sssgs, mini, a [suites.NAME] of "
+                                    "olatbench.toml, data-<format>); names its scenes.")
 @click.option("--methods", help="Comma-separated methods (or method/variant) to include; default all.")
 @click.option("--metrics", default="psnr,ssim,lpips", show_default=True, help="Comma-separated metric blocks.")
 @click.option("--splits", default="train,test", show_default=True, help="Comma-separated splits.")
@@ -41,7 +42,11 @@ def _emit(text: str, output: str | None) -> None:
                    "ablation grid (A–F, H–K). Repeatable; default scenes.")
 @click.option("--average/--no-average", default=False, help="Add a scene-average column (scenes layout).")
 @click.option("--format", "fmt", type=click.Choice(("latex", "markdown", "csv", "html")),
-              help="Output format; default from -o's suffix, else markdown.")
+              help="Output format; default from -o's suffix, else markdown. csv is data, not the table: one row per "
+                   "job × split × metric with the job's identity (with --published-only: the paper's numbers).")
+@click.option("--json", "as_json", is_flag=True,
+              help="Print the results as JSON: one object per job × split × metric, numbers as numbers, with the "
+                   "job's identity, seed and protocol.")
 @click.option("-o", "--output", type=click.Path(dir_okay=False), help="Write to this file instead of stdout.")
 @click.option("--standalone", is_flag=True, help="LaTeX: a complete document that compiles with pdflatex.")
 @click.option("--booktabs", is_flag=True,
@@ -58,17 +63,20 @@ def _emit(text: str, output: str | None) -> None:
 @click.option("--figures/--no-figures", default=True, show_default=True,
               help="HTML: embed comparison grids, decompositions and training curves.")
 @click.option("--frames", "frame_ids", help="HTML figures: comma-separated test frame ids (default: the first).")
-def report(runs, suite, methods, metrics, splits, layouts, average, fmt, output, standalone, booktabs, colours,
-           published, published_only, paper_tables, seeds, figures, frame_ids) -> None:
-    """Build the paper's tables (and an HTML page with figures) from results.json files.
+def report(runs, suite, methods, metrics, splits, layouts, average, fmt, as_json, output, standalone, booktabs,
+           colours, published, published_only, paper_tables, seeds, figures, frame_ids) -> None:
+    """Build the paper's tables (and an HTML page with figures) from results.json files below RUNS (default:
+    ./runs). A cell averages only jobs identical but for the seed; jobs that differ get their own rows.
 
     A results.json that cannot be read is named on stderr and left out; the others still make the tables.
     Exit code: 0 when the report was written, 1 when there is nothing readable to report or the output cannot be
-    written (one line says why), 2 for a usage error.
+    written (one line says why), 2 for a usage error (nothing matches the selection, an unknown suite, ...).
 
     \b
     Examples:
       olatbench report runs/ --suite nrhints --average
+      olatbench report runs/ --json > results.json        # every number, with its job's identity
+      olatbench report runs/ -o results.csv               # the same as tidy CSV
       olatbench report runs/ --suite nrhints --published -o table.tex --standalone
       olatbench report runs/ --layout ablation --format markdown
       olatbench report runs/ --suite sssgs --layout overview -o report.html
@@ -79,6 +87,9 @@ def report(runs, suite, methods, metrics, splits, layouts, average, fmt, output,
     from olatbench.reports.published import PublishedError
     from olatbench.reports.runs_tables import ReportError
 
+    suite = checked_suite(suite)
+    if as_json and fmt not in (None, "json"):
+        raise click.UsageError("--json prints JSON; leave out --format")
     try:
         fmt = format_for(output, fmt)
         palette = parse_colours(colours)
@@ -86,42 +97,72 @@ def report(runs, suite, methods, metrics, splits, layouts, average, fmt, output,
         if published_only:
             from olatbench.reports.paper import paper_table
             from olatbench.reports.published import PAPER_TABLES
+            from olatbench.reports.tidy import published_csv
 
-            tables = [paper_table(name) for name in (paper_tables or PAPER_TABLES)]
-            text = render_tables(tables, fmt, standalone=standalone, colours=palette, rules=rules,
-                                 title="SSD-GS (ICLR 2026): published tables")
+            if as_json:
+                raise click.UsageError("--json is for runs; --published-only --format csv gives the paper's numbers")
+            names = paper_tables or PAPER_TABLES
+            text = published_csv(names) if fmt == "csv" else render_tables(
+                [paper_table(name) for name in names], fmt, standalone=standalone, colours=palette, rules=rules,
+                title="SSD-GS (ICLR 2026): published tables")
             _emit(text, output)
             return
+        if not runs and Path("runs").is_dir():
+            runs = (Path("runs"),)
         if not runs:
             raise click.UsageError("give a runs folder (or results.json files), or use --published-only; e.g. "
                                    "olatbench report runs/ --suite mini")
-        text = _report_runs(runs, suite, _split_list(methods), _split_list(metrics), _split_list(splits),
-                            layouts or ("scenes",), average, fmt, standalone, palette, rules, published, seeds,
-                            figures, _split_list(frame_ids) or [])
-    except (ResultsError, ReportError, PublishedError, ValueError, FileNotFoundError) as error:
-        raise click.ClickException(f"{error}\nSee olatbench report --help; 'olatbench status RUNS' shows which "
-                                   "jobs finished.") from None
+        if as_json or fmt == "csv":
+            text = _report_data(runs, suite, _split_list(methods), _split_list(metrics), _split_list(splits),
+                                as_json)
+        else:
+            text = _report_runs(runs, suite, _split_list(methods), _split_list(metrics), _split_list(splits),
+                                layouts or ("scenes",), average, fmt, standalone, palette, rules, published, seeds,
+                                figures, _split_list(frame_ids) or [])
+    except ResultsError as error:
+        raise click.ClickException(f"{error}\n'olatbench status RUNS' shows which jobs finished.") from None
+    except (ReportError, PublishedError, ValueError, FileNotFoundError) as error:
+        raise click.UsageError(f"{error}\n'olatbench status RUNS' shows which jobs finished.") from None
     _emit(text, output)
 
 
-def _report_runs(runs, suite, methods, metrics, splits, layouts, average, fmt, standalone, palette, rules,
-                 published, seeds, with_figures, frame_ids) -> str:
+def _collect(runs):
+    """The results below ``runs`` (`olatbench.reports.collect.collect`), each unreadable results.json named on
+    stderr; a `ResultsError` (exit 1: nothing to report) when there is none or none is readable."""
+    from olatbench.bench.results import ResultsError
     from olatbench.reports.collect import collect
-    from olatbench.reports.output import render_tables
-    from olatbench.reports.ranking import rank_table
-    from olatbench.reports.runs_tables import ablation_table, overview_table, scene_table
 
     unreadable: list[str] = []
     frame = collect(runs, unreadable)
     for message in unreadable:
         click.echo(f"skipped (unreadable): {message}", err=True)
     if frame.empty and unreadable:
-        raise FileNotFoundError(f"no readable results.json below {', '.join(map(str, runs))} ({len(unreadable)} "
-                                "unreadable, listed above); 'olatbench run' with the same options re-evaluates a "
-                                "finished job whose results.json is damaged")
+        raise ResultsError(f"no readable results.json below {', '.join(map(str, runs))} ({len(unreadable)} "
+                           "unreadable, listed above); 'olatbench run' with the same options re-evaluates a "
+                           "finished job whose results.json is damaged")
     if frame.empty:
-        raise FileNotFoundError(f"no results.json below {', '.join(map(str, runs))}; run "
-                                "'olatbench run --method ssdgs --suite mini' first")
+        raise ResultsError(f"no results.json below {', '.join(map(str, runs))}; run "
+                           "'olatbench run --method ssdgs --suite mini' first")
+    return frame
+
+
+def _report_data(runs, suite, methods, metrics, splits, as_json: bool) -> str:
+    """``--json`` / ``--format csv``: the selected results as records (`olatbench.reports.tidy`)."""
+    from olatbench.reports.runs_tables import select_runs
+    from olatbench.reports.tidy import tidy_records, to_json, to_tidy_csv
+
+    frame = _collect(runs)
+    records = tidy_records(select_runs(frame, suite, methods), metrics, splits)
+    return to_json(records) if as_json else to_tidy_csv(records)
+
+
+def _report_runs(runs, suite, methods, metrics, splits, layouts, average, fmt, standalone, palette, rules,
+                 published, seeds, with_figures, frame_ids) -> str:
+    from olatbench.reports.output import render_tables
+    from olatbench.reports.ranking import rank_table
+    from olatbench.reports.runs_tables import ablation_table, overview_table, scene_table
+
+    frame = _collect(runs)
     from olatbench.reports.runs_tables import select_runs
 
     # one per-scene / overview table per suite holding the selected methods
@@ -187,6 +228,9 @@ def render(run, kind, count, start_frame, component, fps, device, resolution, ou
 
     try:
         job = JobFolder.open(run)
+    except JobFolderError as error:  # RUN is not a finished job folder
+        raise click.UsageError(str(error)) from None
+    try:
         result = render_sweep(job, kind, output or run / "videos", count=count, frame_id=start_frame,
                               component=component, fps=fps, device=device, resolution=_parse_resolution(resolution),
                               progress=show_progress(quiet))

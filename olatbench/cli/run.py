@@ -14,7 +14,14 @@ import click
 from olatbench.atomic import WriteError
 from olatbench.bench.executors import EXECUTORS
 from olatbench.bench.plan import OverridesError, PlanError
-from olatbench.cli.options import json_option, option, quiet_option, show_progress
+from olatbench.cli.options import (
+    checked_suite,
+    json_option,
+    option,
+    quiet_option,
+    show_progress,
+    suite_filter_option,
+)
 
 
 def _parse_resolution(value: str | None) -> tuple[int, int] | None:
@@ -76,7 +83,13 @@ def _metric(metrics: dict, key: str) -> str:
 
 @click.command(context_settings={"help_option_names": ["-h", "--help"]})
 @click.option("--method", "-m", required=True, help="Method name (see: olatbench methods list).")
-@click.option("--suite", "-s", required=True, help="Suite: nrhints, gs3, sssgs or mini.")
+@click.option("--suite", "-s", help="Suite: nrhints, gs3, sssgs, mini, or a [suites.NAME] of olatbench.toml.")
+@click.option("--data", "data_paths", multiple=True, type=click.Path(exists=True, file_okay=False, path_type=Path),
+              help="Instead of --suite: a scene folder of your own (NRHints, GS³ or SSS-GS format, detected; "
+                   "repeatable). Protocol, resolution and iterations are those of the format's suite unless given; "
+                   "runs go to OUTPUT/data-<format>/...")
+@click.option("--protocol", "protocol_name", help="With --data: the metric protocol (default: the format's suite's; "
+                                                  "see olatbench metrics list).")
 @click.option("--scenes", multiple=True, help="Scenes to run (comma-separated or repeated; default: all).")
 @click.option("--variant", "variants", multiple=True,
               help="Method preset applied on top of the suite preset, e.g. ablation-A (repeatable).")
@@ -84,7 +97,8 @@ def _metric(metrics: dict, key: str) -> str:
               help="Expand one of the method's ablation grids (olatbench methods show METHOD lists them); SSD-GS: "
                    "components = ablation-A…F, schedule = schedule-H…K, shadow-on-sss = default + shadow-on-sss.")
 @click.option("--seeds", default=1, show_default=True, help="Seeds 0…N-1 per scene and variant.")
-@click.option("--iterations", type=int, help="Training iterations (the method scales its schedule).")
+@click.option("--iterations", type=int, help="Training iterations (the method scales its schedule); exactly "
+                                            "--set iterations=N: its own folder and report row.")
 @click.option("--set", "overrides", multiple=True, metavar="KEY=VALUE",
               help="Override one config field of every job (repeatable; checked against the field's type: "
                    "true/false, 50, 0.5, [1,1,1], null, text). The overrides join the variant's name, so such "
@@ -130,11 +144,12 @@ def _metric(metrics: dict, key: str) -> str:
               help="With --executor slurm: wait for the array and print the summary.")
 @quiet_option
 @click.option("--json", "as_json", is_flag=True, help="With --dry-run: print the plan as JSON (one object per job).")
-def run(method, suite, scenes, variants, ablation, seeds, iterations, overrides, code_settings, resolution, data_root,
-        out, device, executor, workers, dry_run, calibrate, force, no_reuse, checkpoint_every, save_components,
-        slurm_partition, slurm_time, slurm_gpus, slurm_cpus, slurm_array_parallelism, wait, quiet, as_json) -> None:
-    """Train and evaluate METHOD on every scene of SUITE; rerunning skips finished jobs and resumes
-    interrupted ones from their last checkpoint.
+def run(method, suite, data_paths, protocol_name, scenes, variants, ablation, seeds, iterations, overrides,
+        code_settings, resolution, data_root, out, device, executor, workers, dry_run, calibrate, force, no_reuse,
+        checkpoint_every, save_components, slurm_partition, slurm_time, slurm_gpus, slurm_cpus,
+        slurm_array_parallelism, wait, quiet, as_json) -> None:
+    """Train and evaluate METHOD on every scene of SUITE (or on your own scene folders, --data); rerunning skips
+    finished jobs and resumes interrupted ones from their last checkpoint.
 
     Jobs are method × scene × variant × seed. Each writes to
     OUTPUT/<suite>/<method>/<variant>/<scene>/seed<k>/ (results.json, renders, checkpoints, logs).
@@ -146,6 +161,7 @@ def run(method, suite, scenes, variants, ablation, seeds, iterations, overrides,
     \b
     Examples:
       olatbench run --method ssdgs --suite mini
+      olatbench run -m 3dgs --data captures/cup --data captures/mug --iterations 30000   # your own scenes
       olatbench run -m ssdgs -s nrhints --scenes Pixiu,Fish --data-root /data/nrhints
       olatbench run -m ssdgs -s nrhints --scenes Pixiu --ablation components --dry-run
       olatbench run -m ssdgs -s gs3 --scenes Lego --data-root /data/gs3 --dry-run --calibrate   # + time estimate
@@ -176,14 +192,16 @@ def run(method, suite, scenes, variants, ablation, seeds, iterations, overrides,
                           checkpoint_every=checkpoint_every, save_components=save_components, reuse=not no_reuse,
                           code=code.get(method, {}))
     try:
-        jobs = make_plan(method, suite, out, scenes=_split_names(scenes), variants=_split_names(variants),
-                         ablation=ablation, seeds=seeds, iterations=iterations,
-                         resolution=_parse_resolution(resolution), data_root=data_root, options=options,
-                         generate=not dry_run or calibrate, progress=progress, overrides=parse_overrides(overrides))
+        jobs = [job for plan_suite in _suites(suite, data_paths, protocol_name, data_root)
+                for job in make_plan(method, plan_suite, out, scenes=_split_names(scenes),
+                                     variants=_split_names(variants), ablation=ablation, seeds=seeds,
+                                     iterations=iterations, resolution=_parse_resolution(resolution),
+                                     data_root=data_root, options=options, generate=not dry_run or calibrate,
+                                     progress=progress, overrides=parse_overrides(overrides))]
     except OverridesError as error:  # a usage error (exit 2), naming the field
         raise click.UsageError(str(error)) from None
-    except (PlanError, DatasetError, KeyError, FileNotFoundError) as error:
-        raise click.ClickException(str(error.args[0] if isinstance(error, KeyError) else error)) from None
+    except (PlanError, DatasetError, KeyError, FileNotFoundError) as error:  # what was asked cannot be planned
+        raise click.UsageError(str(error.args[0] if isinstance(error, KeyError) else error)) from None
 
     states = [job_state(job.folder, job.id or None) for job in jobs]
     if calibrate and not dry_run:
@@ -207,7 +225,7 @@ def run(method, suite, scenes, variants, ablation, seeds, iterations, overrides,
     stale = [state for state in states if state.state == "stale"]
     if stale and not force:
         listing = "\n  ".join(f"{s.folder}: {s.message}" for s in stale[:10])
-        raise click.ClickException(f"{len(stale)} job folder(s) hold results of a different job (config, data or "
+        raise click.UsageError(f"{len(stale)} job folder(s) hold results of a different job (config, data or "
                                    f"code changed):\n  {listing}\nRerun with --force to replace them, or choose "
                                    "another --output")
     to_run, skipped, running = [], [], []
@@ -314,6 +332,33 @@ def _os_error_line(error: OSError) -> str:
     return f"{error.filename}: {error.strerror}" if error.filename and error.strerror else str(error)
 
 
+def _suites(suite: str | None, data_paths: tuple[Path, ...], protocol: str | None, data_root: Path | None) -> list:
+    """The suites a run plans: ``--suite`` (built-in or olatbench.toml), or one ``data-<format>`` suite per format
+    among the ``--data`` folders (`olatbench.datasets.suites.data_suites`), with ``--protocol`` when given."""
+    import dataclasses
+
+    from olatbench.datasets.suites import data_suites, get_suite
+
+    if (suite is None) == (not data_paths):
+        raise click.UsageError("give --suite NAME or --data SCENE_FOLDER (not both), e.g. olatbench run -m 3dgs "
+                               "--data captures/cup")
+    if suite is not None:
+        if protocol is not None:
+            raise click.UsageError("--protocol goes with --data (a suite names its protocol; a user suite in "
+                                   "olatbench.toml may set protocol = ...)")
+        return [get_suite(suite)]
+    if data_root is not None:
+        raise click.UsageError("--data names each scene folder; --data-root is for --suite")
+    if protocol is not None:
+        from olatbench.metrics.protocols import get_protocol
+
+        try:
+            get_protocol(protocol)
+        except ValueError as error:
+            raise click.UsageError(str(error)) from None
+    return [dataclasses.replace(found, protocol=protocol or found.protocol) for found in data_suites(data_paths)]
+
+
 def _write_pending(jobs) -> None:
     """Write job.json into each folder to run, so `olatbench status` lists it before it starts."""
     from olatbench.atomic import write_json
@@ -393,28 +438,32 @@ def _print_summary(jobs, out: Path) -> None:
 
 @click.command(context_settings={"help_option_names": ["-h", "--help"]})
 @click.argument("runs", type=click.Path(exists=True, file_okay=False, path_type=Path), default=Path("runs"))
+@suite_filter_option
 @json_option
-def status(runs: Path, as_json: bool) -> None:
+def status(runs: Path, suite: str | None, as_json: bool) -> None:
     """Show the state of every job below RUNS: done, failed, partial (last checkpoint step), pending, running (in
     another process) or damaged (an unreadable job.json or results.json; the line below the table says how to
     repair it). Only reads, so a read-only run folder can be inspected.
 
-    Exit code: 0 when the states are shown (whatever they are), 1 when RUNS holds no job folder, 2 for a usage
-    error.
+    Exit code: 0 when the states are shown (whatever they are), 1 when RUNS holds no job folder (of the suite
+    given with -s), 2 for a usage error (e.g. an unknown suite).
 
     \b
     Example:
       olatbench status runs/
+      olatbench status runs/ -s mini    # only the mini suite's jobs
       olatbench status runs/ --json     # one object per job folder
     """
     from collections import Counter
 
-    from olatbench.bench.store import scan_runs
+    from olatbench.bench.store import in_suite, scan_runs
 
-    states = scan_runs(runs)
+    suite = checked_suite(suite)
+    states = [state for state in scan_runs(runs) if in_suite(state.folder, suite)]
     if not states:
-        raise click.ClickException(f"no job folders (job.json) below {runs}; start one with: "
-                                   f"olatbench run --method ssdgs --suite mini --output {runs}")
+        raise click.ClickException(f"no job folders (job.json){'' if suite is None else f' of suite {suite}'} below "
+                                   f"{runs}; start one with: olatbench run --method ssdgs --suite {suite or 'mini'} "
+                                   f"--output {runs}")
     if as_json:
         click.echo(json.dumps([{"job": str(state.folder.relative_to(runs)), "state": state.state,
                                 "id": state.job_id, "step": state.step, "iterations": state.iterations,

@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 
 from olatbench.cli.options import option, quiet_option, show_progress
-from olatbench.datasets.errors import DatasetError
+from olatbench.datasets.errors import DatasetError, OutputExistsError
 
 
 def _resolution(value: str | None) -> tuple[int, int] | None:
@@ -106,10 +106,15 @@ def synth(recipe_name: str | None, fmt: str, out_dir: Path | None, res: str | No
             raise click.UsageError("give --recipe and --output (or --mini, or --list)")
         from olatbench.datasets.synth.generate import generate
 
-        recipe = get_recipe(recipe_name).with_overrides(
-            resolution=_resolution(res), spp=spp, train=n_train, test=n_test, seed=seed,
-            novel_views=novel_views).validate()
+        try:
+            recipe = get_recipe(recipe_name).with_overrides(
+                resolution=_resolution(res), spp=spp, train=n_train, test=n_test, seed=seed,
+                novel_views=novel_views).validate()
+        except (ValueError, FileNotFoundError, KeyError) as error:  # what was asked is not a recipe
+            raise click.UsageError(f"{error}. See: olatbench datasets synth --list") from None
         generate(recipe, out_dir, fmt, progress=show_progress(quiet), geometry=not no_geometry)
+    except OutputExistsError as error:
+        raise click.UsageError(str(error)) from None
     except MitsubaMissing as error:
         raise click.ClickException(str(error)) from None
     except (ValueError, FileNotFoundError, DatasetError) as error:

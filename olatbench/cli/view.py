@@ -8,11 +8,12 @@ from pathlib import Path
 
 import click
 
-from olatbench.cli.options import quiet_option, show_progress
+from olatbench.cli.options import checked_suite, quiet_option, show_progress, suite_filter_option
 
 
 @click.command("view")
 @click.argument("folder", type=click.Path(exists=True, file_okay=False, path_type=Path))
+@suite_filter_option
 @click.option("--port", type=click.IntRange(0, 65535), default=8080, show_default=True,
               help="Port of the web viewer (0: any free port).")
 @click.option("--host", default="127.0.0.1", show_default=True, help="Address to listen on (0.0.0.0: every one).")
@@ -25,7 +26,7 @@ from olatbench.cli.options import quiet_option, show_progress
 @click.option("--frames", "count", type=click.IntRange(min=1), help="With --record: spread this many frames.")
 @click.option("--start-frame", help="With --record: test frame id whose camera and light start (default: first).")
 @quiet_option
-def view(folder, port, host, device, drag_scale, record, component, count, start_frame, quiet) -> None:
+def view(folder, suite, port, host, device, drag_scale, record, component, count, start_frame, quiet) -> None:
     """Open a web viewer on a trained job (or every finished job of a run folder).
 
     \b
@@ -34,17 +35,23 @@ def view(folder, port, host, device, drag_scale, record, component, count, start
     Examples:
       olatbench view runs/mini/ssdgs/default/translucent/seed0
       olatbench view runs/mini --port 8081
+      olatbench view runs/ -s mycaptures          # the jobs of one suite (e.g. of olatbench.toml)
       olatbench view runs/mini/ssdgs/default/translucent/seed0 --record light-orbit orbit.mp4
     """
     # Idle OpenMP threads sleep instead of spinning: on a shared 2-core machine spinning made each render of the
     # native kernels 8x slower with 2 threads (benchmarks/bench_viewer.py, docs/viewer.md). Set before torch loads.
     os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
     from olatbench.bench.restore import RestoreError
+    from olatbench.bench.store import in_suite
     from olatbench.viewer.jobs import job_folders
     from olatbench.viewer.model import ViewerModel
 
+    suite = checked_suite(suite)
     try:
         folders, skipped = job_folders(folder, device)
+        folders = [job for job in folders if in_suite(job, suite)]
+        if not folders:
+            raise click.ClickException(f"{folder}: no finished job of suite {suite} in or below it")
         for line in skipped:
             click.echo(f"skipped: {line}", err=True)
         first = ViewerModel.open(folders[0], device)

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from olatbench.datasets.errors import DatasetError
+from olatbench.datasets.errors import DatasetError, OutputExistsError
 from olatbench.datasets.formats import format_module, is_scene_folder
 from olatbench.datasets.records import Frame, Scene
 
@@ -56,6 +56,7 @@ def write_scene(scene: Scene, out_dir: str | Path, fmt: str, pixels: PixelSource
     if is_scene_folder(source) and out_dir.resolve().is_relative_to(source):
         raise DatasetError("refusing to write inside the source dataset (trees are read-only)", path=out_dir)
     if is_scene_folder(out_dir) and not overwrite:
-        raise DatasetError("a scene already exists here; choose another folder or pass overwrite=True", path=out_dir)
+        raise OutputExistsError("a scene already exists here; choose another folder or pass overwrite=True",
+                                path=out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     return module.write_scene(scene, out_dir, _checked(pixels or frame_pixels))

@@ -1,4 +1,5 @@
-"""The one exception type of the data layer: it names the file, the frame and the key."""
+"""The one exception type of the data layer: it names the file, the frame and the key (and its one refinement,
+`OutputExistsError`, for a write that would replace a scene: the caller's choice, not bad data)."""
 
 from __future__ import annotations
 
@@ -40,3 +41,7 @@ class DatasetError(ValueError):
         if self.key is not None:
             where.append(f"key '{self.key}'")
         return printable(': '.join([', '.join(where), self.message]) if where else self.message)
+
+
+class OutputExistsError(DatasetError):
+    """A scene already exists where one is to be written (the CLI reports it as a usage error)."""

@@ -3,12 +3,19 @@
 Sources: the SSD-GS paper (Sec. 5 and appendix) and ``ssdgs_iclr2026.csv``. NRHints scenes are 512² or
 1024² (``resolution=None`` keeps each scene's native size); GS³ is 512²; SSS-GS is the public 256²
 down-scaled release. Folder aliases map the names found on disk to the canonical names of the paper.
+
+A user's own scenes make suites too, whose scenes are folders anywhere (``Suite.scene_paths``): ``[suites.NAME]``
+tables of ``olatbench.toml`` (`user_suites`: ``scenes`` = folder paths relative to the file, and optionally
+``format``, ``protocol``, ``resolution``, ``iterations``), and the scene folders given to ``run --data``
+(`data_suite`, named ``data-<format>``, a name no built-in or user suite may take, so their run folders never meet
+a suite's). Whatever such a suite does not say is taken from the built-in suite of its format (the format is
+detected when not given), including which method preset its jobs apply (``gs3`` for a GS³-format suite).
 """
 
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from olatbench.datasets.errors import DatasetError
@@ -45,6 +52,14 @@ class Suite:
     test_split: str = "test"
     generator: str | None = None  # "module:function" creating the data on first use
     generator_root: str | None = None  # "module:function" returning where the generator keeps its data
+    scene_paths: dict[str, str] = field(default_factory=dict)  # scene -> its folder (user suites; no data root)
+    method_preset: str | None = None  # the method preset every job applies (None: the one named like the suite)
+    iterations_given: bool = False  # a user suite's own iterations: they win over that preset's
+
+    @property
+    def preset(self) -> str:
+        """The name of the method preset applied to every job of this suite (when the method has one)."""
+        return self.method_preset or self.name
 
     @property
     def colourspace(self) -> str:
@@ -59,10 +74,18 @@ class Suite:
             return folder
         return self.aliases.get(folder) or self.aliases.get(folder.lower())
 
-    def scene_path(self, data_root: str | Path, scene: str) -> Path:
-        """The folder of ``scene`` below ``data_root``: by canonical name or any alias."""
-        data_root = Path(data_root)
+    def scene_path(self, data_root: str | Path | None, scene: str) -> Path:
+        """The folder of ``scene`` below ``data_root``: by canonical name or any alias (a suite with
+        ``scene_paths`` ignores ``data_root``)."""
         canonical = self.canonical(scene) or scene
+        if canonical in self.scene_paths:
+            path = Path(self.scene_paths[canonical])
+            if not path.is_dir():
+                raise DatasetError(f"scene '{canonical}' of suite '{self.name}': folder not found", path=path)
+            return path
+        if data_root is None:
+            raise DatasetError(f"suite '{self.name}' needs a data root to find scene '{canonical}'")
+        data_root = Path(data_root)
         if canonical not in self.scenes:
             raise DatasetError(f"suite '{self.name}' has no scene '{scene}'; scenes: {', '.join(self.scenes)}",
                                path=data_root)
@@ -102,17 +125,136 @@ SUITES: dict[str, Suite] = {
 }
 
 
+#: The name prefix of the suites made from ``run --data`` folders (``data-gs3``); reserved.
+DATA_SUITE_PREFIX = "data-"
+#: The keys a ``[suites.NAME]`` table of olatbench.toml may hold.
+USER_SUITE_KEYS = ("scenes", "format", "protocol", "resolution", "iterations")
+
+
 def suite_names() -> list[str]:
-    """Names of the built-in suites."""
-    return list(SUITES)
+    """Names of the built-in suites, then the user's (olatbench.toml in the working folder)."""
+    return list(SUITES) + [name for name in user_suites() if name not in SUITES]
 
 
 def get_suite(name: str) -> Suite:
-    """The suite called ``name``; a `DatasetError` listing the known suites otherwise."""
-    try:
+    """The suite called ``name``: built-in, a user suite of olatbench.toml, or ``data-<format>`` (the suite of
+    ``run --data`` folders, here without scenes: its runs name them); a `DatasetError` listing the known suites
+    otherwise."""
+    if name in SUITES:
         return SUITES[name]
-    except KeyError:
-        raise DatasetError(f"unknown suite '{name}'; known suites: {', '.join(SUITES)}") from None
+    users = user_suites()
+    if name in users:
+        return users[name]
+    fmt = name.removeprefix(DATA_SUITE_PREFIX)
+    if name.startswith(DATA_SUITE_PREFIX) and fmt in SUITES:
+        return _own_suite(name, fmt, {})
+    known = ", ".join([*SUITES, *users]) + f" (and {DATA_SUITE_PREFIX}<format> for run --data)"
+    raise DatasetError(f"unknown suite '{name}'; known suites: {known}")
+
+
+def parse_resolution(value: object, where: str) -> tuple[int, int] | None:
+    """``"256x256"``, ``[256, 256]`` or ``"native"`` (None) as (width, height); a `DatasetError` naming ``where``
+    otherwise."""
+    if value == "native":
+        return None
+    try:
+        parts = value.lower().split("x") if isinstance(value, str) else list(value)  # type: ignore[call-overload]
+        width, height = (int(part) for part in parts)
+    except (TypeError, ValueError):
+        raise DatasetError(f"{where}: resolution must be WIDTHxHEIGHT (e.g. 256x256), [W, H] or \"native\", "
+                           f"not {value!r}") from None
+    if width < 1 or height < 1:
+        raise DatasetError(f"{where}: resolution must be positive, not {value!r}")
+    return width, height
+
+
+def _own_suite(name: str, fmt: str, scene_paths: dict[str, str], **given: object) -> Suite:
+    """A suite of folders of format ``fmt`` with the background, resolution and method presets of the built-in suite
+    of that format, and its protocol and iterations unless ``given`` (None: not given)."""
+    base = SUITES[fmt]
+    settings = {key: value for key, value in given.items() if value is not None}
+    return Suite(name=name, format=fmt, scenes=tuple(scene_paths), background=base.background,
+                 resolution=base.resolution, iterations=int(settings.get("iterations", base.iterations)),  # type: ignore[call-overload]
+                 protocol=str(settings.get("protocol", base.protocol)), scene_paths=scene_paths, method_preset=fmt,
+                 iterations_given="iterations" in settings)
+
+
+def _scene_folders(paths: list[Path], fmt: str | None, where: str) -> tuple[str, dict[str, str]]:
+    """The format of ``paths`` (detected unless ``fmt``) and {scene name (the folder's name): absolute folder}."""
+    from olatbench.datasets.formats import detect_format
+
+    found: dict[str, str] = {}
+    formats = set()
+    for path in paths:
+        try:
+            detected = detect_format(path)
+        except DatasetError as error:
+            raise DatasetError(f"{where}: {error}") from None
+        if fmt is not None and detected != fmt:
+            raise DatasetError(f"{where}: the folder is in {detected} format, not {fmt}", path=path)
+        formats.add(detected)
+        name = path.resolve().name
+        if name in found:
+            raise DatasetError(f"{where}: two scene folders are named '{name}' ({found[name]} and {path}); "
+                               "rename one, since run folders are named after the scene", path=path)
+        found[name] = str(path.resolve())
+    if len(formats) > 1:
+        raise DatasetError(f"{where}: the scenes mix formats ({', '.join(sorted(formats))}); a suite holds one")
+    return formats.pop(), found
+
+
+def data_suites(paths: list[str | Path]) -> list[Suite]:
+    """The suites of ``run --data`` folders: one ``data-<format>`` suite per detected format, in the order the
+    folders were given."""
+    by_format: dict[str, list[Path]] = {}
+    from olatbench.datasets.formats import detect_format
+
+    for path in map(Path, paths):
+        by_format.setdefault(detect_format(path), []).append(path)
+    suites = []
+    for fmt, folders in by_format.items():
+        _, scene_paths = _scene_folders(folders, fmt, "--data")
+        suites.append(_own_suite(f"{DATA_SUITE_PREFIX}{fmt}", fmt, scene_paths))
+    return suites
+
+
+def user_suites(folder: str | Path | None = None) -> dict[str, Suite]:
+    """The ``[suites.NAME]`` tables of olatbench.toml in ``folder`` (default: the working folder) as suites; a
+    `DatasetError` naming the file, the table and the key for anything malformed."""
+    from olatbench.project_file import ProjectFileError, project_file_path, project_tables
+
+    try:
+        tables = project_tables("suites", '[suites.mycaptures] scenes = ["captures/cup"]', folder)
+    except ProjectFileError as error:
+        raise DatasetError(str(error)) from None
+    path = project_file_path(folder)
+    suites = {}
+    for name, table in tables.items():
+        where = f"{path} [suites.{name}]"
+        if name in SUITES or name.startswith(DATA_SUITE_PREFIX):
+            raise DatasetError(f"{where}: the name is taken (built-in suites: {', '.join(SUITES)}; "
+                               f"{DATA_SUITE_PREFIX}* is reserved for run --data)")
+        unknown = sorted(set(table) - set(USER_SUITE_KEYS))
+        if unknown:
+            raise DatasetError(f"{where}: unknown key(s) {', '.join(unknown)}; known: {', '.join(USER_SUITE_KEYS)}")
+        scenes = table.get("scenes")
+        if not isinstance(scenes, list) or not scenes or not all(isinstance(item, str) for item in scenes):
+            raise DatasetError(f"{where}: scenes must be a non-empty list of scene folders (relative to the file)")
+        fmt = table.get("format")
+        if fmt is not None and fmt not in SUITES:
+            raise DatasetError(f"{where}: format must be one of nrhints, gs3, sssgs, not {fmt!r}")
+        iterations = table.get("iterations")
+        if iterations is not None and (not isinstance(iterations, int) or isinstance(iterations, bool)
+                                       or iterations < 0):
+            raise DatasetError(f"{where}: iterations must be a whole number >= 0, not {iterations!r}")
+        protocol = table.get("protocol")
+        if protocol is not None and not isinstance(protocol, str):
+            raise DatasetError(f"{where}: protocol must be a protocol name (olatbench metrics list)")
+        fmt, scene_paths = _scene_folders([path.parent / item for item in scenes], fmt, f"{where} scenes")
+        resolution = parse_resolution(table["resolution"], where) if "resolution" in table else SUITES[fmt].resolution
+        suites[name] = replace(_own_suite(name, fmt, scene_paths, protocol=protocol, iterations=iterations),
+                               resolution=resolution)
+    return suites
 
 
 def canonical_scene_name(folder: str, format: str | None = None) -> str:

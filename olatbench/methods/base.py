@@ -73,6 +73,9 @@ class Method(ABC):
     #: frame ids are always given, in training order, so per-view state stays addressable by frame id), and a
     #: sweep or the viewer reads no training image. True (the safe default for plugins): the images are loaded.
     restore_needs_images: ClassVar[bool] = True
+    #: Training steps the method always takes, replacing the suite's (None: the suite's; 0: learning-free, all the
+    #: work is in `setup`), for methods registered as a class; built-in methods declare it in their `MethodSpec`.
+    training_iterations: ClassVar[int | None] = None
 
     def __init_subclass__(cls, spec: MethodSpec | None = None, **kwargs: Any) -> None:
         """``class SSDGS(GaussianMethod, spec=SPEC)`` takes ``name``, ``presets``, ``description`` and
@@ -81,6 +84,7 @@ class Method(ABC):
         if spec is not None:
             cls.name, cls.presets, cls.description = spec.name, dict(spec.presets), spec.description
             cls.ablations = dict(spec.ablations)
+            cls.training_iterations = spec.iterations
 
     def __init__(self, config: Any) -> None:
         self.config = config

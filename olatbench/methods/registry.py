@@ -40,7 +40,8 @@ def spec_from_class(name: str, method_class: type[Method], kind: str = "plugin")
     config_class = method_class.config_class
     return MethodSpec(name=name, description=(method_class.description or "").strip(),
                       implementation=_reference(method_class), config=_reference(config_class), kind=kind,  # type: ignore[arg-type]
-                      presets=dict(method_class.presets), ablations=dict(getattr(method_class, "ablations", {})))
+                      presets=dict(method_class.presets), ablations=dict(getattr(method_class, "ablations", {})),
+                      iterations=getattr(method_class, "training_iterations", None))
 
 
 def register(name: str | MethodSpec, method_class: type[Method] | None = None) -> None:

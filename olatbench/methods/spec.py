@@ -54,7 +54,9 @@ def _frozen(mapping: Mapping[str, Any] | None) -> Mapping[str, Any]:
 class MethodSpec:
     """One method as data. ``presets`` maps a preset name to config overrides: a preset named like a suite
     (``"nrhints"``) is applied to every job on that suite, the others are variants chosen with ``--variant``
-    (``"a+b"`` applies ``a`` then ``b``). ``ablations`` maps a grid name (``"components"``) to its variants."""
+    (``"a+b"`` applies ``a`` then ``b``). ``ablations`` maps a grid name (``"components"``) to its variants.
+    ``iterations`` replaces the suite's training length with the method's own (None: the suite's); 0 declares a
+    learning-free method: ``setup`` does all the work and no training step runs, whatever the suite says."""
 
     name: str
     description: str
@@ -66,8 +68,13 @@ class MethodSpec:
     outputs: tuple[str, ...] = ("rgb",)
     capabilities: frozenset[str] = frozenset()
     source: SourcePin | None = None  # official implementations only
+    iterations: int | None = None  # training steps the method always takes (None: the suite's; 0: learning-free)
 
     def __post_init__(self) -> None:
+        if self.iterations is not None and (isinstance(self.iterations, bool) or not isinstance(self.iterations, int)
+                                            or self.iterations < 0):
+            raise ValueError(f"method spec {self.name!r}: iterations must be a whole number >= 0 or None, not "
+                             f"{self.iterations!r}")
         for reference in (self.implementation, self.config):
             module, sep, attribute = reference.partition(":")
             if not (module and sep and attribute):

@@ -12,10 +12,19 @@ per (split, metric) of its ``metrics.<split>.mean`` (``value`` NaN when the run 
 weights) and per-job rows with split "-" for ``fps`` (render FPS), ``train_time`` (seconds) and ``num_gaussians``.
 A failed job gives one row with status "failed", empty split and metric, and its error in ``error``. Files
 written by ``olatbench evaluate`` (``kind: "evaluate"``, no job) give no rows.
+
+What makes a job the experiment it is, apart from its seed and scene (`experiment_fields`): ``config`` (the
+resolved method config as canonical JSON: iterations and every override are in it), ``resolution`` (``WxH``,
+``native``, or "" in files written before results.json recorded it), ``code`` (the code hash), ``official_commit``
+(the authors' commit an official method ran, else ""), with method, variant, suite and protocol; ``experiment``
+is a short hash of them all, and ``data`` the scene's data-manifest hash. Reports aggregate over seeds only jobs
+that share ``experiment`` and ``data`` (`olatbench.reports.runs_tables`).
 """
 
 from __future__ import annotations
 
+import hashlib
+import json
 import math
 import warnings
 from collections.abc import Iterable
@@ -28,7 +37,8 @@ from olatbench.bench.results import ResultsError, read_results
 from olatbench.bench.store import find_results
 
 COLUMNS = ("method", "variant", "suite", "scene", "seed", "split", "metric", "value", "status", "protocol",
-           "device", "job_id", "error", "path", "test_poses")
+           "device", "job_id", "error", "path", "test_poses", "config", "resolution", "code", "official_commit",
+           "data", "experiment")
 JOB_FACTS = (("fps", ("timing", "render_fps")), ("train_time", ("timing", "train_seconds")),
              ("num_gaussians", ("model", "num_gaussians")))
 
@@ -74,7 +84,8 @@ def result_rows(data: dict[str, Any], path: Path) -> list[dict[str, Any]]:
     base = {"method": job["method"], "variant": job["variant"], "suite": job["suite"], "scene": job["scene"],
             "seed": int(job["seed"]), "status": data["status"],
             "protocol": f"{protocol.get('id', '?')} v{protocol.get('version', '?')}",
-            "device": _nested(data, ("resources", "device")) or "", "job_id": job["id"], "path": str(path)}
+            "device": _nested(data, ("resources", "device")) or "", "job_id": job["id"], "path": str(path),
+            **experiment_fields(data)}
     if data["status"] == "failed":
         error = data.get("error") or {}
         text = f"{error.get('type', 'error')}: {error.get('message', '')}".strip()
@@ -89,6 +100,23 @@ def result_rows(data: dict[str, Any], path: Path) -> list[dict[str, Any]]:
         rows.append({**base, "split": "-", "metric": metric, "value": _number(_nested(data, keys)), "error": "",
                      "test_poses": ""})
     return rows
+
+
+def experiment_fields(data: dict[str, Any]) -> dict[str, str]:
+    """The identity columns of one run's results (module docstring): everything but seed and scene that decides its
+    numbers, and ``experiment``, their hash."""
+    job = data["job"]
+    resolution = job.get("resolution", "")
+    protocol = data.get("protocol") or {}
+    fields = {"config": json.dumps(job.get("config") or {}, sort_keys=True, separators=(",", ":")),
+              "resolution": ("native" if resolution is None else "x".join(str(int(v)) for v in resolution)
+                             if resolution != "" else ""),
+              "code": _nested(data, ("hashes", "code")) or "",
+              "official_commit": _nested(data, ("official", "commit")) or ""}
+    identity = {**fields, "method": job["method"], "variant": job["variant"], "suite": job["suite"],
+                "protocol": [protocol.get("id"), protocol.get("version")]}
+    digest = hashlib.sha256(json.dumps(identity, sort_keys=True).encode()).hexdigest()[:12]
+    return {**fields, "data": _nested(data, ("hashes", "data_manifest")) or "", "experiment": digest}
 
 
 def posed_splits(data: dict[str, Any]) -> dict[str, str]:

@@ -24,6 +24,7 @@ from dataclasses import dataclass, field, replace
 
 import pandas as pd
 
+from olatbench.reports.experiments import experiment_rows
 from olatbench.reports.layouts import (
     CellLookup,
     metric_columns_layout,
@@ -136,8 +137,7 @@ class RunCells:
         self.notes = Notes()
         frame = frame.copy()
         counts = frame.groupby("method")["variant"].nunique()
-        frame["row"] = [row_label(m, v, int(counts[m])) for m, v in zip(frame["method"], frame["variant"],
-                                                                           strict=True)]
+        frame["row"] = experiment_rows(frame, lambda method, variant: row_label(method, variant, int(counts[method])))
         if seeds == "all":
             frame["row"] = frame["row"] + " seed" + frame["seed"].astype(str)
         self.frame = frame
@@ -213,13 +213,45 @@ class RunCells:
         return set(values.dropna(subset=["value"])["seed"]) >= set(self.seeds[row])
 
 
-def _protocol_line(frame: pd.DataFrame, suite: str, seeds: str, seed_std: bool = False) -> str:
-    """``seed_std``: the table's per-scene cells carry the sample std over seeds where they have several."""
-    protocols = sorted(set(frame["protocol"]))
-    seed_count = frame.groupby(["method", "variant", "scene"])["seed"].nunique().max()
-    spread = " ± sample std" if seed_std and seed_count > 1 else ""
-    seed_text = "every seed as its own row" if seeds == "all" else f"mean{spread} over up to {seed_count} seed(s)"
-    text = f"{', '.join(protocols)}; suite {suite}; {seed_text}"
+def seed_counts(run_cells: RunCells) -> dict[str, dict[str, int]]:
+    """Row -> scene -> how many seeds the row's cell of that scene averages (finished jobs with a number)."""
+    frame = run_cells.frame
+    done = frame[(frame["status"] == "done") & (frame["split"] != "-")].dropna(subset=["value"])
+    counts: dict[str, dict[str, int]] = {row: {} for row in run_cells.rows}
+    for (row, scene), group in done.groupby(["row", "scene"], sort=False):
+        counts[row][scene] = int(group["seed"].nunique())
+    return counts
+
+
+def seed_text(run_cells: RunCells, seeds: str, seed_std: bool = False) -> str:
+    """What each cell averages, counted truthfully: ``mean ± sample std over 3 seeds``, or, when cells differ,
+    ``mean ± sample std over 1–3 seeds per cell`` followed by each row's counts. ``seed_std``: the cells carry the
+    sample std over seeds where they have several (a one-seed cell never does)."""
+    if seeds == "all":
+        return "every seed as its own row"
+    counts = seed_counts(run_cells)
+    numbers = sorted({n for per_scene in counts.values() for n in per_scene.values()})
+    if not numbers:
+        return "no finished seeds"
+    spread = " ± sample std" if seed_std and numbers[-1] > 1 else ""
+    if len(numbers) == 1:
+        return f"mean{spread} over {numbers[0]} seed{'s' if numbers[0] > 1 else ''}"
+    per_row = "; ".join(_row_seed_counts(row, per_scene) for row, per_scene in counts.items() if per_scene)
+    note = " (a one-seed cell has no ±)" if spread else ""
+    return f"mean{spread} over {numbers[0]}–{numbers[-1]} seeds per cell{note} — seeds per cell: {per_row}"
+
+
+def _row_seed_counts(row: str, per_scene: dict[str, int]) -> str:
+    """``ssdgs 3 (Cat 2)``: the row's usual seed count, then the scenes that have another."""
+    usual = max(set(per_scene.values()), key=list(per_scene.values()).count)
+    others = ", ".join(f"{scene} {n}" for scene, n in per_scene.items() if n != usual)
+    return f"{row} {usual}" + (f" ({others})" if others else "")
+
+
+def _protocol_line(run_cells: RunCells, suite: str, seeds: str, seed_std: bool = False) -> str:
+    """The table's protocol line: metric protocols, suite and `seed_text`."""
+    protocols = sorted(set(run_cells.frame["protocol"]))
+    text = f"{', '.join(protocols)}; suite {suite}; {seed_text(run_cells, seeds, seed_std)}"
     if len(protocols) > 1:
         text += " — WARNING: mixed metric protocols, numbers are not comparable"
     return text
@@ -294,7 +326,7 @@ def scene_table(frame: pd.DataFrame, *, suite: str | None = None, methods: Seque
         table_notes = []
     table = scenes_layout(CellLookup(cells), rows, columns, splits, metrics, name=f"tab:{suite}",
                           caption=f"Per-scene results on the {suite} suite.",
-                          protocol=_protocol_line(selected, suite, seeds, seed_std=True), rank_sets=ranks)
+                          protocol=_protocol_line(run_cells, suite, seeds, seed_std=True), rank_sets=ranks)
     table.footnotes += table_notes + ([scene_note] if scene_note else []) + run_cells.notes.lines()
     return table
 
@@ -374,7 +406,7 @@ def overview_table(frame: pd.DataFrame, *, suite: str | None = None, methods: Se
     table = overview_layout(CellLookup(cells), rows, splits, metrics, name=f"tab:{suite}-overview",
                             caption=f"Averages over the {len(scenes)} scenes of the {suite} suite "
                                     f"(mean ± std over scenes; training time is the mean per scene).",
-                            protocol=_protocol_line(selected, suite, seeds),
+                            protocol=_protocol_line(run_cells, suite, seeds),
                             extras=(("fps", "FPS", "-"), ("train_time", "Train T.", "-"), ("gpu", "Device", "-")),
                             rank_sets={row: ("all" if row in run_cells.rows else None) for row in rows})
     table.footnotes += notes_before + ([scene_note] if scene_note else []) + run_cells.notes.lines()
@@ -440,7 +472,7 @@ def ablation_table(frame: pd.DataFrame, *, suite: str | None = None, method: str
     sets = {row: ("schedule" if run_cells.source[row][1].startswith("schedule-") else "composition") for row in rows}
     scenes = list(dict.fromkeys(selected["scene"]))
     suites = sorted(set(selected["suite"]))
-    protocol = _protocol_line(selected, ", ".join(suites), seeds, seed_std=True)
+    protocol = _protocol_line(run_cells, ", ".join(suites), seeds, seed_std=True)
     first_schedule = [row for row in rows if sets[row] == "schedule"][:1]
     cells = {}
     for row in rows:

@@ -1,6 +1,8 @@
 """A minimal external method: predicts the mean training image whatever the light (a constant baseline).
 
 Install it with ``pip install -e examples/external_method`` and run ``olatbench run --method mean-image ...``.
+It learns nothing (``training_iterations = 0``): `setup` computes the mean, the runner takes no training step
+whatever the suite's iteration count, and the one checkpoint (step 0) holds the mean for ``olatbench view``.
 """
 
 from __future__ import annotations
@@ -15,7 +17,7 @@ from olatbench.methods import Method, Views
 
 @dataclass
 class MeanImageConfig:
-    iterations: int = 1  # the runner needs a length; one step computes the mean
+    iterations: int = 0  # learning-free: no training step
 
 
 class MeanImage(Method):
@@ -25,14 +27,13 @@ class MeanImage(Method):
     config_class: ClassVar[type] = MeanImageConfig
     presets: ClassVar[dict[str, dict[str, Any]]] = {}
     description: ClassVar[str] = "Example external method: the mean training image, blind to the light."
+    training_iterations: ClassVar[int | None] = 0  # learning-free, whatever the suite says
 
     def setup(self, train: Views, device, seed: int) -> None:
-        self.images = torch.from_numpy(train.images).to(device)
-        self.mean = torch.zeros_like(self.images[0])
+        self.mean = torch.from_numpy(train.images).to(device).mean(dim=0)  # (H, W, 3)
 
     def train_step(self, step: int) -> dict[str, float]:
-        self.mean = self.images.mean(dim=0)
-        return {"loss": float((self.images - self.mean).abs().mean())}
+        raise RuntimeError("mean-image takes no training step (training_iterations = 0)")
 
     def render(self, camera, light) -> dict[str, torch.Tensor]:
         return {"rgb": self.mean}

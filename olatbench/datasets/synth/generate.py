@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from olatbench.atomic import write_json
-from olatbench.datasets.errors import DatasetError
+from olatbench.datasets.errors import OutputExistsError
 from olatbench.datasets.records import Frame, Scene
 from olatbench.datasets.synth.backend import active_variant, mitsuba
 from olatbench.datasets.synth.geometry import write_geometry
@@ -108,6 +108,7 @@ def generate(recipe: Recipe, out_dir: Path, fmt: str = "nrhints", progress: bool
     from olatbench.datasets.formats import is_scene_folder
 
     if is_scene_folder(Path(out_dir)):
-        raise DatasetError("a scene already exists here; choose another folder or delete it first", path=out_dir)
+        raise OutputExistsError("a scene already exists here; choose another folder or delete it first",
+                                path=out_dir)
     rendered = render_recipe(recipe, root=out_dir, progress=progress, geometry=geometry)
     return write_rendered(rendered, out_dir, fmt)

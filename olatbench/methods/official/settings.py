@@ -27,7 +27,9 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
-TOML_FILE = "olatbench.toml"
+from olatbench.project_file import PROJECT_FILE, ProjectFileError, project_tables
+
+TOML_FILE = PROJECT_FILE
 LAUNCHERS = ("python", "conda_env", "container")
 FIELDS = ("checkout", *LAUNCHERS, "timeout_minutes")
 
@@ -103,24 +105,10 @@ def env_name(method: str, key: str) -> str:
 
 def read_toml(folder: str | Path | None = None) -> dict[str, dict[str, Any]]:
     """The ``[official.METHOD]`` tables of ``olatbench.toml`` in ``folder`` (the working folder), or {}."""
-    path = Path(folder or os.getcwd()) / TOML_FILE
-    if not path.is_file():
-        return {}
     try:
-        import tomllib
-    except ImportError:  # Python 3.10
-        try:
-            import tomli as tomllib  # type: ignore[no-redef]
-        except ImportError:
-            raise SettingsError(f"{path}: reading it needs Python 3.11 or: pip install tomli") from None
-    try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except (OSError, tomllib.TOMLDecodeError) as error:
-        raise SettingsError(f"{path}: {error}") from None
-    tables = data.get("official", {})
-    if not isinstance(tables, dict) or not all(isinstance(v, dict) for v in tables.values()):
-        raise SettingsError(f"{path}: expected tables [official.METHOD] (e.g. [official.gs3-official])")
-    return tables
+        return project_tables("official", "[official.gs3-official]", folder)
+    except ProjectFileError as error:
+        raise SettingsError(str(error)) from None
 
 
 def parse_code_options(items: list[str] | tuple[str, ...], method: str | None = None) -> dict[str, dict[str, str]]:
