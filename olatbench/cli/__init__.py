@@ -13,6 +13,7 @@ import sys
 import click
 
 from olatbench import __version__
+from olatbench.cli.options import without_hidden_suggestions
 from olatbench.numerics import pin_cpu_capability
 
 # verb -> "module:attribute" of a click command or group
@@ -66,6 +67,13 @@ class LazyGroup(click.Group):
             if isinstance(stream, io.TextIOWrapper) and stream.errors == "strict":
                 stream.reconfigure(errors="backslashreplace")
         return super().main(*args, **kwargs)
+
+    def invoke(self, ctx: click.Context):  # type: ignore[override]
+        """Run the verb; a mistyped option is offered the shown spellings only (`without_hidden_suggestions`)."""
+        try:
+            return super().invoke(ctx)
+        except click.NoSuchOption as error:
+            raise without_hidden_suggestions(error) from None
 
     def list_commands(self, ctx: click.Context) -> list[str]:
         return sorted(set(self.lazy_commands) | set(self.commands))

@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 
 from olatbench.atomic import WriteError, write_text
-from olatbench.cli.options import quiet_option, show_progress
+from olatbench.cli.options import Resolution, device_option, quiet_option, resolve_device, show_progress
 
 LAYOUTS = ("scenes", "overview", "ablation")
 
@@ -150,16 +150,6 @@ def _report_runs(runs, suite, methods, metrics, splits, layouts, average, fmt, s
                          notes=notes)
 
 
-def _parse_resolution(text: str | None) -> tuple[int, int] | None:
-    if text is None:
-        return None
-    try:
-        width, height = (int(part) for part in text.lower().split("x"))
-    except ValueError:
-        raise click.BadParameter(f"{text!r}: expected WIDTHxHEIGHT, e.g. 512x512") from None
-    return width, height
-
-
 @click.command("render")
 @click.argument("run", type=click.Path(exists=True, file_okay=False, path_type=Path))
 @click.option("--sweep", "kind", type=click.Choice(("light-orbit", "view-orbit", "paper")), default="light-orbit",
@@ -168,8 +158,8 @@ def _parse_resolution(text: str | None) -> tuple[int, int] | None:
 @click.option("--start-frame", help="Test frame id whose camera and light start the sweep (default: the first).")
 @click.option("--component", default="rgb", show_default=True, help="What to render: rgb, diffuse, shadow, ...")
 @click.option("--fps", type=click.FloatRange(min=1), default=30.0, show_default=True, help="Video frame rate.")
-@click.option("--device", default="cpu", show_default=True, help="torch device for rendering.")
-@click.option("--resolution", help="WIDTHxHEIGHT of the frames (default: the job's).")
+@device_option
+@click.option("--resolution", type=Resolution(), help="Frame size N (N×N) or WxH (default: the job's).")
 @click.option("-o", "--output", type=click.Path(file_okay=False, path_type=Path),
               help="Folder for <sweep>.mp4 and <sweep>_frames/ (default: RUN/videos).")
 @quiet_option
@@ -188,7 +178,7 @@ def render(run, kind, count, start_frame, component, fps, device, resolution, ou
     try:
         job = JobFolder.open(run)
         result = render_sweep(job, kind, output or run / "videos", count=count, frame_id=start_frame,
-                              component=component, fps=fps, device=device, resolution=_parse_resolution(resolution),
+                              component=component, fps=fps, device=resolve_device(device), resolution=resolution,
                               progress=show_progress(quiet))
     except (JobFolderError, DatasetError, RuntimeError, OSError, ValueError) as error:
         raise click.ClickException(f"{error}\nCheck the job with 'olatbench status {run.parent.parent.parent}'.") \

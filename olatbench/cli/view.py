@@ -8,7 +8,7 @@ from pathlib import Path
 
 import click
 
-from olatbench.cli.options import quiet_option, show_progress
+from olatbench.cli.options import device_option, quiet_option, resolve_device, show_progress
 
 
 @click.command("view")
@@ -16,7 +16,7 @@ from olatbench.cli.options import quiet_option, show_progress
 @click.option("--port", type=click.IntRange(0, 65535), default=8080, show_default=True,
               help="Port of the web viewer (0: any free port).")
 @click.option("--host", default="127.0.0.1", show_default=True, help="Address to listen on (0.0.0.0: every one).")
-@click.option("--device", default="cpu", show_default=True, help="torch device for rendering.")
+@device_option
 @click.option("--drag-scale", type=click.FloatRange(0.05, 1.0), default=0.5, show_default=True,
               help="Resolution factor while the camera or light moves (full resolution once still).")
 @click.option("--record", nargs=2, type=(click.Choice(("light-orbit", "view-orbit")), click.Path(dir_okay=False,
@@ -39,6 +39,7 @@ def view(folder, port, host, device, drag_scale, record, component, count, start
     # Idle OpenMP threads sleep instead of spinning: on a shared 2-core machine spinning made each render of the
     # native kernels 8x slower with 2 threads (benchmarks/bench_viewer.py, docs/viewer.md). Set before torch loads.
     os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+    device = resolve_device(device)
     from olatbench.bench.restore import RestoreError
     from olatbench.viewer.jobs import job_folders
     from olatbench.viewer.model import ViewerModel
