@@ -27,6 +27,7 @@ COMMANDS: dict[str, str] = {
     "weights": "olatbench.cli.metrics:weights",
     "report": "olatbench.cli.report:report",
     "render": "olatbench.cli.report:render",
+    "export": "olatbench.cli.export:export",
     "view": "olatbench.cli.view:view",
     "doctor": "olatbench.cli.doctor:doctor",
 }
@@ -41,6 +42,7 @@ HELP_LINES: dict[str, str] = {
     "weights": "Install and locate the LPIPS weights.",
     "report": "Build the paper's tables and figures from results.json files.",
     "render": "Render relighting sweeps (videos) from a finished run.",
+    "export": "Write a finished job's Gaussians as a PLY for splat viewers.",
     "view": "Interactive relighting viewer for trained jobs (web, viser).",
     "doctor": "Show what this machine supports and how to fix what is missing.",
 }
