@@ -10,6 +10,8 @@ from olatbench.atomic import WriteError, write_text
 from olatbench.cli.options import Resolution, device_option, quiet_option, resolve_device, show_progress
 
 LAYOUTS = ("scenes", "overview", "ablation")
+FIGURE_FILE_FORMATS = ("png", "svg", "pdf")  # olatbench.reports.figures.FIGURE_FORMATS (not imported: matplotlib)
+FIGURE_CHOICES = ("embed", *FIGURE_FILE_FORMATS, "none")
 
 
 def _split_list(text: str | None) -> list[str] | None:
@@ -55,11 +57,13 @@ def _emit(text: str, output: str | None) -> None:
               help="With --published-only: which paper table(s); default all.")
 @click.option("--seeds", type=click.Choice(("mean", "all")), default="mean", show_default=True,
               help="Average seeds into one row, or show every seed as its own row.")
-@click.option("--figures/--no-figures", default=True, show_default=True,
-              help="HTML: embed comparison grids, decompositions and training curves.")
+@click.option("--figures", "figure_format", type=click.Choice(FIGURE_CHOICES), default="embed", show_default=True,
+              help="HTML: embed comparison grids, decompositions and training curves in the page (embed); png, svg "
+                   "or pdf: also write each as a file in <OUTPUT name>_figures/ beside the page (PNG at 300 dpi; SVG "
+                   "and PDF vector), linked from its caption; none: no figures.")
 @click.option("--frames", "frame_ids", help="HTML figures: comma-separated test frame ids (default: the first).")
 def report(runs, suite, methods, metrics, splits, layouts, average, fmt, output, standalone, booktabs, colours,
-           published, published_only, paper_tables, seeds, figures, frame_ids) -> None:
+           published, published_only, paper_tables, seeds, figure_format, frame_ids) -> None:
     """Build the paper's tables (and an HTML page with figures) from results.json files.
 
     A results.json that cannot be read is named on stderr and left out; the others still make the tables.
@@ -72,6 +76,7 @@ def report(runs, suite, methods, metrics, splits, layouts, average, fmt, output,
       olatbench report runs/ --suite nrhints --published -o table.tex --standalone
       olatbench report runs/ --layout ablation --format markdown
       olatbench report runs/ --suite sssgs --layout overview -o report.html
+      olatbench report runs/ --suite mini -o report.html --figures pdf   # + report_figures/*.pdf
       olatbench report --published-only --table real -o table1a.tex
     """
     from olatbench.bench.results import ResultsError
@@ -95,9 +100,12 @@ def report(runs, suite, methods, metrics, splits, layouts, average, fmt, output,
         if not runs:
             raise click.UsageError("give a runs folder (or results.json files), or use --published-only; e.g. "
                                    "olatbench report runs/ --suite mini")
+        if figure_format in FIGURE_FILE_FORMATS and (fmt != "html" or output is None):
+            raise click.UsageError(f"--figures {figure_format} writes the figures beside an HTML page: add "
+                                   "-o report.html")
         text = _report_runs(runs, suite, _split_list(methods), _split_list(metrics), _split_list(splits),
                             layouts or ("scenes",), average, fmt, standalone, palette, rules, published, seeds,
-                            figures, _split_list(frame_ids) or [])
+                            figure_format, _split_list(frame_ids) or [], output)
     except (ResultsError, ReportError, PublishedError, ValueError, FileNotFoundError) as error:
         raise click.ClickException(f"{error}\nSee olatbench report --help; 'olatbench status RUNS' shows which "
                                    "jobs finished.") from None
@@ -105,7 +113,7 @@ def report(runs, suite, methods, metrics, splits, layouts, average, fmt, output,
 
 
 def _report_runs(runs, suite, methods, metrics, splits, layouts, average, fmt, standalone, palette, rules,
-                 published, seeds, with_figures, frame_ids) -> str:
+                 published, seeds, figure_format, frame_ids, output) -> str:
     from olatbench.reports.collect import collect
     from olatbench.reports.output import render_tables
     from olatbench.reports.ranking import rank_table
@@ -141,11 +149,13 @@ def _report_runs(runs, suite, methods, metrics, splits, layouts, average, fmt, s
                                              seeds=seeds, published=published))
     tables = [rank_table(table, min_values=2) for table in tables]
     figures, notes = [], []
-    if fmt == "html" and with_figures:
+    if fmt == "html" and figure_format != "none":
+        from olatbench.reports.figure_files import page_figures
         from olatbench.reports.gallery import report_figures
 
         selected = frame if suite is None else frame[frame["suite"] == suite]
-        figures, notes = report_figures(selected, frame_ids)
+        drawn, notes = report_figures(selected, frame_ids)
+        figures = page_figures(drawn, output if figure_format in FIGURE_FILE_FORMATS else None, figure_format)
     return render_tables(tables, fmt, standalone=standalone, colours=palette, rules=rules, figures=figures,
                          notes=notes)
 
