@@ -9,6 +9,7 @@ from pathlib import Path
 import click
 
 from olatbench.cli.options import device_option, quiet_option, resolve_device, show_progress
+from olatbench.viewer.geometry import MAX_RESOLUTION
 
 
 @click.command("view")
@@ -17,6 +18,8 @@ from olatbench.cli.options import device_option, quiet_option, resolve_device, s
               help="Port of the web viewer (0: any free port).")
 @click.option("--host", default="127.0.0.1", show_default=True, help="Address to listen on (0.0.0.0: every one).")
 @device_option
+@click.option("--max-resolution", type=click.IntRange(min=8), default=MAX_RESOLUTION, show_default=True,
+              help="Renders fill the browser window, their longer side capped at this many pixels.")
 @click.option("--drag-scale", type=click.FloatRange(0.05, 1.0), default=0.5, show_default=True,
               help="Resolution factor while the camera or light moves (full resolution once still).")
 @click.option("--record", nargs=2, type=(click.Choice(("light-orbit", "view-orbit")), click.Path(dir_okay=False,
@@ -25,15 +28,16 @@ from olatbench.cli.options import device_option, quiet_option, resolve_device, s
 @click.option("--frames", "count", type=click.IntRange(min=1), help="With --record: spread this many frames.")
 @click.option("--start-frame", help="With --record: test frame id whose camera and light start (default: first).")
 @quiet_option
-def view(folder, port, host, device, drag_scale, record, component, count, start_frame, quiet) -> None:
-    """Open a web viewer on a trained job (or every finished job of a run folder).
+def view(folder, port, host, device, max_resolution, drag_scale, record, component, count, start_frame, quiet) -> None:
+    """Open a web viewer on a trained job (or every job of a run folder); a job still training is followed, its
+    newest checkpoint shown as the runner writes it.
 
     \b
     Move the light (handle or sliders), orbit the camera, switch outputs (rgb, diffuse, specular, sss, shadow, …),
     snap to a dataset frame to see its ground truth and PSNR.
     Examples:
       olatbench view runs/mini/ssdgs/default/translucent/seed0
-      olatbench view runs/mini --port 8081
+      olatbench view runs/mini --port 8081 --max-resolution 1024
       olatbench view runs/mini/ssdgs/default/translucent/seed0 --record light-orbit orbit.mp4
     """
     # Idle OpenMP threads sleep instead of spinning: on a shared 2-core machine spinning made each render of the
@@ -58,7 +62,8 @@ def view(folder, port, host, device, drag_scale, record, component, count, start
     try:
         from olatbench.viewer.server import ViewerApp
 
-        app = ViewerApp(folders, first, host=host, port=port, device=device, drag_scale=drag_scale).start()
+        app = ViewerApp(folders, first, host=host, port=port, device=device, drag_scale=drag_scale,
+                        max_resolution=max_resolution).start()
     except OSError as error:
         raise click.ClickException(f"cannot listen on {host}:{port} ({error}); try --port 0") from None
     click.echo(f"olatbench view: {len(folders)} job(s) at {app.url} (Ctrl-C to stop)")
