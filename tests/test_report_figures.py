@@ -126,3 +126,20 @@ def test_the_latex_label_is_an_anchor_not_text(tmp_path):
     text = page.read_text()
     assert 'id="tab:nrhints"' in text and "tab:nrhints" not in _visible_text(text)
     assert "<img" not in text
+
+
+def test_an_embedded_figure_shows_at_the_size_it_was_drawn_for():
+    import cv2
+
+    from olatbench.reports.figures import EMBED_DPI, encode
+    from olatbench.reports.html import figure_html, png_css_width
+
+    figure = training_curves_figure({"run": _log(range(1, 5), lambda s: 1 / s, lambda s: 20 + s)})
+    try:
+        data = encode(figure, "png", EMBED_DPI)
+    finally:
+        close(figure)
+    pixels = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR).shape[1]
+    # CSS pixels are 1/96 inch; the PNG stores its resolution in whole pixels per metre (150 dpi: 5905, 149.99 dpi)
+    assert abs(png_css_width(data) - pixels * 96 / EMBED_DPI) <= 1
+    assert f'width="{png_css_width(data)}"' in figure_html("curves", data)

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import base64
 import html
+import struct
 from collections.abc import Sequence
 
 from olatbench.reports.latex import PAPER_COLOURS
@@ -63,6 +64,24 @@ def is_mp4(data: bytes) -> bool:
     return data[4:8] == b"ftyp"
 
 
+def png_css_width(data: bytes) -> int | None:
+    """The width in CSS pixels (1/96 inch) at which a PNG shows at the size it was drawn for: its pixel width over
+    the resolution of its ``pHYs`` chunk (matplotlib writes the figure's dpi there); None without one."""
+    if data[:8] != b"\x89PNG\r\n\x1a\n":
+        return None
+    width = struct.unpack(">I", data[16:20])[0]
+    offset = 8
+    while offset + 8 <= len(data):
+        length, kind = struct.unpack(">I4s", data[offset:offset + 8])
+        if kind == b"pHYs" and length == 9:
+            per_unit, _, unit = struct.unpack(">IIB", data[offset + 8:offset + 17])
+            return round(width * 96 / (per_unit * 0.0254)) if unit == 1 and per_unit else None
+        if kind == b"IDAT":
+            return None
+        offset += 12 + length
+    return None
+
+
 def figure_html(title: str, data: bytes, link: str | None = None) -> str:
     """A PNG, or an MP4 as a looping muted ``<video>``, embedded as a base64 data URI with its caption; ``link``: a
     relative path to the figure's file, linked from the caption."""
@@ -71,7 +90,9 @@ def figure_html(title: str, data: bytes, link: str | None = None) -> str:
         media = (f'<video controls loop muted playsinline style="max-width:100%" title="{html.escape(title)}" '
                  f'src="data:video/mp4;base64,{encoded}"></video>')
     else:
-        media = f'<img alt="{html.escape(title)}" src="data:image/png;base64,{encoded}">'
+        width = png_css_width(data)  # a 150-dpi figure at its drawn size, sharp on high-density screens
+        sized = f' width="{width}"' if width else ""
+        media = f'<img alt="{html.escape(title)}"{sized} src="data:image/png;base64,{encoded}">'
     caption = html.escape(title)
     if link is not None:
         caption += f' (<a href="{html.escape(link)}">{html.escape(link.rsplit(".", 1)[-1].upper())}</a>)'
