@@ -1,7 +1,7 @@
 """The figures of an HTML report, gathered from the job folders next to each results.json.
 
 Per scene: a comparison grid (ground truth | each method | error maps) for the chosen test frames,
-the SSD-GS decomposition when the job saved components, the training curves of every job, and the relighting
+the decomposition into components when the job saved them, the training curves of every job, and the relighting
 sweeps ``olatbench render`` wrote to a job's ``videos/`` (H.264 MP4s only: browsers do not play mp4v).
 A figure that cannot be made (data moved, renders missing) is skipped with a note saying why. Every method (or
 method/variant) has one colour in all the figures of a report (`olatbench.reports.figures.method_colours`).
@@ -120,7 +120,7 @@ def report_figures(frame: pd.DataFrame, frame_ids: Sequence[str] = ()) -> tuple[
                 notes.append(f"{job.label}: decomposition skipped ({error})")
                 continue
             if picture is not None:
-                figures.append(ReportFigure(f"{job.label}: SSD-GS decomposition", picture))
+                figures.append(ReportFigure(f"{job.label}: decomposition", picture))
         logs = {}
         for job in jobs:
             try:
