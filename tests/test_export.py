@@ -71,9 +71,11 @@ def test_ssdgs_exports_albedo_as_sh_dc_and_its_other_attributes_as_extras(ssdgs_
     model = final_model(ssdgs_job)
     n = model["means"].shape[0]
     assert len(table) == n and f"{n} Gaussians at step 8" in result.output
-    # the 3DGS order: position, normal, colour, (no f_rest: a colour without view dependence), opacity, scale, rot
-    assert names[:14] == [*LAYOUT_HEAD, "opacity", "scale_0", "scale_1", "scale_2", "rot_0"]
-    assert not any(name.startswith("f_rest_") for name in names)
+    # the 3DGS order: position, normal, colour (degree 3, the higher coefficients zero: no view dependence),
+    # opacity, scale, rot
+    assert names[:9 + 45 + 5] == [*LAYOUT_HEAD, *(f"f_rest_{j}" for j in range(45)), "opacity", "scale_0", "scale_1",
+                                  "scale_2", "rot_0"]
+    assert not np.any(columns(table, "f_rest_", 45))
     check_core(table, model)
     albedo = torch.nn.functional.softplus(model["attributes.diffuse"]).numpy()
     shown = np.clip(convert_colourspace(albedo, read_job(ssdgs_job).colourspace, "srgb"), 0, 1)

@@ -16,8 +16,8 @@ def export(job: Path, output: Path) -> None:
 
     Centres, log-scales, wxyz rotations and opacity logits as trained; the colour as degree-0 spherical harmonics
     of the method's diffuse albedo (SSD-GS, GS³; 3DGS: its own SH coefficients); the method's other per-Gaussian
-    attributes as extra properties (<name>_<i>). Splat viewers and editors (SuperSplat, SIBR, nerfstudio's
-    importer) open the file; docs/export.md lists the properties.
+    attributes as extra properties (<name>_<i>). Splat viewers and editors that read properties by name
+    (SuperSplat, nerfstudio's importer) open the file; docs/export.md lists the properties.
 
     \b
     Example:

@@ -1,5 +1,6 @@
-"""Trained Gaussians as a PLY file in the layout of the original 3D Gaussian Splatting, which common splat viewers
-and editors read (SuperSplat, the SIBR viewer, gsplat's and nerfstudio's importers).
+"""Trained Gaussians as a PLY file in the layout of the original 3D Gaussian Splatting, which splat viewers and
+editors that read properties by name open (SuperSplat, the original code's ``load_ply``, gsplat's and nerfstudio's
+importers; SIBR's viewer reads a fixed record and so rejects the extra properties).
 
 One binary little-endian ``vertex`` element, every property ``float``, in this order:
 

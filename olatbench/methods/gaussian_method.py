@@ -46,6 +46,9 @@ class ParameterGroup:
     lr: float = 0.0
 
 
+VIEWER_SH_REST = 15  # SH coefficients above degree 0 at degree 3, the degree 3DGS files have
+
+
 @dataclass(frozen=True)
 class SplatColour:
     """How a method's Gaussians look in a splat viewer (`olatbench.gaussians.splat_ply`): 3DGS spherical-harmonic
@@ -62,13 +65,15 @@ class SplatColour:
 def albedo_splat_colour(raw_diffuse: torch.Tensor, colourspace: str) -> SplatColour:
     """The colour of a method whose diffuse term is ``softplus(raw_diffuse) / π · cos θ · L / d²`` (SSD-GS, GS³): the
     albedo ``softplus(raw_diffuse)`` (N, 3), converted from the job's ``colourspace`` to sRGB and clipped to [0, 1]
-    (what a viewer shows), as a degree-0 SH coefficient."""
+    (what a viewer shows), as the degree-0 SH coefficient; the 15 higher coefficients of degree 3 are zero (the
+    original 3DGS loader asserts degree 3's count)."""
     from olatbench.datasets.colour import convert_colourspace
     from olatbench.methods.baselines.sh import rgb_to_sh_dc
 
     albedo = torch.nn.functional.softplus(raw_diffuse.detach().float().cpu()).numpy()
     shown = np.clip(convert_colourspace(albedo, colourspace, "srgb"), 0.0, 1.0)
-    return SplatColour(rgb_to_sh_dc(torch.from_numpy(shown)), torch.zeros(len(shown), 0, 3), ("diffuse",),
+    rest = torch.zeros(len(shown), VIEWER_SH_REST, 3)  # no view dependence, in the degree-3 layout loaders expect
+    return SplatColour(rgb_to_sh_dc(torch.from_numpy(shown)), rest, ("diffuse",),
                        f"colour: diffuse albedo softplus(diffuse), {colourspace} -> sRGB, clipped to [0, 1]")
 
 
