@@ -91,18 +91,19 @@ def _command(path: list[str]) -> click.Command:
     return command
 
 
-@pytest.mark.parametrize(("path", "required", "new", "old", "param", "value"), [
-    (["run"], ["-m", "x", "-s", "y"], "--output", "--out", "out", Path("r")),
-    (["run"], ["-m", "x", "-s", "y"], "-o", "--out", "out", Path("r")),
-    (["datasets", "download"], ["gs3"], "--data-root", "--root", "root", Path("r")),
-    (["datasets", "synth"], [], "--output", "--out", "out_dir", Path("r")),
-    (["datasets", "synth"], [], "--resolution", "--res", "res", "r"),
-    (["weights", "install"], [], "--output", "--dest", "dest", Path("r")),
+@pytest.mark.parametrize(("path", "required", "new", "old", "param", "given", "value"), [
+    (["run"], ["-m", "x", "-s", "y"], "--output", "--out", "out", "r", Path("r")),
+    (["run"], ["-m", "x", "-s", "y"], "-o", "--out", "out", "r", Path("r")),
+    (["datasets", "download"], ["gs3"], "--data-root", "--root", "root", "r", Path("r")),
+    (["datasets", "synth"], [], "--output", "--out", "out_dir", "r", Path("r")),
+    (["datasets", "synth"], [], "--resolution", "--res", "res", "64", (64, 64)),
+    (["weights", "install"], [], "--output", "--dest", "dest", "r", Path("r")),
 ])
-def test_new_and_old_option_spellings_parse_alike_and_only_the_new_is_shown(path, required, new, old, param, value):
+def test_new_and_old_option_spellings_parse_alike_and_only_the_new_is_shown(path, required, new, old, param, given,
+                                                                            value):
     command = _command(path)
     for spelling in (new, old):
-        assert command.make_context(path[-1], [*required, spelling, "r"]).params[param] == value, spelling
+        assert command.make_context(path[-1], [*required, spelling, given]).params[param] == value, spelling
     shown = CliRunner().invoke(main, [*path, "--help"]).output
     assert new in shown and not re.search(rf"{old}\b(?!-)", shown)
 

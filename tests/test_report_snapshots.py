@@ -23,7 +23,7 @@ from olatbench.cli import main
 from olatbench.datasets import load_scene
 from olatbench.datasets.images import write_image
 from olatbench.reports.collect import collect
-from olatbench.reports.figures import ComparisonRow, comparison_grid, error_map, training_curves
+from olatbench.reports.figures import ComparisonRow, comparison_figure, encode, error_map, training_curves_figure
 from olatbench.reports.gallery import report_figures
 from olatbench.reports.html import to_html
 from olatbench.reports.ranking import rank_table
@@ -75,10 +75,11 @@ def test_error_map_matches_brute_force():
 
 def test_figures_are_pngs():
     gt = np.full((12, 16, 3), 0.5, np.float32)
-    grid = comparison_grid([ComparisonRow("f0", gt, [("a", gt * 0.9), ("b", gt)])])
+    grid = encode(comparison_figure([ComparisonRow("f0", gt, [("a", gt * 0.9), ("b", gt)])]))
     image = cv2.imdecode(np.frombuffer(grid, np.uint8), cv2.IMREAD_COLOR)
     assert image is not None and image.shape[1] > image.shape[0] * 2  # 5 panels side by side
-    curves = training_curves({"run": [{"step": 1, "loss": 0.5, "psnr": 20.0}, {"step": 2, "loss": 0.2, "psnr": 24.0}]})
+    curves = encode(training_curves_figure({"run": [{"step": 1, "loss": 0.5, "psnr": 20.0},
+                                                    {"step": 2, "loss": 0.2, "psnr": 24.0}]}))
     assert curves[:4] == b"\x89PNG"
 
 
@@ -114,7 +115,7 @@ def toy_runs(tmp_path: Path) -> Path:
 def test_html_report_embeds_comparison_decomposition_and_curves(tmp_path):
     runs = toy_runs(tmp_path)
     figures, notes = report_figures(collect(runs))
-    titles = [title for title, _ in figures]
+    titles = [figure.title for figure in figures]
     assert titles[0] == "nrhints/Toy: ground truth, renders and error maps"
     assert sum("decomposition" in t for t in titles) == 2 and titles[-1] == "nrhints/Toy: training curves"
     assert notes == []
@@ -134,4 +135,4 @@ def test_missing_scene_data_skips_a_figure_with_a_note(tmp_path):
     (scene_root / "transforms_test.json").rename(scene_root / "moved.json")
     figures, notes = report_figures(collect(runs))
     assert any("comparison grid skipped" in note for note in notes)
-    assert any("training curves" in title for title, _ in figures)
+    assert any("training curves" in figure.title for figure in figures)

@@ -25,9 +25,9 @@ from olatbench.reports.jobfolder import JobFolder, read_png
 pytest.importorskip("viser")
 pytest.importorskip("olatbench.gaussians.shadow")
 from viser import _messages
-from viser_client import ViserTestClient
+from viser_client import ViserTestClient, decode_image
 
-from olatbench.viewer.geometry import browser_camera, camera_pose
+from olatbench.viewer.geometry import MAX_RESOLUTION, browser_camera, camera_pose
 from olatbench.viewer.model import ViewerModel
 from olatbench.viewer.server import ViewerApp
 
@@ -201,6 +201,71 @@ def test_a_run_folder_serves_each_finished_job_and_a_tab_switches_between_them(t
             client.close()
 
 
+def test_renders_fill_the_browser_window_capped_by_max_resolution(app):
+    """The full-resolution render has the canvas's size (not the scene's 48-pixel height stretched), its longer side
+    capped at max_resolution."""
+    model = app.model(app.folders[0])
+    wxyz, position, fov = camera_pose(model.home.camera)
+    for cap, canvas, expected in ((512, (300, 200), (200, 300)), (120, (300, 200), (80, 120))):
+        app.max_resolution = cap
+        client = ViserTestClient(app.port)
+        try:
+            client.send_camera(wxyz, position, fov, *canvas)
+            client.wait_for(lambda m, shape=expected: m.get("type") == "BackgroundImageMessage"
+                            and m.get("rgb_data") is not None and decode_image(m["rgb_data"]).shape[:2] == shape)
+        finally:
+            client.close()
+            app.max_resolution = MAX_RESOLUTION
+
+
+def write_earlier_checkpoint(job: Path, final: Path, step: int) -> None:
+    """A checkpoint of ``job`` at ``step`` as the runner would have written it mid-training (the runner keeps only
+    the final one of a finished job): the final state with that step and a darker diffuse albedo."""
+    import torch
+
+    from olatbench.bench.checkpoints import load_checkpoint
+    from olatbench.bench.restore import read_job
+
+    payload = load_checkpoint(final, read_job(job).id)
+    payload["step"] = payload["method"]["step"] = step
+    payload["method"]["model"]["attributes.diffuse"] -= 2.0
+    torch.save(payload, final.with_name(f"step_{step:08d}.pt"))
+
+
+def test_a_job_still_training_is_followed_to_its_newest_checkpoint(trained, tmp_path):
+    job = tmp_path / "job"
+    shutil.copytree(trained, job)
+    final = job / "checkpoints" / "step_00000016.pt"
+    write_earlier_checkpoint(job, final, 8)
+    held = tmp_path / "held.pt"
+    final.rename(held)  # the runner has not written its last checkpoint yet
+    from olatbench.viewer.jobs import job_folders
+
+    assert job_folders(job) == ([job], [])
+    model = ViewerModel.open(job)
+    assert model.step == 8 and not model.finished and "step 8/16, training" in model.label
+    with ViewerApp([job], model, port=0, settle_seconds=0.05, follow_seconds=0.05) as viewer:
+        client = connect_home(viewer)
+        try:
+            owner = client.wait_for(lambda m: m.get("type") == "TransformControlsMessage")["owner"]
+            session = viewer.sessions[int(owner)]
+            earlier = full_image(client, model)
+            assert session.delivered.step == 8
+            mark = len(client.received)
+            held.replace(final)  # the runner writes it (atomically, by a rename)
+            client.wait_for(lambda m: m.get("type") == "BackgroundImageMessage" and session.delivered.step == 16,
+                            after=mark)
+        finally:
+            client.close()
+    assert model.step == 16 and model.finished and "training" not in model.label
+    request = session.delivered.request
+    camera = browser_camera(np.asarray(request.wxyz), np.asarray(request.position), request.fov,
+                            *session.delivered.image.shape[1::-1])
+    finished = ViewerModel.open(trained)
+    np.testing.assert_array_equal(session.delivered.image, finished.render(camera, request.light, request.component))
+    assert session.delivered.image.mean() > 1.2 * earlier.mean()  # the albedo of step 8 was darker
+
+
 def test_bad_folders_fail_before_a_server_starts(trained, tmp_path):
     runner = CliRunner()
     empty = runner.invoke(main, ["view", str(tmp_path)])
@@ -225,7 +290,7 @@ def test_record_a_light_orbit(trained, tmp_path, monkeypatch):
     from olatbench.datasets import suites
 
     other = CliRunner().invoke(main, ["view", str(trained.parents[4]), "-s", "mini"])  # the run holds a tiny job
-    assert other.exit_code == 1 and "no finished job of suite mini" in other.output  # nothing to show
+    assert other.exit_code == 1 and "no job with a checkpoint of suite mini" in other.output  # nothing to show
     monkeypatch.setitem(suites.SUITES, "tiny", support.tiny_suite())
     out = tmp_path / "orbit.mp4"
     result = CliRunner().invoke(main, ["view", str(trained.parents[4]), "-s", "tiny", "--record", "light-orbit",

@@ -157,7 +157,9 @@ def test_browser_camera_reproduces_a_dataset_camera_from_its_pose():
     again = browser_camera(wxyz, position, fov, 64, 48)
     np.testing.assert_allclose(again.K, camera.K, atol=1e-9)
     np.testing.assert_allclose(again.c2w, camera.c2w, atol=1e-12)
-    assert render_size((64, 48), 64 / 48) == (64, 48) and render_size((64, 48), 2.0, 0.5) == (48, 24)
+    assert render_size((64, 48), 512) == (64, 48) and render_size((64, 48), 512, 0.5) == (32, 24)
+    assert render_size((1280, 640), 512) == (512, 256) and render_size((640, 1280), 512, 0.5) == (128, 256)
+    assert render_size((10, 10), 512, 0.05) == (8, 8)
 
 
 def test_light_frame_spherical_coordinates():

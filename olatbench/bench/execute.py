@@ -12,7 +12,6 @@ import contextlib
 import json
 import math
 import os
-import sys
 import time
 import traceback
 from pathlib import Path
@@ -20,7 +19,6 @@ from typing import Any
 
 import numpy as np
 import torch
-from tqdm.auto import tqdm
 
 from olatbench.atomic import write_json, write_text
 from olatbench.bench.checkpoints import (
@@ -58,6 +56,7 @@ from olatbench.datasets.records import Frame
 from olatbench.methods.backends import format_backends
 from olatbench.methods.base import Method, Views
 from olatbench.metrics.evaluate import sha256_file
+from olatbench.progress import progress_bar, progress_write
 
 WARMUP_RENDERS = 1
 
@@ -203,8 +202,8 @@ def _train(method: Method, views: Views, job: Job, folder: Path, log: JobLog, pr
     every = job.checkpoint_every or max(1, iterations // 10)
     log_every = max(1, iterations // 2000)
     last_save = time.monotonic()
-    bar = tqdm(total=iterations, initial=start, desc=job.label, position=position, leave=False,
-               disable=not progress, dynamic_ncols=True, mininterval=0.5 if sys.stderr.isatty() else 30)
+    bar = progress_bar(total=iterations, initial=start, desc=job.label, position=position, leave=False,
+               disable=not progress, dynamic_ncols=True, mininterval=0.5)
     try:
         postfix_time = 0.0
         for step in range(start, iterations):
@@ -251,7 +250,7 @@ def _resume(method: Method, folder: Path, job: Job, log: JobLog) -> dict[str, An
             os.replace(path, aside)
             message = f"{job.label}: {error}; kept as {aside.name}, trying the next older checkpoint"
             log(message)
-            tqdm.write(message, file=sys.stderr)
+            progress_write(message)
             continue
         log(f"resumed from {path.name} (step {payload['step']} of {job.iterations})")
         return payload
@@ -316,7 +315,7 @@ def evaluate_split(method: Method, frames: list[Frame], job: Job, folder: Path, 
         render_seconds, per_image = 0.0, {}
         refine = split == job.test_split and method.refines_test_views
         refinement: dict[str, Any] | None = {"split": split, "seconds": 0.0, "frames": {}} if refine else None
-        for index, frame in enumerate(tqdm(frames, desc=f"{job.label}: {split}", position=position, leave=False,
+        for index, frame in enumerate(progress_bar(frames, desc=f"{job.label}: {split}", position=position, leave=False,
                                            disable=not progress)):
             camera, light, loaded = view_camera(frame, job), frame.light, None
             if refinement is not None:

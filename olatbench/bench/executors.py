@@ -15,9 +15,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from tqdm.auto import tqdm
-
 from olatbench.bench.jobs import Job
+from olatbench.progress import progress_bar
 
 if TYPE_CHECKING:  # the job runner imports torch: loaded when a job runs, not when the CLI lists executors
     from olatbench.bench.outcome import JobOutcome
@@ -31,7 +30,7 @@ def run_inline(jobs: Sequence[Job], progress: bool = True, on_outcome: OnOutcome
     from olatbench.bench.execute import run_job
 
     outcomes = []
-    with tqdm(total=len(jobs), desc="jobs", position=0, disable=not progress, unit="job") as bar:
+    with progress_bar(total=len(jobs), desc="jobs", position=0, disable=not progress, unit="job") as bar:
         for job in jobs:
             bar.set_postfix_str(job.label)
             outcome = run_job(job, progress=progress, position=1)
@@ -71,7 +70,7 @@ def run_local(jobs: Sequence[Job], workers: int, progress: bool = True, on_outco
             slots.put(slot)
         fresh = {"max_tasks_per_child": 1} if sys.version_info >= (3, 11) else {}
         with ProcessPoolExecutor(max_workers=workers, mp_context=context, **fresh) as pool, \
-                tqdm(total=len(jobs), desc="jobs", position=0, disable=not progress, unit="job") as bar:
+                progress_bar(total=len(jobs), desc="jobs", position=0, disable=not progress, unit="job") as bar:
             futures = {pool.submit(_worker, job, slots, progress, threads): index for index, job in enumerate(jobs)}
             try:
                 for future in as_completed(futures):
@@ -146,7 +145,7 @@ def wait_slurm(submitted: list, jobs: Sequence[Job], progress: bool = True, on_o
     from olatbench.bench.outcome import JobOutcome
 
     outcomes = []
-    with tqdm(total=len(submitted), desc="jobs", disable=not progress, unit="job") as bar:
+    with progress_bar(total=len(submitted), desc="jobs", disable=not progress, unit="job") as bar:
         for task, job in zip(submitted, jobs, strict=True):
             try:
                 outcome = task.result()

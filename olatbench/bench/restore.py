@@ -1,11 +1,11 @@
 """Rebuild a trained method from its job folder: the one restore path of the runner, sweeps and the viewer.
 
-`restore` reads ``job.json`` (`Job.from_json`), checks ``config.json`` against it, finds the final checkpoint
-(the one at ``job.iterations``), imports the method from the job's ``method_ref``, sets it up on the job's
-training views and loads the checkpoint's state. The views carry cameras, lights and frame ids in training
-order; their images are read only when the method declares it needs them (`Method.restore_needs_images`; the
-Gaussian methods do not), so rendering a trained model reads no training image. `load_state` — a checkpoint
-into a set-up method — is shared with the runner's resume.
+`restore` reads ``job.json`` (`Job.from_json`), checks ``config.json`` against it, finds the final checkpoint (the
+one at ``job.iterations``; with ``partial=True`` the newest one, of a job still training), imports the method from
+the job's ``method_ref``, sets it up on the job's training views and loads the checkpoint's state. The views carry
+cameras, lights and frame ids in training order; their images are read only when the method declares it needs them
+(`Method.restore_needs_images`; the Gaussian methods do not), so rendering a trained model reads no training image.
+`load_state` — a checkpoint into a set-up method — is shared with the runner's resume.
 
 Every problem with the folder is one `RestoreError` whose message names the file, raised before anything
 expensive (scene loading, set-up) happens where the check allows it.
@@ -52,13 +52,18 @@ def read_job(folder: str | Path) -> Job:
         raise RestoreError(f"{path}: {error}") from None
 
 
-def final_checkpoint(folder: str | Path, job: Job) -> Path:
-    """The checkpoint written at the job's last step (a `RestoreError` naming the newest step otherwise)."""
+def newest_checkpoint(folder: str | Path) -> tuple[int, Path]:
+    """(step, path) of the job folder's newest checkpoint (a `RestoreError` when there is none yet)."""
     checkpoints = list_checkpoints(folder)
     if not checkpoints:
         raise RestoreError(f"{Path(folder) / 'checkpoints'}: no checkpoint; the job has not been trained "
                            f"(olatbench run ...)")
-    step, path = checkpoints[-1]
+    return checkpoints[-1]
+
+
+def final_checkpoint(folder: str | Path, job: Job) -> Path:
+    """The checkpoint written at the job's last step (a `RestoreError` naming the newest step otherwise)."""
+    step, path = newest_checkpoint(folder)
     if step != job.iterations:
         raise RestoreError(f"{path}: the newest checkpoint is at step {step} of {job.iterations}; the job is not "
                            f"finished (rerun 'olatbench run' with the same options to resume it)")
@@ -90,19 +95,21 @@ def load_state(method: Method, path: str | Path, job_id: str) -> dict[str, Any]:
     return payload
 
 
-def restore(job_folder: str | Path, device: str = "cpu", *, train_images: bool = False, progress: bool = False
-            ) -> tuple[Method, Job]:
+def restore(job_folder: str | Path, device: str = "cpu", *, train_images: bool = False, progress: bool = False,
+            checkpoint: str | Path | None = None) -> tuple[Method, Job]:
     """The trained method of a finished job and its `Job` (``device`` and ``folder`` set to the given ones).
 
-    Reads ``job.json``, ``config.json`` (must equal the job's config), the final checkpoint and the scene's
-    frame records; the training images only if the method's `Method.restore_needs_images` says so or the caller
-    asks for them (``train_images``: to take further training steps, e.g. a benchmark).
+    Reads ``job.json``, ``config.json`` (must equal the job's config), the final checkpoint (or ``checkpoint``, one
+    of the job's own, e.g. the newest of a job still training: `newest_checkpoint`) and the scene's frame records;
+    the training images only if the method's `Method.restore_needs_images` says so or the caller asks for them
+    (``train_images``: to take further training steps, e.g. a benchmark).
     """
     from olatbench.datasets import load_scene
     from olatbench.datasets.errors import DatasetError
 
     folder = Path(job_folder)
-    job, checkpoint, cls = check_job(folder, device)
+    job, final, cls = check_job(folder, device, partial=checkpoint is not None)
+    checkpoint = final if checkpoint is None else Path(checkpoint)
     try:
         scene = load_scene(job.scene_path, format=job.scene_format)
         frames = scene.split(job.train_split)
@@ -119,9 +126,11 @@ def restore(job_folder: str | Path, device: str = "cpu", *, train_images: bool =
     return method, job
 
 
-def check_job(job_folder: str | Path, device: str = "cpu") -> tuple[Job, Path, type[Method]]:
+def check_job(job_folder: str | Path, device: str = "cpu", *, partial: bool = False
+              ) -> tuple[Job, Path, type[Method]]:
     """The cheap checks of `restore`, before any scene or model is loaded: (job with ``device`` and ``folder`` set,
-    final checkpoint, method class); a `RestoreError` says what is wrong."""
+    final checkpoint — with ``partial``, the newest, of a job still training —, method class); a `RestoreError`
+    says what is wrong."""
     folder = Path(job_folder)
     job = replace(read_job(folder), device=device, folder=str(folder))
     config_path = folder / CONFIG_FILE
@@ -134,4 +143,5 @@ def check_job(job_folder: str | Path, device: str = "cpu") -> tuple[Job, Path, t
     if config != job.config:
         raise RestoreError(f"{config_path}: differs from the config in job.json; the checkpoint was trained with "
                            f"job.json's")
-    return job, final_checkpoint(folder, job), method_class(job, folder)
+    checkpoint = newest_checkpoint(folder)[1] if partial else final_checkpoint(folder, job)
+    return job, checkpoint, method_class(job, folder)

@@ -16,12 +16,12 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
-from tqdm.auto import tqdm
 
 from olatbench.bench.jobs import Job
 from olatbench.datasets import colour
 from olatbench.datasets.records import Camera, Frame
 from olatbench.methods.base import Views
+from olatbench.progress import progress_bar
 
 VIEWS_FILE = ".views.npy"
 VIEWS_RAM_ENV = "OLATBENCH_VIEWS_RAM_GB"
@@ -80,6 +80,6 @@ def load_views(frames: list[Frame], job: Job, progress: bool = False, position: 
         images[index] = image
 
     with ThreadPoolExecutor(max_workers=4) as pool:
-        list(tqdm(pool.map(fill, range(len(frames))), total=len(frames), desc=f"{job.scene}: loading views",
+        list(progress_bar(pool.map(fill, range(len(frames))), total=len(frames), desc=f"{job.scene}: loading views",
                   position=position, leave=False, disable=not progress))
     return dataclasses.replace(views, images=images)

@@ -13,6 +13,7 @@ import sys
 import click
 
 from olatbench import __version__
+from olatbench.cli.options import without_hidden_suggestions
 from olatbench.numerics import pin_cpu_capability
 
 # verb -> "module:attribute" of a click command or group
@@ -26,6 +27,7 @@ COMMANDS: dict[str, str] = {
     "weights": "olatbench.cli.metrics:weights",
     "report": "olatbench.cli.report:report",
     "render": "olatbench.cli.report:render",
+    "export": "olatbench.cli.export:export",
     "view": "olatbench.cli.view:view",
     "doctor": "olatbench.cli.doctor:doctor",
 }
@@ -40,6 +42,7 @@ HELP_LINES: dict[str, str] = {
     "weights": "Install and locate the LPIPS weights.",
     "report": "Build the paper's tables and figures from results.json files.",
     "render": "Render relighting sweeps (videos) from a finished run.",
+    "export": "Write a finished job's Gaussians as a PLY for splat viewers.",
     "view": "Interactive relighting viewer for trained jobs (web, viser).",
     "doctor": "Show what this machine supports and how to fix what is missing.",
 }
@@ -66,6 +69,13 @@ class LazyGroup(click.Group):
             if isinstance(stream, io.TextIOWrapper) and stream.errors == "strict":
                 stream.reconfigure(errors="backslashreplace")
         return super().main(*args, **kwargs)
+
+    def invoke(self, ctx: click.Context):  # type: ignore[override]
+        """Run the verb; a mistyped option is offered the shown spellings only (`without_hidden_suggestions`)."""
+        try:
+            return super().invoke(ctx)
+        except click.NoSuchOption as error:
+            raise without_hidden_suggestions(error) from None
 
     def list_commands(self, ctx: click.Context) -> list[str]:
         return sorted(set(self.lazy_commands) | set(self.commands))

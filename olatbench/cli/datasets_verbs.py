@@ -108,17 +108,16 @@ def convert(src: Path, dst: Path, target: str, fmt: str | None, overwrite: bool,
     """Write the scene in SRC into DST in another format.
 
     Cameras and lights are kept exactly; pixels go through linear light with straight alpha and are
-    stored as the target format stores them. A camera path split (``path``) has no SSS-GS equivalent
+    stored as the target format stores them. A camera path split ("path") has no SSS-GS equivalent
     and is dropped with a note.
 
     \b
     Example:
       olatbench datasets convert data/gs3/Lego lego_nrhints --to nrhints
     """
-    from tqdm import tqdm
-
     from olatbench.datasets import load_scene
     from olatbench.datasets.convert import frame_pixels, write_scene
+    from olatbench.progress import progress_bar
 
     try:
         scene = load_scene(src, fmt)
@@ -126,7 +125,8 @@ def convert(src: Path, dst: Path, target: str, fmt: str | None, overwrite: bool,
             click.echo(f"note: dropping the {len(scene.frames['path'])} camera-path frames (no SSS-GS file)")
             scene.frames.pop("path")
         images = sum(frame.image_path is not None for frame in scene)
-        with tqdm(total=images, desc=f"convert {scene.name}", unit="image", disable=not show_progress(quiet)) as bar:
+        with progress_bar(total=images, desc=f"convert {scene.name}", unit="image",
+                          disable=not show_progress(quiet)) as bar:
             def pixels(frame):
                 bar.update(1)
                 return frame_pixels(frame)

@@ -64,7 +64,7 @@ def _method_json(name: str) -> dict:
 @methods.command("list")
 @json_option
 def list_methods(as_json: bool) -> None:
-    """Every method: the built-in ones, official implementations and plugins (``olatbench.methods`` entry
+    """Every method: the built-in ones, official implementations and plugins ("olatbench.methods" entry
     points), with its kind, a one-line description and its presets.
 
     \b

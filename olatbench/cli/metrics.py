@@ -46,8 +46,8 @@ def evaluate(pred_dir: Path, scene_dir: Path, split: str, protocol_name: str, ou
 
     \b
     Example:
-      olatbench evaluate runs/mini/ssdgs/default/Cat/seed0/renders/test --gt data/mini/Cat \\
-          --protocol olatbench-v1 -o cat_test.json --require lpips
+      olatbench evaluate runs/mini/ssdgs/default/translucent/seed0/renders/test \\
+          --gt ~/.cache/olatbench/mini/translucent --protocol olatbench-v1 -o translucent_test.json
     """
     from olatbench.bench.evaluate import evaluation_results
     from olatbench.bench.results import write_results

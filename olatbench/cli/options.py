@@ -8,6 +8,9 @@
 * ``--json`` on the verbs that list things (`json_option`).
 * ``-s/--suite`` to restrict the verbs that read run folders (``status``, ``report``, ``view``) to one suite:
   built-in, ``[suites.NAME]`` of olatbench.toml or ``data-<format>`` (`suite_filter_option`, `checked_suite`).
+* ``--device`` defaults to ``auto`` on every verb that runs torch (`device_option`), resolved by `resolve_device`.
+* ``--resolution`` takes ``N`` (N×N) or ``WxH`` everywhere (`Resolution`).
+* A mistyped option is offered the shown spellings only, never a hidden old one (`without_hidden_suggestions`).
 """
 
 from __future__ import annotations
@@ -36,10 +39,60 @@ class AliasedOption(click.Option):
         finally:
             self.opts = shown
 
+    def get_error_hint(self, ctx: click.Context) -> str:
+        return " / ".join(f"'{name}'" for name in self.opts if name not in self.hidden_aliases)
+
 
 def option(*names: str, aliases: tuple[str, ...] = (), **kwargs: Any) -> Callable:
     """``click.option(*names, **kwargs)`` that also accepts the hidden old spellings ``aliases``."""
     return click.option(*names, *aliases, cls=AliasedOption, hidden_aliases=tuple(aliases), **kwargs)
+
+
+def hidden_spellings(command: click.Command) -> set[str]:
+    """The hidden old spellings (``--out``, …) of ``command``'s options."""
+    return {alias for param in command.params if isinstance(param, AliasedOption) for alias in param.hidden_aliases}
+
+
+def without_hidden_suggestions(error: click.NoSuchOption) -> click.NoSuchOption:
+    """``error`` with the hidden old spellings removed from its "Did you mean" list (click offers every spelling
+    its parser knows)."""
+    if error.ctx is not None and error.possibilities:
+        hidden = hidden_spellings(error.ctx.command)
+        error.possibilities = [name for name in error.possibilities if name not in hidden]
+    return error
+
+
+class Resolution(click.ParamType):
+    """An image size as ``N`` (N × N) or ``WxH``; converts to (width, height) of at least ``minimum`` pixels."""
+
+    name = "N|WxH"
+
+    def __init__(self, minimum: int = 1) -> None:
+        self.minimum = minimum
+
+    def get_metavar(self, param: click.Parameter, ctx: click.Context | None = None) -> str:
+        return self.name
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> tuple[int, int]:
+        if isinstance(value, tuple):
+            return value
+        try:
+            width, _, height = str(value).strip().lower().partition("x")
+            size = (int(width), int(height or width))
+        except ValueError:
+            self.fail(f"expected N or WxH (e.g. 256 or 320x240), not {value!r}", param, ctx)
+        if min(size) < self.minimum:
+            self.fail(f"must be at least {self.minimum} pixel(s) on each side, not {value!r}", param, ctx)
+        return size
+
+
+def resolve_device(name: str) -> str:
+    """A torch device name with ``auto`` resolved: ``cuda`` when torch sees a CUDA device, else ``cpu``."""
+    if name != "auto":
+        return name
+    import torch
+
+    return "cuda" if torch.cuda.is_available() else "cpu"
 
 
 def tqdm_disabled() -> bool:
@@ -73,3 +126,5 @@ def checked_suite(name: str | None) -> str | None:
 
 suite_filter_option = click.option("--suite", "-s", help="Only jobs of this suite (built-in, a [suites.NAME] of "
                                                           "olatbench.toml, or data-<format> for run --data).")
+device_option = click.option("--device", default="auto", show_default=True,
+                             help="torch device: auto (cuda when available, else cpu), cpu, cuda, cuda:1, ...")

@@ -7,9 +7,18 @@ from pathlib import Path
 import click
 
 from olatbench.atomic import WriteError, write_text
-from olatbench.cli.options import checked_suite, quiet_option, show_progress
+from olatbench.cli.options import (
+    Resolution,
+    checked_suite,
+    device_option,
+    quiet_option,
+    resolve_device,
+    show_progress,
+)
 
 LAYOUTS = ("scenes", "overview", "ablation")
+FIGURE_FILE_FORMATS = ("png", "svg", "pdf")  # olatbench.reports.figures.FIGURE_FORMATS (not imported: matplotlib)
+FIGURE_CHOICES = ("embed", *FIGURE_FILE_FORMATS, "none")
 
 
 def _split_list(text: str | None) -> list[str] | None:
@@ -60,11 +69,13 @@ def _emit(text: str, output: str | None) -> None:
               help="With --published-only: which paper table(s); default all.")
 @click.option("--seeds", type=click.Choice(("mean", "all")), default="mean", show_default=True,
               help="Average seeds into one row, or show every seed as its own row.")
-@click.option("--figures/--no-figures", default=True, show_default=True,
-              help="HTML: embed comparison grids, decompositions and training curves.")
+@click.option("--figures", "figure_format", type=click.Choice(FIGURE_CHOICES), default="embed", show_default=True,
+              help="HTML: embed comparison grids, decompositions and training curves in the page (embed); png, svg "
+                   "or pdf: also write each as a file in <OUTPUT name>_figures/ beside the page (PNG at 300 dpi; SVG "
+                   "and PDF vector), linked from its caption; none: no figures.")
 @click.option("--frames", "frame_ids", help="HTML figures: comma-separated test frame ids (default: the first).")
 def report(runs, suite, methods, metrics, splits, layouts, average, fmt, as_json, output, standalone, booktabs,
-           colours, published, published_only, paper_tables, seeds, figures, frame_ids) -> None:
+           colours, published, published_only, paper_tables, seeds, figure_format, frame_ids) -> None:
     """Build the paper's tables (and an HTML page with figures) from results.json files below RUNS (default:
     ./runs). A cell averages only jobs identical but for the seed; jobs that differ get their own rows.
 
@@ -80,6 +91,7 @@ def report(runs, suite, methods, metrics, splits, layouts, average, fmt, as_json
       olatbench report runs/ --suite nrhints --published -o table.tex --standalone
       olatbench report runs/ --layout ablation --format markdown
       olatbench report runs/ --suite sssgs --layout overview -o report.html
+      olatbench report runs/ --suite mini -o report.html --figures pdf   # + report_figures/*.pdf
       olatbench report --published-only --table real -o table1a.tex
     """
     from olatbench.bench.results import ResultsError
@@ -116,9 +128,12 @@ def report(runs, suite, methods, metrics, splits, layouts, average, fmt, as_json
             text = _report_data(runs, suite, _split_list(methods), _split_list(metrics), _split_list(splits),
                                 as_json)
         else:
+            if figure_format in FIGURE_FILE_FORMATS and (fmt != "html" or output is None):
+                raise click.UsageError(f"--figures {figure_format} writes the figures beside an HTML page: add "
+                                       "-o report.html")
             text = _report_runs(runs, suite, _split_list(methods), _split_list(metrics), _split_list(splits),
                                 layouts or ("scenes",), average, fmt, standalone, palette, rules, published, seeds,
-                                figures, _split_list(frame_ids) or [])
+                                figure_format, _split_list(frame_ids) or [], output)
     except ResultsError as error:
         raise click.ClickException(f"{error}\n'olatbench status RUNS' shows which jobs finished.") from None
     except (ReportError, PublishedError, ValueError, FileNotFoundError) as error:
@@ -157,13 +172,12 @@ def _report_data(runs, suite, methods, metrics, splits, as_json: bool) -> str:
 
 
 def _report_runs(runs, suite, methods, metrics, splits, layouts, average, fmt, standalone, palette, rules,
-                 published, seeds, with_figures, frame_ids) -> str:
+                 published, seeds, figure_format, frame_ids, output) -> str:
     from olatbench.reports.output import render_tables
     from olatbench.reports.ranking import rank_table
-    from olatbench.reports.runs_tables import ablation_table, overview_table, scene_table
+    from olatbench.reports.runs_tables import ablation_table, overview_table, scene_table, select_runs
 
     frame = _collect(runs)
-    from olatbench.reports.runs_tables import select_runs
 
     # one per-scene / overview table per suite holding the selected methods
     suites = [suite] if suite else sorted(set(select_runs(frame, None, methods)["suite"]))
@@ -182,23 +196,15 @@ def _report_runs(runs, suite, methods, metrics, splits, layouts, average, fmt, s
                                              seeds=seeds, published=published))
     tables = [rank_table(table, min_values=2) for table in tables]
     figures, notes = [], []
-    if fmt == "html" and with_figures:
+    if fmt == "html" and figure_format != "none":
+        from olatbench.reports.figure_files import page_figures
         from olatbench.reports.gallery import report_figures
 
         selected = frame if suite is None else frame[frame["suite"] == suite]
-        figures, notes = report_figures(selected, frame_ids)
+        drawn, notes = report_figures(selected, frame_ids)
+        figures = page_figures(drawn, output if figure_format in FIGURE_FILE_FORMATS else None, figure_format)
     return render_tables(tables, fmt, standalone=standalone, colours=palette, rules=rules, figures=figures,
                          notes=notes)
-
-
-def _parse_resolution(text: str | None) -> tuple[int, int] | None:
-    if text is None:
-        return None
-    try:
-        width, height = (int(part) for part in text.lower().split("x"))
-    except ValueError:
-        raise click.BadParameter(f"{text!r}: expected WIDTHxHEIGHT, e.g. 512x512") from None
-    return width, height
 
 
 @click.command("render")
@@ -209,8 +215,8 @@ def _parse_resolution(text: str | None) -> tuple[int, int] | None:
 @click.option("--start-frame", help="Test frame id whose camera and light start the sweep (default: the first).")
 @click.option("--component", default="rgb", show_default=True, help="What to render: rgb, diffuse, shadow, ...")
 @click.option("--fps", type=click.FloatRange(min=1), default=30.0, show_default=True, help="Video frame rate.")
-@click.option("--device", default="cpu", show_default=True, help="torch device for rendering.")
-@click.option("--resolution", help="WIDTHxHEIGHT of the frames (default: the job's).")
+@device_option
+@click.option("--resolution", type=Resolution(), help="Frame size N (N×N) or WxH (default: the job's).")
 @click.option("-o", "--output", type=click.Path(file_okay=False, path_type=Path),
               help="Folder for <sweep>.mp4 and <sweep>_frames/ (default: RUN/videos).")
 @quiet_option
@@ -232,7 +238,7 @@ def render(run, kind, count, start_frame, component, fps, device, resolution, ou
         raise click.UsageError(str(error)) from None
     try:
         result = render_sweep(job, kind, output or run / "videos", count=count, frame_id=start_frame,
-                              component=component, fps=fps, device=device, resolution=_parse_resolution(resolution),
+                              component=component, fps=fps, device=resolve_device(device), resolution=resolution,
                               progress=show_progress(quiet))
     except (JobFolderError, DatasetError, RuntimeError, OSError, ValueError) as error:
         raise click.ClickException(f"{error}\nCheck the job with 'olatbench status {run.parent.parent.parent}'.") \

@@ -15,25 +15,16 @@ from olatbench.atomic import WriteError
 from olatbench.bench.executors import EXECUTORS
 from olatbench.bench.plan import OverridesError, PlanError
 from olatbench.cli.options import (
+    Resolution,
     checked_suite,
+    device_option,
     json_option,
     option,
     quiet_option,
+    resolve_device,
     show_progress,
     suite_filter_option,
 )
-
-
-def _parse_resolution(value: str | None) -> tuple[int, int] | None:
-    if value is None:
-        return None
-    try:
-        width, height = (int(part) for part in value.lower().split("x"))
-    except ValueError:
-        raise click.BadParameter(f"expected WIDTHxHEIGHT such as 256x256, not {value!r}") from None
-    if width < 1 or height < 1:
-        raise click.BadParameter(f"resolution must be positive, not {value!r}")
-    return width, height
 
 
 def _parse_minutes(value: str) -> int:
@@ -50,14 +41,6 @@ def _parse_minutes(value: str) -> int:
 
 def _split_names(values: tuple[str, ...]) -> list[str]:
     return [name.strip() for value in values for name in value.split(",") if name.strip()]
-
-
-def _device(name: str) -> str:
-    if name != "auto":
-        return name
-    import torch
-
-    return "cuda" if torch.cuda.is_available() else "cpu"
 
 
 def _format_seconds(seconds: float | None) -> str:
@@ -109,12 +92,13 @@ def _metric(metrics: dict, key: str) -> str:
                    "olatbench.toml [official.METHOD] and $OLATBENCH_<METHOD>_<KEY>: checkout=PATH and one of "
                    "python=PATH, conda_env=NAME, container='TEMPLATE'; timeout_minutes=N (repeatable; not part of "
                    "the job id). See docs/official.md.")
-@click.option("--resolution", help="Image size WIDTHxHEIGHT (default: the suite's, else native).")
+@click.option("--resolution", type=Resolution(), help="Image size N (N×N) or WxH (default: the suite's, else "
+              "native).")
 @click.option("--data-root", type=click.Path(file_okay=False, path_type=Path),
               help="Folder holding the suite's scene folders (default: $OLATBENCH_DATA; mini: its cache).")
 @option("-o", "--output", "out", aliases=("--out",), default=Path("runs"), show_default=True,
        type=click.Path(file_okay=False, path_type=Path), help="Output root of the run folders.")
-@click.option("--device", default="auto", show_default=True, help="torch device: auto, cpu, cuda, cuda:1, ...")
+@device_option
 @click.option("--executor", type=click.Choice(EXECUTORS),
               help="inline (this process), local (process pool), slurm (job array via submitit). "
                    "Default: inline, or local with --jobs > 1.")
@@ -188,14 +172,14 @@ def run(method, suite, data_paths, protocol_name, scenes, variants, ablation, se
     unknown = sorted(set(code) - {method})
     if unknown:
         raise click.UsageError(f"--code names {', '.join(unknown)}, but this run is of {method}")
-    options = PlanOptions(device=device if dry_run and device == "auto" else _device(device),
+    options = PlanOptions(device=device if dry_run and device == "auto" else resolve_device(device),
                           checkpoint_every=checkpoint_every, save_components=save_components, reuse=not no_reuse,
                           code=code.get(method, {}))
     try:
         jobs = [job for plan_suite in _suites(suite, data_paths, protocol_name, data_root)
                 for job in make_plan(method, plan_suite, out, scenes=_split_names(scenes),
                                      variants=_split_names(variants), ablation=ablation, seeds=seeds,
-                                     iterations=iterations, resolution=_parse_resolution(resolution),
+                                     iterations=iterations, resolution=resolution,
                                      data_root=data_root, options=options, generate=not dry_run or calibrate,
                                      progress=progress, overrides=parse_overrides(overrides))]
     except OverridesError as error:  # a usage error (exit 2), naming the field
@@ -258,13 +242,13 @@ def run(method, suite, data_paths, protocol_name, scenes, variants, ablation, se
         _exit_for(outcomes=[], running=len(running))
 
     def report(outcome) -> None:
-        from tqdm.auto import tqdm
+        from olatbench.progress import progress_write
 
         if outcome.status == "failed":
             where = f" (see {Path(outcome.folder) / 'error.txt'})" if outcome.recorded else ""
-            tqdm.write(f"FAILED {outcome.label}: {outcome.error}{where}", file=sys.stderr)
+            progress_write(f"FAILED {outcome.label}: {outcome.error}{where}")
         elif outcome.status == "skipped":
-            tqdm.write(f"skipped {outcome.label}: {outcome.error}", file=sys.stderr)
+            progress_write(f"skipped {outcome.label}: {outcome.error}")
 
     try:
         if executor == "slurm":

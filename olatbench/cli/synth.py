@@ -6,22 +6,8 @@ from pathlib import Path
 
 import click
 
-from olatbench.cli.options import option, quiet_option, show_progress
+from olatbench.cli.options import Resolution, option, quiet_option, show_progress
 from olatbench.datasets.errors import DatasetError, OutputExistsError
-
-
-def _resolution(value: str | None) -> tuple[int, int] | None:
-    if value is None:
-        return None
-    try:
-        width, _, height = value.lower().partition("x")
-        size = (int(width), int(height or width))
-    except ValueError:
-        raise click.BadParameter(f"expected N or WxH (e.g. 64 or 96x64), found {value!r}", param_hint="--resolution") \
-            from None
-    if min(size) < 4:
-        raise click.BadParameter(f"must be at least 4 pixels, found {value!r}", param_hint="--resolution")
-    return size
 
 
 def _report_reference(root: Path, write: bool) -> None:
@@ -52,7 +38,7 @@ def _report_reference(root: Path, write: bool) -> None:
               show_default=True, help="Output format.")
 @option("-o", "--output", "out_dir", aliases=("--out",), type=click.Path(file_okay=False, path_type=Path),
        default=None, help="Output scene folder (with --mini: the suite root; default the cache).")
-@option("--resolution", "res", aliases=("--res",), default=None, metavar="N|WxH",
+@option("--resolution", "res", aliases=("--res",), default=None, type=Resolution(minimum=4),
         help="Image size (default: the recipe's).")
 @click.option("--spp", type=click.IntRange(min=1), default=None, help="Samples per pixel.")
 @click.option("--train", "n_train", type=click.IntRange(min=1), default=None, help="Number of training images.")
@@ -67,7 +53,7 @@ def _report_reference(root: Path, write: bool) -> None:
                    "(after a generator or Mitsuba pin change; commit the result).")
 @click.option("--list", "list_recipes", is_flag=True, help="List the built-in recipes and exit.")
 @quiet_option
-def synth(recipe_name: str | None, fmt: str, out_dir: Path | None, res: str | None, spp: int | None,
+def synth(recipe_name: str | None, fmt: str, out_dir: Path | None, res: tuple[int, int] | None, spp: int | None,
           n_train: int | None, n_test: int | None, seed: int | None, novel_views: bool | None, no_geometry: bool,
           mini: bool, write_reference: bool, list_recipes: bool, quiet: bool) -> None:
     """Render a synthetic OLAT scene with Mitsuba 3 (needs: pip install 'olatbench[synth]').
@@ -108,7 +94,7 @@ def synth(recipe_name: str | None, fmt: str, out_dir: Path | None, res: str | No
 
         try:
             recipe = get_recipe(recipe_name).with_overrides(
-                resolution=_resolution(res), spp=spp, train=n_train, test=n_test, seed=seed,
+                resolution=res, spp=spp, train=n_train, test=n_test, seed=seed,
                 novel_views=novel_views).validate()
         except (ValueError, FileNotFoundError, KeyError) as error:  # what was asked is not a recipe
             raise click.UsageError(f"{error}. See: olatbench datasets synth --list") from None

@@ -8,7 +8,15 @@ from pathlib import Path
 
 import click
 
-from olatbench.cli.options import checked_suite, quiet_option, show_progress, suite_filter_option
+from olatbench.cli.options import (
+    checked_suite,
+    device_option,
+    quiet_option,
+    resolve_device,
+    show_progress,
+    suite_filter_option,
+)
+from olatbench.viewer.geometry import MAX_RESOLUTION
 
 
 @click.command("view")
@@ -17,7 +25,9 @@ from olatbench.cli.options import checked_suite, quiet_option, show_progress, su
 @click.option("--port", type=click.IntRange(0, 65535), default=8080, show_default=True,
               help="Port of the web viewer (0: any free port).")
 @click.option("--host", default="127.0.0.1", show_default=True, help="Address to listen on (0.0.0.0: every one).")
-@click.option("--device", default="cpu", show_default=True, help="torch device for rendering.")
+@device_option
+@click.option("--max-resolution", type=click.IntRange(min=8), default=MAX_RESOLUTION, show_default=True,
+              help="Renders fill the browser window, their longer side capped at this many pixels.")
 @click.option("--drag-scale", type=click.FloatRange(0.05, 1.0), default=0.5, show_default=True,
               help="Resolution factor while the camera or light moves (full resolution once still).")
 @click.option("--record", nargs=2, type=(click.Choice(("light-orbit", "view-orbit")), click.Path(dir_okay=False,
@@ -26,21 +36,24 @@ from olatbench.cli.options import checked_suite, quiet_option, show_progress, su
 @click.option("--frames", "count", type=click.IntRange(min=1), help="With --record: spread this many frames.")
 @click.option("--start-frame", help="With --record: test frame id whose camera and light start (default: first).")
 @quiet_option
-def view(folder, suite, port, host, device, drag_scale, record, component, count, start_frame, quiet) -> None:
-    """Open a web viewer on a trained job (or every finished job of a run folder).
+def view(folder, suite, port, host, device, max_resolution, drag_scale, record, component, count, start_frame,
+         quiet) -> None:
+    """Open a web viewer on a trained job (or every job of a run folder); a job still training is followed, its
+    newest checkpoint shown as the runner writes it.
 
     \b
     Move the light (handle or sliders), orbit the camera, switch outputs (rgb, diffuse, specular, sss, shadow, …),
     snap to a dataset frame to see its ground truth and PSNR.
     Examples:
       olatbench view runs/mini/ssdgs/default/translucent/seed0
-      olatbench view runs/mini --port 8081
+      olatbench view runs/mini --port 8081 --max-resolution 1024
       olatbench view runs/ -s mycaptures          # the jobs of one suite (e.g. of olatbench.toml)
       olatbench view runs/mini/ssdgs/default/translucent/seed0 --record light-orbit orbit.mp4
     """
     # Idle OpenMP threads sleep instead of spinning: on a shared 2-core machine spinning made each render of the
     # native kernels 8x slower with 2 threads (benchmarks/bench_viewer.py, docs/viewer.md). Set before torch loads.
     os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+    device = resolve_device(device)
     from olatbench.bench.restore import RestoreError
     from olatbench.bench.store import in_suite
     from olatbench.viewer.jobs import job_folders
@@ -51,7 +64,8 @@ def view(folder, suite, port, host, device, drag_scale, record, component, count
         folders, skipped = job_folders(folder, device)
         folders = [job for job in folders if in_suite(job, suite)]
         if not folders:
-            raise click.ClickException(f"{folder}: no finished job of suite {suite} in or below it")
+            of_suite = f" of suite {suite}" if suite else ""
+            raise click.ClickException(f"{folder}: no job with a checkpoint{of_suite} in or below it")
         for line in skipped:
             click.echo(f"skipped: {line}", err=True)
         first = ViewerModel.open(folders[0], device)
@@ -64,7 +78,8 @@ def view(folder, suite, port, host, device, drag_scale, record, component, count
     try:
         from olatbench.viewer.server import ViewerApp
 
-        app = ViewerApp(folders, first, host=host, port=port, device=device, drag_scale=drag_scale).start()
+        app = ViewerApp(folders, first, host=host, port=port, device=device, drag_scale=drag_scale,
+                        max_resolution=max_resolution).start()
     except OSError as error:
         raise click.ClickException(f"cannot listen on {host}:{port} ({error}); try --port 0") from None
     click.echo(f"olatbench view: {len(folders)} job(s) at {app.url} (Ctrl-C to stop)")

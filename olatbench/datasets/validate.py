@@ -90,12 +90,12 @@ def check_frame(frame: Frame, decode: bool = True) -> list[Issue]:
 
 def validate_scene(scene: Scene, decode: bool = True, progress: bool = False) -> ValidationReport:
     """Check every frame of an already-read scene."""
-    from tqdm import tqdm
+    from olatbench.progress import progress_bar
 
     report = ValidationReport(root=str(scene.root), format=scene.format, scene=scene.name,
                               frames={split: len(frames) for split, frames in scene.frames.items()})
     frames = list(scene)
-    for frame in tqdm(frames, desc=f"validate {scene.name}", disable=not progress, unit="frame"):
+    for frame in progress_bar(frames, desc=f"validate {scene.name}", disable=not progress, unit="frame"):
         report.issues.extend(check_frame(frame, decode))
     if scene.format == "sssgs":
         off_centre = [f for f in frames if max(abs(f.camera.cx - f.camera.width / 2),

@@ -16,6 +16,7 @@ same numbers as before.
 from __future__ import annotations
 
 from abc import abstractmethod
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
@@ -45,6 +46,37 @@ class ParameterGroup:
     lr: float = 0.0
 
 
+VIEWER_SH_REST = 15  # SH coefficients above degree 0 at degree 3, the degree 3DGS files have
+
+
+@dataclass(frozen=True)
+class SplatColour:
+    """How a method's Gaussians look in a splat viewer (`olatbench.gaussians.splat_ply`): 3DGS spherical-harmonic
+    coefficients ``sh_dc`` (N, 3) and ``sh_rest`` (N, R, 3), R ≥ 0 (colour ``0.5 + C0 · sh_dc`` + view-dependent
+    terms), the attribute names they encode (``encoded``: not repeated as extra properties) and a one-line ASCII
+    ``description`` for the file's header."""
+
+    sh_dc: torch.Tensor
+    sh_rest: torch.Tensor
+    encoded: tuple[str, ...]
+    description: str
+
+
+def albedo_splat_colour(raw_diffuse: torch.Tensor, colourspace: str) -> SplatColour:
+    """The colour of a method whose diffuse term is ``softplus(raw_diffuse) / π · cos θ · L / d²`` (SSD-GS, GS³): the
+    albedo ``softplus(raw_diffuse)`` (N, 3), converted from the job's ``colourspace`` to sRGB and clipped to [0, 1]
+    (what a viewer shows), as the degree-0 SH coefficient; the 15 higher coefficients of degree 3 are zero (the
+    original 3DGS loader asserts degree 3's count)."""
+    from olatbench.datasets.colour import convert_colourspace
+    from olatbench.methods.baselines.sh import rgb_to_sh_dc
+
+    albedo = torch.nn.functional.softplus(raw_diffuse.detach().float().cpu()).numpy()
+    shown = np.clip(convert_colourspace(albedo, colourspace, "srgb"), 0.0, 1.0)
+    rest = torch.zeros(len(shown), VIEWER_SH_REST, 3)  # no view dependence, in the degree-3 layout loaders expect
+    return SplatColour(rgb_to_sh_dc(torch.from_numpy(shown)), rest, ("diffuse",),
+                       f"colour: diffuse albedo softplus(diffuse), {colourspace} -> sRGB, clipped to [0, 1]")
+
+
 class GaussianMethod(Method):
     """A method on the shared Gaussian core. Subclasses set ``state_format`` and ``label`` and implement the
     abstract hooks; their config has the shared fields (``num_init_gaussians``, ``init_radius``, ``init_opacity``,
@@ -58,6 +90,13 @@ class GaussianMethod(Method):
     def __init__(self, config: Any | None = None) -> None:
         super().__init__(config if config is not None else self.config_class())
         self.step = 0  # steps taken so far (the next train_step is normally called with this value)
+
+    @classmethod
+    def splat_colour(cls, attributes: Mapping[str, torch.Tensor], colourspace: str) -> SplatColour:
+        """The viewer colour of trained Gaussians from their raw per-Gaussian ``attributes`` (name -> (N, ...)) and
+        the job's ``colourspace``, for ``olatbench export``. A method on this base says how (default: it cannot)."""
+        raise NotImplementedError(f"{cls.label} does not say how its Gaussians are coloured in a splat viewer "
+                                  "(GaussianMethod.splat_colour)")
 
     # ------------------------------------------------------------------------------------------- set-up
     def setup(self, train: Views, device: str | torch.device, seed: int) -> None:

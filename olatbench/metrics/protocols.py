@@ -21,13 +21,13 @@ from dataclasses import asdict, dataclass, field
 from typing import TYPE_CHECKING
 
 import numpy as np
-from tqdm import tqdm
 
 from olatbench.datasets.colour import dequantize_8bit, quantize_8bit
 from olatbench.datasets.errors import DatasetError
 from olatbench.datasets.formats import display_colourspace
 from olatbench.datasets.official import official_ground_truth
 from olatbench.datasets.records import Frame
+from olatbench.progress import progress_bar
 
 if TYPE_CHECKING:
     import torch
@@ -206,7 +206,7 @@ class Protocol:
 
         if total is None and hasattr(pairs, "__len__"):
             total = len(pairs)  # type: ignore[arg-type]
-        for index, pair in enumerate(tqdm(pairs, total=total, disable=not progress, desc=f"metrics {self.id}",
+        for index, pair in enumerate(progress_bar(pairs, total=total, disable=not progress, desc=f"metrics {self.id}",
                                           unit="img")):
             if len(pair) not in (2, 3):
                 raise ValueError(f"pair {index}: expected (pred, gt) or (pred, gt, mask)")

@@ -1,23 +1,51 @@
 """The figures of an HTML report, gathered from the job folders next to each results.json.
 
 Per scene: a comparison grid (ground truth | each method | error maps) for the chosen test frames,
-the SSD-GS decomposition when the job saved components, the training curves of every job, and the relighting
+the decomposition into components when the job saved them, the training curves of every job, and the relighting
 sweeps ``olatbench render`` wrote to a job's ``videos/`` (H.264 MP4s only: browsers do not play mp4v).
-A figure that cannot be made (data moved, renders missing) is skipped with a note saying why.
+A figure that cannot be made (data moved, renders missing) is skipped with a note saying why. Every method (or
+method/variant) has one colour in all the figures of a report (`olatbench.reports.figures.method_colours`).
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
 import pandas as pd
+from matplotlib.figure import Figure
 
 from olatbench.datasets.errors import DatasetError
-from olatbench.reports.figures import ComparisonRow, comparison_grid, decomposition_figure, training_curves
+from olatbench.reports.figures import (
+    EMBED_DPI,
+    ComparisonRow,
+    close,
+    comparison_figure,
+    decomposition_figure,
+    encode,
+    method_colours,
+    training_curves_figure,
+)
 from olatbench.reports.jobfolder import JobFolder, JobFolderError, read_png
 
-Figure = tuple[str, bytes]
+
+@dataclass
+class ReportFigure:
+    """One figure of the report: a matplotlib ``figure`` (drawn once, written in any format) or an H.264 MP4
+    ``video``."""
+
+    title: str
+    figure: Figure | None = None
+    video: bytes | None = None
+
+    def embedded(self) -> bytes:
+        """What the HTML page embeds: the video, or the figure as a PNG."""
+        return self.video if self.video is not None else encode(self.figure, "png", EMBED_DPI)
+
+    def close(self) -> None:
+        if self.figure is not None:
+            close(self.figure)
 
 
 def _job_label(job: JobFolder) -> str:
@@ -40,7 +68,8 @@ def scene_jobs(frame: pd.DataFrame, notes: list[str]) -> dict[tuple[str, str], l
     return groups
 
 
-def comparison_for_scene(jobs: Sequence[JobFolder], frame_ids: Sequence[str] = ()) -> bytes:
+def comparison_for_scene(jobs: Sequence[JobFolder], frame_ids: Sequence[str] = (),
+                         colours: Mapping[str, str] | None = None) -> Figure:
     """The comparison grid of one scene's jobs on the given (default: first) test frames."""
     reference = jobs[0]
     scene = reference.load_scene()
@@ -54,10 +83,10 @@ def comparison_for_scene(jobs: Sequence[JobFolder], frame_ids: Sequence[str] = (
         ground_truth = frame.load(colourspace="srgb", background="official", resolution=reference.resolution).rgb
         predictions = [(_job_label(job), read_png(job.render_path(split, frame.frame_id))) for job in jobs]
         rows.append(ComparisonRow(frame.frame_id, ground_truth, predictions))
-    return comparison_grid(rows)
+    return comparison_figure(rows, colours=colours)
 
 
-def decomposition_for_job(job: JobFolder, frame_id: str | None = None) -> bytes | None:
+def decomposition_for_job(job: JobFolder, frame_id: str | None = None) -> Figure | None:
     """The saved components and final render of one test frame, or None when none were saved."""
     split = job.job["test_split"]
     renders = sorted((job.folder / "renders" / split).glob("*.png"))
@@ -72,14 +101,16 @@ def decomposition_for_job(job: JobFolder, frame_id: str | None = None) -> bytes 
     return decomposition_figure(images, title=f"{job.label}, frame {stem}")
 
 
-def report_figures(frame: pd.DataFrame, frame_ids: Sequence[str] = ()) -> tuple[list[Figure], list[str]]:
+def report_figures(frame: pd.DataFrame, frame_ids: Sequence[str] = ()) -> tuple[list[ReportFigure], list[str]]:
     """(figures, notes on skipped figures) for every scene of the collected runs."""
-    figures: list[Figure] = []
+    figures: list[ReportFigure] = []
     notes: list[str] = []
-    for (suite, scene), jobs in scene_jobs(frame, notes).items():
+    groups = scene_jobs(frame, notes)
+    colours = method_colours(_job_label(job) for jobs in groups.values() for job in jobs)
+    for (suite, scene), jobs in groups.items():
         try:
-            figures.append((f"{suite}/{scene}: ground truth, renders and error maps",
-                            comparison_for_scene(jobs, frame_ids)))
+            figures.append(ReportFigure(f"{suite}/{scene}: ground truth, renders and error maps",
+                                        comparison_for_scene(jobs, frame_ids, colours)))
         except (JobFolderError, DatasetError, ValueError) as error:
             notes.append(f"{suite}/{scene}: comparison grid skipped ({error})")
         for job in jobs:
@@ -89,7 +120,7 @@ def report_figures(frame: pd.DataFrame, frame_ids: Sequence[str] = ()) -> tuple[
                 notes.append(f"{job.label}: decomposition skipped ({error})")
                 continue
             if picture is not None:
-                figures.append((f"{job.label}: SSD-GS decomposition", picture))
+                figures.append(ReportFigure(f"{job.label}: decomposition", picture))
         logs = {}
         for job in jobs:
             try:
@@ -97,7 +128,8 @@ def report_figures(frame: pd.DataFrame, frame_ids: Sequence[str] = ()) -> tuple[
             except JobFolderError as error:
                 notes.append(f"{job.label}: training curve skipped ({error})")
         if logs:
-            figures.append((f"{suite}/{scene}: training curves", training_curves(logs)))
+            figures.append(ReportFigure(f"{suite}/{scene}: training curves", training_curves_figure(logs,
+                                                                                                    colours=colours)))
         for job in jobs:
             videos, skipped = sweep_videos(job)
             figures += videos
@@ -105,7 +137,7 @@ def report_figures(frame: pd.DataFrame, frame_ids: Sequence[str] = ()) -> tuple[
     return figures, notes
 
 
-def sweep_videos(job: JobFolder) -> tuple[list[Figure], list[str]]:
+def sweep_videos(job: JobFolder) -> tuple[list[ReportFigure], list[str]]:
     """The H.264 sweeps in the job's ``videos/`` folder, and notes on the others (mp4v: not playable)."""
     figures, notes = [], []
     for path in sorted((job.folder / "videos").glob("*.mp4")):
@@ -114,5 +146,5 @@ def sweep_videos(job: JobFolder) -> tuple[list[Figure], list[str]]:
             notes.append(f"{job.label}: {path.name} is not H.264 (browsers cannot play it); render it again with "
                          "'olatbench[video]' installed")
             continue
-        figures.append((f"{job.label}: {path.stem} sweep", data))
+        figures.append(ReportFigure(f"{job.label}: {path.stem} sweep", video=data))
     return figures, notes

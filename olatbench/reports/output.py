@@ -46,9 +46,10 @@ def _unit(text: str) -> bool:
 
 def render_tables(tables: Sequence[Table], fmt: str, *, standalone: bool = False,
                   colours: Sequence[str] = PAPER_COLOURS, rules: str | None = None,
-                  figures: Sequence[tuple[str, bytes]] = (), notes: Sequence[str] = (),
+                  figures: Sequence[tuple[str, bytes, str | None]] = (), notes: Sequence[str] = (),
                   title: str = "olatbench report") -> str:
-    """All tables in one document of format ``fmt`` (figures and notes are used by HTML only)."""
+    """All tables in one document of format ``fmt`` (figures — title, PNG or MP4 bytes, link to the figure's file
+    or None — and notes are used by HTML only)."""
     if fmt == "latex":
         body = "\n".join(to_latex(table, colours=colours, rules=rules) for table in tables)
         return standalone_document(body) if standalone else body

@@ -13,11 +13,11 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from tqdm.auto import tqdm
 
 from olatbench.atomic import atomic_path
 from olatbench.datasets import colour
 from olatbench.datasets.images import write_image
+from olatbench.progress import progress_bar
 from olatbench.reports.encode import open_video
 from olatbench.reports.jobfolder import JobFolder, JobFolderError
 from olatbench.reports.sweeps import SweepFrame, orbit_frame, subsample, trajectory
@@ -100,7 +100,7 @@ def render_sweep(job: JobFolder, kind: str, out_dir: str | Path, *, count: int |
         writer = open_video(temporary, fps, width, height)
         try:
             with torch.no_grad():
-                for index, frame in enumerate(tqdm(frames, desc=f"{job.label}: {kind}", disable=not progress)):
+                for index, frame in enumerate(progress_bar(frames, desc=f"{job.label}: {kind}", disable=not progress)):
                     output = method.render(frame.camera, frame.light)
                     if component not in output:
                         raise JobFolderError(f"method '{job.job['method']}' renders no component {component!r}; "

@@ -18,6 +18,8 @@ import numpy as np
 
 from olatbench.datasets.records import Camera
 
+MAX_RESOLUTION = 512  # default cap of a render's longer side in pixels (a wide window: 512×263, about 0.1 s on a CPU)
+
 
 def quaternion_to_matrix(wxyz: np.ndarray) -> np.ndarray:
     """Rotation matrix (3, 3) of a quaternion (w, x, y, z) (normalised first)."""
@@ -67,10 +69,12 @@ def camera_pose(camera: Camera) -> tuple[np.ndarray, np.ndarray, float]:
         2.0 * np.arctan(0.5 * camera.height / camera.fy))
 
 
-def render_size(full: tuple[int, int], aspect: float, scale: float = 1.0) -> tuple[int, int]:
-    """(width, height) of a render: the full height × ``scale`` (at least 8 pixels) and the browser's aspect."""
-    height = max(8, round(full[1] * scale))
-    return max(8, round(height * aspect)), height
+def render_size(canvas: tuple[int, int], max_side: int, scale: float = 1.0) -> tuple[int, int]:
+    """(width, height) of a render for a browser canvas of ``canvas`` = (width, height) pixels: the canvas's size,
+    shrunk with its aspect so that the longer side is at most ``max_side``, times ``scale``; at least 8 pixels."""
+    width, height = canvas
+    factor = min(1.0, max_side / max(width, height)) * scale
+    return max(8, round(width * factor)), max(8, round(height * factor))
 
 
 @dataclass(frozen=True)

@@ -1,5 +1,6 @@
-"""Which job folders a ``olatbench view FOLDER`` serves: the folder itself when it is a job, else every finished job
-below it (a run folder), each checked cheaply (`olatbench.bench.restore.check_job`) before any server starts."""
+"""Which job folders a ``olatbench view FOLDER`` serves: the folder itself when it is a job, else every job below it
+(a run folder) with at least one checkpoint — finished, or still training (the viewer follows its newest
+checkpoint) —, each checked cheaply (`olatbench.bench.restore.check_job`) before any server starts."""
 
 from __future__ import annotations
 
@@ -10,14 +11,14 @@ from olatbench.bench.store import JOB_FILE
 
 
 def job_folders(folder: str | Path, device: str = "cpu") -> tuple[list[Path], list[str]]:
-    """(finished job folders to serve, one line per job folder skipped and why).
+    """(job folders to serve, one line per job folder skipped and why).
 
     A job folder must be restorable (a `RestoreError` otherwise); a run folder must hold at least one restorable
     job (the error then names why each one is not).
     """
     folder = Path(folder)
     if (folder / JOB_FILE).is_file():
-        check_job(folder, device)
+        check_job(folder, device, partial=True)
         return [folder], []
     candidates = sorted(path.parent for path in folder.rglob(JOB_FILE))
     if not candidates:
@@ -26,7 +27,7 @@ def job_folders(folder: str | Path, device: str = "cpu") -> tuple[list[Path], li
     found, skipped = [], []
     for candidate in candidates:
         try:
-            check_job(candidate, device)
+            check_job(candidate, device, partial=True)
         except RestoreError as error:
             skipped.append(str(error))
         else:

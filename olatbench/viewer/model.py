@@ -1,9 +1,11 @@
 """What the viewer shows of one trained job: the restored method, its scene's frames, the light's frame, renders.
 
-`ViewerModel.open` restores the method through `olatbench.bench.restore` (no training image is read) and reads
-the scene's frame records. Renders are converted for display as the sweeps do (`olatbench.reports.video
-.display_image`: sRGB, 8-bit). Ground truth is read only for a frame the user snaps to, and compared in the job's
-evaluation colour space as the runner scores (both clipped to [0, 1]).
+`ViewerModel.open` restores the method from the job's newest checkpoint through `olatbench.bench.restore` (no
+training image is read) and reads the scene's frame records. For a job still training, `reload_if_newer` restores a
+newer checkpoint when the runner has written one and swaps it in between two renders. Renders are converted for
+display as the sweeps do (`olatbench.reports.video.display_image`: sRGB, 8-bit). Ground truth is read only for a
+frame the user snaps to, and compared in the job's evaluation colour space as the runner scores (both clipped to
+[0, 1]).
 """
 
 from __future__ import annotations
@@ -16,7 +18,8 @@ from typing import Any
 
 import numpy as np
 
-from olatbench.bench.restore import restore
+from olatbench.bench.restore import RestoreError, newest_checkpoint, restore
+from olatbench.bench.store import list_checkpoints
 from olatbench.bench.views import view_camera
 from olatbench.datasets import colour, load_scene
 from olatbench.datasets.records import Camera, Frame, PointLight
@@ -60,13 +63,16 @@ class Comparison:
 
 
 class ViewerModel:
-    """One trained job ready to render. `render` is serialised by a lock (torch and the native kernels run on the
-    calling thread; the viewer's scheduler already calls it from one thread, recordings from another)."""
+    """One trained job ready to render, restored from its checkpoint at ``step``. `render` and the swap of a
+    reloaded checkpoint are serialised by a lock (torch and the native kernels run on the calling thread; the
+    viewer's scheduler calls `render` from one thread, the checkpoint follower `reload_if_newer` from another)."""
 
-    def __init__(self, method: Any, job: Any, train: list[Frame], test: list[Frame], folder: Path) -> None:
+    def __init__(self, method: Any, job: Any, train: list[Frame], test: list[Frame], folder: Path,
+                 step: int | None = None) -> None:
         self.method = method
         self.job = job
         self.folder = folder
+        self.step = job.iterations if step is None else step
         self.frames = [ViewerFrame(split, frame, view_camera(frame, job))
                        for split, frames in ((job.test_split, test), (job.train_split, train)) for frame in frames]
         self.train = [f for f in self.frames if f.split == job.train_split]
@@ -82,15 +88,34 @@ class ViewerModel:
 
     @classmethod
     def open(cls, folder: str | Path, device: str = "cpu") -> ViewerModel:
-        """Restore the job in ``folder`` (a `olatbench.bench.restore.RestoreError` if it cannot be)."""
-        method, job = restore(folder, device)
+        """Restore the job in ``folder`` from its newest checkpoint (a `olatbench.bench.restore.RestoreError` if it
+        cannot be)."""
+        method, job, step = _restore_newest(Path(folder), device)
         scene = load_scene(job.scene_path, format=job.scene_format)
-        return cls(method, job, scene.split(job.train_split), scene.split(job.test_split), Path(folder))
+        return cls(method, job, scene.split(job.train_split), scene.split(job.test_split), Path(folder), step)
+
+    @property
+    def finished(self) -> bool:
+        """Whether the model is the job's final one (no newer checkpoint can come)."""
+        return self.step >= self.job.iterations
 
     @property
     def label(self) -> str:
         job = self.job
-        return f"{job.method}/{job.variant}/{job.scene}/seed{job.seed}"
+        progress = "" if self.finished else f" (step {self.step}/{job.iterations}, training)"
+        return f"{job.method}/{job.variant}/{job.scene}/seed{job.seed}{progress}"
+
+    def reload_if_newer(self) -> bool:
+        """Restore the job's newest checkpoint if it is newer than the shown one and swap it in (the render in
+        flight finishes on the old one); whether it did. A `RestoreError` if the newer checkpoint cannot be
+        restored."""
+        checkpoints = list_checkpoints(self.folder)
+        if not checkpoints or checkpoints[-1][0] <= self.step:
+            return False
+        method, _, step = _restore_newest(self.folder, str(self.job.device))
+        with self._lock:
+            self.method, self.step = method, step
+        return True
 
     def frame(self, label: str) -> ViewerFrame:
         """The frame named ``<split>/<frame id>`` (a `KeyError` otherwise)."""
@@ -108,10 +133,17 @@ class ViewerModel:
 
     def render(self, camera: Camera, light: PointLight, component: str = "rgb") -> np.ndarray:
         """One output for display: (H, W, 3) uint8 sRGB."""
-        outputs = self.render_outputs(camera, light)
+        return self.render_with_step(camera, light, component)[0]
+
+    def render_with_step(self, camera: Camera, light: PointLight, component: str = "rgb") -> tuple[np.ndarray, int]:
+        """`render` and the checkpoint step of the model that drew it."""
+        import torch
+
+        with self._lock, torch.no_grad():
+            outputs, step = self.method.render(camera, light), self.step
         if component not in outputs:
             raise KeyError(f"method '{self.job.method}' renders no {component!r}; it renders {', '.join(outputs)}")
-        return colour.quantize_8bit(display_image(outputs[component], self.job.colourspace))
+        return colour.quantize_8bit(display_image(outputs[component], self.job.colourspace)), step
 
     def compare(self, frame: ViewerFrame) -> Comparison:
         """Render ``frame`` with its own camera and light and put it beside the ground truth."""
@@ -137,3 +169,18 @@ class ViewerModel:
                 if isinstance(scores, dict) and isinstance(scores.get("psnr"), (int, float)):
                     found[f"{split}/{frame_id}"] = float(scores["psnr"])
         return found
+
+
+def _restore_newest(folder: Path, device: str, attempts: int = 3) -> tuple[Any, Any, int]:
+    """(method, job, step) of the newest checkpoint; a checkpoint the runner prunes between the listing and the
+    load (it keeps the newest few) is retried with the then newest."""
+    for attempt in range(attempts):
+        step, path = newest_checkpoint(folder)
+        try:
+            method, job = restore(folder, device, checkpoint=path)
+        except RestoreError:
+            if path.exists() or attempt == attempts - 1:
+                raise
+            continue
+        return method, job, step
+    raise AssertionError("unreachable")

@@ -1,11 +1,14 @@
 """The viser application: one `ClientSession` per browser tab, all rendering through one `RenderScheduler`.
 
 Each tab has its own camera, light, output and GUI (viser's per-client ``client.gui`` / ``client.scene``), so tabs
-do not disturb one another; they share the restored models and the one render worker. The browser orbits, pans
-and zooms its camera itself; every camera, light or output change submits a request for that tab, which the
-scheduler renders at reduced resolution while changes keep coming and at the scene's resolution once they stop,
-then sends as the tab's background image (JPEG). Snapping to a dataset frame renders it with the frame's own
-camera and light, beside its ground truth and PSNR (lossless PNG in the GUI panel).
+do not disturb one another; they share the restored models and the one render worker. The browser orbits, pans and
+zooms its camera itself; every camera, light or output change submits a request for that tab, which the scheduler
+renders at reduced resolution while changes keep coming and at the browser canvas's size (its longer side capped at
+``max_resolution``) once they stop, then sends as the tab's background image (JPEG). Snapping to a dataset frame
+renders it with the frame's own camera and light, beside its ground truth and PSNR (lossless PNG in the GUI panel).
+
+A job still training is followed: every ``follow_seconds`` a follower thread restores the newest checkpoint of each
+shown job that has not finished, when the runner has written a newer one, and every tab showing it renders again.
 """
 
 from __future__ import annotations
@@ -22,8 +25,9 @@ from typing import Any
 
 import numpy as np
 
+from olatbench.bench.restore import RestoreError
 from olatbench.datasets.records import PointLight
-from olatbench.viewer.geometry import browser_camera, camera_pose, render_size
+from olatbench.viewer.geometry import MAX_RESOLUTION, browser_camera, camera_pose, render_size
 from olatbench.viewer.model import Comparison, ViewerFrame, ViewerModel
 from olatbench.viewer.scheduler import Quality, RenderScheduler
 
@@ -36,13 +40,13 @@ CAMERA_COLOUR = (60, 120, 220)
 @dataclass(frozen=True)
 class ViewRequest:
     """Render ``component`` of ``model`` from a browser pose (OpenCV camera-to-world ``wxyz`` and ``position``,
-    vertical ``fov`` in radians, canvas ``aspect`` width/height) under ``light``."""
+    vertical ``fov`` in radians) for a browser ``canvas`` of (width, height) pixels under ``light``."""
 
     model: ViewerModel
     wxyz: tuple[float, ...]
     position: tuple[float, ...]
     fov: float
-    aspect: float
+    canvas: tuple[int, int]
     light: PointLight
     component: str
 
@@ -57,20 +61,24 @@ class CompareRequest:
 
 @dataclass(frozen=True)
 class Delivered:
-    """The newest image a tab received: what was asked, the (H, W, 3) uint8 image, its quality and render time."""
+    """The newest image a tab received: what was asked, the (H, W, 3) uint8 image, its quality, render time and the
+    checkpoint step of the model that drew it."""
 
     request: ViewRequest
     image: np.ndarray
     quality: Quality
     seconds: float
+    step: int
 
 
 class ViewerApp:
     """The viewer over one or more job folders (the first restored eagerly by the caller, the others on demand).
 
-    ``drag_scale`` is the resolution factor while the user drags (1.0: always the scene's resolution);
-    ``settle_seconds`` how long a view must be still before its full-resolution render; ``max_models`` how many
-    restored models are kept (a tab keeps showing its model after the cache lets go of it).
+    Renders fill the browser canvas, their longer side capped at ``max_resolution`` pixels; ``drag_scale`` is the
+    resolution factor while the user drags (1.0: always full); ``settle_seconds`` how long a view must be still
+    before its full-resolution render; ``follow_seconds`` how often jobs still training are checked for a newer
+    checkpoint; ``max_models`` how many restored models are kept (a tab keeps showing its model after the cache
+    lets go of it).
 
     Only the listed ``folders`` are ever opened: a tab chooses among them by name (`listed`), so a browser cannot
     make the server read another path, even when it is reachable from other machines (``--host 0.0.0.0``).
@@ -78,16 +86,20 @@ class ViewerApp:
 
     def __init__(self, folders: list[Path], first: ViewerModel, *, host: str = "127.0.0.1", port: int = 8080,
                  device: str = "cpu", drag_scale: float = 0.5, settle_seconds: float = 0.25,
-                 verbose: bool = False, max_models: int = MAX_MODELS) -> None:
+                 max_resolution: int = MAX_RESOLUTION, follow_seconds: float = 2.0, verbose: bool = False,
+                 max_models: int = MAX_MODELS) -> None:
         self.folders = [Path(f) for f in folders]
         self.host, self.port, self.device, self.verbose = host, port, device, verbose
-        self.drag_scale = drag_scale
+        self.drag_scale, self.max_resolution = drag_scale, max_resolution
         self.max_models = max(1, max_models)
         self._models: OrderedDict[Path, ViewerModel] = OrderedDict({self.folders[0]: first})
         self._models_lock = threading.Lock()
         self.sessions: dict[int, ClientSession] = {}
         self.scheduler = RenderScheduler(self._render, self._deliver, settle_seconds=settle_seconds,
                                          on_error=self._render_failed)
+        self.follow_seconds = follow_seconds
+        self._stopping = threading.Event()
+        self._follower = threading.Thread(target=self._follow, name="olatbench-viewer-follow", daemon=True)
         self.server: Any = None
 
     # ------------------------------------------------------------------------------------------- lifecycle
@@ -102,9 +114,13 @@ class ViewerApp:
         self.server.scene.set_up_direction(tuple(first.light_frame.up))
         self.server.on_client_connect(self._connect)
         self.server.on_client_disconnect(self._disconnect)
+        self._follower.start()
         return self
 
     def stop(self) -> None:
+        self._stopping.set()
+        if self._follower.is_alive():
+            self._follower.join(10.0)
         if self.server is not None:
             self.server.stop()
         self.scheduler.close()
@@ -138,6 +154,27 @@ class ViewerApp:
                 self._models.popitem(last=False)
             return self._models[folder]
 
+    def _follow(self) -> None:
+        """Until `stop`: reload the jobs still training when they have a newer checkpoint; re-render their tabs."""
+        while not self._stopping.wait(self.follow_seconds):
+            with self._models_lock:  # the cached models and those tabs still show after the cache let them go
+                shown = {id(model): model for model in self._models.values()}
+            shown.update({id(session.model): session.model for session in list(self.sessions.values())
+                          if getattr(session, "model", None) is not None})
+            training = [model for model in shown.values() if not model.finished]
+            for model in training:
+                try:
+                    reloaded = model.reload_if_newer()
+                except RestoreError as error:
+                    for session in list(self.sessions.values()):
+                        if session.model is model:
+                            session.status.content = f"**cannot follow {model.label}**: {error}"
+                    continue
+                if reloaded:
+                    for session in list(self.sessions.values()):
+                        if session.model is model:
+                            session.refresh()
+
     def _connect(self, client: Any) -> None:
         ClientSession(self, client)  # registers itself in `sessions` before it sends anything to the tab
 
@@ -147,19 +184,19 @@ class ViewerApp:
             self.scheduler.forget((client.client_id, kind))
 
     # ------------------------------------------------------------------------------------------- rendering
-    def _render(self, request: ViewRequest | CompareRequest, quality: Quality) -> tuple[Any, float]:
+    def _render(self, request: ViewRequest | CompareRequest, quality: Quality) -> tuple[Any, float, int]:
         started = time.perf_counter()
         if isinstance(request, CompareRequest):
-            return request.model.compare(request.frame), time.perf_counter() - started
-        size = render_size(request.model.full_size, request.aspect, 1.0 if quality == "full" else self.drag_scale)
+            return request.model.compare(request.frame), time.perf_counter() - started, request.model.step
+        size = render_size(request.canvas, self.max_resolution, 1.0 if quality == "full" else self.drag_scale)
         camera = browser_camera(np.asarray(request.wxyz), np.asarray(request.position), request.fov, *size)
-        image = request.model.render(camera, request.light, request.component)
-        return image, time.perf_counter() - started
+        image, step = request.model.render_with_step(camera, request.light, request.component)
+        return image, time.perf_counter() - started, step
 
-    def _deliver(self, key: Hashable, request: Any, result: tuple[Any, float], quality: Quality) -> None:
+    def _deliver(self, key: Hashable, request: Any, result: tuple[Any, float, int], quality: Quality) -> None:
         session = self.sessions.get(key[0])
         if session is not None:
-            session.show(request, result[0], quality, result[1])
+            session.show(request, result[0], quality, result[1], result[2])
 
     def _render_failed(self, key: Hashable, error: BaseException) -> None:
         session = self.sessions.get(key[0])
@@ -196,7 +233,7 @@ class ClientSession:
         self.delivered: Delivered | None = None
         self.comparison: Comparison | None = None
         self.pose: tuple[tuple[float, ...], tuple[float, ...], float] | None = None
-        self.aspect = 1.0
+        self.canvas = (1, 1)  # the browser canvas (width, height) in pixels, once the tab has said
         self._camera_known = False
         self._scene_nodes: list[Any] = []
         # Events of the tab (run on viser's thread pool) and public calls wait while another one, or the set-up,
@@ -308,7 +345,7 @@ class ClientSession:
         """Camera and light to a dataset frame; with ``compare``, render it beside its ground truth."""
         wxyz, position, fov = camera_pose(frame.camera)
         self.pose = (tuple(wxyz), tuple(position), fov)
-        self.aspect = frame.camera.width / frame.camera.height if not self._camera_known else self.aspect
+        self.canvas = (frame.camera.width, frame.camera.height) if not self._camera_known else self.canvas
         self.intensity.value = 1.0
         if self._camera_known:
             self._move_browser_camera(frame)
@@ -327,18 +364,24 @@ class ClientSession:
             camera.position = tuple(c2w[:3, 3])
             camera.look_at = tuple(c2w[:3, 3] + c2w[:3, 2] * float(np.linalg.norm(centre - c2w[:3, 3])))
 
+    @_locked
+    def refresh(self) -> None:
+        """Render the current state again at full resolution (the model changed: a newer checkpoint)."""
+        self.request(progressive=False)
+
     def request(self, progressive: bool = True) -> None:
         """Submit a render of the current state (never blocks)."""
         if self.pose is None:
             return
         wxyz, position, fov = self.pose
         self.app.scheduler.submit((self.client.client_id, "view"), ViewRequest(
-            self.model, wxyz, position, fov, self.aspect, self.light, str(self.output.value)), progressive)
+            self.model, wxyz, position, fov, self.canvas, self.light, str(self.output.value)), progressive)
 
     # ------------------------------------------------------------------------------------------- events
     @_locked
     def _camera_moved(self, camera: Any) -> None:
-        self.aspect = float(camera.aspect) if camera.image_height else self.aspect
+        if camera.image_height and camera.image_width:
+            self.canvas = (int(camera.image_width), int(camera.image_height))
         if not self._camera_known:  # the first message of the tab: show the home frame
             self._camera_known = True
             self._move_browser_camera(self.model.home)
@@ -391,7 +434,7 @@ class ClientSession:
             self.status.content = f"**cannot show {folder}**: {error}"
 
     # ------------------------------------------------------------------------------------------- output
-    def show(self, request: Any, result: Any, quality: Quality, seconds: float) -> None:
+    def show(self, request: Any, result: Any, quality: Quality, seconds: float, step: int) -> None:
         """Put a finished render in the tab (called on the render worker)."""
         if isinstance(request, CompareRequest):
             self.comparison = result
@@ -400,8 +443,8 @@ class ClientSession:
             recorded = f" (runner: {result.recorded_psnr:.2f} dB)" if result.recorded_psnr is not None else ""
             self.comparison_text.content = f"**{result.frame.label}**: PSNR {result.psnr:.2f} dB{recorded}"
             return
+        self.delivered = Delivered(request, result, quality, seconds, step)  # before the image leaves: tests wait
         self.client.scene.set_background_image(result, format="jpeg", jpeg_quality=JPEG_QUALITY)
-        self.delivered = Delivered(request, result, quality, seconds)
         height, width = result.shape[:2]
         self.status.content = (f"{self.model.label} · {request.component} · {width}×{height} "
                                f"({'full' if quality == 'full' else 'dragging'}) in {1000 * seconds:.0f} ms")

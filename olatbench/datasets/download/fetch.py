@@ -187,7 +187,7 @@ def _fetch_all(source: Source, files: list[RemoteFile], root: Path, label: str, 
     ``<source>/<file>``), where `_install` records them once their archive has unpacked into a valid scene: a
     damaged first download is never taken as the reference.
     """
-    from tqdm.auto import tqdm
+    from olatbench.progress import progress_bar
 
     known = _known_hashes(root)
     cache = root / DOWNLOADS / source.name
@@ -198,7 +198,7 @@ def _fetch_all(source: Source, files: list[RemoteFile], root: Path, label: str, 
         key = f"{source.name}/{remote.name}"
         return _fetch_verified(remote, cache, known.get(key), root / KNOWN_HASHES, key, bar)
 
-    with tqdm(total=total, unit="B", unit_scale=True, desc=label, disable=not progress) as bar, \
+    with progress_bar(total=total, unit="B", unit_scale=True, desc=label, disable=not progress) as bar, \
             ThreadPoolExecutor(max_workers=max(1, jobs)) as pool:
         digests = list(pool.map(fetch, files))
     return {f.name: d for f, d in zip(files, digests, strict=True)}

@@ -60,7 +60,7 @@ def synth_metadata(recipe: Recipe, variant: str, centre: np.ndarray) -> dict[str
 def render_recipe(recipe: Recipe, root: Path | None = None, progress: bool = True,
                   geometry: bool = True) -> RenderedScene:
     """Render every frame of ``recipe``; ``root`` becomes ``Scene.root`` (where it will be written)."""
-    from tqdm.auto import tqdm
+    from olatbench.progress import progress_bar
 
     renderer = SceneRenderer(recipe)
     variant = active_variant()
@@ -71,7 +71,7 @@ def render_recipe(recipe: Recipe, root: Path | None = None, progress: bool = Tru
     passes: dict[tuple[str, str], dict[str, np.ndarray]] = {}
     total = sum(len(pairs) for pairs in rig.frames.values())
     index = 0
-    with tqdm(total=total, desc=f"rendering {recipe.name}", unit="img", disable=not progress) as bar:
+    with progress_bar(total=total, desc=f"rendering {recipe.name}", unit="img", disable=not progress) as bar:
         for split, pairs in rig.frames.items():
             frames[split] = []
             for number, (camera, light) in enumerate(pairs):

@@ -20,7 +20,6 @@ import json
 import logging
 import os
 import shutil
-import sys
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
@@ -149,9 +148,9 @@ def ensure_mini_suite(root: Path | None = None, progress: bool = True,
             if not comparison.identical:
                 log.warning("%s", comparison.summary(reference))
             elif name in rendered and progress:  # said once, when the scene is made; results.json records it always
-                from tqdm.auto import tqdm
+                from olatbench.progress import progress_write
 
-                tqdm.write(comparison.summary(reference), file=sys.stderr)
+                progress_write(comparison.summary(reference))
             else:
                 log.info("%s", comparison.summary(reference))
     return root

@@ -15,6 +15,7 @@ training step shades only the Gaussians whose largest blending weight in the vie
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any, ClassVar
 
 import torch
@@ -27,7 +28,7 @@ from olatbench.methods.baselines.gs3_config import GS3Config
 from olatbench.methods.baselines.gs3_shading import GS3Components, GS3Shader
 from olatbench.methods.baselines.gs3_spec import PRESETS, SPEC
 from olatbench.methods.baselines.triple_splat import triple_splat
-from olatbench.methods.gaussian_method import GaussianMethod, ParameterGroup
+from olatbench.methods.gaussian_method import GaussianMethod, ParameterGroup, SplatColour, albedo_splat_colour
 from olatbench.methods.training import (
     camera_centre,
     camera_tensors,
@@ -52,6 +53,11 @@ class GS3(GaussianMethod, spec=SPEC):
     config: GS3Config
 
     # ------------------------------------------------------------------------------------------- set-up
+    @classmethod
+    def splat_colour(cls, attributes: Mapping[str, torch.Tensor], colourspace: str) -> SplatColour:
+        """The diffuse albedo as a degree-0 SH colour (`albedo_splat_colour`)."""
+        return albedo_splat_colour(attributes["diffuse"], colourspace)
+
     def initial_attributes(self, n: int) -> dict[str, torch.Tensor]:
         identity = torch.zeros(n, 4, device="cpu")
         identity[:, 0] = 1.0

@@ -10,6 +10,7 @@ have no SfM points), as SSD-GS does.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any, ClassVar
 
 import torch
@@ -20,7 +21,7 @@ from olatbench.gaussians.rasterize import rasterize
 from olatbench.methods.baselines import sh
 from olatbench.methods.baselines.gs3dgs_config import GS3DConfig
 from olatbench.methods.baselines.gs3dgs_spec import PRESETS, SPEC
-from olatbench.methods.gaussian_method import GaussianMethod
+from olatbench.methods.gaussian_method import GaussianMethod, SplatColour
 from olatbench.methods.training import camera_centre, camera_tensors
 
 if TYPE_CHECKING:
@@ -39,6 +40,12 @@ class GaussianSplatting3D(GaussianMethod, spec=SPEC):
     config: GS3DConfig
 
     # ------------------------------------------------------------------------------------------- set-up
+    @classmethod
+    def splat_colour(cls, attributes: Mapping[str, torch.Tensor], colourspace: str) -> SplatColour:
+        """The trained SH coefficients as they are (3DGS's own colour; in the job's ``colourspace``)."""
+        return SplatColour(attributes["sh_dc"].reshape(-1, 3), attributes["sh_rest"], ("sh_dc", "sh_rest"),
+                           f"colour: 3DGS spherical harmonics as trained ({colourspace} radiance)")
+
     def initial_attributes(self, n: int) -> dict[str, torch.Tensor]:
         rest = sh.num_coefficients(self.config.sh_degree) - 1
         return {"sh_dc": torch.zeros(n, 1, 3, device="cpu"), "sh_rest": torch.zeros(n, rest, 3, device="cpu")}

@@ -11,6 +11,7 @@ parameters in two optimisers so densification surgery only touches the former), 
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import replace
 from typing import TYPE_CHECKING, Any, ClassVar
 
@@ -25,7 +26,7 @@ from olatbench.gaussians.rasterize import rasterize
 from olatbench.gaussians.refinement import LightRefinement, PoseRefinement
 from olatbench.gaussians.shadow import camera_matched_focal, shadow_gather
 from olatbench.methods.base import RefinedView, Views
-from olatbench.methods.gaussian_method import GaussianMethod, ParameterGroup
+from olatbench.methods.gaussian_method import GaussianMethod, ParameterGroup, SplatColour, albedo_splat_colour
 from olatbench.methods.ssdgs.config import SSDGSConfig
 from olatbench.methods.ssdgs.schedule import Schedule
 from olatbench.methods.ssdgs.shader import Components, Shader
@@ -70,6 +71,11 @@ class SSDGS(GaussianMethod, spec=SPEC):
             t for t, on in (("shadow", cfg.use_shadow), ("sss", cfg.use_sss), ("specular", cfg.use_specular)) if on)
         pairs = zip(train.cameras, train.lights, strict=True)
         self._train_keys = {view_key(c, lt): i for i, (c, lt) in enumerate(pairs)}
+
+    @classmethod
+    def splat_colour(cls, attributes: Mapping[str, torch.Tensor], colourspace: str) -> SplatColour:
+        """The diffuse albedo as a degree-0 SH colour (`albedo_splat_colour`)."""
+        return albedo_splat_colour(attributes["diffuse"], colourspace)
 
     def initial_attributes(self, n: int) -> dict[str, torch.Tensor]:
         cfg = self.config

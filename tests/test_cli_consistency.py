@@ -1,0 +1,140 @@
+"""One spelling and one behaviour per option across the verbs (#37): ``--device`` defaults to ``auto`` and resolves
+through one helper, ``--resolution`` takes ``N|WxH`` everywhere, help texts carry no reST markup and runnable
+examples, hidden old spellings are never suggested, and progress bars write plain lines into logs."""
+
+from __future__ import annotations
+
+import io
+import re
+import shlex
+from pathlib import Path
+
+import click
+import pytest
+import test_runner_support as support
+from click.testing import CliRunner
+
+from olatbench.cli import main
+from olatbench.cli.options import resolve_device
+from olatbench.datasets import suites
+from olatbench.progress import PlainProgress, progress_bar
+
+TORCH_VERBS = [["run"], ["render"], ["view"]]
+RESOLUTION_VERBS = [(["run"], ["-m", "x", "-s", "y"], "resolution"), (["render"], ["."], "resolution"),
+                    (["datasets", "synth"], [], "res")]
+
+
+def _command(path: list[str]) -> click.Command:
+    command, context = main, click.Context(main)
+    for name in path:
+        command = command.get_command(context, name)
+    return command
+
+
+def _every_verb(command: click.Command = main, path: tuple[str, ...] = ()):
+    if isinstance(command, click.Group):
+        context = click.Context(command)
+        for name in command.list_commands(context):
+            yield from _every_verb(command.get_command(context, name), (*path, name))
+    else:
+        yield list(path)
+
+
+@pytest.mark.parametrize("verb", TORCH_VERBS)
+def test_device_defaults_to_auto_on_every_verb_that_renders_or_trains(verb):
+    (device,) = [param for param in _command(verb).params if param.name == "device"]
+    assert device.default == "auto"
+    assert "[default: auto]" in CliRunner().invoke(main, [*verb, "--help"]).output
+
+
+def test_auto_resolves_to_what_torch_sees():
+    import torch
+
+    assert resolve_device("auto") == ("cuda" if torch.cuda.is_available() else "cpu")
+    assert resolve_device("cpu") == "cpu" and resolve_device("cuda:1") == "cuda:1"
+
+
+@pytest.mark.parametrize(("verb", "required", "param"), RESOLUTION_VERBS)
+def test_resolution_takes_n_and_wxh_everywhere(verb, required, param):
+    command = _command(verb)
+    for given, size in (("64", (64, 64)), ("96x64", (96, 64)), ("96X64", (96, 64))):
+        assert command.make_context(verb[-1], [*required, "--resolution", given]).params[param] == size, given
+    assert "N|WxH" in CliRunner().invoke(main, [*verb, "--help"]).output
+    bad = CliRunner().invoke(main, [*verb, *required, "--resolution", "big"])
+    assert bad.exit_code == 2 and "expected N or WxH" in bad.output
+
+
+def test_help_texts_carry_no_double_backtick_markup():
+    marked = {" ".join(verb): line.strip() for verb in _every_verb()
+              for line in CliRunner().invoke(main, [*verb, "--help"]).output.splitlines() if "``" in line}
+    assert not marked
+
+
+def test_the_evaluate_example_names_a_scene_that_exists():
+    text = CliRunner().invoke(main, ["evaluate", "--help"]).output
+    example = " ".join(line.strip().rstrip("\\") for line in text.split("Example:")[1].split("Options:")[0]
+                       .splitlines())
+    words = shlex.split(example)
+    renders, truth = Path(words[2]), Path(words[words.index("--gt") + 1])
+    mini = suites.SUITES["mini"]
+    assert truth.name in mini.scenes and renders.parts[:2] == ("runs", "mini")
+    assert renders.parts[4] == truth.name  # runs/<suite>/<method>/<variant>/<scene>/seed<k>/renders/<split>
+    assert Path(truth.parent).expanduser() == mini_root()
+
+
+def mini_root() -> Path:
+    from olatbench.datasets.synth.mini import default_root
+
+    return default_root()
+
+
+@pytest.mark.parametrize(("verb", "required", "typo", "shown", "hidden"), [
+    (["run"], ["-m", "x", "-s", "y"], "--outpt", "--output", "--out"),
+    (["datasets", "synth"], [], "--resolutin", "--resolution", "--res"),
+])
+def test_a_mistyped_option_is_offered_the_shown_spelling_only(verb, required, typo, shown, hidden):
+    result = CliRunner().invoke(main, [*verb, *required, typo, "x"])
+    assert result.exit_code == 2 and "No such option" in result.output
+    suggestions = result.output.split("Did you mean", 1)[1]
+    assert shown in suggestions and not re.search(rf"'{hidden}'", suggestions)
+
+
+def test_a_bad_value_names_the_shown_spelling_only():
+    result = CliRunner().invoke(main, ["datasets", "synth", "--res", "big"])
+    assert result.exit_code == 2 and "'--resolution'" in result.output and "'--res'" not in result.output
+
+
+def test_nested_progress_bars_write_plain_lines_into_a_file():
+    log = io.StringIO()
+    with progress_bar(total=3, desc="jobs", position=0, file=log) as jobs:
+        for job in range(3):
+            for _ in progress_bar(range(20), desc=f"job {job}", position=1, leave=False, file=log):
+                pass
+            jobs.set_postfix_str(f"job {job}")
+            jobs.update(1)
+    text = log.getvalue()
+    assert "\r" not in text and "\x1b" not in text
+    lines = text.splitlines()
+    assert lines[0].startswith("jobs: 0/3 it (0%)") and lines[-1].startswith("jobs: 3/3 it (100%)")
+    assert "job 1: 20/20 it (100%)" in text and all(line.strip() for line in lines)
+    assert sum(line.startswith("job 2:") for line in lines) <= 12  # a line per tenth, not per step
+
+
+def test_a_plain_bar_writes_a_line_per_interval_between_tenths():
+    log = io.StringIO()
+    bar = PlainProgress(total=1000, desc="steps", file=log, interval=0.0)
+    for _ in range(5):
+        bar.update(1)
+    bar.close()
+    assert len(log.getvalue().splitlines()) == 1 + 5
+
+
+def test_a_run_into_a_log_file_has_no_carriage_returns_or_cursor_codes(tmp_path, monkeypatch):
+    monkeypatch.setitem(suites.SUITES, "tiny", support.tiny_suite())
+    monkeypatch.delenv("TQDM_DISABLE", raising=False)
+    data = support.write_tiny_data(tmp_path / "data")
+    result = CliRunner().invoke(main, ["run", "-m", "trivial", "-s", "tiny", "--data-root", str(data), "-o",
+                                       str(tmp_path / "runs"), "--device", "cpu"])
+    assert result.exit_code == 0, result.output
+    assert "jobs:" in result.stderr and "Alpha" in result.stderr  # the bars were there, as lines
+    assert "\r" not in result.stderr and "\x1b" not in result.stderr

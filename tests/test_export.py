@@ -1,0 +1,116 @@
+"""``olatbench export``: a finished job's Gaussians in the 3DGS PLY layout, read back with a parser written here
+(numpy only) and compared with the checkpoint's tensors."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import torch
+from click.testing import CliRunner
+from trained_jobs import train_tiny
+
+from olatbench.bench.checkpoints import load_checkpoint
+from olatbench.bench.restore import read_job
+from olatbench.bench.store import list_checkpoints
+from olatbench.cli import main
+from olatbench.datasets.colour import convert_colourspace
+
+SH_C0 = 1.0 / (2.0 * math.sqrt(math.pi))  # Y_0^0
+LAYOUT_HEAD = ["x", "y", "z", "nx", "ny", "nz", "f_dc_0", "f_dc_1", "f_dc_2"]
+
+
+def parse_ply(path) -> tuple[list[str], list[str], np.ndarray]:
+    """(comments, property names, structured vertex array) of a binary little-endian all-float PLY."""
+    data = path.read_bytes()
+    end = data.index(b"end_header\n") + len(b"end_header\n")
+    lines = data[:end].decode("ascii").splitlines()
+    assert lines[:2] == ["ply", "format binary_little_endian 1.0"]
+    comments = [line[len("comment "):] for line in lines if line.startswith("comment ")]
+    (count,) = [int(line.split()[2]) for line in lines if line.startswith("element vertex ")]
+    names = [line.split()[2] for line in lines if line.startswith("property ")]
+    assert all(line.split()[1] == "float" for line in lines if line.startswith("property "))
+    table = np.frombuffer(data[end:], dtype=np.dtype([(name, "<f4") for name in names]), count=count)
+    assert len(data) == end + table.nbytes  # nothing after the vertices
+    return comments, names, table
+
+
+def columns(table: np.ndarray, prefix: str, count: int) -> np.ndarray:
+    return np.stack([table[f"{prefix}{i}"] for i in range(count)], axis=1)
+
+
+def final_model(job) -> dict[str, torch.Tensor]:
+    _step, path = list_checkpoints(job)[-1]
+    return load_checkpoint(path, read_job(job).id)["method"]["model"]
+
+
+def check_core(table: np.ndarray, model: dict[str, torch.Tensor]) -> None:
+    np.testing.assert_array_equal(np.stack([table[axis] for axis in "xyz"], axis=1), model["means"].numpy())
+    np.testing.assert_array_equal(columns(table, "scale_", 3), model["log_scales"].numpy())
+    np.testing.assert_array_equal(columns(table, "rot_", 4), model["quats"].numpy())
+    np.testing.assert_array_equal(table["opacity"], model["opacity_logits"].numpy().reshape(-1))
+    assert not np.any(np.stack([table[axis] for axis in ("nx", "ny", "nz")]))
+
+
+@pytest.fixture(scope="module")
+def ssdgs_job(tmp_path_factory):
+    return train_tiny("ssdgs", tmp_path_factory.mktemp("export_ssdgs"), iterations=8, shadow_resolution=32)
+
+
+@pytest.fixture(scope="module")
+def gs3dgs_job(tmp_path_factory):
+    return train_tiny("3dgs", tmp_path_factory.mktemp("export_3dgs"), iterations=8)
+
+
+def test_ssdgs_exports_albedo_as_sh_dc_and_its_other_attributes_as_extras(ssdgs_job, tmp_path):
+    out = tmp_path / "model.ply"
+    result = CliRunner().invoke(main, ["export", str(ssdgs_job), "-o", str(out)])
+    assert result.exit_code == 0, result.output
+    comments, names, table = parse_ply(out)
+    model = final_model(ssdgs_job)
+    n = model["means"].shape[0]
+    assert len(table) == n and f"{n} Gaussians at step 8" in result.output
+    # the 3DGS order: position, normal, colour (degree 3, the higher coefficients zero: no view dependence),
+    # opacity, scale, rot
+    assert names[:9 + 45 + 5] == [*LAYOUT_HEAD, *(f"f_rest_{j}" for j in range(45)), "opacity", "scale_0", "scale_1",
+                                  "scale_2", "rot_0"]
+    assert not np.any(columns(table, "f_rest_", 45))
+    check_core(table, model)
+    albedo = torch.nn.functional.softplus(model["attributes.diffuse"]).numpy()
+    shown = np.clip(convert_colourspace(albedo, read_job(ssdgs_job).colourspace, "srgb"), 0, 1)
+    np.testing.assert_allclose(0.5 + SH_C0 * columns(table, "f_dc_", 3), shown, atol=1e-6)
+    extras = {name for name in model if name.startswith("attributes.") and name != "attributes.diffuse"}
+    assert extras  # specular, sss, asg_weights, material, ...
+    for key in extras:
+        value = model[key].numpy().reshape(n, -1)
+        np.testing.assert_array_equal(columns(table, f"{key.split('.', 1)[1]}_", value.shape[1]), value)
+    assert "diffuse_0" not in names and any("albedo" in line for line in comments)
+
+
+def test_3dgs_exports_its_spherical_harmonics_channel_major(gs3dgs_job, tmp_path):
+    out = tmp_path / "model.ply"
+    assert CliRunner().invoke(main, ["export", str(gs3dgs_job), "-o", str(out)]).exit_code == 0
+    _, names, table = parse_ply(out)
+    model = final_model(gs3dgs_job)
+    check_core(table, model)
+    dc, rest = model["attributes.sh_dc"].numpy(), model["attributes.sh_rest"].numpy()  # (N, 1, 3), (N, 15, 3)
+    np.testing.assert_array_equal(columns(table, "f_dc_", 3), dc[:, 0, :])
+    count = rest.shape[1]
+    assert count == 15 and sum(name.startswith("f_rest_") for name in names) == 3 * count
+    for channel in range(3):  # f_rest_{c·15 + k} is coefficient k+1 of channel c (3DGS's features_rest.transpose)
+        for k in range(count):
+            np.testing.assert_array_equal(table[f"f_rest_{channel * count + k}"], rest[:, k, channel])
+    assert names.index("f_rest_44") < names.index("opacity")
+    assert not any(name.startswith("sh_") for name in names)  # encoded as f_dc / f_rest, not repeated
+
+
+def test_export_refuses_an_unfinished_job_naming_the_checkpoint(ssdgs_job, tmp_path):
+    import shutil
+
+    copy = tmp_path / "job"
+    shutil.copytree(ssdgs_job, copy)
+    for checkpoint in (copy / "checkpoints").iterdir():
+        checkpoint.unlink()
+    result = CliRunner().invoke(main, ["export", str(copy), "-o", str(tmp_path / "x.ply")])
+    assert result.exit_code == 1 and "no checkpoint" in result.output and not (tmp_path / "x.ply").exists()
