@@ -62,6 +62,8 @@ CASES = [
     ("render {empty}", 2, "job.json"),
     ("view {empty}", 1, "no job.json"),  # nothing to show
     ("view {runs} -s nope", 2, "unknown suite 'nope'"),
+    ("export {empty} -o {tmp}/model.ply", 1, "job.json"),  # nothing to export
+    ("export {empty}", 2, "Missing option '-o'"),
     ("evaluate {job}/renders/test --gt {data}/Alpha --protocol nope", 2, "unknown metric protocol"),
     ("evaluate {job}/renders/test --gt {data}/Alpha --protocol test-fast -o {tmp}/m.json", 0, "wrote"),
     ("evaluate {job}/renders/test --gt {data}/Alpha --protocol test-fast -o {tmp}/exists.json", 2, "--overwrite"),
