@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import json
 import sys
 from pathlib import Path
 
@@ -105,3 +106,26 @@ def test_estimate_is_within_30_percent_of_a_measured_run(data, tmp_path):
         if 0.7 <= ratios[-1] <= 1.3:
             return
     pytest.fail(f"estimate / measured training time {ratios} (each outside 0.7-1.3)")
+
+
+def test_cli_calibrate_resolves_the_default_auto_device(data, tmp_path, monkeypatch):
+    """`run --dry-run --calibrate` with the default ``--device auto`` times the jobs (it used to hand "auto" to the
+    method: ``torch.device('auto')`` raised), and a later plain dry run, which keeps "auto" unresolved, finds the
+    stored timing."""
+    from click.testing import CliRunner
+
+    from olatbench.cli import main
+    from olatbench.datasets import suites
+
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+    monkeypatch.setitem(suites.SUITES, "tiny", support.tiny_suite(scenes=("Alpha",)))
+    args = ["run", "--method", "trivial", "--suite", "tiny", "--data-root", str(data), "--out", str(tmp_path / "runs"),
+            "--quiet", "--dry-run", "--json"]
+    calibrated = CliRunner().invoke(main, [*args, "--calibrate"])
+    assert calibrated.exit_code == 0, calibrated.output
+    (timed,) = json.loads(calibrated.output)
+    assert timed["train_seconds_estimate"] > 0
+    assert len(load_costs()) == 1
+    planned = CliRunner().invoke(main, args)
+    assert planned.exit_code == 0, planned.output
+    assert [job["train_seconds_estimate"] for job in json.loads(planned.output)] == [timed["train_seconds_estimate"]]

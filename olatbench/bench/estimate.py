@@ -29,6 +29,7 @@ from typing import Any
 
 from olatbench.atomic import write_json
 from olatbench.bench.jobs import Job, hash_json
+from olatbench.devices import resolve_device
 
 CALIBRATION_FILE = "calibration.json"
 SCHEDULE_POINTS = (0.1, 0.5, 0.9)
@@ -183,6 +184,8 @@ def plan_estimates(jobs: list[Job], measure: bool = False, progress: bool = True
         if job.official is not None:  # the authors' code: not timed by olatbench's calibration
             estimates.append(None)
             continue
+        if costs or measure:  # calibrations name the device they ran on: never "auto", which no method accepts
+            job = replace(job, device=resolve_device(job.device))
         key = cost_key(job)
         if key not in costs and measure:
             if not job.scene_path:

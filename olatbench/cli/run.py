@@ -15,6 +15,7 @@ from olatbench.atomic import WriteError
 from olatbench.bench.executors import EXECUTORS
 from olatbench.bench.plan import OverridesError, PlanError
 from olatbench.cli.options import json_option, option, quiet_option, show_progress
+from olatbench.devices import resolve_device
 
 
 def _parse_resolution(value: str | None) -> tuple[int, int] | None:
@@ -43,14 +44,6 @@ def _parse_minutes(value: str) -> int:
 
 def _split_names(values: tuple[str, ...]) -> list[str]:
     return [name.strip() for value in values for name in value.split(",") if name.strip()]
-
-
-def _device(name: str) -> str:
-    if name != "auto":
-        return name
-    import torch
-
-    return "cuda" if torch.cuda.is_available() else "cpu"
 
 
 def _format_seconds(seconds: float | None) -> str:
@@ -164,7 +157,8 @@ def run(method, suite, scenes, variants, ablation, seeds, iterations, overrides,
         raise click.UsageError("--json goes with --dry-run")
     if executor is None:
         executor = "local" if workers > 1 else "inline"
-    # a dry run leaves "auto" unresolved (the device enters no job id, and resolving it would import torch)
+    if calibrate and not dry_run:
+        raise click.UsageError("--calibrate goes with --dry-run")
     try:
         code = parse_code_options(code_settings, method)
     except SettingsError as error:
@@ -172,7 +166,9 @@ def run(method, suite, scenes, variants, ablation, seeds, iterations, overrides,
     unknown = sorted(set(code) - {method})
     if unknown:
         raise click.UsageError(f"--code names {', '.join(unknown)}, but this run is of {method}")
-    options = PlanOptions(device=device if dry_run and device == "auto" else _device(device),
+    # a plain dry run leaves "auto" unresolved (the device enters no job id, and resolving it would import torch);
+    # a run or a calibration resolves it here, before any method sees it
+    options = PlanOptions(device=device if dry_run and not calibrate else resolve_device(device),
                           checkpoint_every=checkpoint_every, save_components=save_components, reuse=not no_reuse,
                           code=code.get(method, {}))
     try:
@@ -186,8 +182,6 @@ def run(method, suite, scenes, variants, ablation, seeds, iterations, overrides,
         raise click.ClickException(str(error.args[0] if isinstance(error, KeyError) else error)) from None
 
     states = [job_state(job.folder, job.id or None) for job in jobs]
-    if calibrate and not dry_run:
-        raise click.UsageError("--calibrate goes with --dry-run")
     if dry_run:
         from olatbench.bench.estimate import plan_estimates
 
