@@ -85,6 +85,45 @@ def test_calibration_is_stored_per_machine_and_job(data, tmp_path, monkeypatch):
     assert stored[cost_key(job)] == cost and len(stored) == 2
 
 
+def test_calibration_times_a_trained_looking_surface_at_both_sizes_and_three_points(data, tmp_path, monkeypatch):
+    """The cost model's structure, not a timing: each size (the initial count and the cap) is timed at 10 / 50 /
+    90 % of the schedule (a warm-up and two timed steps each) on a closed, nearly opaque surface of 0.8× the initial
+    ball's radius, not on the initial cloud at opacity 0.1 (which stepped 2.1× slower than the trained model of
+    the same size on mini and made the estimate 1.8× too high), and the fitted line passes through both sizes."""
+    import torch
+
+    from olatbench.bench.views import load_views
+    from olatbench.datasets import load_scene
+    from olatbench.methods.initialisation import initial_ball
+    from olatbench.methods.ssdgs import SSDGS
+
+    job = tiny_ssdgs_job(data, tmp_path / "runs")
+    views = load_views(load_scene(job.scene_path, format=job.scene_format).split(job.train_split)[:4], job)
+    centre, radius = initial_ball(views, SSDGS.resolve_config(None, **job.config).init_radius)
+    calls = []
+    original = SSDGS.train_step
+
+    def recorded(self, step):
+        with torch.no_grad():
+            distances = torch.linalg.norm(self.model.means - torch.as_tensor(centre, dtype=torch.float32), dim=1)
+            calls.append((self.model.num_gaussians, step, float(self.model.opacities.mean()),
+                          float(distances.min()), float(distances.max())))
+        return original(self, step)
+
+    monkeypatch.setattr(SSDGS, "train_step", recorded)
+    cost = calibrate(job, progress=False)
+    assert [(n, step) for n, step, *_ in calls] == [(n, step) for n in (300, 1200) for step in (12, 60, 108)
+                                                    for _ in range(3)]
+    for first in (calls[0], calls[9]):  # each model before its first step: the stand-in as placed
+        _, _, opacity, nearest, farthest = first
+        assert opacity == pytest.approx(0.9, abs=1e-6)
+        assert nearest == pytest.approx(0.8 * radius, rel=1e-5) and farthest == pytest.approx(0.8 * radius, rel=1e-5)
+    assert set(cost.measured) == {"300", "1200"} and cost.b >= 0
+    if cost.b > 0:  # a line through both measured sizes (b is clipped at 0 when the larger size timed faster)
+        assert cost.seconds(300) == pytest.approx(cost.measured["300"])
+        assert cost.seconds(1200) == pytest.approx(cost.measured["1200"])
+
+
 @pytest.mark.slow  # a timed test: it needs a machine no other process is loading (run with -m slow)
 def test_estimate_is_within_30_percent_of_a_measured_run(data, tmp_path):
     """Calibrate a tiny SSD-GS job, estimate it, train it: the training time is within ±30 % of the estimate.
