@@ -145,7 +145,12 @@ def install_reference_scene(root: Path, name: str, recipe: Recipe, reference: di
     partial = root / f".{name}.partial"
     shutil.rmtree(partial, ignore_errors=True)
     archive = archive_path(name)
-    unpack_reference(name, partial)
+    try:
+        unpack_reference(name, partial)
+    except ValueError as error:  # a damaged or unsafe archive (the downloader's extract names it)
+        shutil.rmtree(partial, ignore_errors=True)
+        raise DatasetError(f"cannot unpack the packaged mini reference ({error}); reinstall olatbench",
+                           path=archive) from None
     files, expected = file_hashes(partial), reference["scenes"][name]["files"]
     if files != expected:
         wrong = sorted(set(files) ^ set(expected)) or sorted(p for p in files if files[p] != expected[p])
