@@ -1,4 +1,4 @@
-"""``olatbench datasets synth``: render a synthetic OLAT scene from a recipe (or the whole mini suite)."""
+"""``olatbench datasets synth``: render a synthetic OLAT scene from a recipe, or install (or render) the mini suite."""
 
 from __future__ import annotations
 
@@ -90,7 +90,7 @@ def _report_reference(root: Path, write: bool) -> None:
 def synth(recipe_name: str | None, fmt: str, out_dir: Path | None, res: str | None, spp: int | None,
           n_train: int | None, n_test: int | None, seed: int | None, novel_views: bool | None, no_geometry: bool,
           mini: bool, render_mini: bool, write_reference: bool, list_recipes: bool, quiet: bool) -> None:
-    """Render a synthetic OLAT scene with Mitsuba 3 (needs: pip install 'olatbench[synth]').
+    """Render a synthetic OLAT scene with Mitsuba 3 (pip install 'olatbench[synth]'), or install the mini suite.
 
     \b
     Examples:
