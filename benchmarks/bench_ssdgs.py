@@ -49,7 +49,6 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import itertools
-import math
 import time
 from collections.abc import Callable
 
@@ -61,6 +60,7 @@ from olatbench.datasets.records import Camera, PointLight
 from olatbench.gaussians.contribution import max_weights
 from olatbench.gaussians.projection import project
 from olatbench.gaussians.rasterize import rasterize
+from olatbench.gaussians.surface import place_on_sphere
 from olatbench.methods.base import Views
 from olatbench.methods.ssdgs import SSDGS
 from olatbench.methods.ssdgs.config import SSDGSConfig
@@ -131,21 +131,8 @@ def load_trained(folder: str) -> tuple[SSDGS, int]:
 
 
 def put_on_sphere(method: SSDGS, radius: float, opacity: float) -> None:
-    """Make the model a closed surface: Gaussians at uniform points of a sphere, their third axis (scale 0.1×
-    the tangent scale √(area / N)) along the normal."""
-    model = method.model
-    n = model.num_gaussians
-    generator = torch.Generator().manual_seed(0)
-    normals = torch.nn.functional.normalize(torch.randn(n, 3, generator=generator), dim=-1)
-    tangent_scale = math.sqrt(4.0 * math.pi * radius**2 / n)
-    # the rotation taking +z to the normal: axis z × n, angle acos(z·n), as a wxyz quaternion
-    half = torch.nn.functional.normalize(normals + torch.tensor([0.0, 0.0, 1.0]), dim=-1)
-    quats = torch.cat([half[:, 2:3], torch.linalg.cross(torch.tensor([[0.0, 0.0, 1.0]]).expand(n, 3), half)], dim=1)
-    with torch.no_grad():
-        model.means.copy_(normals * radius)
-        model.quats.copy_(quats)
-        model.log_scales.copy_(torch.log(torch.tensor([tangent_scale, tangent_scale, 0.1 * tangent_scale])))
-        model.opacity_logits.fill_(math.log(opacity / (1.0 - opacity)))
+    """Make the model a closed surface around the origin (`olatbench.gaussians.surface.place_on_sphere`)."""
+    place_on_sphere(method.model, (0.0, 0.0, 0.0), radius, opacity)
 
 
 class FreeNetwork(torch.nn.Module):

@@ -1,4 +1,5 @@
-"""The mini suite's packaged reference: byte identity, pixel differences, the variant pin, the runner's flag."""
+"""Rendering the mini suite here against its packaged reference: byte identity, pixel differences, the variant pin,
+the runner's flag (installing the reference renders: tests/test_mini_install.py)."""
 
 from __future__ import annotations
 
@@ -11,7 +12,6 @@ import pytest
 from olatbench.datasets.synth import backend
 from olatbench.datasets.synth.mini import (
     MANIFEST,
-    MINI_SCENES,
     MINI_VARIANT,
     compare_with_reference,
     data_matches_reference,
@@ -19,7 +19,7 @@ from olatbench.datasets.synth.mini import (
     file_hashes,
 )
 from olatbench.datasets.synth.recipe import RECIPES
-from olatbench.datasets.synth.reference import compare_scene, load_reference, reference_root, write_reference
+from olatbench.datasets.synth.reference import archive_path, compare_scene, load_reference, write_reference
 
 pytest.importorskip("mitsuba")
 
@@ -40,8 +40,7 @@ def tiny_suite(tmp_path, monkeypatch):
 def test_identical_scene_and_rendering_again_gives_the_same_bytes(tiny_suite, tmp_path):
     scene, reference_dir = tiny_suite
     reference = load_reference(reference_dir)
-    assert reference["scenes"]["diffuse_shadow"]["samples"] == ["train/r_0000.png", "train/r_0001.png",
-                                                                "test/r_0000.png", "test/r_0001.png"]
+    assert archive_path("diffuse_shadow", reference_dir).is_file()
     comparison = compare_scene(scene, "diffuse_shadow", file_hashes(scene), reference, root=reference_dir)
     assert comparison.identical and "identical to the reference" in comparison.summary(reference)
     again = ensure_mini_suite(tmp_path / "again", progress=False, recipes={"diffuse_shadow": RECIPES[
@@ -60,11 +59,24 @@ def test_differences_name_the_files_and_measure_the_pixels(tiny_suite):
     comparison = compare_scene(scene, "diffuse_shadow", file_hashes(scene), reference, root=reference_dir)
     assert not comparison.identical
     assert comparison.differing == ["test/r_0001.png"] and comparison.missing == ["train/r_0002.png"]
+    assert comparison.images == 4  # every image present in both (3 train + 2 test, one missing), not a sample
     (difference,) = comparison.pixels
     assert difference.max_abs == pytest.approx(51 / 255, abs=1e-6)
     assert difference.mean_abs == pytest.approx(51 / 255 / image.size, rel=1e-4)
     summary = comparison.summary(reference)
-    assert "NOT identical" in summary and "1 differ" in summary and "1 missing" in summary and "0.2000" in summary
+    assert "NOT identical" in summary and "1 differ" in summary and "1 missing" in summary
+    assert "1 of 4 images compared differ" in summary and "max |Δ| = 0.2 " in summary
+    assert f"mean |Δ| = {51 / 255 / image.size / 4:.3g} over all 4" in summary  # one pixel: still not 0.00000
+
+
+def test_a_difference_outside_the_images_says_the_images_are_identical(tiny_suite):
+    scene, reference_dir = tiny_suite
+    reference = load_reference(reference_dir)
+    with open(scene / "geometry/test/r_0000.exr", "ab") as handle:
+        handle.write(b"\0")
+    comparison = compare_scene(scene, "diffuse_shadow", file_hashes(scene), reference, root=reference_dir)
+    assert comparison.differing == ["geometry/test/r_0000.exr"] and comparison.pixels == []
+    assert comparison.summary(reference).endswith("its 5 images are identical")
 
 
 def test_mini_renders_with_the_pinned_variant_unless_the_environment_says_otherwise(monkeypatch):
@@ -75,18 +87,6 @@ def test_mini_renders_with_the_pinned_variant_unless_the_environment_says_otherw
         assert backend.active_variant() == "scalar_rgb"
         monkeypatch.setenv(backend.VARIANT_ENV, "llvm_ad_rgb")
         assert backend.active_variant() == "llvm_ad_rgb"  # an explicit choice wins, and shows in the comparison
-
-
-def test_packaged_reference_is_complete_and_its_samples_match_its_hashes():
-    import hashlib
-
-    reference = load_reference()
-    assert set(reference["scenes"]) == set(MINI_SCENES) and reference["mitsuba_variant"] == MINI_VARIANT
-    for scene, record in reference["scenes"].items():
-        assert len(record["files"]) > 100 and len(record["samples"]) == 4
-        for relpath in record["samples"]:
-            data = (reference_root() / "mini_reference" / scene / relpath).read_bytes()
-            assert hashlib.sha256(data).hexdigest() == record["files"][relpath]
 
 
 def test_data_matches_reference_reads_the_manifest(tmp_path):
@@ -140,7 +140,7 @@ def test_rendering_the_builtin_suite_says_whether_it_matches_the_reference(tmp_p
     monkeypatch.setattr(mini, "scene_is_valid", lambda folder, recipe: (folder.name != "translucent", "missing"))
     monkeypatch.setattr(mini, "render_mini_scene", lambda root, name, recipe, progress: rendered.append(name))
     monkeypatch.setattr(mini, "compare_with_reference", lambda folder, reference: _Said(folder.name))
-    mini.ensure_mini_suite(tmp_path, progress=True)
+    mini.ensure_mini_suite(tmp_path, progress=True, render=True)
     assert rendered == ["translucent"]
     assert capsys.readouterr().err.splitlines() == ["translucent: identical"]  # said for the scene rendered now
 

@@ -4,8 +4,11 @@
 views at the job's resolution, with the density control's statistics gathered as in training but no Gaussian
 added, removed or reset (so N stays put), at two model sizes — the config's initial Gaussian count
 and its cap (``max_gaussians``; 4× the initial count when the config has no cap) — and at three points of the
-schedule (10 %, 50 % and 90 % of the iterations, since terms switch on and off along it). It fits seconds per
-step as ``a + b·N`` and stores that per machine and per (method, config, resolution) in
+schedule (10 %, 50 % and 90 % of the iterations, since terms switch on and off along it). The model is timed as a
+trained one looks, a closed nearly opaque surface (`olatbench.gaussians.surface`) in the initial ball, not as the
+initial cloud: at opacity 0.1 that cloud blends many Gaussians per pixel and stepped 2.1× slower than the trained
+model of the same size on mini (the estimate was 1.8× too high on an Intel Xeon for that reason). It fits seconds
+per step as ``a + b·N`` and stores that per machine and per (method, config, resolution, device) in
 ``$XDG_CACHE_HOME/olatbench/calibration.json``.
 
 `estimate` (torch-free, for ``olatbench run --dry-run``) sums ``a + b·N(step)`` over the job's steps with the
@@ -13,8 +16,9 @@ Gaussian count modelled as the config's initial count until the first densificat
 ``densify_interval`` in the window), growing linearly to the cap at ``densify_until`` and constant after (the
 windows as the method scales them). Methods without a
 Gaussian count are timed at their one size. The estimate covers training only — not loading the views, the
-checkpoints nor the evaluation — and inherits the growth model's error: a run that stays well below its cap
-trains faster than estimated.
+checkpoints nor the evaluation — and inherits the two models' errors: the first few hundred steps, while the
+initial cloud settles, are slower than the surface, and a run that stays well below its cap trains faster than
+estimated.
 """
 
 from __future__ import annotations
@@ -29,11 +33,13 @@ from typing import Any
 
 from olatbench.atomic import write_json
 from olatbench.bench.jobs import Job, hash_json
+from olatbench.devices import resolve_device
 
 CALIBRATION_FILE = "calibration.json"
 SCHEDULE_POINTS = (0.1, 0.5, 0.9)
 STEPS_PER_POINT = 2
 CALIBRATION_VIEWS = 4
+SURFACE_RADIUS = 0.8  # the calibration's surface, as a fraction of the initial ball's radius (bench_ssdgs's state)
 UNCAPPED_GROWTH = 4  # the size measured for a config with no cap: this many times its initial count
 DAY_SECONDS = 86_400.0
 
@@ -140,6 +146,8 @@ def calibrate(job: Job, views: Any | None = None, progress: bool = True) -> Step
             config = replace(base, num_init_gaussians=size, densify_interval=never, opacity_reset_interval=never)
         method = method_class(config)
         method.setup(views, job.device, job.seed)
+        if counts is not None:
+            _as_trained_surface(method, views, config)
         seconds = []
         for fraction in SCHEDULE_POINTS:
             step = max(1, min(iterations - 1, int(fraction * iterations)))
@@ -159,6 +167,16 @@ def calibrate(job: Job, views: Any | None = None, progress: bool = True) -> Step
     (n0, t0), (n1, t1) = ((int(n), t) for n, t in measured.items())
     slope = max(0.0, (t1 - t0) / (n1 - n0))
     return StepCost(a=t0 - slope * n0, b=slope, measured=measured)
+
+
+def _as_trained_surface(method: Any, views: Any, config: Any) -> None:
+    """Make a Gaussian method's model the trained-looking stand-in: a closed surface of 0.8× the radius of the
+    ball its Gaussians were initialised in, around the same centre (module docstring)."""
+    from olatbench.gaussians.surface import place_on_sphere
+    from olatbench.methods.initialisation import initial_ball
+
+    centre, radius = initial_ball(views, getattr(config, "init_radius", None))
+    place_on_sphere(method.model, centre.tolist(), SURFACE_RADIUS * radius)
 
 
 def format_duration(seconds: float) -> str:
@@ -183,6 +201,8 @@ def plan_estimates(jobs: list[Job], measure: bool = False, progress: bool = True
         if job.official is not None:  # the authors' code: not timed by olatbench's calibration
             estimates.append(None)
             continue
+        if costs or measure:  # calibrations name the device they ran on: never "auto", which no method accepts
+            job = replace(job, device=resolve_device(job.device))
         key = cost_key(job)
         if key not in costs and measure:
             if not job.scene_path:

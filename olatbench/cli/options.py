@@ -8,7 +8,8 @@
 * ``--json`` on the verbs that list things (`json_option`).
 * ``-s/--suite`` to restrict the verbs that read run folders (``status``, ``report``, ``view``) to one suite:
   built-in, ``[suites.NAME]`` of olatbench.toml or ``data-<format>`` (`suite_filter_option`, `checked_suite`).
-* ``--device`` defaults to ``auto`` on every verb that runs torch (`device_option`), resolved by `resolve_device`.
+* ``--device`` defaults to ``auto`` on every verb that runs torch (`device_option`),
+  resolved by `olatbench.devices.resolve_device`.
 * ``--resolution`` takes ``N`` (N×N) or ``WxH`` everywhere (`Resolution`).
 * A mistyped option is offered the shown spellings only, never a hidden old one (`without_hidden_suggestions`).
 """
@@ -84,15 +85,6 @@ class Resolution(click.ParamType):
         if min(size) < self.minimum:
             self.fail(f"must be at least {self.minimum} pixel(s) on each side, not {value!r}", param, ctx)
         return size
-
-
-def resolve_device(name: str) -> str:
-    """A torch device name with ``auto`` resolved: ``cuda`` when torch sees a CUDA device, else ``cpu``."""
-    if name != "auto":
-        return name
-    import torch
-
-    return "cuda" if torch.cuda.is_available() else "cpu"
 
 
 def tqdm_disabled() -> bool:

@@ -12,9 +12,9 @@ from olatbench.cli.options import (
     checked_suite,
     device_option,
     quiet_option,
-    resolve_device,
     show_progress,
 )
+from olatbench.devices import resolve_device
 
 LAYOUTS = ("scenes", "overview", "ablation")
 FIGURE_FILE_FORMATS = ("png", "svg", "pdf")  # olatbench.reports.figures.FIGURE_FORMATS (not imported: matplotlib)

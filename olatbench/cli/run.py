@@ -21,10 +21,10 @@ from olatbench.cli.options import (
     json_option,
     option,
     quiet_option,
-    resolve_device,
     show_progress,
     suite_filter_option,
 )
+from olatbench.devices import resolve_device
 
 
 def _parse_minutes(value: str) -> int:
@@ -164,7 +164,8 @@ def run(method, suite, data_paths, protocol_name, scenes, variants, ablation, se
         raise click.UsageError("--json goes with --dry-run")
     if executor is None:
         executor = "local" if workers > 1 else "inline"
-    # a dry run leaves "auto" unresolved (the device enters no job id, and resolving it would import torch)
+    if calibrate and not dry_run:
+        raise click.UsageError("--calibrate goes with --dry-run")
     try:
         code = parse_code_options(code_settings, method)
     except SettingsError as error:
@@ -172,7 +173,9 @@ def run(method, suite, data_paths, protocol_name, scenes, variants, ablation, se
     unknown = sorted(set(code) - {method})
     if unknown:
         raise click.UsageError(f"--code names {', '.join(unknown)}, but this run is of {method}")
-    options = PlanOptions(device=device if dry_run and device == "auto" else resolve_device(device),
+    # a plain dry run leaves "auto" unresolved (the device enters no job id, and resolving it would import torch);
+    # a run or a calibration resolves it here, before any method sees it
+    options = PlanOptions(device=device if dry_run and not calibrate else resolve_device(device),
                           checkpoint_every=checkpoint_every, save_components=save_components, reuse=not no_reuse,
                           code=code.get(method, {}))
     try:
@@ -188,8 +191,6 @@ def run(method, suite, data_paths, protocol_name, scenes, variants, ablation, se
         raise click.UsageError(str(error.args[0] if isinstance(error, KeyError) else error)) from None
 
     states = [job_state(job.folder, job.id or None) for job in jobs]
-    if calibrate and not dry_run:
-        raise click.UsageError("--calibrate goes with --dry-run")
     if dry_run:
         from olatbench.bench.estimate import plan_estimates
 

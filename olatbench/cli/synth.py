@@ -1,4 +1,4 @@
-"""``olatbench datasets synth``: render a synthetic OLAT scene from a recipe (or the whole mini suite)."""
+"""``olatbench datasets synth``: render a synthetic OLAT scene from a recipe, or install (or render) the mini suite."""
 
 from __future__ import annotations
 
@@ -10,10 +10,27 @@ from olatbench.cli.options import Resolution, option, quiet_option, show_progres
 from olatbench.datasets.errors import DatasetError, OutputExistsError
 
 
-def _report_reference(root: Path, write: bool) -> None:
-    """Print each mini scene's comparison with the packaged reference (or replace the reference)."""
-    import json
+def _machine() -> str:
+    """This machine for the reference's ``made_on``: architecture, system, CPU model and its widest vector unit."""
     import platform
+
+    model, flags = platform.processor() or "cpu", set()
+    try:
+        for line in Path("/proc/cpuinfo").read_text(encoding="utf-8").splitlines():
+            key, _, value = line.partition(":")
+            if key.strip() == "model name":
+                model = value.strip()
+            elif key.strip() == "flags":
+                flags = set(value.split())
+    except OSError:
+        pass
+    vector = next((flag for flag in ("avx512f", "avx2", "neon", "asimd") if flag in flags), None)
+    return f"{platform.machine()} {platform.system()} ({model}{', ' + vector if vector else ''})"
+
+
+def _report_reference(root: Path, write: bool) -> None:
+    """Print each mini scene's comparison with the packaged reference (or first make it the reference)."""
+    import json
 
     from olatbench.datasets.synth.mini import MINI_SCENES, compare_with_reference, manifest_files
     from olatbench.datasets.synth.reference import load_reference, write_reference
@@ -23,9 +40,8 @@ def _report_reference(root: Path, write: bool) -> None:
         scenes = {name: manifest_files(root / name) for name in MINI_SCENES}
         path = write_reference(root, scenes, {
             "generator_version": synth_info["generator_version"], "mitsuba_version": synth_info["mitsuba_version"],
-            "mitsuba_variant": synth_info["mitsuba_variant"],
-            "made_on": f"{platform.machine()} {platform.system()} ({platform.processor() or 'cpu'})"})
-        click.echo(f"wrote the reference to {path}")
+            "mitsuba_variant": synth_info["mitsuba_variant"], "made_on": _machine()})
+        click.echo(f"wrote the reference to {path} and the scenes' archives beside it")
     reference = load_reference()
     for name in MINI_SCENES:
         click.echo(compare_with_reference(root / name, reference).summary(reference))
@@ -47,25 +63,32 @@ def _report_reference(root: Path, write: bool) -> None:
 @click.option("--novel-views/--seen-views", "novel_views", default=None,
               help="Test cameras new (novel views) or drawn from the training cameras (default: the recipe's).")
 @click.option("--no-geometry", is_flag=True, help="Skip the diagnostic geometry pass.")
-@click.option("--mini", is_flag=True, help="Render (or verify) the mini suite instead of one recipe.")
+@click.option("--mini", is_flag=True,
+              help="Install (or verify) the mini suite, the packaged reference renders, instead of one recipe.")
+@click.option("--render", "render_mini", is_flag=True,
+              help="With --mini: render the suite with Mitsuba on this machine instead (into "
+                   "~/.cache/olatbench/mini-rendered unless -o) and compare it with the reference.")
 @click.option("--write-reference", is_flag=True,
-              help="With --mini, for maintainers: make this machine's mini renders the packaged reference "
+              help="With --mini --render, for maintainers: make this machine's renders the packaged reference "
                    "(after a generator or Mitsuba pin change; commit the result).")
 @click.option("--list", "list_recipes", is_flag=True, help="List the built-in recipes and exit.")
 @quiet_option
 def synth(recipe_name: str | None, fmt: str, out_dir: Path | None, res: tuple[int, int] | None, spp: int | None,
           n_train: int | None, n_test: int | None, seed: int | None, novel_views: bool | None, no_geometry: bool,
-          mini: bool, write_reference: bool, list_recipes: bool, quiet: bool) -> None:
-    """Render a synthetic OLAT scene with Mitsuba 3 (needs: pip install 'olatbench[synth]').
+          mini: bool, render_mini: bool, write_reference: bool, list_recipes: bool, quiet: bool) -> None:
+    """Render a synthetic OLAT scene with Mitsuba 3 (pip install 'olatbench[synth]'), or install the mini suite.
 
     \b
     Examples:
       olatbench datasets synth --recipe aniso_metal -o data/synth/aniso_metal
       olatbench datasets synth --recipe my_recipe.json --format gs3 -o data/synth/mine --resolution 128 --spp 256
       olatbench datasets synth --mini                # the mini suite into ~/.cache/olatbench/mini
+      olatbench datasets synth --mini --render       # render it here with Mitsuba and compare
 
-    With --mini each scene is compared with the packaged reference renders and the command says whether
-    this machine's data is identical to them (and if not, which files differ and by how much).
+    The mini suite is the packaged reference renders: --mini installs them (every file's sha256 checked), so
+    every machine trains on the same bytes. --mini --render renders the suite with this machine's Mitsuba
+    instead and says whether it is identical to the reference (if not: which files differ, how many images
+    were compared and their max and mean |Δ|); train on it with --data-root.
     """
     from olatbench.datasets.synth.backend import MitsubaMissing
     from olatbench.datasets.synth.recipe import RECIPES, get_recipe, recipe_names
@@ -78,16 +101,19 @@ def synth(recipe_name: str | None, fmt: str, out_dir: Path | None, res: tuple[in
                        f"train={recipe.train} test={recipe.test}")
         return
     try:
+        if write_reference and not (mini and render_mini):
+            raise click.UsageError("--write-reference needs --mini --render")
         if mini:
             from olatbench.datasets.synth.mini import ensure_mini_suite
 
             # compare=False: _report_reference below prints the comparison
-            root = ensure_mini_suite(out_dir, progress=show_progress(quiet), compare=False)
+            root = ensure_mini_suite(out_dir, progress=show_progress(quiet), compare=False, render=render_mini)
             _report_reference(root, write_reference)
-            click.echo(f"mini suite ready in {root}. Next: olatbench run --method ssdgs --suite mini")
+            data_root = f" --data-root {root}" if render_mini or out_dir is not None else ""
+            click.echo(f"mini suite ready in {root}. Next: olatbench run --method ssdgs --suite mini{data_root}")
             return
-        if write_reference:
-            raise click.UsageError("--write-reference needs --mini")
+        if render_mini:
+            raise click.UsageError("--render goes with --mini")
         if recipe_name is None or out_dir is None:
             raise click.UsageError("give --recipe and --output (or --mini, or --list)")
         from olatbench.datasets.synth.generate import generate

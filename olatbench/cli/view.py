@@ -12,10 +12,10 @@ from olatbench.cli.options import (
     checked_suite,
     device_option,
     quiet_option,
-    resolve_device,
     show_progress,
     suite_filter_option,
 )
+from olatbench.devices import resolve_device
 from olatbench.viewer.geometry import MAX_RESOLUTION
 
 

@@ -1,15 +1,18 @@
-"""The ``mini`` suite: three small rendered OLAT scenes, generated on first use and cached.
+"""The ``mini`` suite: three small OLAT scenes, the same bytes on every machine, installed on first use and cached.
 
 ``ensure_mini_suite()`` returns a folder holding ``diffuse_shadow/``, ``aniso_metal/`` and
-``translucent/`` in NRHints format (80×80, 100 train + 20 test frames, test lights novel). Each scene
-folder carries a ``manifest.json`` with the recipe and the sha256 of every file; a scene is reused only
-when its recipe is today's and every hash matches, otherwise it is rendered again. Scenes are rendered
-into a temporary sibling folder and renamed into place, so an interruption never leaves half a scene;
-a lock file serialises concurrent callers (several runner processes may start at once).
+``translucent/`` in NRHints format (80×80, 100 train + 20 test frames, test lights novel). The scenes are the
+packaged reference renders (`olatbench.datasets.synth.reference`): each is unpacked from the package, every
+file checked against the sha256 in ``mini_reference.json``, so the data do not depend on what a CPU does to
+Mitsuba's arithmetic, and Mitsuba is not needed. Rendering with Mitsuba is an explicit choice
+(``render=True``, ``olatbench datasets synth --mini --render``; by default into `default_render_root`): the
+result is compared with the reference and the log says how it differs; `data_matches_reference` tells the runner.
 
-The suite renders with Mitsuba's ``scalar_rgb`` variant on every machine (`MINI_VARIANT`), and each
-scene is compared with the packaged reference (`olatbench.datasets.synth.reference`): the log says
-whether this machine's data is identical to the reference, and `data_matches_reference` tells the runner.
+Each scene folder carries a ``manifest.json`` with the recipe and the sha256 of every file; a scene is reused only
+when its recipe is today's and every hash matches (and, for the installed suite, the files are the reference's),
+otherwise it is installed (or rendered) again. Scenes are written into a temporary sibling folder and renamed into
+place, so an interruption never leaves half a scene; a lock file serialises concurrent callers (several runner
+processes may start at once).
 """
 
 from __future__ import annotations
@@ -25,10 +28,17 @@ from pathlib import Path
 from typing import Any
 
 from olatbench.atomic import write_json
+from olatbench.datasets.errors import DatasetError
 from olatbench.datasets.synth.backend import pinned_variant
 from olatbench.datasets.synth.generate import GENERATOR_VERSION, generate
 from olatbench.datasets.synth.recipe import RECIPES, Recipe
-from olatbench.datasets.synth.reference import SceneComparison, compare_scene, load_reference
+from olatbench.datasets.synth.reference import (
+    SceneComparison,
+    archive_path,
+    compare_scene,
+    load_reference,
+    unpack_reference,
+)
 
 MINI_SCENES = ("diffuse_shadow", "aniso_metal", "translucent")
 #: The Mitsuba variant of the mini suite everywhere: ``llvm_ad_rgb`` (where a machine has LLVM) renders
@@ -43,10 +53,19 @@ def mini_recipes() -> dict[str, Recipe]:
     return {name: RECIPES[name] for name in MINI_SCENES}
 
 
+def _cache() -> Path:
+    return Path(os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")) / "olatbench"
+
+
 def default_root() -> Path:
-    """``$XDG_CACHE_HOME/olatbench/mini`` (default ``~/.cache/olatbench/mini``)."""
-    cache = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
-    return Path(cache) / "olatbench" / "mini"
+    """Where the suite is installed: ``$XDG_CACHE_HOME/olatbench/mini`` (default ``~/.cache/olatbench/mini``)."""
+    return _cache() / "mini"
+
+
+def default_render_root() -> Path:
+    """Where ``render=True`` puts this machine's renders: ``$XDG_CACHE_HOME/olatbench/mini-rendered`` (apart from
+    the installed suite, which runs use unless given ``--data-root``)."""
+    return _cache() / "mini-rendered"
 
 
 def file_hashes(folder: Path) -> dict[str, str]:
@@ -96,14 +115,9 @@ def _locked(root: Path) -> Iterator[None]:
             fcntl.flock(handle, fcntl.LOCK_UN)
 
 
-def render_mini_scene(root: Path, name: str, recipe: Recipe, progress: bool = True) -> Path:
-    """Render one scene into ``root/.<name>.partial`` with its manifest, then rename it to ``root/name``."""
+def _publish(root: Path, name: str, partial: Path) -> Path:
+    """Rename a finished ``partial`` scene folder to ``root/name``, replacing what was there."""
     final = root / name
-    partial = root / f".{name}.partial"
-    shutil.rmtree(partial, ignore_errors=True)
-    with pinned_variant(MINI_VARIANT):
-        generate(recipe, partial, "nrhints", progress=progress)
-    write_json(partial / MANIFEST, {**_expected_header(recipe), "files": file_hashes(partial)})
     if final.exists():
         stale = root / f".{name}.stale"
         shutil.rmtree(stale, ignore_errors=True)
@@ -113,36 +127,88 @@ def render_mini_scene(root: Path, name: str, recipe: Recipe, progress: bool = Tr
     return final
 
 
+def render_mini_scene(root: Path, name: str, recipe: Recipe, progress: bool = True) -> Path:
+    """Render one scene into ``root/.<name>.partial`` with its manifest, then rename it to ``root/name``."""
+    partial = root / f".{name}.partial"
+    shutil.rmtree(partial, ignore_errors=True)
+    with pinned_variant(MINI_VARIANT):
+        generate(recipe, partial, "nrhints", progress=progress)
+    write_json(partial / MANIFEST, {**_expected_header(recipe), "files": file_hashes(partial)})
+    return _publish(root, name, partial)
+
+
+def install_reference_scene(root: Path, name: str, recipe: Recipe, reference: dict[str, Any]) -> Path:
+    """Unpack the packaged renders of scene ``name`` into ``root/.<name>.partial``, check every file against the
+    reference hashes and the scene's ``synth.json`` against ``recipe`` and this generator, write the manifest and
+    rename the folder to ``root/name``. A `DatasetError` naming the archive when anything does not match."""
+    partial = root / f".{name}.partial"
+    shutil.rmtree(partial, ignore_errors=True)
+    archive = archive_path(name)
+    try:
+        unpack_reference(name, partial)
+    except ValueError as error:  # a damaged or unsafe archive (the downloader's extract names it)
+        shutil.rmtree(partial, ignore_errors=True)
+        raise DatasetError(f"cannot unpack the packaged mini reference ({error}); reinstall olatbench",
+                           path=archive) from None
+    files, expected = file_hashes(partial), reference["scenes"][name]["files"]
+    if files != expected:
+        wrong = sorted(set(files) ^ set(expected)) or sorted(p for p in files if files[p] != expected[p])
+        shutil.rmtree(partial, ignore_errors=True)
+        raise DatasetError(f"the packaged mini reference does not match the hashes in mini_reference.json "
+                           f"({len(wrong)} files, e.g. {wrong[0]}); reinstall olatbench", path=archive)
+    made_by = json.loads((partial / "synth.json").read_text(encoding="utf-8"))
+    header = _expected_header(recipe)
+    if any(made_by.get(key) != value for key, value in header.items()):
+        shutil.rmtree(partial, ignore_errors=True)
+        raise DatasetError(f"the packaged renders were made by generator version {made_by.get('generator_version')} "
+                           f"with another recipe or generator than this olatbench's (version {GENERATOR_VERSION}); "
+                           "render the suite with: olatbench datasets synth --mini --render", path=archive)
+    write_json(partial / MANIFEST, {**header, "files": files})
+    return _publish(root, name, partial)
+
+
 def ensure_mini_suite(root: Path | None = None, progress: bool = True,
                       recipes: dict[str, Recipe] | None = None, scenes: Sequence[str] | None = None,
-                      compare: bool = True) -> Path:
-    """Make sure the mini suite exists and is intact below ``root`` (default `default_root`); return ``root``.
+                      compare: bool = True, render: bool = False) -> Path:
+    """Make sure the mini suite exists and is intact below ``root``; return ``root``.
 
-    ``scenes``: only these (default: all), so a run on one scene renders one. ``recipes`` replaces the
-    suite's recipes (tests use tiny ones); scenes are re-rendered when missing, changed or corrupt.
-    ``compare``: log each built-in scene's comparison with the packaged reference (off only while
-    writing a new reference).
+    By default the scenes are the packaged reference renders, installed into ``root`` (default `default_root`)
+    where missing, damaged or not the reference's bytes. ``render``: render them with Mitsuba instead (into
+    ``root``, default `default_render_root`), where missing, changed or corrupt, and log each one's comparison with
+    the reference (``compare``; off only while writing a new reference). ``scenes``: only these (default: all), so
+    a run on one scene prepares one. ``recipes`` replaces the suite's recipes (tests use tiny ones) and implies
+    rendering: only the built-in recipes have packaged renders.
     """
-    root = Path(root) if root is not None else default_root()
     recipes_are_builtin = recipes is None
+    render = render or not recipes_are_builtin
+    root = Path(root) if root is not None else default_render_root() if render else default_root()
     recipes = mini_recipes() if recipes is None else recipes
     if scenes is not None:
         unknown = sorted(set(scenes) - set(recipes))
         if unknown:
             raise KeyError(f"the mini suite has no scene {', '.join(unknown)}; scenes: {', '.join(recipes)}")
         recipes = {name: recipe for name, recipe in recipes.items() if name in scenes}
+    reference = load_reference() if recipes_are_builtin and (compare or not render) else None
     rendered = set()
     with _locked(root):
         for name, recipe in recipes.items():
             valid, reason = scene_is_valid(root / name, recipe)
+            if not render:
+                if valid and manifest_files(root / name) == reference["scenes"][name]["files"]:
+                    continue
+                if (root / name).exists():
+                    log.warning("mini suite: replacing %s with the packaged reference (%s)", root / name,
+                                reason if not valid else "this machine's renders, not the reference's bytes")
+                install_reference_scene(root, name, recipe, reference)
+                log.info("mini/%s: installed the packaged reference renders into %s", name, root / name)
+                continue
             if valid:
                 continue
             if (root / name).exists():
                 log.warning("mini suite: re-rendering %s (%s)", root / name, reason)
             render_mini_scene(root, name, recipe, progress=progress)
             rendered.add(name)
-    if compare and recipes_are_builtin:
-        reference = load_reference()
+    if render and compare and recipes_are_builtin:
         for name in recipes:
             comparison = compare_with_reference(root / name, reference)
             if not comparison.identical:

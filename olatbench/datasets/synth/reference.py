@@ -1,19 +1,23 @@
-"""Is this machine's ``mini`` data the reference data? Packaged hashes, and pixel differences when not.
+"""The mini suite's reference data: the packaged renders, their hashes, and how a local render compares.
 
-The package carries ``data/mini_reference.json``: for each mini scene, the sha256 of every file as
-rendered by the pinned generator (the Mitsuba version and variant it records), and a few sample
-images (``data/mini_reference/<scene>/<split>/<frame>.png``, full resolution). `compare_scene` says
-whether a rendered scene is byte-identical to the reference and, if not, which files differ and by
-how much on the sampled images (max / mean absolute difference in [0, 1] pixel units, alpha included).
+The package carries, for each mini scene, ``data/mini/<scene>.tar.xz``: every file of the scene as rendered
+once by the pinned generator on the reference machine, and ``data/mini_reference.json``: the sha256 of every
+one of those files with the generator version, Mitsuba version and variant and the machine (``made_on``).
+These renders *are* the mini suite: `unpack_reference` puts a scene's files into a folder (the caller checks
+them against the hashes, `olatbench.datasets.synth.mini.install_reference_scene`), so every machine trains on
+the same bytes whatever its CPU does to Mitsuba's arithmetic. A scene rendered here with Mitsuba (``olatbench
+datasets synth --mini --render``) is compared with them by `compare_scene`: which files differ and, over all
+its images, by how much (max / mean absolute difference in [0, 1] pixel units, alpha included).
 
-The reference was made by `write_reference` on one machine (its ``made_on`` field); a user whose renders
-differ can tell from ``mitsuba_version`` / ``mitsuba_variant`` whether the renderer differs.
+`write_reference` (maintainers, ``--mini --render --write-reference``) replaces both after a generator or
+Mitsuba pin change.
 """
 
 from __future__ import annotations
 
 import json
-import shutil
+import tarfile
+import tempfile
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
@@ -21,12 +25,13 @@ from typing import Any
 
 import numpy as np
 
-from olatbench.atomic import write_json
+from olatbench.atomic import atomic_path, write_json
 from olatbench.datasets.images import read_image
 
-REFERENCE_FORMAT = 1
-#: Sampled images per scene whose pixels the package carries (the first two of each split).
-SAMPLES_PER_SPLIT = 2
+REFERENCE_FORMAT = 2  # 2: the whole scenes are packaged (data/mini/<scene>.tar.xz); 1 carried four samples each
+ARCHIVE_FOLDER = "mini"
+ARCHIVE_SUFFIX = ".tar.xz"
+IMAGE_SPLITS = ("train", "test")  # the frames' images; geometry/ holds the diagnostic pass
 
 
 def reference_root() -> Path:
@@ -36,7 +41,7 @@ def reference_root() -> Path:
 
 def load_reference(root: Path | None = None) -> dict[str, Any]:
     """The reference record: ``{"format", "generator_version", "mitsuba_version", "mitsuba_variant",
-    "made_on", "scenes": {name: {"files": {relpath: sha256}, "samples": [relpath, ...]}}}``."""
+    "made_on", "scenes": {name: {"files": {relpath: sha256}}}}``."""
     path = (root or reference_root()) / "mini_reference.json"
     record = json.loads(path.read_text(encoding="utf-8"))
     if record.get("format") != REFERENCE_FORMAT:
@@ -44,9 +49,28 @@ def load_reference(root: Path | None = None) -> dict[str, Any]:
     return record
 
 
+def archive_path(scene: str, root: Path | None = None) -> Path:
+    """The packaged archive of one mini scene: ``<root>/mini/<scene>.tar.xz``."""
+    return (root or reference_root()) / ARCHIVE_FOLDER / f"{scene}{ARCHIVE_SUFFIX}"
+
+
+def unpack_reference(scene: str, destination: Path, root: Path | None = None) -> Path:
+    """Unpack the packaged renders of ``scene`` into ``destination`` (created; members checked to stay inside
+    it, no links). The bytes are not checked here: compare them with the reference hashes."""
+    from olatbench.datasets.download.archives import extract
+
+    archive = archive_path(scene, root)
+    if not archive.is_file():
+        raise FileNotFoundError(f"{archive}: the packaged mini reference of {scene!r} is missing (a broken "
+                                "install?); reinstall olatbench, or render the suite: olatbench datasets synth "
+                                "--mini --render")
+    extract(archive, Path(destination))
+    return Path(destination)
+
+
 @dataclass(frozen=True)
 class PixelDifference:
-    """How much one sampled image differs: absolute differences in [0, 1] units over all channels."""
+    """How much one image differs: absolute differences in [0, 1] units over all channels."""
 
     path: str
     max_abs: float
@@ -55,42 +79,53 @@ class PixelDifference:
 
 @dataclass
 class SceneComparison:
-    """A rendered scene against its reference: file lists and pixel differences of the sampled images."""
+    """A rendered scene against its reference: file lists, and the pixel differences of its differing images
+    (``images``: how many images were compared; the others are byte-identical)."""
 
     scene: str
     missing: list[str] = field(default_factory=list)
     extra: list[str] = field(default_factory=list)
     differing: list[str] = field(default_factory=list)
     pixels: list[PixelDifference] = field(default_factory=list)
+    images: int = 0
 
     @property
     def identical(self) -> bool:
         return not (self.missing or self.extra or self.differing)
 
     def summary(self, reference: dict[str, Any]) -> str:
-        """One plain sentence (two when pixels differ) for logs and the CLI."""
+        """One plain sentence for logs and the CLI."""
         renderer = f"Mitsuba {reference['mitsuba_version']} {reference['mitsuba_variant']}"
         if self.identical:
             return f"mini/{self.scene}: identical to the reference ({renderer})"
         parts = [f"{len(self.differing)} differ"] if self.differing else []
         parts += [f"{len(self.missing)} missing"] if self.missing else []
         parts += [f"{len(self.extra)} extra"] if self.extra else []
-        text = (f"mini/{self.scene}: NOT identical to the reference rendered with {renderer}: files "
-                f"{', '.join(parts)} (e.g. {(self.differing or self.missing or self.extra)[0]})")
-        if self.pixels:
-            worst = max(self.pixels, key=lambda d: d.max_abs)
-            mean = float(np.mean([d.mean_abs for d in self.pixels]))
-            text += (f"; on {len(self.pixels)} sampled images max |Δ| = {worst.max_abs:.4f} ({worst.path}), "
-                     f"mean |Δ| = {mean:.5f} (pixel values in [0, 1])")
-        return text
+        example = (self.differing or self.missing or self.extra)[0]
+        text = (f"mini/{self.scene}: NOT identical to the reference rendered with {renderer} on "
+                f"{reference['made_on']}: files {', '.join(parts)} (e.g. {example})")
+        if not self.images:
+            return text
+        if not self.pixels:
+            return text + f"; its {self.images} images are identical"
+        worst = max(self.pixels, key=lambda d: d.max_abs)
+        mean = sum(d.mean_abs for d in self.pixels) / self.images  # identical images add 0
+        return (text + f"; {len(self.pixels)} of {self.images} images compared differ: max |Δ| = {worst.max_abs:.4g} "
+                f"({worst.path}), mean |Δ| = {mean:.3g} over all {self.images} (pixel values in [0, 1])")
+
+
+def is_image(relpath: str) -> bool:
+    """Whether a scene file is one of the frames' images (``train/`` or ``test/``, PNG)."""
+    return relpath.split("/", 1)[0] in IMAGE_SPLITS and relpath.endswith(".png")
 
 
 def compare_scene(folder: Path, scene: str, files: dict[str, str], reference: dict[str, Any] | None = None,
                   root: Path | None = None, measure_pixels: bool = True) -> SceneComparison:
     """Compare a scene's file hashes (``files``: relpath -> sha256, as in its manifest) with the reference.
 
-    With ``measure_pixels``, sampled images that differ are read from ``folder`` and compared pixel by pixel
-    with the packaged copies below ``root`` (default `reference_root`); without, only hashes are compared.
+    With ``measure_pixels``, every image present in both is compared: those whose bytes differ are read from
+    ``folder`` and from the packaged renders (unpacked into a temporary folder) and their pixels compared; without,
+    only hashes are compared.
     """
     reference = reference or load_reference(root)
     if scene not in reference["scenes"]:
@@ -102,10 +137,14 @@ def compare_scene(folder: Path, scene: str, files: dict[str, str], reference: di
                                  differing=sorted(p for p in set(expected) & set(files) if expected[p] != files[p]))
     if not measure_pixels:
         return comparison
-    samples = (root or reference_root()) / "mini_reference" / scene
-    for relpath in reference["scenes"][scene]["samples"]:
-        if relpath in comparison.differing:
-            ours, theirs = read_image(Path(folder) / relpath), read_image(samples / relpath)
+    comparison.images = sum(1 for relpath in set(expected) & set(files) if is_image(relpath))
+    differing_images = [relpath for relpath in comparison.differing if is_image(relpath)]
+    if not differing_images:
+        return comparison
+    with tempfile.TemporaryDirectory(prefix="olatbench-mini-reference-") as temporary:
+        theirs_root = unpack_reference(scene, Path(temporary), root)
+        for relpath in differing_images:
+            ours, theirs = read_image(Path(folder) / relpath), read_image(theirs_root / relpath)
             if ours.shape != theirs.shape:
                 comparison.pixels.append(PixelDifference(relpath, float("inf"), float("inf")))
                 continue
@@ -114,31 +153,33 @@ def compare_scene(folder: Path, scene: str, files: dict[str, str], reference: di
     return comparison
 
 
-def _sample_paths(files: dict[str, str]) -> list[str]:
-    """The first `SAMPLES_PER_SPLIT` PNG images of each split folder (``train/``, ``test/``)."""
-    samples = []
-    for split in ("train", "test"):
-        images = sorted(p for p in files if p.startswith(f"{split}/") and p.endswith(".png"))
-        samples += images[:SAMPLES_PER_SPLIT]
-    return samples
+def _write_archive(scene_folder: Path, files: dict[str, str], target: Path) -> None:
+    """``files`` of ``scene_folder`` into an xz tar at ``target``, byte-reproducible: sorted members, no owner,
+    time 0, mode 644 (so writing the same renders again gives the same archive)."""
+    with atomic_path(target) as temporary, tarfile.open(temporary, "w:xz", preset=9) as bundle:
+        for relpath in sorted(files):
+            info = bundle.gettarinfo(str(scene_folder / relpath), arcname=relpath)
+            info.uid = info.gid = 0
+            info.uname = info.gname = ""
+            info.mtime = 0
+            info.mode = 0o644
+            with open(scene_folder / relpath, "rb") as handle:
+                bundle.addfile(info, handle)
 
 
 def write_reference(suite_root: Path, scenes: dict[str, dict[str, str]], metadata: dict[str, Any],
                     out: Path | None = None) -> Path:
-    """Write the reference (hashes of ``scenes``: name -> manifest files, and sample images) below ``out``.
+    """Make the renders below ``suite_root`` the reference: one archive per scene and the hashes (``scenes``:
+    name -> manifest files), written below ``out`` (default: the package's `reference_root`).
 
     ``metadata`` holds ``generator_version``, ``mitsuba_version``, ``mitsuba_variant`` and ``made_on``.
     Run once by a maintainer when the generator or the pinned Mitsuba changes (``olatbench datasets synth
-    --mini --write-reference``); the result is committed as package data.
+    --mini --render --write-reference``); the result is committed as package data.
     """
     out = out or reference_root()
     record = {"format": REFERENCE_FORMAT, **metadata, "scenes": {}}
     for scene, files in scenes.items():
-        samples = _sample_paths(files)
-        record["scenes"][scene] = {"files": files, "samples": samples}
-        for relpath in samples:
-            target = out / "mini_reference" / scene / relpath
-            target.parent.mkdir(parents=True, exist_ok=True)
-            shutil.copyfile(Path(suite_root) / scene / relpath, target)
+        _write_archive(Path(suite_root) / scene, files, archive_path(scene, out))
+        record["scenes"][scene] = {"files": files}
     write_json(out / "mini_reference.json", record)
     return out / "mini_reference.json"
