@@ -437,3 +437,34 @@ def test_a_cpu_job_imports_the_standins_and_records_them(tmp_path):
     assert official["device"] == "cpu" and official["settings"]["device"] == "cpu"
     assert set(official["standins"]) >= {"gsplat", "diff_gaussian_rasterization_light", "tinycudann", "simple_knn"}
     assert not list(checkout.rglob("sitecustomize.py")) and not (checkout / "gsplat").exists()
+
+
+def test_doctor_checks_the_cpu_environment_against_the_pins(tmp_path, monkeypatch):
+    import importlib
+    import importlib.metadata
+
+    from click.testing import CliRunner
+    from official_standins import write_checkout
+
+    from olatbench.cli import main
+    from olatbench.methods.official.doctor import CPU_PINS
+
+    monkeypatch.chdir(tmp_path)
+    checkout = write_checkout(tmp_path / "clone", "ssdgs-official", git=True)
+    options = [f"ssdgs-official.checkout={checkout}", f"ssdgs-official.python={sys.executable}",
+               "ssdgs-official.device=cpu"]
+    result = CliRunner().invoke(main, ["doctor", *[arg for option in options for arg in ("--code", option)]])
+    row = next(line for line in result.output.splitlines() if "ssdgs-official: CPU stand-ins" in line)
+    assert "ssdgs-official: GPU" not in result.output and "stand-ins import" in row
+
+    def version(name):
+        try:
+            module = importlib.import_module(name)
+        except ImportError:
+            return None
+        return getattr(module, "__version__", None) or importlib.metadata.version(name)
+
+    mismatched = [name for name, pin in CPU_PINS.items()
+                  if version(name) is None or (pin and not str(version(name)).startswith(pin))]
+    assert row.strip().startswith("NO" if mismatched else "ok"), (row, mismatched)
+    assert all(f"{name} " in row for name in mismatched)

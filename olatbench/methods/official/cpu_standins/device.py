@@ -102,8 +102,21 @@ def stream(value: Any = None) -> Iterator[None]:
     yield
 
 
-def _nothing(*args: Any, **kwargs: Any) -> None:
-    return None
+# One function object per replaced name: torch._dynamo's trace rules refuse one object under two names.
+def synchronize(device: Any = None) -> None:
+    """CPU work is already synchronous."""
+
+
+def empty_cache() -> None:
+    """No CUDA cache to empty."""
+
+
+def set_device(device: Any) -> None:
+    """There is one device, the CPU."""
+
+
+def current_stream(device: Any = None) -> Stream:
+    return _CURRENT
 
 
 def _tensor_cuda(self: torch.Tensor, *args: Any, **kwargs: Any) -> torch.Tensor:
@@ -119,8 +132,8 @@ def install() -> None:
     if _installed:
         return
     cuda = torch.cuda
-    replacements = {"Stream": Stream, "Event": Event, "stream": stream, "current_stream": lambda *a, **k: _CURRENT,
-                    "synchronize": _nothing, "empty_cache": _nothing, "set_device": _nothing}
+    replacements = {"Stream": Stream, "Event": Event, "stream": stream, "current_stream": current_stream,
+                    "synchronize": synchronize, "empty_cache": empty_cache, "set_device": set_device}
     for name, value in replacements.items():
         _installed["cuda." + name] = getattr(cuda, name, None)
         setattr(cuda, name, value)
