@@ -33,16 +33,25 @@ VARIANT_VARIABLE = "OLATBENCH_STANDIN_LIGHT"  # names the forward.cu the light s
 LIGHT_VARIANTS = {"ssdgs-official": "ssdgs-26e4251", "gs3-official": "gs3-83c8daa"}
 
 
+def standins_for(method: str) -> tuple[str, ...]:
+    """The modules replaced in a ``device=cpu`` job of ``method``: all of `MODULES` for the codes they were
+    written for (SSD-GS, GS³), none for others (NRHints takes its own CPU path when ``torch.cuda`` reports no
+    device, and would pick the tinycudann stand-in over its torch fallback)."""
+    return MODULES if method in LIGHT_VARIANTS else ()
+
+
 def job_environment(method: str, environ: Mapping[str, str] | None = None) -> dict[str, str]:
     """The environment variables a ``device=cpu`` command of ``method`` runs with (on top of ``environ``,
-    default ``os.environ``): ``PYTHONPATH`` = `SITE`, olatbench's folder, then the inherited one; the light
-    splat's variant; ``CUDA_VISIBLE_DEVICES`` empty (nothing may reach a GPU by another road)."""
+    default ``os.environ``): ``CUDA_VISIBLE_DEVICES`` empty (nothing may reach a GPU by another road); where
+    `standins_for` names any, ``PYTHONPATH`` = `SITE`, olatbench's folder, then the inherited one, and the light
+    splat's variant."""
     environ = os.environ if environ is None else environ
-    paths = [str(SITE), str(OLATBENCH_ROOT), *filter(None, environ.get("PYTHONPATH", "").split(os.pathsep))]
-    env = {"PYTHONPATH": os.pathsep.join(paths), "CUDA_VISIBLE_DEVICES": ""}
-    if method in LIGHT_VARIANTS:
-        env[VARIANT_VARIABLE] = LIGHT_VARIANTS[method]
+    env = {"CUDA_VISIBLE_DEVICES": ""}
+    if standins_for(method):
+        paths = [str(SITE), str(OLATBENCH_ROOT), *filter(None, environ.get("PYTHONPATH", "").split(os.pathsep))]
+        env.update(PYTHONPATH=os.pathsep.join(paths), **{VARIANT_VARIABLE: LIGHT_VARIANTS[method]})
     return env
 
 
-__all__ = ["LIGHT_VARIANTS", "MODULES", "OLATBENCH_ROOT", "SITE", "VARIANT_VARIABLE", "job_environment"]
+__all__ = ["LIGHT_VARIANTS", "MODULES", "OLATBENCH_ROOT", "SITE", "VARIANT_VARIABLE", "job_environment",
+           "standins_for"]
