@@ -97,6 +97,7 @@ def _failed(job: Job, folder: Path, log: JobLog, error: OfficialRunError, run: O
 
 def _provenance(job: Job, run: OfficialRun | None, settings: CodeSettings) -> dict[str, Any]:
     """``method_kind`` and the ``official`` block of results.json."""
+    from olatbench.methods.official.cpu_standins import standins_for
     from olatbench.methods.registry import get_spec
 
     try:
@@ -108,7 +109,8 @@ def _provenance(job: Job, run: OfficialRun | None, settings: CodeSettings) -> di
         "repository": pin.repository if pin else None, "pinned_commit": pin.commit if pin else None,
         "status": pin.status if pin else None, "commit": commit, "local_changes": dirty,
         "matches_pin": None if commit is None or pin is None else commit == pin.commit,
-        "settings": settings.to_json(),
+        "settings": settings.to_json(), "device": settings.device,
+        "standins": list(standins_for(job.method)) if settings.device == "cpu" else [],
         "commands": [record.to_json() for record in run.commands] if run else []}}
 
 

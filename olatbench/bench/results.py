@@ -197,7 +197,9 @@ class OfficialProvenance(TypedDict):
     commit: str | None  # the commit checked out when the job ran (None: not a git checkout)
     local_changes: bool | None
     matches_pin: bool | None
-    settings: dict[str, Any]  # checkout, launcher, timeout and where each came from
+    settings: dict[str, Any]  # checkout, launcher, timeout, device and where each came from
+    device: NotRequired[str]  # "cuda" (the authors' code as written) or "cpu" (run with olatbench's stand-ins)
+    standins: NotRequired[list[str]]  # the modules replaced by olatbench's CPU stand-ins (device "cpu")
     commands: list[OfficialCommand]
 
 

@@ -90,8 +90,9 @@ def _metric(metrics: dict, key: str) -> str:
 @click.option("--code", "code_settings", multiple=True, metavar="KEY=VALUE",
               help="Official implementations (*-official): where the authors' code lives and runs, over "
                    "olatbench.toml [official.METHOD] and $OLATBENCH_<METHOD>_<KEY>: checkout=PATH and one of "
-                   "python=PATH, conda_env=NAME, container='TEMPLATE'; timeout_minutes=N (repeatable; not part of "
-                   "the job id). See docs/official.md.")
+                   "python=PATH, conda_env=NAME, container='TEMPLATE'; timeout_minutes=N; device=cpu runs the "
+                   "unmodified code on the CPU with olatbench's stand-ins for its CUDA modules (default cuda) "
+                   "(repeatable; not part of the job id). See docs/official.md.")
 @click.option("--resolution", type=Resolution(), help="Image size N (N×N) or WxH (default: the suite's, else "
               "native).")
 @click.option("--data-root", type=click.Path(file_okay=False, path_type=Path),
@@ -152,6 +153,7 @@ def run(method, suite, data_paths, protocol_name, scenes, variants, ablation, se
       olatbench run -m ssdgs -s mini --scenes translucent --set shadow_mode=density --set num_asg=8
       olatbench run -m ssdgs -s gs3 --seeds 3 --executor slurm --slurm-partition gpu --slurm-gpus 1
       olatbench run -m gs3-official -s gs3 --code checkout=~/src/gs-relight --code conda_env=gs3
+      olatbench run -m ssdgs-official -s mini --code checkout=~/SSD-GS --code python=~/venv/bin/python --code device=cpu
     """
     from olatbench.bench.plan import PlanOptions, make_plan, parse_overrides
     from olatbench.bench.reuse import order_for_reuse, reuse_notes

@@ -1,5 +1,7 @@
 """Checks of each configured official implementation for ``olatbench doctor``: the checkout exists and is at the
-pinned commit (or says which commit it is at), the interpreter runs, a GPU is visible from it."""
+pinned commit (or says which commit it is at), the interpreter runs, and a GPU is visible from it — or, with
+``device=cpu``, that olatbench's stand-ins import there and the environment holds the authors' pins
+(`CPU_PINS`, the recipe of docs/official.md)."""
 
 from __future__ import annotations
 
@@ -13,17 +15,36 @@ from olatbench.methods.spec import MethodSpec
 
 Check = tuple[str, bool, str, str]  # name, ok, detail, fix (as olatbench.cli.doctor)
 PROBE_TIMEOUT = 300.0  # s: a container image may have to be pulled or started
+# The official environment for device=cpu: the authors' requirements.txt pins (SSD-GS 26e4251, GS³ 83c8daa) that
+# their code needs on the CPU, and the local CPU build of torch. OpenCV: the headless build of their pinned 4.9.0.80.
+CPU_PINS = {"torch": "2.13.0+cpu", "numpy": "1.26.3", "PIL": "11.1.0", "plyfile": None, "cv2": "4.9.0",
+            "tqdm": "4.67.1", "jaxtyping": None}
+_CPU_PROBE = ("import importlib, importlib.metadata as md, sys\n"
+              "import gsplat, diff_gaussian_rasterization_light, tinycudann, simple_knn._C, torchvision.utils\n"
+              "assert 'cpu_standins' in gsplat.__file__, gsplat.__file__\n"
+              "found = {}\n"
+              "for name in NAMES:\n"
+              "    try:\n"
+              "        module = importlib.import_module(name)\n"
+              "    except Exception as error:\n"
+              "        found[name] = 'missing (' + type(error).__name__ + ')'\n"
+              "        continue\n"
+              "    found[name] = getattr(module, '__version__', None) or md.version(name)\n"
+              "print(repr(found))\n")
 _GPU_PROBE = ("import torch; ok = torch.cuda.is_available(); "
               "print(torch.cuda.get_device_name(0) if ok else 'torch sees no CUDA device'); raise SystemExit(0 if ok "
               "else 1)")
 
 
-def _probe(settings: CodeSettings, code: str) -> tuple[int | None, str]:
-    """Run ``python -c code`` through the method's launcher in its checkout: (exit code, last output line)."""
+def _probe(settings: CodeSettings, code: str, env: Mapping[str, str] | None = None) -> tuple[int | None, str]:
+    """Run ``python -c code`` through the method's launcher in its checkout, with ``env`` added to the
+    environment: (exit code, last output line)."""
+    import os
+
     work = Path(str(settings.checkout)).expanduser().resolve()
     try:
         done = subprocess.run([*settings.prefix(work), "-c", code], cwd=work, capture_output=True, text=True,
-                              timeout=PROBE_TIMEOUT, check=False)
+                              timeout=PROBE_TIMEOUT, check=False, env={**os.environ, **(env or {})})
     except FileNotFoundError as error:
         return None, f"cannot start {error.filename}"
     except subprocess.TimeoutExpired:
@@ -63,12 +84,32 @@ def check_code(spec: MethodSpec, settings: CodeSettings) -> list[Check]:
     rows.append((f"{name}: interpreter", runs, f"{launcher}: " + (f"Python {line}" if runs else line or
                                                                     f"exit code {code}"),
                  "" if runs else "check the interpreter / environment / container of this method"))
-    if runs:
+    if runs and settings.device == "cpu":
+        rows.append(_cpu_environment_check(name, settings))
+    elif runs:
         code, line = _probe(settings, _GPU_PROBE)
         rows.append((f"{name}: GPU", code == 0, line or f"exit code {code}",
                      "" if code == 0 else "the official code needs a CUDA GPU visible from its environment "
                                           "(container: --nv / --gpus all)"))
     return rows
+
+
+def _cpu_environment_check(name: str, settings: CodeSettings) -> Check:
+    """device=cpu: the stand-ins import in the method's environment and its packages are at `CPU_PINS`."""
+    import ast
+
+    from olatbench.methods.official.cpu_standins import job_environment
+
+    code, line = _probe(settings, f"NAMES = {list(CPU_PINS)!r}\n" + _CPU_PROBE, job_environment(name))
+    fix = "build the official CPU environment as docs/official.md says (section: running on the CPU)"
+    if code != 0:
+        return (f"{name}: CPU stand-ins", False, f"the stand-ins do not import there: {line or code}", fix)
+    found = ast.literal_eval(line)
+    wrong = [f"{module} {found[module]} (want {pin or 'any'})" for module, pin in CPU_PINS.items()
+             if str(found[module]).startswith("missing") or (pin and not str(found[module]).startswith(pin))]
+    detail = ", ".join(f"{module} {version}" for module, version in found.items())
+    return (f"{name}: CPU stand-ins", not wrong, "stand-ins import; " + ("; ".join(wrong) if wrong else detail),
+            "" if not wrong else fix)
 
 
 def official_checks(specs: Mapping[str, MethodSpec], options: Mapping[str, Mapping[str, str]] | None = None

@@ -20,9 +20,10 @@ from olatbench.methods.official.settings import CodeSettings
 
 @dataclass
 class OfficialRun:
-    """What `execute` runs: the filled-in ``commands``; the test split's ``frame_ids`` and ``render_order``, the
-    transforms file whose frame order numbers the renders (read by `collect`), which hold values encoded as
-    ``colourspace``; ``values`` fill the render pattern."""
+    """What `execute` runs: the filled-in ``commands`` with the extra environment variables ``env`` (the code's
+    own, and for ``device=cpu`` the stand-ins': `olatbench.methods.official.cpu_standins.job_environment`); the
+    test split's ``frame_ids`` and ``render_order``, the transforms file whose frame order numbers the renders
+    (read by `collect`), which hold values encoded as ``colourspace``; ``values`` fill the render pattern."""
 
     code: OfficialCode
     settings: CodeSettings
@@ -34,6 +35,7 @@ class OfficialRun:
     render_order: Path
     values: dict[str, object]
     colourspace: str
+    env: dict[str, str]
 
 
 def prepare(code: OfficialCode, settings: CodeSettings, source: Scene, work: Path, suite: str, train_split: str,
@@ -59,16 +61,21 @@ def prepare(code: OfficialCode, settings: CodeSettings, source: Scene, work: Pat
                                                           scene=source.name), str(checkout))
                 for step, argv in code.commands]
     order = Path(code.render_order([record.argv for record in commands]).format_map(values))
+    env = dict(code.env)
+    if settings.device == "cpu":
+        from olatbench.methods.official.cpu_standins import job_environment
+
+        env.update(job_environment(code.name))
     return OfficialRun(code=code, settings=settings, work=work, scene_dir=scene_dir, model_dir=model_dir,
                        commands=commands, frame_ids=[frame.frame_id for frame in source.split(test_split)],
-                       render_order=order, values=values, colourspace=code.colourspace_for(suite))
+                       render_order=order, values=values, colourspace=code.colourspace_for(suite), env=env)
 
 
 def execute(run: OfficialRun, log_path: Path) -> None:
     """Run the commands in order with their output appended to ``log_path`` (`OfficialRunError` on failure)."""
     minutes = run.settings.timeout_minutes
     for record in run.commands:
-        run_command(record, log_path, run.code.env, None if minutes is None else 60.0 * minutes)
+        run_command(record, log_path, run.env, None if minutes is None else 60.0 * minutes)
 
 
 def collect(run: OfficialRun) -> dict[str, Path]:

@@ -8,7 +8,10 @@ Fields (all optional until a job runs):
   the container, e.g. ``apptainer exec --nv --bind {work} gs3.sif python`` or
   ``docker run --rm --gpus all -v {checkout}:{checkout} -v {work}:{work} -w {checkout} gs3 python``;
   ``{checkout}`` and ``{work}`` (the job's working folder) are filled in);
-- ``timeout_minutes``: the limit of each command (none by default).
+- ``timeout_minutes``: the limit of each command (none by default);
+- ``device``: ``cuda`` (default: the authors' code on its GPU, as written) or ``cpu``: the job runs the unmodified
+  code on the CPU with olatbench's stand-ins for its CUDA-only modules put first on its ``PYTHONPATH``
+  (`olatbench.methods.official.cpu_standins`; with a ``python`` or ``conda_env`` launcher, not a container).
 
 Sources, highest precedence first: ``--code KEY=VALUE`` options (`olatbench run`, `olatbench doctor`; a key
 may be qualified ``METHOD.KEY``), the ``[official.METHOD]`` table of ``olatbench.toml`` in the working folder, and
@@ -31,7 +34,8 @@ from olatbench.project_file import PROJECT_FILE, ProjectFileError, project_table
 
 TOML_FILE = PROJECT_FILE
 LAUNCHERS = ("python", "conda_env", "container")
-FIELDS = ("checkout", *LAUNCHERS, "timeout_minutes")
+FIELDS = ("checkout", *LAUNCHERS, "timeout_minutes", "device")
+DEVICES = ("cuda", "cpu")
 
 
 class SettingsError(ValueError):
@@ -48,6 +52,7 @@ class CodeSettings:
     conda_env: str | None = None
     container: str | None = None
     timeout_minutes: float | None = None
+    device: str = "cuda"
     sources: Mapping[str, str] = field(default_factory=dict)  # field -> "--code" | "olatbench.toml" | "$VAR"
 
     @property
@@ -70,6 +75,9 @@ class CodeSettings:
         if self.launcher is None:
             found.append("no launcher: set one of python (an interpreter), conda_env (an environment name) or "
                          "container (a command template)")
+        if self.device == "cpu" and self.launcher == "container":
+            found.append("device=cpu puts olatbench's CPU stand-ins on the job's PYTHONPATH, which a container does "
+                         "not see: use a python or conda_env launcher")
         return found
 
     def prefix(self, work: Path) -> list[str]:
@@ -161,6 +169,11 @@ def resolve_settings(method: str, options: Mapping[str, Any] | None = None,
         except (TypeError, ValueError):
             raise SettingsError(f"{method}: timeout_minutes must be a number, not {values['timeout_minutes']!r} "
                                 f"({sources['timeout_minutes']})") from None
+    if "device" in values:
+        values["device"] = str(values["device"]).strip().lower()
+        if values["device"] not in DEVICES:
+            raise SettingsError(f"{method}: device must be one of {', '.join(DEVICES)}, not "
+                                f"{values['device']!r} ({sources['device']})")
     for name in ("checkout", *LAUNCHERS):
         if name in values:
             values[name] = str(values[name])

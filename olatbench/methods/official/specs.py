@@ -80,6 +80,7 @@ GS3_CODE = OfficialCode(
                               "--densify_until_iter", "90000", "--densify_grad_threshold", "0.0001")},
         ANY_SUITE: {"train": _GS3_SYNTHETIC},
     },
+    env={"TORCH_FORCE_NO_WEIGHTS_ONLY_LOAD": "1"},  # render.py:70 torch.load()s its own checkpoint (numpy scalars)
 )
 
 # ---- SSD-GS (irisfreesiri/SSD-GS) ------------------------------------------------------------------------------
@@ -112,7 +113,9 @@ SSDGS_CODE = OfficialCode(
         "nrhints": {"train": ("--cam_opt", "--pl_opt", *_SSDGS_REAL_WINDOWS), "render": ("--opt_pose",)},
         ANY_SUITE: {"train": ("--position_lr_max_steps", "50000", "--densify_until_iter", "50000")},
     },
-    env={"OPENCV_IO_ENABLE_OPENEXR": "1"},
+    # render.py:80 torch.load()s its own checkpoint, which holds numpy scalars: torch >= 2.6's weights_only default
+    # refuses it; this restores the default the code was written for (the file is the job's own output).
+    env={"OPENCV_IO_ENABLE_OPENEXR": "1", "TORCH_FORCE_NO_WEIGHTS_ONLY_LOAD": "1"},
 )
 
 # ---- NRHints (iamNCJ/NRHints) ----------------------------------------------------------------------------------

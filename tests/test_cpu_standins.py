@@ -1,0 +1,471 @@
+"""The CPU stand-ins of the authors' CUDA-only modules (olatbench.methods.official.cpu_standins), each against an
+independent reference: the light splat against a brute-force, pixel-by-pixel reading of forward.cu; gsplat's
+``rasterization`` against gsplat's own torch implementation; the tinycudann encoding and network against their
+closed forms; distCUDA2 against brute-force nearest neighbours; the device shim and the job environment in a
+fresh interpreter."""
+
+from __future__ import annotations
+
+import math
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from olatbench.methods.official.cpu_standins import SITE, job_environment
+from olatbench.methods.official.cpu_standins.knn import distCUDA2
+from olatbench.methods.official.cpu_standins.light import (
+    VARIANTS,
+    GaussianRasterizationSettings,
+    GaussianRasterizer,
+    light_splat,
+)
+from olatbench.methods.official.cpu_standins.save_image import save_image
+from olatbench.methods.official.cpu_standins.tcnn import Encoding, Network
+
+F32 = np.float32
+
+
+# ------------------------------------------------------------------------------------------------ light splat
+def light_settings(width: int = 40, height: int = 30, tanfov: float = 0.3, eye=(0.4, -0.5, 3.0)):
+    """3DGS-layout view and full projection matrices of a camera at ``eye`` looking at the origin (OpenCV axes),
+    as the authors build them (getProjectionMatrix, then viewmatrix @ projection)."""
+    eye = np.asarray(eye, np.float64)
+    forward = -eye / np.linalg.norm(eye)
+    right = np.cross(forward, [0.0, 0.0, 1.0])
+    right /= np.linalg.norm(right)
+    down = np.cross(forward, right)
+    w2c = np.eye(4)
+    w2c[:3, :3] = np.stack([right, down, forward])
+    w2c[:3, 3] = -w2c[:3, :3] @ eye
+    near, far = 0.01, 100.0
+    tany = tanfov * height / width
+    proj = np.zeros((4, 4))
+    proj[0, 0], proj[1, 1] = 1 / tanfov, 1 / tany
+    proj[3, 2], proj[2, 2], proj[2, 3] = 1.0, far / (far - near), -(far * near) / (far - near)
+    view = torch.tensor(w2c.T, dtype=torch.float32)
+    full = torch.tensor(w2c.T @ proj.T, dtype=torch.float32)
+    return GaussianRasterizationSettings(height, width, tanfov, tany, torch.zeros(3), 1.0, view, full, 0,
+                                         torch.tensor(eye, dtype=torch.float32), False, False)
+
+
+def light_scene(n: int = 40, seed: int = 0, spread: float = 0.6):
+    g = torch.Generator().manual_seed(seed)
+    means = (torch.rand(n, 3, generator=g) * 2 - 1) * spread
+    scales = 0.03 + torch.rand(n, 3, generator=g) * 0.12
+    rotations = torch.nn.functional.normalize(torch.randn(n, 4, generator=g), dim=1)
+    opacities = 0.3 + 0.7 * torch.rand(n, 1, generator=g)
+    return means, scales, rotations, opacities
+
+
+def cov3d_of(scale, quat):
+    r, x, y, z = (float(v) for v in quat)
+    rot = np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - r * z), 2 * (x * z + r * y)],
+                    [2 * (x * y + r * z), 1 - 2 * (x * x + z * z), 2 * (y * z - r * x)],
+                    [2 * (x * z - r * y), 2 * (y * z + r * x), 1 - 2 * (x * x + y * y)]])
+    m = rot @ np.diag(np.asarray(scale, np.float64))
+    sigma = m @ m.T
+    return [sigma[0, 0], sigma[0, 1], sigma[0, 2], sigma[1, 1], sigma[1, 2], sigma[2, 2]]
+
+
+def brute_force_light(means, opacities, cov3d, settings, offset, thres, is_train, clip):
+    """forward.cu read line by line, one Gaussian and one pixel at a time, in float32 (the reference)."""
+    width, height = settings.image_width, settings.image_height
+    vm = settings.viewmatrix.numpy().reshape(-1).astype(F32)  # 3DGS layout: vm[4*r + c]
+    pm = settings.projmatrix.numpy().reshape(-1).astype(F32)
+    tanx, tany = F32(settings.tanfovx), F32(settings.tanfovy)
+    fx, fy = F32(width / (2 * settings.tanfovx)), F32(height / (2 * settings.tanfovy))
+    grid = ((width + 15) // 16, (height + 15) // 16)
+    n = len(means)
+    radii = [0] * n
+    data = {}
+    for i in range(n):
+        p = [F32(v) for v in means[i]]
+        ph = [pm[c] * p[0] + pm[4 + c] * p[1] + pm[8 + c] * p[2] + pm[12 + c] for c in range(4)]
+        pw = F32(1) / (ph[3] + F32(1e-7))
+        proj = [ph[c] * pw for c in range(3)]
+        t = [vm[c] * p[0] + vm[4 + c] * p[1] + vm[8 + c] * p[2] + vm[12 + c] for c in range(3)]
+        if t[2] <= 0.2:
+            continue
+        limx, limy = F32(1.3) * tanx, F32(1.3) * tany
+        tx = min(limx, max(-limx, t[0] / t[2])) * t[2]
+        ty = min(limy, max(-limy, t[1] / t[2])) * t[2]
+        tz = t[2]
+        # glm::mat3(a0, ..., a8) takes columns: numpy rows below are glm columns, hence the transposes
+        J = np.array([[fx / tz, 0, -(fx * tx) / (tz * tz)], [0, fy / tz, -(fy * ty) / (tz * tz)], [0, 0, 0]], F32).T
+        Wm = np.array([[vm[0], vm[4], vm[8]], [vm[1], vm[5], vm[9]], [vm[2], vm[6], vm[10]]], F32).T
+        c = cov3d[i]
+        vrk = np.array([[c[0], c[1], c[2]], [c[1], c[3], c[4]], [c[2], c[4], c[5]]], F32)
+        T = Wm @ J
+        cov = T.T @ vrk.T @ T
+        a, b, cc = F32(cov[0, 0] + F32(0.3)), F32(cov[0, 1]), F32(cov[1, 1] + F32(0.3))
+        det = a * cc - b * b
+        if det == 0:
+            continue
+        mid = F32(0.5) * (a + cc)
+        lam1 = mid + math.sqrt(max(0.1, mid * mid - det))
+        lam2 = mid - math.sqrt(max(0.1, mid * mid - det))
+        radius = math.ceil(3 * math.sqrt(max(lam1, lam2)))
+        px = ((proj[0] + F32(1)) * width - F32(1)) * F32(0.5)
+        py = ((proj[1] + F32(1)) * height - F32(1)) * F32(0.5)
+        rmin = (min(grid[0], max(0, int((px - radius) / 16))), min(grid[1], max(0, int((py - radius) / 16))))
+        rmax = (min(grid[0], max(0, int((px + radius + 15) / 16))), min(grid[1], max(0, int((py + radius + 15) / 16))))
+        if (rmax[0] - rmin[0]) * (rmax[1] - rmin[1]) == 0:
+            continue
+        radii[i] = radius
+        data[i] = dict(xy=(F32(px), F32(py)), conic=(cc / det, -b / det, a / det), o=F32(opacities[i]),
+                       depth=F32(t[2] * t[2] + t[1] * t[1] + t[0] * t[0]), rect=(rmin, rmax))
+    trans, non_trans, weight = np.zeros(n), np.zeros(n), np.zeros(n)
+
+    def power(g, x, y):
+        d = data[g]
+        dx, dy = d["xy"][0] - F32(x), d["xy"][1] - F32(y)
+        con = d["conic"]
+        return F32(-0.5) * (con[0] * dx * dx + con[2] * dy * dy) - con[1] * dx * dy, dx * dx + dy * dy
+
+    for y in range(height):
+        for x in range(width):
+            tile = (x // 16, y // 16)
+            members = [g for g, d in data.items() if d["rect"][0][0] <= tile[0] < d["rect"][1][0]
+                       and d["rect"][0][1] <= tile[1] < d["rect"][1][1]]
+            members.sort(key=lambda g: (data[g]["depth"], g))
+            T, w, depth_t, pointer = F32(1), F32(1), F32(0), 0
+            for j in members:
+                pj, dd = power(j, x, y)
+                if clip is not None:
+                    pj = min(pj, F32(clip))
+                dj = data[j]["depth"]
+
+                def record(value, pj=pj, dd=dd, j=j):
+                    if dd < thres:
+                        trans[j] += math.exp(pj) * value
+                        non_trans[j] += math.exp(pj)
+
+                if dj - depth_t > offset:
+                    while True:
+                        p = members[pointer]
+                        pointer += 1
+                        pp, _ = power(p, x, y)
+                        depth_t = data[p]["depth"]
+                        alpha = F32(0)
+                        if pp <= 0:
+                            alpha = min(F32(0.99), data[p]["o"] * F32(math.exp(pp)))
+                            alpha = F32(0) if alpha < 1 / 255 else alpha
+                        w = alpha * T
+                        if dj - depth_t <= offset:
+                            record(T)
+                            T = T * (F32(1) - alpha)
+                            break
+                        T = T * (F32(1) - alpha)
+                else:
+                    record(T)
+                if is_train:
+                    weight[j] += w
+    return np.array(radii), trans, non_trans, weight
+
+
+@pytest.mark.parametrize(("offset", "thres", "seed"), [(0.015, 4.0, 0), (0.3, 9.0, 1), (0.0, 4.0, 2)],
+                         ids=["official-offset", "wide-band", "no-offset"])
+def test_light_splat_matches_brute_force_forward_cu(offset, thres, seed):
+    means, scales, rotations, opacities = light_scene(seed=seed)
+    settings = light_settings()
+    cov3d = [cov3d_of(s, q) for s, q in zip(scales.numpy(), rotations.numpy(), strict=False)]
+    radii_ref, trans_ref, non_ref, weight_ref = brute_force_light(means.numpy(), opacities.numpy()[:, 0], cov3d,
+                                                                  settings, offset, thres, True, None)
+    non_trans = torch.zeros(len(means))
+    out_weight, radii, trans = light_splat(means, opacities, scales, rotations, None, settings, non_trans, offset,
+                                           thres, True, None)
+    assert radii.dtype == torch.int32 and out_weight.shape == (len(means), 1)
+    assert radii.tolist() == radii_ref.tolist()
+    assert (radii > 0).sum() > 30 and trans_ref.max() > 0 and (trans_ref < non_ref - 1e-3).any()  # shadows occur
+    np.testing.assert_allclose(non_trans.numpy(), non_ref, rtol=2e-4, atol=1e-5)
+    np.testing.assert_allclose(trans.numpy(), trans_ref, rtol=2e-4, atol=1e-5)
+    np.testing.assert_allclose(out_weight[:, 0].numpy(), weight_ref, rtol=2e-4, atol=1e-4)
+
+
+def test_light_variants_differ_only_by_the_ssdgs_power_clamp():
+    """With a non-positive-definite precomputed covariance power_j can exceed 10: SSD-GS clamps it, GS³ not."""
+    means, scales, rotations, opacities = light_scene(n=12, seed=3)
+    settings = light_settings()
+    cov3d = [cov3d_of(s, q) for s, q in zip(scales.numpy(), rotations.numpy(), strict=False)]
+    # Gaussian 0: in light-view axes variance -1e-3 along x (≈ -0.37 px² on screen, -0.07 after the +0.3
+    # low-pass), so its conic is strongly negative along x and power_j > 10 within 2 px of its centre
+    m = settings.viewmatrix.numpy()[:3, :3].astype(np.float64)  # world -> view is m.T
+    sigma = m @ np.diag([-1e-3, 2e-3, 1e-3]) @ m.T
+    cov3d[0] = [sigma[0, 0], sigma[0, 1], sigma[0, 2], sigma[1, 1], sigma[1, 2], sigma[2, 2]]
+    cov = torch.tensor(cov3d, dtype=torch.float32)
+    results = {}
+    for variant, clip in VARIANTS.items():
+        non_trans = torch.zeros(len(means))
+        _, _radii, trans = light_splat(means, opacities, None, None, cov, settings, non_trans, 0.015, 4.0, False, clip)
+        reference = brute_force_light(means.numpy(), opacities.numpy()[:, 0], cov3d, settings, 0.015, 4.0, False, clip)
+        np.testing.assert_allclose(trans.numpy(), reference[1], rtol=2e-4, atol=1e-5)
+        np.testing.assert_allclose(non_trans.numpy(), reference[2], rtol=2e-4, atol=1e-5)
+        results[variant] = non_trans
+    assert VARIANTS == {"ssdgs-26e4251": 10.0, "gs3-83c8daa": None}
+    clamped, unclamped = float(results["ssdgs-26e4251"][0]), float(results["gs3-83c8daa"][0])
+    assert 0 < clamped <= 13 * math.exp(10) * (1 + 1e-5) and unclamped > 2 * clamped  # ≤ 13 pixels with dd < 4
+    torch.testing.assert_close(results["gs3-83c8daa"][1:], results["ssdgs-26e4251"][1:])
+
+
+def test_light_rasterizer_refuses_gradients_and_an_unknown_variant(monkeypatch):
+    means, scales, rotations, opacities = light_scene(n=5)
+    monkeypatch.delenv("OLATBENCH_STANDIN_LIGHT", raising=False)
+    with pytest.raises(ValueError, match=r"OLATBENCH_STANDIN_LIGHT=None names no known forward\.cu"):
+        GaussianRasterizer(light_settings())
+    monkeypatch.setenv("OLATBENCH_STANDIN_LIGHT", "gs3-83c8daa")
+    rasterizer = GaussianRasterizer(light_settings())
+    with pytest.raises(NotImplementedError, match="forward only"):
+        rasterizer(means.requires_grad_(), None, opacities, colors_precomp=torch.zeros(2, 3), scales=scales,
+                   rotations=rotations, non_trans=torch.zeros(5))
+    with torch.no_grad():
+        color, out_weight, radii, trans = rasterizer(means, None, opacities, colors_precomp=torch.zeros(2, 3),
+                                                     scales=scales, rotations=rotations, non_trans=torch.zeros(5))
+    assert color.shape == (2, 2, 2) and out_weight.shape == (5, 1) and radii.shape == trans.shape == (5,)
+    assert float(out_weight.abs().sum()) == 0.0  # is_train False: no weights
+
+
+# --------------------------------------------------------------------------------------------- rasterization
+def test_rasterization_matches_gsplats_torch_implementation(monkeypatch):
+    pytest.importorskip("gsplat")
+    from gsplat_cpu import cpu_gsplat, gsplat_torch
+    from test_rasterize_scenes import camera, scene
+
+    from olatbench.methods.official.cpu_standins.rasterization import rasterization
+
+    cpu_gsplat(monkeypatch)
+    width, height, channels = 45, 37, 13  # partial tiles; 13 channels as SSD-GS's colours
+    s = scene(150, channels=channels, seed=4, spread=1.2, opacity=(0.2, 0.85))
+    w2c, K = camera(width, height)
+    background = torch.rand(1, channels, dtype=torch.float64)
+    means = s["means"].clone().requires_grad_()
+    image, alpha, meta = rasterization(means, s["quats"], s["scales"], s["opacities"], s["features"], w2c[None],
+                                       K[None], width, height, near_plane=0.01, far_plane=100.0, eps2d=0.3,
+                                       sh_degree=None, packed=False, backgrounds=background)
+    meta["means2d"].retain_grad()
+    weights = torch.rand(1, height, width, channels, dtype=torch.float64)
+    (image * weights).sum().backward()
+
+    covars, _ = gsplat_torch._quat_scale_to_covar_preci(s["quats"], s["scales"], compute_preci=False)
+    radii, means2d, depths, conics, _ = gsplat_torch._fully_fused_projection(
+        s["means"], covars, w2c[None], K[None], width, height, eps2d=0.3, near_plane=0.01, far_plane=100.0)
+    means2d = means2d.detach().requires_grad_()
+    tiles_x, tiles_y = (width + 15) // 16, (height + 15) // 16
+    # gsplat 1.5 has per-axis radii: bin with the stand-in's (1.1.1-style) radii so both composite the same lists
+    _, isect_ids, flatten_ids = gsplat_torch._isect_tiles(means2d.detach(), meta["radii"][..., None].expand(-1, -1, 2),
+                                                          depths, 16, tiles_x, tiles_y)
+    offsets = gsplat_torch._isect_offset_encode(isect_ids, 1, tiles_x, tiles_y)
+    ref_image, ref_alpha = gsplat_torch._rasterize_to_pixels(
+        means2d, conics, s["features"][None], s["opacities"][None], width, height, 16, offsets, flatten_ids,
+        backgrounds=background)
+    (ref_image * weights).sum().backward()
+
+    assert image.shape == (1, height, width, channels) and alpha.shape == (1, height, width, 1)
+    assert meta["radii"].shape == (1, 150) and meta["radii"].dtype == torch.int32
+    assert meta["means2d"].shape == (1, 150, 2)
+    assert torch.equal(meta["radii"][0] > 0, (radii[0] > 0).all(-1))
+    torch.testing.assert_close(meta["means2d"].detach(), means2d.detach(), rtol=0, atol=1e-10)
+    torch.testing.assert_close(image, ref_image, rtol=0, atol=1e-9)
+    torch.testing.assert_close(alpha, ref_alpha, rtol=0, atol=1e-9)
+    visible = meta["radii"][0] > 0
+    assert float(means2d.grad.abs().sum()) > 0
+    torch.testing.assert_close(meta["means2d"].grad[0][visible], means2d.grad[0][visible], rtol=1e-6, atol=1e-9)
+
+
+def test_rasterization_refuses_what_it_does_not_implement():
+    from olatbench.methods.official.cpu_standins.rasterization import rasterization
+
+    args = (torch.zeros(1, 3), torch.tensor([[1.0, 0, 0, 0]]), torch.ones(1, 3), torch.ones(1), torch.ones(1, 3),
+            torch.eye(4)[None], torch.eye(3)[None], 4, 4)
+    with pytest.raises(NotImplementedError, match=r"rasterization\(packed=True\) is not implemented"):
+        rasterization(*args)
+    with pytest.raises(NotImplementedError, match="render_mode='RGB\\+D'"):
+        rasterization(*args, packed=False, render_mode="RGB+D")
+
+
+# ----------------------------------------------------------------------------------------------- tinycudann
+def test_frequency_encoding_is_the_closed_form():
+    encoding = Encoding(3, {"otype": "Frequency", "n_frequencies": 8})
+    x = torch.rand(7, 3) * 2 - 1
+    out = encoding(x)
+    assert encoding.n_output_dims == 48 and out.shape == (7, 48)
+    for j in range(48):  # tiny-cuda-nn's frequency kernel, output by output
+        dim, level, phase = j // 16, (j // 2) % 8, (j % 2) * math.pi / 2
+        expected = torch.sin(x[:, dim] * (2.0 ** level) * math.pi + phase)
+        torch.testing.assert_close(out[:, j], expected, rtol=0, atol=2e-5)
+
+
+def test_fully_fused_mlp_is_the_padded_bias_free_mlp():
+    config = {"otype": "FullyFusedMLP", "activation": "LeakyReLU", "output_activation": "Sigmoid", "n_neurons": 64,
+              "n_hidden_layers": 3}
+    net = Network(105, 1, config)
+    assert not [m for _, m in net.named_children() if isinstance(m, torch.nn.Linear)]  # authors' zero-init: no-op
+    assert [tuple(p.shape) for p in net.parameters()] == [(64 * 112 + 64 * 64 * 2 + 16 * 64,)]
+    x = torch.randn(5, 105)
+    with torch.no_grad():
+        w = net.params.detach()
+        w1, w2, w3, w4 = (w[:7168].view(64, 112), w[7168:11264].view(64, 64), w[11264:15360].view(64, 64),
+                          w[15360:].view(16, 64))
+        h = np.concatenate([x.numpy(), np.ones((5, 7), np.float32)], axis=1)  # Identity encoding pads with 1
+        for m in (w1, w2, w3):
+            h = h @ m.numpy().T
+            h = np.where(h > 0, h, 0.01 * h)
+        expected = 1 / (1 + np.exp(-(h @ w4.numpy().T)))[:, :1]
+    np.testing.assert_allclose(net(x).detach().numpy(), expected, rtol=1e-5, atol=1e-6)
+    bound = math.sqrt(6 / (64 + 112))
+    assert float(w1.abs().max()) <= bound and float(w1.abs().max()) > 0.9 * bound  # Xavier-uniform range
+
+
+@pytest.mark.parametrize("config", [
+    {"otype": "CutlassMLP", "activation": "LeakyReLU", "output_activation": "Sigmoid", "n_neurons": 64,
+     "n_hidden_layers": 3},
+    {"otype": "FullyFusedMLP", "activation": "ReLU", "output_activation": "Sigmoid", "n_neurons": 64,
+     "n_hidden_layers": 3},
+    {"otype": "FullyFusedMLP", "activation": "LeakyReLU", "output_activation": "Sigmoid", "n_neurons": 96,
+     "n_hidden_layers": 3}])
+def test_other_network_configs_are_refused_by_name(config):
+    with pytest.raises(NotImplementedError, match=config["otype"]):
+        Network(8, 1, config)
+
+
+def test_other_encodings_are_refused_by_name():
+    with pytest.raises(NotImplementedError, match="HashGrid"):
+        Encoding(3, {"otype": "HashGrid", "n_levels": 16})
+
+
+# ------------------------------------------------------------------------------------------ knn, save_image
+def test_dist_cuda2_is_the_mean_squared_distance_to_three_nearest_neighbours():
+    points = torch.rand(500, 3, generator=torch.Generator().manual_seed(5)) - 0.5
+    d2 = torch.cdist(points.double(), points.double()) ** 2
+    d2.fill_diagonal_(float("inf"))
+    expected = d2.topk(3, largest=False).values.mean(1)
+    torch.testing.assert_close(distCUDA2(points).double(), expected, rtol=1e-4, atol=1e-9)
+
+
+def test_save_image_writes_torchvisions_8_bit_values(tmp_path):
+    from PIL import Image
+
+    image = torch.rand(3, 6, 5)
+    image[0, 0, 0], image[1, 0, 0] = 1.3, -0.2
+    save_image(image, tmp_path / "x.png")
+    written = np.asarray(Image.open(tmp_path / "x.png"))
+    expected = np.floor(np.clip(image.permute(1, 2, 0).numpy() * 255 + 0.5, 0, 255)).astype(np.uint8)
+    assert written.shape == (6, 5, 3) and np.array_equal(written, expected)
+
+
+# ------------------------------------------------------------------------------------- shim and environment
+SHIM_PROBE = """
+import time
+import torch
+import gsplat, tinycudann, simple_knn._C, diff_gaussian_rasterization_light, torchvision.utils
+assert "cpu_standins" in gsplat.__file__ and gsplat.__version__.startswith("1.1.1")
+a = torch.zeros(2, device="cuda")
+b = torch.tensor([1.0], device=torch.device("cuda:0"))
+c = torch.ones(3).cuda()
+d = torch.ones(2).to("cuda")
+e = torch.zeros_like(a, device="cuda")
+m = torch.nn.Linear(2, 2).cuda()
+assert all(t.device.type == "cpu" for t in (a, b, c, d, e, m.weight))
+s = torch.cuda.Stream()
+s.wait_stream(torch.cuda.current_stream())
+torch.cuda.synchronize(); torch.cuda.empty_cache(); torch.cuda.set_device(torch.device("cuda:0"))
+with torch.cuda.stream(s):
+    f = a + 1
+start, end = torch.cuda.Event(enable_timing=True), torch.cuda.Event(enable_timing=True)
+start.record(); time.sleep(0.05); end.record()
+assert 40 < start.elapsed_time(end) < 5000
+assert not torch.cuda.is_available()
+print("shim ok")
+"""
+
+
+def test_job_environment_serves_cuda_requests_from_the_cpu_with_the_standins():
+    env = job_environment("ssdgs-official", {"PYTHONPATH": "/somewhere"})
+    paths = env["PYTHONPATH"].split(os.pathsep)
+    assert paths[0] == str(SITE) and paths[-1] == "/somewhere"
+    assert env["OLATBENCH_STANDIN_LIGHT"] == "ssdgs-26e4251"
+    assert job_environment("gs3-official", {})["OLATBENCH_STANDIN_LIGHT"] == "gs3-83c8daa"
+    assert job_environment("nrhints-official", {"PYTHONPATH": "/x"}) == {"CUDA_VISIBLE_DEVICES": ""}
+    done = subprocess.run([sys.executable, "-c", SHIM_PROBE], env={**os.environ, **env}, capture_output=True,
+                          text=True, timeout=600)
+    assert done.returncode == 0, done.stderr
+    assert "shim ok" in done.stdout
+    # without the job environment none of the stand-ins is importable under the real names
+    plain = subprocess.run([sys.executable, "-c", "import tinycudann"], capture_output=True, text=True, timeout=600)
+    assert plain.returncode != 0
+
+
+# ------------------------------------------------------------------------------------------ the device setting
+def test_device_setting_comes_from_every_source_and_is_checked(tmp_path):
+    from olatbench.methods.official.settings import SettingsError, resolve_settings
+
+    assert resolve_settings("gs3-official", {}, {}, {}).device == "cuda"
+    assert resolve_settings("gs3-official", {"device": "CPU"}, {}, {}).device == "cpu"
+    assert resolve_settings("gs3-official", {}, {"gs3-official": {"device": "cpu"}}, {}).device == "cpu"
+    from_env = resolve_settings("gs3-official", {}, {}, {"OLATBENCH_GS3_OFFICIAL_DEVICE": "cpu"})
+    assert from_env.device == "cpu" and from_env.sources["device"] == "OLATBENCH_GS3_OFFICIAL_DEVICE"
+    with pytest.raises(SettingsError, match=r"device must be one of cuda, cpu, not 'tpu' \(--code\)"):
+        resolve_settings("gs3-official", {"device": "tpu"}, {}, {})
+    boxed = resolve_settings("gs3-official", {"device": "cpu", "container": "docker run img python",
+                                              "checkout": str(tmp_path)}, {}, {})
+    assert any("device=cpu" in problem and "container" in problem for problem in boxed.problems())
+
+
+def test_a_cpu_job_imports_the_standins_and_records_them(tmp_path):
+    from official_standins import write_checkout
+    from test_official import plan, suite_of, write_data
+
+    from olatbench.bench.executors import run_inline
+    from olatbench.bench.results import read_results
+
+    data = write_data(tmp_path / "data")
+    checkout = write_checkout(tmp_path / "checkout", "ssdgs-official")
+    with open(checkout / "train.py", "a") as script:  # what the stand-in train step sees
+        script.write("import gsplat, torch\nprint('gsplat from', gsplat.__file__)\n"
+                     "print('cuda tensor on', torch.zeros(1, device='cuda').device)\n")
+    jobs = plan("ssdgs-official", suite_of("tiny"), data, tmp_path / "runs", checkout=str(checkout),
+                python=sys.executable, device="cpu")
+    [outcome] = run_inline(jobs, progress=False)
+    folder = jobs[0].folder
+    log = Path(folder, "log.txt").read_text()
+    assert outcome.status == "done", log
+    assert f"gsplat from {SITE / 'gsplat' / '__init__.py'}" in log and "cuda tensor on cpu" in log
+    official = read_results(os.path.join(folder, "results.json"))["official"]
+    assert official["device"] == "cpu" and official["settings"]["device"] == "cpu"
+    assert set(official["standins"]) >= {"gsplat", "diff_gaussian_rasterization_light", "tinycudann", "simple_knn"}
+    assert not list(checkout.rglob("sitecustomize.py")) and not (checkout / "gsplat").exists()
+
+
+def test_doctor_checks_the_cpu_environment_against_the_pins(tmp_path, monkeypatch):
+    import importlib
+    import importlib.metadata
+
+    from click.testing import CliRunner
+    from official_standins import write_checkout
+
+    from olatbench.cli import main
+    from olatbench.methods.official.doctor import CPU_PINS
+
+    monkeypatch.chdir(tmp_path)
+    checkout = write_checkout(tmp_path / "clone", "ssdgs-official", git=True)
+    options = [f"ssdgs-official.checkout={checkout}", f"ssdgs-official.python={sys.executable}",
+               "ssdgs-official.device=cpu"]
+    result = CliRunner().invoke(main, ["doctor", *[arg for option in options for arg in ("--code", option)]])
+    row = next(line for line in result.output.splitlines() if "ssdgs-official: CPU stand-ins" in line)
+    assert "ssdgs-official: GPU" not in result.output and "stand-ins import" in row
+
+    def version(name):
+        try:
+            module = importlib.import_module(name)
+        except ImportError:
+            return None
+        return getattr(module, "__version__", None) or importlib.metadata.version(name)
+
+    mismatched = [name for name, pin in CPU_PINS.items()
+                  if version(name) is None or (pin and not str(version(name)).startswith(pin))]
+    assert row.strip().startswith("NO" if mismatched else "ok"), (row, mismatched)
+    assert all(f"{name} " in row for name in mismatched)

@@ -1,0 +1,58 @@
+"""The authors' SSD-GS and GS³ code, unmodified, trained and scored on a mini scene on the CPU through the official
+runner with ``--code device=cpu`` (olatbench.methods.official.cpu_standins). Slow (each step of their code takes
+seconds here) and needs their checkouts and environment (docs/official.md, "Running the authors' code on the
+CPU"):
+
+- ``OLATBENCH_SSDGS_CODE`` / ``OLATBENCH_GS3_CODE``: clones at the pinned commits (26e4251 / 83c8daa);
+- ``OLATBENCH_OFFICIAL_PYTHON``: the interpreter of the official environment (the authors' pins);
+- ``OLATBENCH_OFFICIAL_ITERATIONS``: training length (default 10).
+
+Each case skips, saying which variable is missing, when it is not set, and when the mini suite is not rendered.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from olatbench.bench.results import read_results
+from olatbench.datasets.synth.mini import default_root as mini_root
+from olatbench.methods.registry import get_spec
+
+pytestmark = pytest.mark.slow
+
+
+@pytest.mark.parametrize(("method", "variable"), [("ssdgs-official", "OLATBENCH_SSDGS_CODE"),
+                                                  ("gs3-official", "OLATBENCH_GS3_CODE")])
+def test_authors_code_trains_and_scores_on_the_cpu(tmp_path, method, variable):
+    checkout, python = os.environ.get(variable), os.environ.get("OLATBENCH_OFFICIAL_PYTHON")
+    if not checkout:
+        pytest.skip(f"{variable} is not set (a clone of {get_spec(method).source.repository} at the pinned commit)")
+    if not python:
+        pytest.skip("OLATBENCH_OFFICIAL_PYTHON is not set (the official environment's interpreter)")
+    if not (mini_root() / "diffuse_shadow" / "transforms_train.json").is_file():
+        pytest.skip(f"the mini suite is not rendered in {mini_root()} (olatbench datasets synth mini)")
+    iterations = int(os.environ.get("OLATBENCH_OFFICIAL_ITERATIONS", "10"))
+    argv = [sys.executable, "-m", "olatbench", "run", "--method", method, "--suite", "mini", "--scenes",
+            "diffuse_shadow", "--iterations", str(iterations), "-o", str(tmp_path / "runs"), "--code",
+            f"checkout={checkout}", "--code", f"python={python}", "--code", "device=cpu"]
+    done = subprocess.run(argv, cwd=tmp_path, capture_output=True, text=True, timeout=6 * 3600)
+    [folder] = (tmp_path / "runs").rglob("seed0")
+    assert done.returncode == 0, done.stdout + done.stderr + (folder / "log.txt").read_text()[-5000:]
+    results = read_results(folder / "results.json")
+    official = results["official"]
+    assert results["status"] == "done" and official["device"] == "cpu" and official["matches_pin"]
+    assert "gsplat" in official["standins"] and official["settings"]["device"] == "cpu"
+    mean = results["metrics"]["test"]["mean"]
+    assert math.isfinite(mean["psnr"]) and mean["psnr"] > 10.0, mean  # a trained render, not a blank image
+    renders = sorted(Path(folder, "renders", "test").iterdir())
+    assert len(renders) == len(results["metrics"]["test"]["per_image"]) > 0
+    assert not (Path(checkout) / "sitecustomize.py").exists()
+    status = subprocess.run(["git", "-C", checkout, "status", "--porcelain", "--untracked-files=no"],
+                            capture_output=True, text=True)
+    assert status.stdout.strip() == "", status.stdout  # no tracked file of the checkout changed
