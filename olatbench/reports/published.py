@@ -17,7 +17,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from olatbench.methods.official.specs import SSDGS_REFINED_VARIANT
+from olatbench.paper_rows import SSDGS_REFINED_VARIANT
 
 CSV_NAME = "ssdgs_iclr2026.csv"
 CSV_COLUMNS = ("table", "method", "suite", "scene", "split", "metric", "value", "std", "paper_rank")

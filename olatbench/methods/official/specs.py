@@ -12,9 +12,9 @@ from __future__ import annotations
 
 from olatbench.methods.official.code import ANY_SUITE, SUITE_ARGS, OfficialCode, SceneArgs
 from olatbench.methods.spec import MethodSpec, SourcePin
+from olatbench.paper_rows import SSDGS_REFINED_VARIANT
 
 _CONFIG = "olatbench.methods.official.code:OfficialConfig"
-SSDGS_REFINED_VARIANT = "opt"  # ssdgs-official's preset that refines cameras and lights (the paper's "w/ Opt")
 _MODULE = "olatbench.methods.official.specs"
 
 # With --cam_opt/--pl_opt, train.py builds Scene(shuffle=True), which shuffles the test cameras with the seeded
