@@ -13,13 +13,15 @@ holds them), the model, Adam's state and one step's autograd graph.
 
 Ratios printed against references measured in the same run: ``step/raster`` (the whole step in units of the
 camera pass alone) and ``rss/images`` (peak memory in units of the image stack); ``run at N`` is the suite's
-iteration count at that step time (an upper bound for a run that reaches N Gaussians late). The last line is a parseable
-summary with the worst peak memory at 512² (target: ≤ 8 GiB with 550K Gaussians). Examples::
+iteration count at that step time (an upper bound for a run that reaches N Gaussians late); ``prec`` the networks'
+precision (``--precisions``) and ``light pass`` the backend the preset's light-view pass ran on. The last line is
+a parseable summary with the worst peak memory at 512² (target: ≤ 8 GiB with 550K Gaussians). Examples::
 
     python benchmarks/bench_scale.py                                  # the three suites, 100K/300K/550K
     python benchmarks/bench_scale.py --suites gs3 --counts 550000 --steps 3
     python benchmarks/bench_scale.py --suites nrhints --images 100    # a quicker stand-in (fewer images)
     python benchmarks/bench_scale.py --images 100 --fill-stack        # quick render, the suites' full memory
+    python benchmarks/bench_scale.py --suites sssgs --precisions fp32 bf16   # every case with fp32 and bf16 networks
 
 ``--fill-stack`` repeats the rendered training frames until the stack has the suite's realistic count
 (`STANDINS`): each image is read and held as often as a distinct one would be, so the stack's memory, its
@@ -30,6 +32,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import itertools
 import json
 import resource
 import subprocess
@@ -41,7 +44,7 @@ ALL_ON_STEP = 30_000  # the 100K schedule: every term on, camera/light refinemen
 
 
 def run_case(suite: str, count: int, steps: int, repeats: int, images: int | None, threads: int,
-             fill_stack: bool = False) -> dict:
+             fill_stack: bool = False, precision: str = "fp32") -> dict:
     """One (suite, Gaussian count) case in this process; returns its measurements as plain numbers."""
     import torch
     from bench_ssdgs import (
@@ -84,7 +87,7 @@ def run_case(suite: str, count: int, steps: int, repeats: int, images: int | Non
     never = 10**9
     config = resolve_config(get_spec("ssdgs"), suite_record)
     config = dataclasses.replace(config, num_init_gaussians=count, max_gaussians=None, densify_from=never,
-                                 densify_until=never, opacity_reset_interval=never)
+                                 densify_until=never, opacity_reset_interval=never, network_precision=precision)
     method = SSDGS(config)
     method.setup(views, "cpu", 0)
     put_on_sphere(method, radius=0.8, opacity=0.9)
@@ -105,7 +108,20 @@ def run_case(suite: str, count: int, steps: int, repeats: int, images: int | Non
             "images": len(views), "image_gib": views.images.nbytes / 2**30, "load_seconds": load_seconds,
             "step_seconds": min(step_seconds[1:]), "step_seconds_mean": sum(step_seconds[1:]) / steps,
             "stages": stage_seconds, "peak_rss_gib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20,
-            "threads": threads}
+            "threads": threads, "precision": precision, "light_pass": light_pass_backend(method)}
+
+
+def light_pass_backend(method) -> str:
+    """The backend the method's light-view pass runs on (its mode decides: ``"footprint"`` is torch-only)."""
+    from olatbench.gaussians.shadow import shadow_gather
+    from olatbench.methods.training import camera_centre
+
+    model, views = method.model, method.train_views
+    camera = views.views.cameras[0]
+    light = views.light_positions[0]
+    options = method.light_view_options(views.Ks[0], camera.width, camera.height, camera_centre(views.w2cs[0]), light)
+    return shadow_gather(model.means[:1], model.quats[:1], model.scales[:1], model.opacities[:1], light,
+                         model.means[:1].mean(0), **options).backend
 
 
 def main() -> None:
@@ -122,36 +138,39 @@ def main() -> None:
     parser.add_argument("--fill-stack", action="store_true",
                         help="repeat the rendered training frames up to the suite's realistic count (with --images)")
     parser.add_argument("--threads", type=int, default=2)
-    parser.add_argument("--case", nargs=2, metavar=("SUITE", "COUNT"), help=argparse.SUPPRESS)
+    parser.add_argument("--precisions", nargs="+", default=["fp32"], choices=["fp32", "bf16", "fp16"],
+                        help="network_precision of each case (e.g. fp32 bf16: every case twice)")
+    parser.add_argument("--case", nargs=3, metavar=("SUITE", "COUNT", "PRECISION"), help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.case:  # child process: one case, one JSON line
         print(json.dumps(run_case(args.case[0], int(args.case[1]), args.steps, args.repeats, args.images,
-                                  args.threads, args.fill_stack)))
+                                  args.threads, args.fill_stack, args.case[2])))
         return
-    print(f"{'suite':>8} {'size':>9} {'images':>6} {'N':>7} {'step':>7} {'raster':>7} {'shadow':>7} {'mlp':>7} "
-          f"{'optim':>7} {'rest':>7} {'step/rast':>9} {'rss GiB':>8} {'rss/img':>7} {'run at N':>10}")
+    print(f"{'suite':>8} {'size':>9} {'images':>6} {'N':>7} {'prec':>4} {'step':>7} {'raster':>7} {'shadow':>7} "
+          f"{'mlp':>7} {'optim':>7} {'rest':>7} {'step/rast':>9} {'rss GiB':>8} {'rss/img':>7} {'run at N':>10} "
+          f"{'light pass':>10}")
     worst_512 = 0.0
-    for suite in args.suites:
-        for count in args.counts:
-            command = [sys.executable, __file__, "--case", suite, str(count), "--steps", str(args.steps),
-                       "--repeats", str(args.repeats), "--threads", str(args.threads)]
-            if args.images is not None:
-                command += ["--images", str(args.images)]
-            if args.fill_stack:
-                command.append("--fill-stack")
-            done = subprocess.run(command, capture_output=True, text=True)
-            if done.returncode != 0:
-                raise SystemExit(f"case {suite} N={count} failed:\n{done.stderr[-3000:]}")
-            case = json.loads(done.stdout.strip().splitlines()[-1])
-            stages = case["stages"]
-            if max(case["width"], case["height"]) >= 512:
-                worst_512 = max(worst_512, case["peak_rss_gib"])
-            print(f"{suite:>8} {case['width']:>4}×{case['height']:<4} {case['images']:>6} {case['gaussians']:>7} "
-                  f"{case['step_seconds']:>6.2f}s {stages['raster']:>6.2f}s {stages['shadow']:>6.2f}s "
-                  f"{stages['mlp']:>6.2f}s {stages['optim']:>6.2f}s {stages['rest']:>6.2f}s "
-                  f"{case['step_seconds'] / stages['raster']:>9.1f} {case['peak_rss_gib']:>8.2f} "
-                  f"{case['peak_rss_gib'] / case['image_gib']:>7.2f} "
-                  f"{format_duration(case['step_seconds'] * get_suite(suite).iterations):>10}", flush=True)
+    for suite, count, precision in itertools.product(args.suites, args.counts, args.precisions):
+        command = [sys.executable, __file__, "--case", suite, str(count), precision, "--steps", str(args.steps),
+                   "--repeats", str(args.repeats), "--threads", str(args.threads)]
+        if args.images is not None:
+            command += ["--images", str(args.images)]
+        if args.fill_stack:
+            command.append("--fill-stack")
+        done = subprocess.run(command, capture_output=True, text=True)
+        if done.returncode != 0:
+            raise SystemExit(f"case {suite} N={count} {precision} failed:\n{done.stderr[-3000:]}")
+        case = json.loads(done.stdout.strip().splitlines()[-1])
+        stages = case["stages"]
+        if max(case["width"], case["height"]) >= 512:
+            worst_512 = max(worst_512, case["peak_rss_gib"])
+        print(f"{suite:>8} {case['width']:>4}×{case['height']:<4} {case['images']:>6} {case['gaussians']:>7} "
+              f"{precision:>4} {case['step_seconds']:>6.2f}s {stages['raster']:>6.2f}s {stages['shadow']:>6.2f}s "
+              f"{stages['mlp']:>6.2f}s {stages['optim']:>6.2f}s {stages['rest']:>6.2f}s "
+              f"{case['step_seconds'] / stages['raster']:>9.1f} {case['peak_rss_gib']:>8.2f} "
+              f"{case['peak_rss_gib'] / case['image_gib']:>7.2f} "
+              f"{format_duration(case['step_seconds'] * get_suite(suite).iterations):>10} "
+              f"{case['light_pass']:>10}", flush=True)
     print(f"SUMMARY bench_scale peak_rss_512_max_gib={worst_512:.2f} (target<=8) threads={args.threads} "
           f"counts={','.join(map(str, args.counts))} stack={'filled' if args.fill_stack else 'rendered'}")
 

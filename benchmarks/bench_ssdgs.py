@@ -28,6 +28,11 @@ Stages:
   ``mlp`` on the Gaussians it shades (those whose largest blending weight in the view exceeds ε), and ``cull``,
   the contribution pass alone (`olatbench.gaussians.contribution.max_weights`).
 
+* bf16 networks (``network_precision="bf16"``, unless ``--no-bf16``): ``step``, ``mlp`` and ``matmul`` again with
+  the networks (and the bare chain) under bf16 autocast; the line ``bf16 networks`` gives the step speed-up
+  ``step / bf16 step`` as ``N.NNx`` (target ≥ 2 where AMX is present), the networks' speed-up, and their efficiency
+  against this machine's bf16 matmul rate (``matmul@bf16 / mlp@bf16``, with both rates in GFLOP/s).
+
 Ratios: ``mlp_efficiency = matmul / mlp`` (target ≥ 0.7) and ``rest_vs_raster = rest / raster``
 (target ≤ 1.5). ``floor = (raster + shadow) / raster`` is what the camera pass and the light-view pass alone
 cost in those units: the light-view pass is a forward rasterization at the view's size, so no step that
@@ -197,6 +202,40 @@ def matmul_chain(method: SSDGS, k: int) -> Callable[[], None]:
     return run
 
 
+def chain_flops(method: SSDGS, k: int) -> float:
+    """Floating-point operations of `matmul_chain` on ``k`` rows: forward and the two backward matmuls per layer."""
+    layers = [m for m in method.shader.sss_net.network if isinstance(m, torch.nn.Linear)]
+    layers += list(method.shader.shadow_net.layers)
+    return 3 * sum(2.0 * k * layer.in_features * layer.out_features for layer in layers)
+
+
+def in_bf16(stage: Callable[[], None]) -> Callable[[], None]:
+    """``stage`` under bf16 autocast (for the bare matmul chain)."""
+
+    def run() -> None:
+        with torch.autocast("cpu", dtype=torch.bfloat16):
+            stage()
+
+    return run
+
+
+def with_precision(method: SSDGS, precision: str, stage: Callable[[], None]) -> Callable[[], None]:
+    """``stage`` with both networks at ``precision`` (``network_precision``) for the duration of each call."""
+    networks = method.shader.sss_net, method.shader.shadow_net
+
+    def run() -> None:
+        plain = [network.precision for network in networks]
+        for network in networks:
+            network.precision = precision
+        try:
+            stage()
+        finally:
+            for network, value in zip(networks, plain, strict=True):
+                network.precision = value
+
+    return run
+
+
 def culled(method: SSDGS, epsilon: float, stage: Callable[[], None]) -> Callable[[], None]:
     """``stage`` with contribution culling on at ``epsilon`` for the duration of each call."""
     config = dataclasses.replace(method.config, cull_shading=True, cull_epsilon=epsilon)
@@ -302,6 +341,7 @@ def main() -> None:
     parser.add_argument("--no-shadow", action="store_true", help="composition without the shadow term")
     parser.add_argument("--light-view-scale", type=float, default=1.0,
                         help="light-view pass size relative to the view (default 1: the view's size, as the paper)")
+    parser.add_argument("--no-bf16", action="store_true", help="skip the bf16-network stages")
     parser.add_argument("--cull-epsilons", type=float, nargs="*", default=[0.0, SSDGSConfig().cull_epsilon],
                         metavar="EPS", help="contribution-culling thresholds to measure as well (default: 0, exact, "
                                             "and the config's default); none to skip")
@@ -310,6 +350,7 @@ def main() -> None:
     torch.set_flush_denormal(True)
     efficiencies, rest_ratios, floors = [], [], []
     speedups: dict[str, list[float]] = {}  # per "state@ε": step / culled step of every size and count
+    bf16_speedups: list[float] = []  # step / bf16 step of every case
     print(f"{'state':>14} {'size':>5} {'N':>6} {'visible':>7} {'step':>8} {'rest':>8} {'mlp':>8} {'matmul':>8} "
           f"{'raster':>8} {'shadow':>8} {'optim':>8} {'mlp_eff':>8} {'rest/rast':>9} {'floor':>6}")
     def cases():
@@ -337,6 +378,10 @@ def main() -> None:
         for eps, subset in shaded.items():
             stages[f"step@{eps:g}"] = culled(method, eps, lambda m=method, k=at_step: m.train_step(k))
             stages[f"mlp@{eps:g}"] = mlp_stage(method, subset)
+        if not args.no_bf16:
+            stages["step@bf16"] = with_precision(method, "bf16", stages["step"])
+            stages["mlp@bf16"] = with_precision(method, "bf16", stages["mlp"])
+            stages["matmul@bf16"] = in_bf16(matmul_chain(method, int(visible.numel())))
         times = timed({name: starting_clean(method, fn) for name, fn in stages.items()}, args.repeats)
         step, rest_time, mlp, matmul, raster, optim = (times[k] for k in ("step", "rest", "mlp", "matmul", "raster",
                                                                           "optim"))
@@ -349,6 +394,14 @@ def main() -> None:
               f"{rest_time * 1e3:>7.1f}m {mlp * 1e3:>7.1f}m {matmul * 1e3:>7.1f}m {raster * 1e3:>7.1f}m "
               f"{shadow * 1e3:>7.1f}m {optim * 1e3:>7.1f}m "
               f"{efficiency:>8.2f} {rest:>9.2f} {floors[-1]:>6.2f}")
+        if not args.no_bf16:
+            flops = chain_flops(method, int(visible.numel()))
+            step_b, mlp_b, matmul_b = times["step@bf16"], times["mlp@bf16"], times["matmul@bf16"]
+            bf16_speedups.append(step / step_b)
+            print(f"{'':>14} bf16 networks: step {step_b * 1e3:7.1f}m  speed-up {step / step_b:4.2f}x  "
+                  f"networks {mlp_b * 1e3:.1f}m (x{mlp / mlp_b:.2f})  efficiency vs the bf16 matmul rate "
+                  f"{matmul_b / mlp_b:.2f} (matmul: bf16 {flops / matmul_b / 1e9:.1f}, fp32 "
+                  f"{flops / matmul / 1e9:.1f} GFLOP/s)")
         for eps, subset in shaded.items():
             step_c, mlp_c = times[f"step@{eps:g}"], times[f"mlp@{eps:g}"]
             speedups.setdefault(f"{state}@{eps:g}", []).append(step / step_c)
@@ -359,6 +412,11 @@ def main() -> None:
           f"rest_vs_raster_max={max(rest_ratios):.2f} (target<=1.5; floor {max(floors):.2f}) "
           f"shadow={'off' if args.no_shadow else 'on'} light_view_scale={args.light_view_scale:g} "
           f"threads={args.threads}")
+    if bf16_speedups:
+        from olatbench.methods.shading.precision import fast_bf16_cpu_flag
+
+        print(f"SUMMARY bench_ssdgs bf16 step speed-up min {min(bf16_speedups):.2f}x max {max(bf16_speedups):.2f}x "
+              f"(target>=2 with AMX; this CPU's bf16 instruction: {fast_bf16_cpu_flag() or 'none (emulated)'})")
     if speedups:
         ratios = " ".join(f"{key}={min(values):.2f}" for key, values in speedups.items())
         print(f"SUMMARY bench_ssdgs culling speed-up (step / culled step, min over sizes and counts): {ratios} "

@@ -16,7 +16,7 @@ def test_doctor_lists_every_capability():
     result = CliRunner().invoke(main, ["doctor"])
     assert result.exit_code == 0, result.output
     for name in ("torch", "CUDA", "C++ rasterizer", "C++ SSIM loss", "C++ SSD-GS shading", "gsplat", "Stage backends",
-                 "Mitsuba", "LPIPS weights", "EXR",
+                 "bf16 networks", "Mitsuba", "LPIPS weights", "EXR",
                  "Slurm", "MP4"):
         assert name in result.output
 
@@ -99,3 +99,18 @@ def test_stage_backends_follow_the_environment(monkeypatch):
     _, ok, detail, _ = doctor_module._stage_backends()
     assert ok and detail == ("cpu: rasterizer=torch, projection=torch, binning=torch, light_pass=torch, ssim=torch, "
                              "shading=torch")
+
+
+@pytest.mark.parametrize(("flags", "expected"), [
+    (["avx2", "avx512f", "avx512_bf16"], "ok  bf16 networks                    cpu: fast (AVX512-BF16, no AMX)"),
+    (["avx512_bf16", "amx_tile"], "ok  bf16 networks                    cpu: fast (AMX)"),
+    (["avx2"], "NO  bf16 networks                    cpu: not fast (this CPU has neither AMX"),
+])
+def test_doctor_says_whether_bf16_is_fast(monkeypatch, flags, expected):
+    from olatbench.methods.shading import precision
+
+    monkeypatch.setattr(precision, "cpu_flags", lambda: flags)
+    monkeypatch.setattr(torch.cuda, "is_available", lambda: False)
+    monkeypatch.setattr(doctor_module, "CHECKS", (doctor_module._bf16_networks,))
+    result = CliRunner().invoke(main, ["doctor"])
+    assert result.exit_code == 0 and expected in result.output, result.output

@@ -54,8 +54,23 @@ def test_ssdgs_runs_end_to_end_at_a_few_iterations(data, tmp_path):
     # The C++ kernels build here, so every stage runs them; the log says so after set-up.
     stages = ("rasterizer", "projection", "binning", "light_pass", "ssim", "shading")
     assert results["resources"]["device"] == "cpu"
-    assert results["resources"]["backends"] == dict.fromkeys(stages, "cpu")
+    assert results["resources"]["backends"] == {**dict.fromkeys(stages, "cpu"), "network_precision": "fp32"}
     assert "device cpu; backends: rasterizer=cpu, projection=cpu" in (Path(job.folder) / "log.txt").read_text()
+
+
+def test_bf16_networks_are_recorded_in_results(data, tmp_path, monkeypatch):
+    """``network_precision`` is in the recorded config and among the backends of results.json."""
+    from olatbench.methods.shading import precision
+
+    monkeypatch.setattr(precision, "cpu_flags", lambda: ["avx512_bf16"])  # allowed on any CPU for this test
+    job = smaller(plan(data, tmp_path / "runs", iterations=4)[0], num_init_gaussians=200, shadow_resolution=24,
+                  network_precision="bf16")
+    outcome = run_job(job, progress=False)
+    assert outcome.status == "done", (Path(job.folder) / "error.txt").read_text()
+    results = read_results(Path(job.folder) / "results.json")
+    assert results["job"]["config"]["network_precision"] == "bf16"
+    assert results["resources"]["backends"]["network_precision"] == "bf16"
+    assert "network_precision=bf16" in (Path(job.folder) / "log.txt").read_text()
 
 
 def test_test_time_refinement_is_run_and_recorded(data, tmp_path):

@@ -87,10 +87,16 @@ def _occluder_scene():
     ])  # fmt: skip
 
 
+BACKENDS = ["torch", pytest.param("cpu", marks=pytest.mark.skipif(not cpu_backend_status()[0],
+                                                                  reason="C++ backend unavailable"))]
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
 @pytest.mark.parametrize("mode", ["uniform", "density"])
-def test_occluder_receiver_matches_brute_force_rays(mode):
+def test_occluder_receiver_matches_brute_force_rays(mode, backend):
     scene = _occluder_scene()
-    result = shadow_gather(*scene, LIGHT, TARGET, resolution=128, backend="torch", mode=mode, scene_radius=1.5)
+    result = shadow_gather(*scene, LIGHT, TARGET, resolution=128, backend=backend, mode=mode, scene_radius=1.5)
+    assert result.backend == backend
     w2c, K, _, _ = light_camera(LIGHT, TARGET, scene_radius=1.5, resolution=128)
     expected = _brute_force_visibility(*scene, LIGHT, w2c, K, g=1, mode=mode)
     assert 0.35 < expected < 0.75  # genuinely shadowed, by roughly 1 - α_occluder
@@ -205,12 +211,12 @@ def test_torch_reference_equals_cpp_kernel():
     assert torch.equal(ref.seen, cpp.seen) and bool(ref.seen.any()) and 0.05 < float(ref.visibility.mean()) < 0.95
     torch.testing.assert_close(ref.visibility, cpp.visibility, atol=2e-5, rtol=0)
     torch.testing.assert_close(ref.weight, cpp.weight, atol=1e-3, rtol=1e-4)
-    # the official options (density mode) are torch-only: auto falls back, an explicit cpu request is refused;
-    # a depth offset alone stays on the C++ kernel
-    assert shadow_gather(*args, resolution=32, **OFFICIAL_KERNEL).backend == "torch"
-    assert shadow_gather(*args, resolution=32, depth_offset=0.015).backend == "cpu"
+    # the official options (density mode) run on the C++ kernel too; the footprint mode is torch-only: auto
+    # falls back, an explicit cpu request is refused
+    assert shadow_gather(*args, resolution=32, **OFFICIAL_KERNEL).backend == "cpu"
+    assert shadow_gather(*args, resolution=32, mode="footprint").backend == "torch"
     with pytest.raises(ValueError, match="C\\+\\+ light pass implements"):
-        shadow_gather(*args, resolution=32, backend="cpu", **OFFICIAL_KERNEL)
+        shadow_gather(*args, resolution=32, backend="cpu", mode="footprint")
 
 
 def _layered_scene(seed: int, dtype: torch.dtype):
@@ -226,14 +232,18 @@ def _layered_scene(seed: int, dtype: torch.dtype):
 
 
 @pytest.mark.skipif(not cpu_backend_status()[0], reason="C++ backend unavailable")
+@pytest.mark.parametrize("mode", ["uniform", "density"])
 @pytest.mark.parametrize("dtype", [torch.float64, torch.float32])
-def test_cpp_kernel_with_depth_offset_equals_torch_reference(dtype):
+def test_cpp_kernel_with_depth_offset_equals_torch_reference(dtype, mode):
     args = _layered_scene(3, dtype)
-    plain = shadow_gather(*args, resolution=64, backend="cpu")
+    plain = shadow_gather(*args, resolution=64, backend="cpu", mode=mode)
     atol = 1e-6 if dtype == torch.float64 else 2e-5
+    if mode == "density":  # a genuinely different average from the uniform one
+        uniform = shadow_gather(*args, resolution=64, backend="cpu")
+        assert float((plain.visibility - uniform.visibility).abs().max()) > 1e-2
     for offset in (0.0, 0.015, 0.3, 3.0):
-        cpp = shadow_gather(*args, resolution=64, depth_offset=offset)  # auto picks the C++ kernel
-        ref = shadow_gather(*args, resolution=64, backend="torch", depth_offset=offset)
+        cpp = shadow_gather(*args, resolution=64, depth_offset=offset, mode=mode)  # auto picks the C++ kernel
+        ref = shadow_gather(*args, resolution=64, backend="torch", depth_offset=offset, mode=mode)
         assert cpp.backend == "cpu" and ref.backend == "torch"
         assert torch.equal(cpp.seen, ref.seen) and int(cpp.seen.sum()) > 250
         torch.testing.assert_close(cpp.visibility, ref.visibility, atol=atol, rtol=0, msg=f"offset {offset}")
@@ -246,20 +256,24 @@ def test_cpp_kernel_with_depth_offset_equals_torch_reference(dtype):
     assert float(changed.mean()) > 0.1  # offset 3.0 removes most occluders
     # An offset below float32 resolution excludes nothing more (no equal keys here): the lagging transmittance
     # replays the main one bit for bit.
-    tiny = shadow_gather(*args, resolution=64, backend="cpu", depth_offset=1e-30)
+    tiny = shadow_gather(*args, resolution=64, backend="cpu", depth_offset=1e-30, mode=mode)
     assert torch.equal(tiny.visibility, plain.visibility)
 
 
 def _per_pixel_gather(means2d, conics, opacities, keys, bins, offset, radius=2.0):
     """Python loop over pixels: for each Gaussian g near a pixel, replay g's tile list up to g keeping only the
-    Gaussians j with float32(key_j) < float32(key_g - offset) (all of them when offset = 0)."""
+    Gaussians j with float32(key_j) < float32(key_g - offset) (all of them when offset = 0). Returns the
+    uniform sums (Σ T, pixel count) and the density-weighted ones (Σ ρ T, Σ ρ with ρ = exp(power_g))."""
     n = means2d.shape[0]
-    vis, cnt = [0.0] * n, [0] * n
+    vis, cnt, vis_rho, norm = [0.0] * n, [0] * n, [0.0] * n, [0.0] * n
     m, con, op, key = means2d.tolist(), conics.tolist(), opacities.tolist(), keys.tolist()
 
-    def alpha_at(j, x, y):
+    def power_at(j, x, y):
         dx, dy = m[j][0] - x - 0.5, m[j][1] - y - 0.5
-        power = -0.5 * (con[j][0] * dx * dx + con[j][2] * dy * dy) - con[j][1] * dx * dy
+        return -0.5 * (con[j][0] * dx * dx + con[j][2] * dy * dy) - con[j][1] * dx * dy
+
+    def alpha_at(j, x, y):
+        power = power_at(j, x, y)
         alpha = 0.0 if power > 0 else min(0.99, op[j] * math.exp(power))
         return alpha if alpha >= 1 / 255 else 0.0
 
@@ -283,7 +297,11 @@ def _per_pixel_gather(means2d, conics, opacities, keys, bins, offset, radius=2.0
                         T *= 1 - alpha
                     vis[g] += T
                     cnt[g] += 1
-    return torch.tensor(vis, dtype=torch.float64), torch.tensor(cnt, dtype=torch.int32)
+                    rho = math.exp(power_at(g, x, y))
+                    vis_rho[g] += rho * T
+                    norm[g] += rho
+    return (torch.tensor(vis, dtype=torch.float64), torch.tensor(cnt, dtype=torch.int32),
+            torch.tensor(vis_rho, dtype=torch.float64), torch.tensor(norm, dtype=torch.float64))
 
 
 def _non_monotone_stack_keys(offset: float) -> list[float]:
@@ -328,9 +346,17 @@ def test_cpp_depth_offset_matches_per_pixel_loop(offset):
     got = shadow_gather_cpu(means2d, conics, opacities, bins, sort_keys=keys, depth_offset=offset, threads=2)
     serial = shadow_gather_cpu(means2d, conics, opacities, bins, sort_keys=keys, depth_offset=offset, threads=1)
     assert torch.equal(got.vis_sum, serial.vis_sum)  # deterministic across thread counts
-    vis, cnt = _per_pixel_gather(means2d, conics, opacities, keys, bins, offset)
+    vis, cnt, vis_rho, norm = _per_pixel_gather(means2d, conics, opacities, keys, bins, offset)
     assert torch.equal(got.count, cnt) and int((cnt > 0).sum()) == n + 10
     torch.testing.assert_close(got.vis_sum, vis, rtol=1e-10, atol=1e-12)
+    assert torch.equal(got.norm, cnt.double())
+    density = shadow_gather_cpu(means2d, conics, opacities, bins, sort_keys=keys, depth_offset=offset, threads=2,
+                                density=True)
+    assert torch.equal(density.count, cnt) and torch.equal(density.weight, got.weight)
+    torch.testing.assert_close(density.vis_sum, vis_rho, rtol=1e-10, atol=1e-12)
+    torch.testing.assert_close(density.norm, norm, rtol=1e-10, atol=1e-12)
+    # the density weighting genuinely differs from the plain mean (ρ < 1 off the mean)
+    assert float((density.vis_sum / density.norm - vis / cnt).abs().max()) > 1e-2
     stack = (got.vis_sum / got.count)[n:]
     if offset > 0:  # b sees only M; a sees M and L
         assert float(stack[3]) > float(stack[2]) + 0.2 and float(stack[0]) == 1.0

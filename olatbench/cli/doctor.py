@@ -95,6 +95,25 @@ def _stage_backends() -> Check:
     return "Stage backends (float32)", True, "; ".join(lines), ""
 
 
+def _bf16_networks() -> Check:
+    """Whether bf16 per-Gaussian networks (``network_precision=bf16``) are fast on the devices here."""
+    if importlib.util.find_spec("torch") is None:
+        return "bf16 networks", False, "needs torch", "pip install torch==2.13.0"
+    import torch
+
+    from olatbench.methods.shading.precision import fast_bf16_cpu_flag, precision_unsupported
+
+    flag = fast_bf16_cpu_flag()
+    lines = [f"cpu: fast ({'AMX' if flag == 'amx_tile' else 'AVX512-BF16, no AMX'})" if flag else
+             f"cpu: not fast ({precision_unsupported('bf16', 'cpu')})"]
+    if torch.cuda.is_available():
+        reason = precision_unsupported("bf16", "cuda")
+        lines.append("cuda: bf16 and fp16 supported" if reason is None else f"cuda: fp16 only ({reason})")
+    fast = flag is not None or (torch.cuda.is_available() and precision_unsupported("bf16", "cuda") is None)
+    return ("bf16 networks", fast, "; ".join(lines),
+            "" if fast else "nothing to fix: keep network_precision=fp32 (the default)")
+
+
 def _mitsuba() -> Check:
     if importlib.util.find_spec("mitsuba") is None:
         return "Mitsuba (scene generator)", False, "not installed", "pip install 'olatbench[synth]'"
@@ -147,7 +166,7 @@ def _video() -> Check:
 
 CHECKS: tuple[Callable[[], Check], ...] = (
     _torch, _cuda, *(_native_check(module, name) for module, name in NATIVE_LIBRARIES), _gsplat, _stage_backends,
-    _mitsuba, _lpips, _exr, _slurm, _video)
+    _bf16_networks, _mitsuba, _lpips, _exr, _slurm, _video)
 
 
 def run_checks() -> list[Check]:

@@ -37,10 +37,12 @@ looks at the mean of the Gaussian centres (with the viewing image size), so the 
 camera's pixel scale: pass that mean as ``target`` and :func:`camera_matched_focal` as ``focal_px``.
 
 Backends: ``"torch"`` (reference, any device) implements every option; ``"cpu"`` (the C++ kernel of
-:mod:`olatbench.gaussians.backends.cpu`) implements ``mode="uniform"`` with any ``depth_offset`` (a lagging
-second transmittance per pixel for offsets > 0; its compositing runs 4–8 pixels at a time with a polynomial exp
-within a few ulp of libm's, so it matches torch up to rounding); ``"auto"`` uses the C++ kernel for CPU tensors
-whenever the mode allows it and torch otherwise.
+:mod:`olatbench.gaussians.backends.cpu`) implements ``mode="uniform"`` and ``mode="density"`` with any
+``depth_offset`` (a lagging second transmittance per pixel for offsets > 0; its compositing runs 4–8 pixels at a
+time with a polynomial exp within a few ulp of libm's, so it matches torch up to rounding; the density weights
+and their sums are float64 like torch's); ``"auto"`` uses the C++ kernel for CPU tensors whenever the mode
+allows it and torch otherwise. The pass is forward only: SSD-GS and GS³ call it under ``torch.no_grad()``, as
+the official SSD-GS renderer calls its light rasterizer (``gaussian_renderer/__init__.py``).
 """
 
 from __future__ import annotations
@@ -59,8 +61,9 @@ from olatbench.gaussians.tiles import TileBins, bin_gaussians, float_order_key
 
 ShadowMode = Literal["uniform", "density", "footprint"]
 MODES = ("uniform", "density", "footprint")
+CPU_MODES = ("uniform", "density")  # the modes the C++ kernel implements
 OFFICIAL_DEPTH_OFFSET = 0.015  # squared-distance units (the official kernel's `offset`)
-# Options reproducing the official SSD-GS light kernel (torch backend: the C++ kernel has no "density" mode).
+# Options reproducing the official SSD-GS light kernel (both backends).
 OFFICIAL_KERNEL = {"mode": "density", "depth_offset": OFFICIAL_DEPTH_OFFSET}
 MAX_FOV_DEGREES = 120.0
 # Compositing constants of the rasterizer (kept identical to gaussians/csrc/rasterize.cpp).
@@ -195,8 +198,8 @@ def shadow_gather(
         from olatbench.gaussians.backends.cpu import shadow_gather_cpu
 
         sums = shadow_gather_cpu(projected.means2d, projected.conics, opacities, bins, radius_px=radius_px,
-                                 sort_keys=keys, depth_offset=depth_offset)  # fmt: skip
-        vis_sum, norm, weight = sums.vis_sum, sums.count.to(dtype), sums.weight
+                                 sort_keys=keys, depth_offset=depth_offset, density=mode == "density")  # fmt: skip
+        vis_sum, norm, weight = sums.vis_sum, sums.norm, sums.weight
         vis_sum, norm, weight = (t.to(means.device) for t in (vis_sum, norm, weight))
     else:
         vis_sum, norm, weight = _gather_torch(
@@ -211,9 +214,10 @@ def _choose_backend(backend: str, device: torch.device, dtype: torch.dtype, mode
     from olatbench.gaussians.backends import resolve_kernel_backend
 
     def cpu_inputs() -> Unavailable | None:
-        if mode == "uniform":
+        if mode in CPU_MODES:
             return None
-        return Unavailable(f"the C++ light pass implements mode='uniform' only, got mode={mode!r}")
+        return Unavailable(f"the C++ light pass implements mode={' and '.join(map(repr, CPU_MODES))} only, "
+                           f"got mode={mode!r}")
 
     return resolve_kernel_backend(backend, device, dtype, "light-pass", cpu_inputs)
 

@@ -26,6 +26,7 @@ import torch
 from olatbench.gaussians.optim import make_adam
 from olatbench.methods.backends import stage_backends
 from olatbench.methods.base import Method, Views
+from olatbench.methods.shading.precision import check_precision, loss_scaler_for
 from olatbench.methods.training import (
     TrainingViews,
     initial_model,
@@ -103,6 +104,8 @@ class GaussianMethod(Method):
         if len(train) == 0:
             raise ValueError(f"{self.label}: no training views")
         self.device = torch.device(device)
+        check_precision(self.network_precision, self.device, self.label)
+        self.loss_scaler = loss_scaler_for(self.network_precision)
         self.prepare(train)
         torch.manual_seed(seed)
         self.train_views = TrainingViews(train, self.device, seed)  # tensors, scene extent, epoch-wise view order
@@ -115,6 +118,11 @@ class GaussianMethod(Method):
 
     def prepare(self, train: Views) -> None:
         """Checks and derived settings before anything random happens (default: none)."""
+
+    @property
+    def network_precision(self) -> str:
+        """The per-Gaussian networks' precision (``network_precision`` of the config; "fp32" without one)."""
+        return getattr(self.config, "network_precision", "fp32")
 
     @abstractmethod
     def initial_attributes(self, n: int) -> dict[str, torch.Tensor]:
@@ -176,7 +184,7 @@ class GaussianMethod(Method):
             target = views.image(index)
             image, loss, l1 = self.loss(out["image"], target)
             out["projected"].means2d.retain_grad()
-            loss.backward()
+            (loss if self.loss_scaler is None else self.loss_scaler.scaled(loss)).backward()
         finally:
             for p in frozen:
                 p.requires_grad_(True)
@@ -204,6 +212,12 @@ class GaussianMethod(Method):
                 group["lr"] = rates[group["name"]]
         result = self.compute_gradients(step)
         projected, light_weight = result.pop("projected"), result.pop("light_weight")
+        if self.loss_scaler is not None and not self._unscale_gradients(projected.means2d.grad):
+            for optimizer in self.optimizers:  # an overflow: skip the whole update (as GradScaler skips .step)
+                optimizer.zero_grad(set_to_none=True)
+            self.step = step + 1
+            result.update(num_gaussians=float(self.model.num_gaussians), skipped=1.0)
+            return result
 
         def density_control() -> dict[str, int | bool]:
             return self.densifier.observe_and_step(self.model, self.gaussian_optimizer, projected, step,
@@ -222,13 +236,25 @@ class GaussianMethod(Method):
         result.update(self.step_summary(step))
         return result
 
+    def _unscale_gradients(self, means2d_grad: torch.Tensor | None) -> bool:
+        """Undo fp16 loss scaling on every gradient the step uses (the optimisers' and the 2D-mean gradient that
+        density control reads) and adjust the scale; True when they are all finite."""
+        params = [p for optimizer in self.optimizers for group in optimizer.param_groups for p in group["params"]]
+        finite = self.loss_scaler.unscale([*(p.grad for p in params), means2d_grad])
+        self.loss_scaler.update(finite)
+        return finite
+
     @property
     def num_gaussians(self) -> int | None:
         return self.model.num_gaussians if hasattr(self, "model") else None
 
     def backends(self) -> dict[str, str]:
-        """The shared stages' backends on the method's device (float32, as the methods train)."""
-        return stage_backends(self.device)
+        """The shared stages' backends on the method's device (float32, as the methods train), and the precision
+        of the per-Gaussian networks (``network_precision``) for the methods that have them."""
+        stages = stage_backends(self.device)
+        if hasattr(self.config, "network_precision"):
+            stages["network_precision"] = self.config.network_precision
+        return stages
 
     # ------------------------------------------------------------------------------------- checkpoints
     def module_state(self) -> dict[str, Any]:
@@ -246,6 +272,8 @@ class GaussianMethod(Method):
             state["global_optimizer"] = self.global_optimizer.state_dict()
         state.update({"densifier": self.densifier.state_dict(), "views": self.train_views.state_dict(),
                       "torch_rng": torch.get_rng_state()})
+        if self.loss_scaler is not None:
+            state["loss_scaler"] = self.loss_scaler.state_dict()
         return state
 
     def check_state(self, state: Any) -> None:
@@ -271,4 +299,6 @@ class GaussianMethod(Method):
         self.densifier.load_state_dict(state["densifier"])
         self.train_views.load_state_dict(state["views"])
         torch.set_rng_state(state["torch_rng"])
+        if self.loss_scaler is not None:
+            self.loss_scaler.load_state_dict(state["loss_scaler"])
         self.step = int(state["step"])

@@ -36,10 +36,10 @@ def _symbols(suffix: str, real: type) -> dict[str, Signature]:
             None, (_P, _P, _P, _P, _INT, _P, _P, *_GRID, _INT, _P, _P, _P, _P, _I64, _P, _P, _P, _P)),
         # means2d, conics, opacities, offsets, ids, grid, threads, N -> largest blending weight per Gaussian
         f"olatbench_max_weight_{suffix}": Signature(None, (_P, _P, _P, _P, _P, *_GRID, _INT, _I64, _P)),
-        # means2d, conics, opacities, keys, depth_offset, offsets, ids, grid, radius_px, threads, N
-        # -> vis_sum, count, weight
+        # means2d, conics, opacities, keys, depth_offset, density, offsets, ids, grid, radius_px, threads, N
+        # -> vis_sum, count, norm, weight
         f"olatbench_shadow_gather_{suffix}": Signature(
-            None, (_P, _P, _P, _P, ctypes.c_double, _P, _P, *_GRID, real, _INT, _I64, _P, _P, _P)),
+            None, (_P, _P, _P, _P, ctypes.c_double, _INT, _P, _P, *_GRID, real, _INT, _I64, _P, _P, _P, _P)),
         # means2d, radii, N, grid -> ranges, offsets; returns the number of (tile, Gaussian) pairs
         f"olatbench_bin_count_{suffix}": Signature(_I64, (_P, _P, _I64, *_GRID, _P, _P)),
         # ranges, keys, N, grid, offsets -> ids
@@ -249,11 +249,13 @@ def bin_gaussians_cpu(
 
 @dataclass
 class ShadowGather:
-    """Per-Gaussian light-view sums: ``vis_sum`` (N,) Σ transmittance in front of the Gaussian over the
-    pixels within ``radius_px`` of its 2D mean, ``count`` (N,) int32 number of those pixels, ``weight`` (N,)
-    Σ over all pixels of its blending weight T·α."""
+    """Per-Gaussian light-view sums: ``vis_sum`` (N,) Σ ρ·transmittance in front of the Gaussian over the
+    pixels within ``radius_px`` of its 2D mean, ``norm`` (N,) Σ ρ over those pixels, ``count`` (N,) int32 number
+    of those pixels, ``weight`` (N,) Σ over all pixels of its blending weight T·α. ρ = 1 (``norm`` = ``count``)
+    unless ``density``, then ρ = the Gaussian's own 2D density exp(-½ dᵀ conic d)."""
 
     vis_sum: torch.Tensor
+    norm: torch.Tensor
     count: torch.Tensor
     weight: torch.Tensor
 
@@ -269,6 +271,7 @@ def shadow_gather_cpu(
     *,
     sort_keys: torch.Tensor | None = None,
     depth_offset: float = 0.0,
+    density: bool = False,
 ) -> ShadowGather:
     """Light-view visibility sums (forward only) for Gaussians binned front to back from the light.
 
@@ -277,9 +280,12 @@ def shadow_gather_cpu(
     composited front to back with the 3DGS rules (alpha = min(0.99, o·exp(power)), skip alpha < 1/255, stop
     before T < 1e-4; Gaussians behind a stopped pixel see T = 0 there). A pixel whose centre (x+0.5, y+0.5) lies
     within ``radius_px`` (Euclidean, inclusive) of a Gaussian's 2D mean adds the transmittance *in front of*
-    that Gaussian to its ``vis_sum`` and 1 to its ``count``; the mean visibility is ``vis_sum / count`` where
-    ``count > 0``. Only pixels in tiles the Gaussian is binned to are seen (always the case for
-    ``radius_px`` ≤ its radius). Results are on the CPU in the dtype of ``means2d`` (float32/float64).
+    that Gaussian to its ``vis_sum`` and 1 to its ``count`` and ``norm``; the mean visibility is
+    ``vis_sum / norm`` where ``norm > 0``. With ``density`` each such pixel is weighted by ρ, the Gaussian's own
+    2D density exp(-½ dᵀ conic d) (no opacity): ``vis_sum`` = Σ ρ·T and ``norm`` = Σ ρ, summed in float64 and
+    rounded once (the official SSD-GS light kernel's ``out_trans`` and ``non_trans``). Only pixels in tiles the
+    Gaussian is binned to are seen (always the case for ``radius_px`` ≤ its radius). Results are on the CPU in
+    the dtype of ``means2d`` (float32/float64).
 
     ``depth_offset`` > 0 (sort-key units; needs ``sort_keys`` (N,), the keys ``bins`` was sorted by) narrows
     "in front of g" to the Gaussians j of the tile list with ``key_j < key_g - depth_offset``, both sides rounded
@@ -300,15 +306,14 @@ def shadow_gather_cpu(
             raise ValueError(f"depth_offset > 0 needs sort_keys of shape ({n},) (the binning keys), got {got}")
         (keys,) = _prepare([sort_keys], dtype)
     offsets, ids = (t.to(device="cpu", dtype=torch.int64).contiguous() for t in (bins.offsets, bins.gaussian_ids))
-    vis_sum = torch.empty(n, dtype=dtype)
+    vis_sum, norm, weight = (torch.empty(n, dtype=dtype) for _ in range(3))
     count = torch.empty(n, dtype=torch.int32)
-    weight = torch.empty(n, dtype=dtype)
     LIBRARY.load()[f"olatbench_shadow_gather_{suffix}"](
-        pointer(means2d), pointer(conics), pointer(opacities), pointer(keys), depth_offset, pointer(offsets),
-        pointer(ids), *_grid(bins), radius_px, thread_count(threads), n, pointer(vis_sum), pointer(count),
-        pointer(weight),
+        pointer(means2d), pointer(conics), pointer(opacities), pointer(keys), depth_offset, int(density),
+        pointer(offsets), pointer(ids), *_grid(bins), radius_px, thread_count(threads), n, pointer(vis_sum),
+        pointer(count), pointer(norm), pointer(weight),
     )  # fmt: skip
-    return ShadowGather(vis_sum=vis_sum, count=count, weight=weight)
+    return ShadowGather(vis_sum=vis_sum, norm=norm, count=count, weight=weight)
 
 
 __all__ = ["LIBRARY", "ShadowGather", "bin_gaussians_cpu", "max_weights_cpu", "project_cpu", "rasterize_cpu",

@@ -358,14 +358,16 @@ __attribute__((target("avx2"))) void composite_row_avx2(F* t_row, F* d_row, int 
 // Vector lanes of padding after the per-pixel rows (the widest vector: 32 bytes).
 constexpr int kRowPad = 32;
 
-// Light-view pass over all tiles, writing per (tile, Gaussian) pair sums. kLagged: see shadow_gather_impl.
-// Per Gaussian k of a tile (front to back): first its sampling disc reads the transmittance in front of it,
-// then it is composited over its box. The compositing loop is branch-free over each box row (pixels are
-// independent), so it vectorises; per-pixel state is kept as F arrays (T, and done = 0 or 1).
-template <typename F, bool kLagged>
+// Light-view pass over all tiles, writing per (tile, Gaussian) pair sums. kLagged, kDensity: see
+// shadow_gather_impl. Per Gaussian k of a tile (front to back): first its sampling disc reads the transmittance
+// in front of it, then it is composited over its box. The compositing loop is branch-free over each box row
+// (pixels are independent), so it vectorises; per-pixel state is kept as F arrays (T, and done = 0 or 1).
+// Disc sums go to pair_vis (F; uniform) or to pair_vis64 and pair_norm64 (double; kDensity).
+template <typename F, bool kLagged, bool kDensity>
 void shadow_gather_tiles(const F* means2d, const F* conics, const F* opac, const F* keys, double depth_offset,
                          const int64_t* offsets, const int64_t* ids, Grid grid, F radius_px, int threads,
-                         F* pair_vis, int32_t* pair_count, F* pair_weight) {
+                         F* pair_vis, double* pair_vis64, double* pair_norm64, int32_t* pair_count,
+                         F* pair_weight) {
   const int64_t num_tiles = grid.num_tiles();
   const int area = grid.tile * grid.tile;
   const F r2 = radius_px * radius_px;
@@ -435,12 +437,40 @@ void shadow_gather_tiles(const F* means2d, const F* conics, const F* opac, const
             }
           }
         }
-        pair_vis[start + k] = F(0);
+        if constexpr (kDensity) {
+          pair_vis64[start + k] = 0.0;
+          pair_norm64[start + k] = 0.0;
+        } else {
+          pair_vis[start + k] = F(0);
+        }
         pair_count[start + k] = 0;
         pair_weight[start + k] = F(0);
         Box b;
         // The sampling disc: pixel centres within radius_px of the mean, reading T before k is composited.
-        if (td.box(k, double(radius_px) + kBoxSlack, b, true)) {
+        const bool disc = td.box(k, double(radius_px) + kBoxSlack, b, true);
+        if (!disc) {  // no pixel centre near the mean: nothing to sample
+        } else if constexpr (kDensity) {
+          // Weighted by k's own density rho = exp(power) (no opacity), evaluated and summed in double like the
+          // torch reference; only inside the disc (a branch: exp is the costly part).
+          double vis = 0.0, norm = 0.0;
+          int32_t cnt = 0;
+          for (int ly = b.y0; ly < b.y1; ++ly) {
+            const F* t_row = T_front + ly * sx;
+            const F* d_row = done_front + ly * sx;
+            for (int lx = b.x0; lx < b.x1; ++lx) {
+              F dx, dy;
+              const F pw = td.power(k, lx, ly, dx, dy);
+              if (!(dx * dx + dy * dy <= r2)) continue;
+              const double rho = std::exp(double(pw));
+              norm += rho;
+              vis += d_row[lx] == F(0) ? rho * double(t_row[lx]) : 0.0;  // + 0 past a stop
+              ++cnt;
+            }
+          }
+          pair_vis64[start + k] = vis;
+          pair_norm64[start + k] = norm;
+          pair_count[start + k] = cnt;
+        } else {
           F vis = F(0);
           int32_t cnt = 0;
           for (int ly = b.y0; ly < b.y1; ++ly) {  // branch-free: which pixels fall inside varies unpredictably
@@ -492,28 +522,62 @@ void shadow_gather_tiles(const F* means2d, const F* conics, const F* opac, const
 // Gaussians with equal float32 keys (the list is sorted by float32 key, the threshold computed from the full
 // key); when the prefix shrinks, T_lag is replayed from the tile start (exact, and rare).
 // depth_offset == 0 runs the plain loop without any of this (keys may be null).
+// density == 0: every disc pixel counts 1 (norm[g] = count[g]); the sums are in F. density != 0: each disc pixel
+// is weighted by g's density rho = exp(-1/2 d^T conic d) (no opacity): vis_sum[g] = sum rho T, norm[g] = sum rho,
+// summed in double and rounded to F at the end (the official kernel's out_trans and non_trans).
+template <typename F, bool kLagged>
+void shadow_gather_dispatch(bool density, const F* means2d, const F* conics, const F* opac, const F* keys,
+                            double depth_offset, const int64_t* offsets, const int64_t* ids, Grid grid, F radius_px,
+                            int threads, F* pair_vis, double* pair_vis64, double* pair_norm64, int32_t* pair_count,
+                            F* pair_weight) {
+  if (density) {
+    shadow_gather_tiles<F, kLagged, true>(means2d, conics, opac, keys, depth_offset, offsets, ids, grid, radius_px,
+                                          threads, pair_vis, pair_vis64, pair_norm64, pair_count, pair_weight);
+  } else {
+    shadow_gather_tiles<F, kLagged, false>(means2d, conics, opac, keys, depth_offset, offsets, ids, grid,
+                                           radius_px, threads, pair_vis, pair_vis64, pair_norm64, pair_count,
+                                           pair_weight);
+  }
+}
+
 template <typename F>
 void shadow_gather_impl(const F* means2d, const F* conics, const F* opac, const F* keys, double depth_offset,
-                        const int64_t* offsets, const int64_t* ids, Grid grid, F radius_px, int threads,
-                        int64_t num_gaussians, F* vis_sum, int32_t* count, F* weight) {
+                        int density, const int64_t* offsets, const int64_t* ids, Grid grid, F radius_px,
+                        int threads, int64_t num_gaussians, F* vis_sum, int32_t* count, F* norm, F* weight) {
   const int64_t num_pairs = offsets[grid.num_tiles()];
-  std::vector<F> pair_vis(num_pairs, F(0)), pair_weight(num_pairs, F(0));
+  std::vector<F> pair_vis(density ? 0 : num_pairs, F(0)), pair_weight(num_pairs, F(0));
+  std::vector<double> pair_vis64(density ? num_pairs : 0, 0.0), pair_norm64(density ? num_pairs : 0, 0.0);
   std::vector<int32_t> pair_count(num_pairs, 0);
   if (depth_offset > 0.0) {
-    shadow_gather_tiles<F, true>(means2d, conics, opac, keys, depth_offset, offsets, ids, grid, radius_px, threads,
-                                 pair_vis.data(), pair_count.data(), pair_weight.data());
+    shadow_gather_dispatch<F, true>(density != 0, means2d, conics, opac, keys, depth_offset, offsets, ids, grid,
+                                    radius_px, threads, pair_vis.data(), pair_vis64.data(), pair_norm64.data(),
+                                    pair_count.data(), pair_weight.data());
   } else {
-    shadow_gather_tiles<F, false>(means2d, conics, opac, keys, depth_offset, offsets, ids, grid, radius_px,
-                                  threads, pair_vis.data(), pair_count.data(), pair_weight.data());
+    shadow_gather_dispatch<F, false>(density != 0, means2d, conics, opac, keys, depth_offset, offsets, ids, grid,
+                                     radius_px, threads, pair_vis.data(), pair_vis64.data(), pair_norm64.data(),
+                                     pair_count.data(), pair_weight.data());
   }
   std::fill(vis_sum, vis_sum + num_gaussians, F(0));
   std::fill(count, count + num_gaussians, 0);
   std::fill(weight, weight + num_gaussians, F(0));
   for (int64_t m = 0; m < num_pairs; ++m) {
     const int64_t gid = ids[m];
-    vis_sum[gid] += pair_vis[m];
+    if (!density) vis_sum[gid] += pair_vis[m];
     count[gid] += pair_count[m];
     weight[gid] += pair_weight[m];
+  }
+  if (density) {
+    std::vector<double> vis64(num_gaussians, 0.0), norm64(num_gaussians, 0.0);
+    for (int64_t m = 0; m < num_pairs; ++m) {
+      vis64[ids[m]] += pair_vis64[m];
+      norm64[ids[m]] += pair_norm64[m];
+    }
+    for (int64_t g = 0; g < num_gaussians; ++g) {
+      vis_sum[g] = F(vis64[g]);
+      norm[g] = F(norm64[g]);
+    }
+  } else {
+    for (int64_t g = 0; g < num_gaussians; ++g) norm[g] = F(count[g]);
   }
 }
 
@@ -828,13 +892,13 @@ void project_backward_impl(const F* means, const F* quats, const F* scales, cons
                        threads, num_gaussians, max_weight);                                                 \
   }                                                                                                         \
   OLATBENCH_EXPORT void olatbench_shadow_gather_##SUFFIX(                                                   \
-      const F* means2d, const F* conics, const F* opac, const F* keys, double depth_offset,                 \
+      const F* means2d, const F* conics, const F* opac, const F* keys, double depth_offset, int density,    \
       const int64_t* offsets, const int64_t* ids, int width, int height, int tile, int tiles_x,             \
-      int tiles_y, F radius_px, int threads, int64_t num_gaussians, F* vis_sum, int32_t* count,             \
+      int tiles_y, F radius_px, int threads, int64_t num_gaussians, F* vis_sum, int32_t* count, F* norm,    \
       F* weight) {                                                                                          \
-    shadow_gather_impl<F>(means2d, conics, opac, keys, depth_offset, offsets, ids,                          \
+    shadow_gather_impl<F>(means2d, conics, opac, keys, depth_offset, density, offsets, ids,                 \
                           Grid{width, height, tile, tiles_x, tiles_y}, radius_px, threads, num_gaussians,   \
-                          vis_sum, count, weight);                                                          \
+                          vis_sum, count, norm, weight);                                                    \
   }                                                                                                         \
   OLATBENCH_EXPORT int64_t olatbench_bin_count_##SUFFIX(                                                   \
       const F* means2d, const int64_t* radii, int64_t n, int width, int height, int tile, int tiles_x,       \

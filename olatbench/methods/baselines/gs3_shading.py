@@ -26,6 +26,7 @@ from olatbench.gaussians.projection import quat_to_rotmat
 from olatbench.methods.shading.asg import ASGMixture
 from olatbench.methods.shading.encoding import frequency_encoding, frequency_encoding_dim
 from olatbench.methods.shading.mlp import mlp
+from olatbench.methods.shading.precision import run_network
 from olatbench.methods.shading.shadow_mlp import ShadowNetwork
 from olatbench.methods.shading.terms import inverse_square_irradiance, lambert_cosine, safe_normalize, schlick_fresnel
 
@@ -33,16 +34,18 @@ from olatbench.methods.shading.terms import inverse_square_irradiance, lambert_c
 class OtherEffectsNetwork(nn.Module):
     """Θ_other: ``forward(wo (K,3), positions (K,3), material (K,M)) -> (K, 3)`` in [0, 2]."""
 
-    def __init__(self, material_dim: int = 6, hidden: int = 128, num_hidden: int = 3, num_freqs: int = 4) -> None:
+    def __init__(self, material_dim: int = 6, hidden: int = 128, num_hidden: int = 3, num_freqs: int = 4,
+                 precision: str = "fp32") -> None:
         super().__init__()
         self.num_freqs = num_freqs
+        self.precision = precision  # of the MLP (methods.shading.precision); inputs and output are float32
         in_dim = 2 * frequency_encoding_dim(3, num_freqs) + material_dim
         self.network = mlp(in_dim, hidden, 3, num_hidden + 1)
 
     def forward(self, wo: torch.Tensor, positions: torch.Tensor, material: torch.Tensor) -> torch.Tensor:
         x = torch.cat([frequency_encoding(wo, self.num_freqs), frequency_encoding(positions, self.num_freqs),
                        material], dim=-1)
-        return 2.0 * torch.sigmoid(self.network(x))
+        return 2.0 * torch.sigmoid(run_network(self.network, x, self.precision))
 
 
 @dataclass
@@ -66,12 +69,13 @@ class GS3Shader(nn.Module):
     """The global learnable parts of GS³ (ASG lobes, shadow and other-effects networks) and its shading."""
 
     def __init__(self, num_asg: int = 8, material_dim: int = 6, shadow_hidden: int = 32, shadow_layers: int = 3,
-                 other_hidden: int = 128, other_layers: int = 3, num_freqs: int = 4, fresnel_f0: float = 0.04) -> None:
+                 other_hidden: int = 128, other_layers: int = 3, num_freqs: int = 4, fresnel_f0: float = 0.04,
+                 precision: str = "fp32") -> None:
         super().__init__()
         self.fresnel_f0 = fresnel_f0
         self.asg = ASGMixture(num_asg, form="official")
-        self.shadow_net = ShadowNetwork(material_dim, shadow_hidden, shadow_layers, num_freqs)
-        self.other_net = OtherEffectsNetwork(material_dim, other_hidden, other_layers, num_freqs)
+        self.shadow_net = ShadowNetwork(material_dim, shadow_hidden, shadow_layers, num_freqs, precision)
+        self.other_net = OtherEffectsNetwork(material_dim, other_hidden, other_layers, num_freqs, precision)
 
     def forward(self, positions: torch.Tensor, attributes: dict[str, torch.Tensor], camera_position: torch.Tensor,
                 light_position: torch.Tensor, intensity: torch.Tensor, specular: bool,

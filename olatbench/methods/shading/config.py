@@ -8,6 +8,8 @@ from typing import ClassVar
 from olatbench.methods.gaussian_config import GaussianConfig
 from olatbench.methods.ranges import AT_LEAST_ONE, NON_NEGATIVE, RATE, UNIT, Range
 
+NETWORK_PRECISIONS = ("fp32", "bf16", "fp16")  # methods.shading.precision.PRECISIONS (this module is torch-free)
+
 
 @dataclass
 class ShadingConfig(GaussianConfig):
@@ -39,6 +41,15 @@ class ShadingConfig(GaussianConfig):
     # results do not change; ε = 1e-4 chosen by measurement (image change < 0.03/255, gradients ≤ 1.2 %).
     cull_shading: bool = False
     cull_epsilon: float = 1e-4
+    # Precision of the per-Gaussian networks' bodies (methods.shading.precision): "fp32" (default), "bf16" (CPUs
+    # with AMX or AVX512-BF16, CUDA), "fp16" (CUDA, with loss scaling); the rest of the step stays float32.
+    network_precision: str = "fp32"
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if self.network_precision not in NETWORK_PRECISIONS:
+            raise ValueError(f"{self.label} config: network_precision must be one of {NETWORK_PRECISIONS}, "
+                             f"not {self.network_precision!r}")
 
     def shading_cull_epsilon(self, evaluation: bool) -> float | None:
         """The culling threshold of a forward pass (None: no culling): ``cull_epsilon`` for the passes that take

@@ -14,14 +14,17 @@ import torch
 from torch import nn
 
 from olatbench.methods.shading.encoding import frequency_encoding, frequency_encoding_dim
+from olatbench.methods.shading.precision import run_network
 
 
 class ShadowNetwork(nn.Module):
     """``forward(positions (K,3), wi (K,3), coarse (K,1), material (K,M)) -> S (K, 1)``."""
 
-    def __init__(self, material_dim: int = 6, hidden: int = 32, num_hidden: int = 3, num_freqs: int = 3) -> None:
+    def __init__(self, material_dim: int = 6, hidden: int = 32, num_hidden: int = 3, num_freqs: int = 3,
+                 precision: str = "fp32") -> None:
         super().__init__()
         self.num_freqs = num_freqs
+        self.precision = precision  # of the layers (methods.shading.precision); inputs and output are float32
         in_dim = 2 * frequency_encoding_dim(3, num_freqs) + 1 + material_dim
         dims = [in_dim] + [hidden] * num_hidden + [1]
         self.layers = nn.ModuleList(
@@ -36,6 +39,10 @@ class ShadowNetwork(nn.Module):
                 material: torch.Tensor) -> torch.Tensor:
         x = torch.cat([frequency_encoding(wi, self.num_freqs), frequency_encoding(positions, self.num_freqs),
                        material, coarse], dim=-1)
+        return torch.relu(torch.sigmoid(run_network(self._body, x, self.precision)) - 1e-5)
+
+    def _body(self, x: torch.Tensor) -> torch.Tensor:
+        """The layers up to the output's pre-activation."""
         for layer in self.layers[:-1]:
             x = self.activation(layer(x))
-        return torch.relu(torch.sigmoid(self.layers[-1](x)) - 1e-5)
+        return self.layers[-1](x)

@@ -77,9 +77,9 @@ class Shader(nn.Module):
         self.backend = backend
         self.asg = ASGMixture(config.num_asg, config.asg_form)
         self.sss_net = SSSNetwork(config.material_dim, config.sss_hidden, config.sss_layers, config.sss_freqs,
-                                  config.dipole_eta, config.dipole_virtual_factor)
+                                  config.dipole_eta, config.dipole_virtual_factor, config.network_precision)
         self.shadow_net = ShadowNetwork(config.material_dim, config.shadow_hidden, config.shadow_layers,
-                                        config.shadow_freqs)
+                                        config.shadow_freqs, config.network_precision)
 
     def frames(self, attributes: dict[str, torch.Tensor], quats: torch.Tensor, scales: torch.Tensor,
                wo: torch.Tensor) -> torch.Tensor:

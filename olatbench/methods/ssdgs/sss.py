@@ -25,6 +25,7 @@ from torch.utils.checkpoint import checkpoint
 
 from olatbench.methods.shading.encoding import positional_encoding, positional_encoding_dim
 from olatbench.methods.shading.mlp import mlp
+from olatbench.methods.shading.precision import run_network
 
 VirtualFactor = Literal["jensen", "official"]
 
@@ -75,9 +76,10 @@ class SSSNetwork(nn.Module):
     """
 
     def __init__(self, material_dim: int = 6, hidden: int = 256, num_linear: int = 6, num_freqs: int = 4,
-                 eta: float = 1.3, virtual_factor: VirtualFactor = "jensen") -> None:
+                 eta: float = 1.3, virtual_factor: VirtualFactor = "jensen", precision: str = "fp32") -> None:
         super().__init__()
         self.num_freqs = num_freqs
+        self.precision = precision  # of the MLP (methods.shading.precision); inputs and output are float32
         self.eta = eta
         self.virtual_factor = virtual_factor
         in_dim = 3 * positional_encoding_dim(3, num_freqs) + 3 + material_dim
@@ -93,16 +95,20 @@ class SSSNetwork(nn.Module):
         """(σ_s, σ_a, r), each (K, 1), from the encoded input (chunked and checkpointed above
         `CHECKPOINT_ROWS` rows while building a graph)."""
         if torch.is_grad_enabled() and encoded.shape[0] > CHECKPOINT_ROWS:
-            out = torch.cat([checkpoint(self.network, chunk, use_reentrant=False)
+            out = torch.cat([checkpoint(self._network, chunk, use_reentrant=False)
                              for chunk in encoded.split(CHECKPOINT_ROWS)])
         else:
-            out = self.network(encoded)
+            out = self._network(encoded)
         raw = torch.sigmoid(out)
         low, high = SIGMA_RANGE
         sigma_s = low + (high - low) * raw[:, 0:1]
         sigma_a = low + (high - low) * raw[:, 1:2]
         r = RADIUS_RANGE[0] + (RADIUS_RANGE[1] - RADIUS_RANGE[0]) * raw[:, 2:3]
         return sigma_s, sigma_a, r
+
+    def _network(self, encoded: torch.Tensor) -> torch.Tensor:
+        """The MLP at ``precision`` (float32 output)."""
+        return run_network(self.network, encoded, self.precision)
 
     def forward(self, positions: torch.Tensor, wo: torch.Tensor, wi: torch.Tensor, normals: torch.Tensor,
                 material: torch.Tensor) -> torch.Tensor:
