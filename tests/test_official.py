@@ -390,7 +390,10 @@ def test_an_interrupted_job_reruns_its_commands_from_the_start(tmp_path) -> None
     data = write_data(tmp_path / "data")
     checkout = write_checkout(tmp_path / "checkout", "gs3-official")
     (checkout / "SLOW").write_text(str(BACKSTOP_SECONDS))  # sleeps until interrupted
+    # Ctrl-C's KeyboardInterrupt even when this test runs as a background job of a non-interactive shell, which
+    # starts it with SIGINT ignored (POSIX) and Python then keeps it ignored: the runner would never see the signal
     script = (f"import sys; sys.path[:0] = {[str(Path(__file__).parent)]!r}\n"
+              "import signal; signal.signal(signal.SIGINT, signal.default_int_handler)\n"
               "import test_runner_support, dataclasses\n"
               "from olatbench.datasets import suites\n"
               "from olatbench.cli import main\n"
