@@ -15,7 +15,7 @@ import test_runner_support as support
 from click.testing import CliRunner
 
 from olatbench.cli import main
-from olatbench.cli.options import resolve_device
+from olatbench.devices import resolve_device
 from olatbench.datasets import suites
 from olatbench.progress import PlainProgress, progress_bar
 
