@@ -15,8 +15,8 @@ import test_runner_support as support
 from click.testing import CliRunner
 
 from olatbench.cli import main
-from olatbench.devices import resolve_device
 from olatbench.datasets import suites
+from olatbench.devices import resolve_device
 from olatbench.progress import PlainProgress, progress_bar
 
 TORCH_VERBS = [["run"], ["render"], ["view"]]
