@@ -176,8 +176,11 @@ def test_speed_benchmark_measures_a_trained_job_folder(data, tmp_path, capsys, m
     lines = capsys.readouterr().out.strip().splitlines()
     row = lines[1].split()
     assert row[:3] == ["Alpha", "64", "150"]  # scene, view width (the tiny suite's 64 px), trained Gaussians
-    summaries = [line for line in lines if line.startswith("SUMMARY")]
-    assert summaries[0].startswith("SUMMARY bench_ssdgs mlp_efficiency_min=")
+    # by what each measures: mlp_efficiency_min=..., bf16 ..., culling ...
+    summaries = {line.split()[2].split("=")[0]: line for line in lines if line.startswith("SUMMARY")}
+    assert summaries.keys() >= {"mlp_efficiency_min", "bf16", "culling"}, summaries
+    assert "step speed-up" in summaries["bf16"]  # the bf16 networks timed beside fp32 in the same run
     # the culled variant, at eps 0 and the config's default, in the same run
-    assert summaries[1].startswith("SUMMARY bench_ssdgs culling speed-up") and "Alpha@0=" in summaries[1]
+    culling = summaries["culling"]
+    assert culling.startswith("SUMMARY bench_ssdgs culling speed-up") and "Alpha@0=" in culling
     assert sum("cull eps=" in line for line in lines) == 2

@@ -172,9 +172,11 @@ def test_densifying_steps_match_the_cpp_path(name, views, monkeypatch):
 
 
 # The modules whose code can run on CUDA tensors. The C++ wrappers (backends/cpu.py, ssdgs/shading_cpu.py,
-# metrics/ssim_cpu.py) are left out: they run only after their resolver has checked that the tensors are on the CPU.
+# metrics/ssim_cpu.py) are left out: they run only after their resolver has checked that the tensors are on the CPU;
+# so are the CPU stand-ins for the authors' CUDA modules (methods/official/cpu_standins), which exist to run on the CPU.
 DEVICE_CODE = ("olatbench/methods", "olatbench/gaussians", "olatbench/metrics/ssim.py")
 CPU_ONLY = {"olatbench/gaussians/backends/cpu.py", "olatbench/methods/ssdgs/shading_cpu.py"}
+CPU_ONLY_FOLDERS = ("olatbench/methods/official/cpu_standins/",)
 FACTORIES = {"zeros", "ones", "empty", "full", "arange", "linspace", "logspace", "eye", "tensor", "as_tensor", "rand",
              "randn", "randint", "randperm"}
 
@@ -185,7 +187,8 @@ def _device_code_files() -> list[Path]:
     for entry in DEVICE_CODE:
         path = root / entry
         files += sorted(path.rglob("*.py")) if path.is_dir() else [path]
-    return [f for f in files if f.relative_to(root).as_posix() not in CPU_ONLY]
+    return [f for f in files if f.relative_to(root).as_posix() not in CPU_ONLY
+            and not f.relative_to(root).as_posix().startswith(CPU_ONLY_FOLDERS)]
 
 
 def device_leaks(source: str) -> list[tuple[int, str]]:
@@ -226,6 +229,7 @@ def test_reported_backends_are_the_ones_that_run(torch_path, views, monkeypatch)
 
     method = make("ssdgs", views, torch_path, monkeypatch)
     reported = method.backends()
+    assert reported.pop("network_precision") == "fp32"  # the networks' precision, beside the stages' backends
     assert set(reported.values()) == {"torch" if torch_path else "cpu"}
     model, camera = method.model, views.cameras[0]
     w2c, K = (torch.as_tensor(a, dtype=torch.float32) for a in (camera.w2c(), camera.K))

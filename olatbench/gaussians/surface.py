@@ -26,15 +26,17 @@ def place_on_sphere(model: GaussianModel, centre: Sequence[float], radius: float
     (``centre`` (3,), ``radius``, world units), flat along the normal (tangent scales √(area / N), the normal one
     0.1× that), all at ``opacity``. Other attributes are left as they are."""
     n = model.num_gaussians
-    generator = torch.Generator().manual_seed(seed)
-    normals = torch.nn.functional.normalize(torch.randn(n, 3, generator=generator), dim=-1)
+    device = model.means.device
+    generator = torch.Generator().manual_seed(seed)  # on the CPU: the same points on every device
+    normals = torch.nn.functional.normalize(torch.randn(n, 3, generator=generator, device="cpu").to(device), dim=-1)
     tangent_scale = math.sqrt(4.0 * math.pi * radius**2 / n)
     # the rotation taking +z to the normal: axis z × n, angle acos(z·n), as a wxyz quaternion
-    z = torch.tensor([0.0, 0.0, 1.0])
+    z = torch.tensor([0.0, 0.0, 1.0], device=device)
     half = torch.nn.functional.normalize(normals + z, dim=-1)
     quats = torch.cat([half[:, 2:3], torch.linalg.cross(z.expand(n, 3), half)], dim=1)
     with torch.no_grad():
-        model.means.copy_(normals * radius + torch.as_tensor(centre, dtype=model.means.dtype))
+        model.means.copy_(normals * radius + torch.as_tensor(centre, dtype=model.means.dtype, device=device))
         model.quats.copy_(quats)
-        model.log_scales.copy_(torch.log(torch.tensor([tangent_scale, tangent_scale, 0.1 * tangent_scale])))
+        scales = torch.tensor([tangent_scale, tangent_scale, 0.1 * tangent_scale], device=device)
+        model.log_scales.copy_(torch.log(scales))
         model.opacity_logits.fill_(math.log(opacity / (1.0 - opacity)))

@@ -73,7 +73,8 @@ def albedo_splat_colour(raw_diffuse: torch.Tensor, colourspace: str) -> SplatCol
 
     albedo = torch.nn.functional.softplus(raw_diffuse.detach().float().cpu()).numpy()
     shown = np.clip(convert_colourspace(albedo, colourspace, "srgb"), 0.0, 1.0)
-    rest = torch.zeros(len(shown), VIEWER_SH_REST, 3)  # no view dependence, in the degree-3 layout loaders expect
+    # no view dependence, in the degree-3 layout loaders expect (on the CPU, like the albedo: a file is written)
+    rest = torch.zeros(len(shown), VIEWER_SH_REST, 3, device="cpu")
     return SplatColour(rgb_to_sh_dc(torch.from_numpy(shown)), rest, ("diffuse",),
                        f"colour: diffuse albedo softplus(diffuse), {colourspace} -> sRGB, clipped to [0, 1]")
 
