@@ -99,7 +99,7 @@ def test_calibration_times_a_trained_looking_surface_at_both_sizes_and_three_poi
 
     job = tiny_ssdgs_job(data, tmp_path / "runs")
     views = load_views(load_scene(job.scene_path, format=job.scene_format).split(job.train_split)[:4], job)
-    centre, radius = initial_ball(views, SSDGS.resolve_config(None, **job.config).init_radius)
+    centre, radius = initial_ball(views.cameras, SSDGS.resolve_config(None, **job.config).init_radius)
     calls = []
     original = SSDGS.train_step
 

@@ -172,7 +172,7 @@ def test_the_official_box_initialisation_and_its_scaling() -> None:
     fitted = make(views, None, num_init_gaussians=4_000, init_shape="box", init_radius=None)
     from olatbench.methods.initialisation import initial_ball
 
-    centre, radius = initial_ball(views, None)
+    centre, radius = initial_ball(views.cameras, None)
     offset = np.abs(fitted.model.means.detach().numpy() - centre).max(0)
     assert np.allclose(offset, radius / 2, rtol=0.02)
 

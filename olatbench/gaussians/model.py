@@ -39,6 +39,17 @@ _KNN_PAIR_BUDGET = 1 << 22
 AttributeSpec = tuple[int, ...] | torch.Tensor
 
 
+def points_in_ball(n: int, radius: float, seed: int, center: tuple[float, float, float] = (0.0, 0.0, 0.0)
+                   ) -> torch.Tensor:
+    """(n, 3) float32 CPU points uniform in the ball of ``radius`` around ``center`` (world units), drawn on the CPU
+    from ``seed``: the same points on every device and machine."""
+    generator = torch.Generator().manual_seed(seed)
+    cpu64 = dict(generator=generator, dtype=torch.float64, device="cpu")
+    direction = torch.randn(n, 3, **cpu64)
+    direction /= direction.norm(dim=1, keepdim=True).clamp_min(1e-12)
+    r = radius * torch.rand(n, 1, **cpu64) ** (1.0 / 3.0)
+    return (direction * r + torch.tensor(center, dtype=torch.float64, device="cpu")).float()
+
 class GaussianModel(nn.Module):
     """N 3D Gaussians as ``nn.Parameter`` tensors whose first dimension is N (see the module docstring)."""
 
@@ -135,12 +146,7 @@ class GaussianModel(nn.Module):
         opacity: float = 0.1,
     ) -> GaussianModel:
         """``n`` Gaussians uniform in the ball of ``radius`` around ``center`` (SSD-GS: 10K in the unit ball)."""
-        generator = torch.Generator().manual_seed(seed)  # on the CPU: the same points on every device
-        cpu64 = dict(generator=generator, dtype=torch.float64, device="cpu")
-        direction = torch.randn(n, 3, **cpu64)
-        direction /= direction.norm(dim=1, keepdim=True).clamp_min(1e-12)
-        r = radius * torch.rand(n, 1, **cpu64) ** (1.0 / 3.0)
-        points = (direction * r + torch.tensor(center, dtype=torch.float64, device="cpu")).float()
+        points = points_in_ball(n, radius, seed, center)
         return cls.from_points(points, attributes=attributes, opacity=opacity, device=device)
 
     @classmethod

@@ -2,24 +2,33 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 
-from olatbench.methods.base import Views
+from olatbench.datasets.records import Camera
+from olatbench.gaussians.model import points_in_ball
 
 
-def initial_ball(views: Views, radius: float | None) -> tuple[np.ndarray, float]:
+def initial_ball(cameras: Sequence[Camera], radius: float | None) -> tuple[np.ndarray, float]:
     """Centre (3,) and radius of the ball holding the initial random Gaussians, in world units.
 
     With ``radius`` given: the origin and that radius (1.0: the SSD-GS paper's "unit sphere"; the official code's
     box [-0.5, 0.5]³ is the cube of half-side radius / 2 around the centre, ``init_shape="box"``).
-    With ``None``: the point closest, in least squares, to all cameras' optical axes, and 0.55 × the median
+    With ``None``: the point closest, in least squares, to all ``cameras``' optical axes, and 0.55 × the median
     camera distance to it (for scenes whose object is not at the origin).
     """
     if radius is not None:
         return np.zeros(3), float(radius)
-    origins = np.stack([c.position for c in views.cameras])
-    axes = np.stack([c.c2w[:3, 2] / np.linalg.norm(c.c2w[:3, 2]) for c in views.cameras])
+    origins = np.stack([c.position for c in cameras])
+    axes = np.stack([c.c2w[:3, 2] / np.linalg.norm(c.c2w[:3, 2]) for c in cameras])
     projector = np.eye(3)[None] - axes[:, :, None] * axes[:, None, :]  # (N, 3, 3) I - d dᵀ
     centre = np.linalg.lstsq(projector.sum(0), (projector @ origins[:, :, None]).sum(0)[:, 0], rcond=None)[0]
     return centre, 0.55 * float(np.median(np.linalg.norm(origins - centre, axis=1)))
 
+
+def initial_points(cameras: Sequence[Camera], n: int, seed: int) -> np.ndarray:
+    """(n, 3) float32 world points uniform in the ball `initial_ball` fits to ``cameras``, drawn from ``seed``:
+    the centres a native method with ``init_radius=None`` (the mini presets) starts from with that seed."""
+    centre, radius = initial_ball(cameras, None)
+    return points_in_ball(n, radius, seed, tuple(centre.tolist())).numpy()

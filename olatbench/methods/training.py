@@ -152,7 +152,7 @@ def initial_model(views: Views, config: Any, attributes: dict[str, torch.Tensor]
     ``attributes`` (each (num_init_gaussians, ...)), uniform in `initial_ball` (``config.init_radius``) or, with
     ``config.init_shape == "box"``, in the cube of half-side radius / 2 around its centre (radius 1: the official
     SSD-GS code's [-0.5, 0.5]³; a fitted radius scales the cube with the scene)."""
-    centre, radius = initial_ball(views, config.init_radius)
+    centre, radius = initial_ball(views.cameras, config.init_radius)
     if config.init_shape == "box":
         return GaussianModel.random_in_box(config.num_init_gaussians, tuple((centre - radius / 2).tolist()),
                                            tuple((centre + radius / 2).tolist()), attributes=attributes, seed=seed,
