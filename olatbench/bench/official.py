@@ -58,8 +58,9 @@ def run_official_job(job: Job, folder: Path, log: JobLog, started: str) -> JobOu
     run: OfficialRun | None = None
     try:
         run = prepare(code, settings, scene, folder / OFFICIAL_DIR, job.suite, job.train_split, job.test_split,
-                      tuple(job.resolution) if job.resolution else None, config)
+                      tuple(job.resolution) if job.resolution else None, config, job.seed)
         log(f"scene written as {code.data_format(job.suite)} to {run.scene_dir}")
+        _share_threads(run)
         execute(run, log.path)
         metrics = {job.test_split: _score(job, scene.split(job.test_split), collect(run), run.colourspace,
                                           folder)}
@@ -78,6 +79,18 @@ def run_official_job(job: Job, folder: Path, log: JobLog, started: str) -> JobOu
     log(f"{job.test_split}: " + ", ".join(f"{k} {v:.4f}" for k, v in mean.items() if v is not None))
     log("done")
     return JobOutcome(job.id, job.label, str(folder), "done", mean, train_seconds, None)
+
+
+def _share_threads(run: OfficialRun) -> None:
+    """Give the official processes this job's share of the cores (``--jobs N`` splits them between workers, as
+    for native jobs, through torch's thread count in the worker) unless the user fixed ``OMP_NUM_THREADS``: torch
+    and OpenMP kernels read it at start. Without torch loaded (an inline run) the processes take every core."""
+    import os
+    import sys
+
+    torch = sys.modules.get("torch")  # imported by the pool's workers only: an official job itself needs no torch
+    if torch is not None and "OMP_NUM_THREADS" not in os.environ:
+        run.env.setdefault("OMP_NUM_THREADS", str(torch.get_num_threads()))
 
 
 def _failed(job: Job, folder: Path, log: JobLog, error: OfficialRunError, run: OfficialRun | None,

@@ -1,4 +1,5 @@
-"""Minimal PLY point reader/writer (numpy only): the ``vertex`` element's x, y, z and optional red, green, blue.
+"""Minimal PLY point reader/writer (numpy only): the ``vertex`` element's x, y, z and optional red, green, blue
+(the writer also nx, ny, nz).
 
 Reads ``ascii``, ``binary_little_endian`` and ``binary_big_endian`` files. Other elements (faces, …) are
 skipped; in binary files an element with list properties can only be skipped when it comes *after* the
@@ -144,25 +145,31 @@ def _read_binary(path: Path, handle, elements: list[_Element], vertex: _Element,
     return {name: table[name] for name in dtype.names}
 
 
-def write_ply_points(path: str | Path, points: np.ndarray, colours: np.ndarray | None = None) -> Path:
-    """Write points (N, 3) (+ colours (N, 3) in [0, 1], stored as uchar) as binary little-endian PLY, atomically."""
+def write_ply_points(path: str | Path, points: np.ndarray, colours: np.ndarray | None = None,
+                     normals: np.ndarray | None = None) -> Path:
+    """Write points (N, 3) (+ ``normals`` (N, 3) as float ``nx ny nz``, + ``colours`` (N, 3) in [0, 1] as uchar)
+    as binary little-endian PLY, atomically; properties in the order x y z nx ny nz red green blue, as the 3DGS
+    loaders' ``storePly`` writes them."""
     points = np.asarray(points, dtype=np.float32)
     if points.ndim != 2 or points.shape[1] != 3:
         raise ValueError(f"points must be (N, 3), got {points.shape}")
-    fields = [("x", "<f4"), ("y", "<f4"), ("z", "<f4")]
-    if colours is not None:
-        colours = np.asarray(colours, dtype=np.float64)
-        if colours.shape != points.shape:
-            raise ValueError(f"colours must be {points.shape}, got {colours.shape}")
-        fields += [("red", "u1"), ("green", "u1"), ("blue", "u1")]
-    table = np.empty(len(points), dtype=np.dtype(fields))
-    table["x"], table["y"], table["z"] = points.T
+    columns: list[tuple[str, str, np.ndarray]] = [(axis, "float", points[:, i]) for i, axis in enumerate("xyz")]
+    for name, values, kind in (("normals", normals, "float"), ("colours", colours, "uchar")):
+        if values is None:
+            continue
+        values = np.asarray(values, dtype=np.float64)
+        if values.shape != points.shape:
+            raise ValueError(f"{name} must be {points.shape}, got {values.shape}")
+        if kind == "uchar":
+            values = quantize_8bit(values)
+        labels = ("nx", "ny", "nz") if name == "normals" else ("red", "green", "blue")
+        columns += [(label, kind, values[:, i]) for i, label in enumerate(labels)]
+    codes = {"float": "<f4", "uchar": "u1"}
+    table = np.empty(len(points), dtype=np.dtype([(label, codes[kind]) for label, kind, _ in columns]))
+    for label, _, values in columns:
+        table[label] = values
     header = ["ply", "format binary_little_endian 1.0", f"element vertex {len(points)}"]
-    header += ["property float x", "property float y", "property float z"]
-    if colours is not None:
-        quantised = quantize_8bit(colours)
-        table["red"], table["green"], table["blue"] = quantised.T
-        header += ["property uchar red", "property uchar green", "property uchar blue"]
+    header += [f"property {kind} {label}" for label, kind, _ in columns]
     header.append("end_header")
     return write_bytes(path, ("\n".join(header) + "\n").encode("ascii") + table.tobytes())
 

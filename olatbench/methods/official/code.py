@@ -28,6 +28,15 @@ Where the authors' scripts give one scene other flags than its suite's (GS³ ``r
 100K), ``scene_args`` holds them as `SceneArgs`, keyed by the canonical scene name and citing script and lines; a
 scene's flag replaces the value the command already has for it, or is appended.
 
+Runs shorter than the scripts' (the CPU-sized ``mini`` suite) scale the schedule as the native presets do: with
+``reference_iterations`` set in the job's config, every flag of ``schedule_flags`` (the train script's
+iteration-valued options: freeze, warm-up and decay steps, densification window, opacity reset) is multiplied by
+``iterations / reference_iterations`` — its value on the command line, or the parser's default named there — and
+rounded (`OfficialCode.scaled_schedule`); cadences such as the densification interval are not scaled. With
+``init_points`` set, olatbench writes that many initial points, drawn like a native method's from the job's seed
+(`olatbench.methods.initialisation.initial_points`), where the loader reads its initial point cloud
+(``point_cloud``), instead of the loader's own initialisation.
+
 A code whose data cannot be fed (it has no point-light input) has ``unsupported`` set to the reason; the
 runner refuses to plan it and `olatbench methods list` shows why.
 """
@@ -44,16 +53,23 @@ from olatbench.methods.ranges import AT_LEAST_ONE, Range, check_ranges
 SUITE_ARGS = "{*suite_args}"
 ANY_SUITE = "*"
 LOADER_ORDER = "{scene}/transforms_test.json"  # the converted test split, as the official loaders read it
+SCHEDULED_STEP = "train"  # the step whose schedule_flags a scaled run scales
 
 
 @dataclass(frozen=True)
 class OfficialConfig:
     """The config of an official method's jobs (enters the job id, as every config does)."""
 
-    ranges: ClassVar[dict[str, Range]] = {"iterations": AT_LEAST_ONE}
+    ranges: ClassVar[dict[str, Range]] = {"iterations": AT_LEAST_ONE, "reference_iterations": AT_LEAST_ONE,
+                                          "init_points": AT_LEAST_ONE}
 
     iterations: int = 100_000
     """Training iterations handed to the official script (``{iterations}``)."""
+    reference_iterations: int | None = None
+    """Length the scripts' schedule flags are written for; set, they are scaled by ``iterations`` / this
+    (module docstring). None: the flags as the scripts have them."""
+    init_points: int | None = None
+    """Initial points olatbench writes for the loader (seeded by the job); None: the loader's own."""
     train_args: tuple[str, ...] = ()
     """Extra arguments appended to the train command (``--set train_args='["--foo","1"]'``)."""
     render_args: tuple[str, ...] = ()
@@ -115,6 +131,8 @@ class OfficialCode:
     scene_args: tuple[SceneArgs, ...] = ()  # the scripts' per-scene flags (module docstring)
     single_camera_model: bool = False  # the loader reads one camera (intrinsics, size, near/far) for all frames
     needs_val_split: bool = False  # the loader opens transforms_val.json (written from the test split if absent)
+    schedule_flags: Mapping[str, int] = field(default_factory=dict)  # train flag -> parser default (scaled runs)
+    point_cloud: str = ""  # where in the scene folder the loader reads its initial points ("": it reads none)
     unsupported: str = ""  # why olatbench's scenes cannot be fed to this code ("" = runnable)
 
     def __post_init__(self) -> None:
@@ -123,7 +141,8 @@ class OfficialCode:
         steps = [step for step, _ in self.commands]
         if len(set(steps)) != len(steps):
             raise ValueError(f"official code {self.name!r}: step names repeat: {steps}")
-        for attribute in ("data_formats", "render_colourspace", "suite_args", "env", "render_orders"):
+        for attribute in ("data_formats", "render_colourspace", "suite_args", "env", "render_orders",
+                          "schedule_flags"):
             object.__setattr__(self, attribute, _frozen(getattr(self, attribute)))
 
     @property
@@ -148,10 +167,24 @@ class OfficialCode:
         return tuple(arg for entry in self.scene_args if (entry.suite, entry.scene, entry.step) == (suite, scene, step)
                      for arg in entry.args)
 
+    def scaled_schedule(self, argv: list[str], factor: float) -> list[str]:
+        """``argv`` with each flag of ``schedule_flags`` set to ``factor`` × its value (its last occurrence in
+        ``argv``, else the parser's default), rounded to an integer and at least 1 where the value is positive
+        (the scripts take some of them modulo)."""
+        scaled: list[str] = []
+        for flag, default in self.schedule_flags.items():
+            where = max((i for i, arg in enumerate(argv) if arg == flag), default=None)
+            value = int(argv[where + 1]) if where is not None else default
+            new = round(value * factor)
+            scaled += [flag, str(max(new, 1) if value > 0 else new)]
+        return apply_scene_args(argv, tuple(scaled))
+
     def command(self, step: str, argv: tuple[str, ...], values: Mapping[str, str], suite: str,
-                extra: tuple[str, ...] = (), scene: str | None = None) -> list[str]:
-        """One command's arguments with the placeholders filled, ``scene``'s own flags applied and ``extra``
-        appended."""
+                extra: tuple[str, ...] = (), scene: str | None = None, schedule_factor: float | None = None
+                ) -> list[str]:
+        """One command's arguments with the placeholders filled, ``scene``'s own flags applied, the train step's
+        schedule scaled by ``schedule_factor`` (when given; `scaled_schedule`) and ``extra`` appended (as given:
+        a flag the user sets is never scaled)."""
         filled: list[str] = []
         for arg in argv:
             if arg == SUITE_ARGS:
@@ -162,7 +195,10 @@ class OfficialCode:
             except KeyError as error:
                 raise ValueError(f"official code {self.name!r}, step {step!r}: unknown placeholder {error} in "
                                  f"{arg!r}; known: {', '.join(sorted(values))}, {SUITE_ARGS}") from None
-        return apply_scene_args(filled, self.args_for_scene(suite, scene, step)) + list(extra)
+        filled = apply_scene_args(filled, self.args_for_scene(suite, scene, step))
+        if schedule_factor is not None and step == SCHEDULED_STEP:
+            filled = self.scaled_schedule(filled, schedule_factor)
+        return filled + list(extra)
 
     def render_order(self, commands: list[list[str]]) -> str:
         """The transforms file (pattern) whose frame order numbers the renders, given the filled-in commands."""
@@ -182,6 +218,11 @@ class OfficialCode:
                          f"{self.colourspace_for(suite)}" + (f", {SUITE_ARGS} = {args}" if args else ""))
         for entry in self.scene_args:
             lines.append(f"scene {entry.suite}/{entry.scene}: {entry.step} {' '.join(entry.args)} ({entry.source})")
+        if self.schedule_flags:
+            lines.append("scaled with reference_iterations (defaults in brackets): " + " ".join(
+                f"{flag} [{default}]" for flag, default in self.schedule_flags.items()))
+        if self.point_cloud:
+            lines.append(f"init_points: written to {{scene}}/{self.point_cloud}")
         lines.append(f"renders: {self.renders}")
         orders = "".join(f"; with {flag}: of {path}" for flag, path in self.render_orders.items())
         lines.append(f"render i shows the i-th frame of {LOADER_ORDER}{orders} (paired by img_path/file_path)")

@@ -11,7 +11,9 @@ import shutil
 from dataclasses import dataclass
 from pathlib import Path
 
-from olatbench.datasets.records import Scene
+import numpy as np
+
+from olatbench.datasets.records import Frame, Scene
 from olatbench.methods.official.code import OfficialCode, OfficialConfig
 from olatbench.methods.official.convert import pair_renders, write_for_code
 from olatbench.methods.official.process import CommandRecord, OfficialRunError, run_command
@@ -39,11 +41,13 @@ class OfficialRun:
 
 
 def prepare(code: OfficialCode, settings: CodeSettings, source: Scene, work: Path, suite: str, train_split: str,
-            test_split: str, resolution: tuple[int, int] | None, config: OfficialConfig) -> OfficialRun:
-    """Empty ``work``, write the scene for ``code`` and fill in its commands and render paths (runs nothing)."""
+            test_split: str, resolution: tuple[int, int] | None, config: OfficialConfig, seed: int = 0
+            ) -> OfficialRun:
+    """Empty ``work``, write the scene for ``code`` (with ``config.init_points`` initial points drawn from
+    ``seed``) and fill in its commands and render paths (runs nothing)."""
     if not code.runnable:
         raise OfficialRunError(f"{code.name} cannot be run: {code.unsupported}")
-    problems = settings.problems()
+    problems = settings.problems() + config_problems(code, config)
     if problems:
         raise OfficialRunError(f"{code.name}: " + "; ".join(problems) + " (see docs/official.md)")
     work = Path(work).resolve()
@@ -52,13 +56,16 @@ def prepare(code: OfficialCode, settings: CodeSettings, source: Scene, work: Pat
     work.mkdir(parents=True)
     checkout = Path(str(settings.checkout)).expanduser().resolve()
     scene_dir = write_for_code(code, source, work / "scene", suite, train_split, test_split, resolution)
+    if config.init_points is not None:
+        write_initial_points(scene_dir / code.point_cloud, source.split(train_split), config.init_points, seed)
     model_dir = work / "model"
     values: dict[str, object] = {"scene": str(scene_dir), "model": str(model_dir), "checkout": str(checkout),
                                  "iterations": int(config.iterations)}
     prefix = settings.prefix(work)
     extra = {"train": tuple(config.train_args), "render": tuple(config.render_args)}
+    factor = None if config.reference_iterations is None else config.iterations / config.reference_iterations
     commands = [CommandRecord(step, prefix + code.command(step, argv, values, suite, extra.get(step, ()),
-                                                          scene=source.name), str(checkout))
+                                                          scene=source.name, schedule_factor=factor), str(checkout))
                 for step, argv in code.commands]
     order = Path(code.render_order([record.argv for record in commands]).format_map(values))
     env = dict(code.env)
@@ -69,6 +76,30 @@ def prepare(code: OfficialCode, settings: CodeSettings, source: Scene, work: Pat
     return OfficialRun(code=code, settings=settings, work=work, scene_dir=scene_dir, model_dir=model_dir,
                        commands=commands, frame_ids=[frame.frame_id for frame in source.split(test_split)],
                        render_order=order, values=values, colourspace=code.colourspace_for(suite), env=env)
+
+
+def config_problems(code: OfficialCode, config: OfficialConfig) -> list[str]:
+    """What in ``config`` ``code`` cannot do (empty when it can)."""
+    problems = []
+    if config.reference_iterations is not None and not code.schedule_flags:
+        problems.append(f"reference_iterations={config.reference_iterations} is set, but olatbench knows no "
+                        f"schedule flags of {code.name} to scale; unset it")
+    if config.init_points is not None and not code.point_cloud:
+        problems.append(f"init_points={config.init_points} is set, but {code.name}'s loader reads no initial "
+                        "point cloud; unset it")
+    return problems
+
+
+def write_initial_points(path: Path, frames: list[Frame], count: int, seed: int) -> Path:
+    """Write ``count`` initial points for an official loader to ``path`` (PLY with normals and colours, as the
+    3DGS loaders' ``fetchPly`` reads): drawn like a native method's from ``seed`` in the ball fitted to the
+    training ``frames``' cameras (`initial_points`), zero normals, grey (0.5) colours — the colour the 3DGS
+    Blender loaders give their random points (``SH2RGB`` of values below 1/255)."""
+    from olatbench.gaussians.ply import write_ply_points  # these import torch: only for runs that write points
+    from olatbench.methods.initialisation import initial_points
+
+    points = initial_points([frame.camera for frame in frames], count, seed)
+    return write_ply_points(path, points, colours=np.full_like(points, 0.5), normals=np.zeros_like(points))
 
 
 def execute(run: OfficialRun, log_path: Path) -> None:

@@ -23,6 +23,31 @@ _MODULE = "olatbench.methods.official.specs"
 # as 00000.png, 00001.png, ... The entries name their image by file_path (the stem) and img_path.
 _REFINED_CAMERAS = "{model}/point_cloud/iteration_{iterations}/transforms_test.json"
 
+# The train scripts' iteration-valued options and their parser defaults (OptimizationParams in
+# arguments/__init__.py:90-167 at both commits, train.py's --unfreeze_iterations default 0), scaled in runs shorter
+# than the scripts' (OfficialConfig.reference_iterations; the mini presets below). Not scaled: the densification
+# interval (a cadence, as in the native presets) and train.py's fixed `iteration % 1000` SH step, which is unused
+# with --use_nerual_phasefunc (train.py:92-94 SSD-GS, 87-89 GS³).
+_SCHEDULE_FLAGS = {
+    "--position_lr_max_steps": 30_000, "--fit_linear_step": 7_000, "--asg_freeze_step": 22_000,
+    "--asg_lr_freeze_step": 40_000, "--asg_lr_max_steps": 50_000, "--local_q_lr_freeze_step": 40_000,
+    "--local_q_lr_max_steps": 50_000, "--freeze_phasefunc_steps": 50_000, "--neural_phasefunc_lr_max_steps": 50_000,
+    "--opacity_reset_interval": 3_000, "--densify_from_iter": 500, "--densify_until_iter": 15_000,
+    "--train_cam_freeze_step": 5_000, "--opt_cam_lr_delay_step": 20_000, "--opt_cam_lr_max_steps": 80_000,
+    "--train_pl_freeze_step": 15_000, "--opt_pl_lr_delay_step": 30_000, "--opt_pl_lr_max_steps": 80_000,
+    "--unfreeze_iterations": 0,
+}
+_SSDGS_SCHEDULE_FLAGS = {**_SCHEDULE_FLAGS, "--specular_freeze_step": 9_000, "--scatter_warmup_step": 9_000,
+                         "--scatter_freeze_step": 13_000, "--scatter_unfreeze_step": 20_000,
+                         "--scatter_lr_freeze_step": 50_000, "--scatter_lr_max_steps": 50_000}
+_GS3_SCHEDULE_FLAGS = {**_SCHEDULE_FLAGS, "--spcular_freeze_step": 9_000}  # sic: GS³'s spelling
+# Their Blender loader reads this file when it exists and otherwise writes 100,000 random points in [-0.5, 0.5]³
+# there (scene/dataset_readers.py:229-240 at both commits).
+_POINT_CLOUD = "points3d.ply"
+# The CPU-sized mini suite, as the native mini presets run it: the schedule of a 60K run compressed into 3000 steps
+# and 2000 initial points drawn in the ball fitted to the cameras, from the job's seed (docs/official.md).
+_MINI = {"iterations": 3_000, "reference_iterations": 60_000, "init_points": 2_000}
+
 # ---- GS³ (gsrelight/gs-relight) --------------------------------------------------------------------------------
 # Flags shared by its syn_train.sh and real_train.sh; the per-suite ones are in suite_args.
 _GS3_TRAIN = (
@@ -81,6 +106,8 @@ GS3_CODE = OfficialCode(
         ANY_SUITE: {"train": _GS3_SYNTHETIC},
     },
     env={"TORCH_FORCE_NO_WEIGHTS_ONLY_LOAD": "1"},  # render.py:70 torch.load()s its own checkpoint (numpy scalars)
+    schedule_flags=_GS3_SCHEDULE_FLAGS,
+    point_cloud=_POINT_CLOUD,
 )
 
 # ---- SSD-GS (irisfreesiri/SSD-GS) ------------------------------------------------------------------------------
@@ -116,6 +143,8 @@ SSDGS_CODE = OfficialCode(
     # render.py:80 torch.load()s its own checkpoint, which holds numpy scalars: torch >= 2.6's weights_only default
     # refuses it; this restores the default the code was written for (the file is the job's own output).
     env={"OPENCV_IO_ENABLE_OPENEXR": "1", "TORCH_FORCE_NO_WEIGHTS_ONLY_LOAD": "1"},
+    schedule_flags=_SSDGS_SCHEDULE_FLAGS,
+    point_cloud=_POINT_CLOUD,
 )
 
 # ---- NRHints (iamNCJ/NRHints) ----------------------------------------------------------------------------------
@@ -186,7 +215,7 @@ SPECS: tuple[MethodSpec, ...] = (
                     "file_path + '.png' (RGBA over the background); render.py writes "
                     "test/ours_<it>/renders/<index:05d>.png in loader order. Read, not run on a GPU."),
           presets={"nrhints": {"iterations": 100_000}, "gs3": {"iterations": 100_000},
-                   "sssgs": {"iterations": 60_000},
+                   "sssgs": {"iterations": 60_000}, "mini": _MINI,
                    # the paper's "Ours (w/ Opt)" on SSS-GS: the real-data script's refinement flags, which
                    # batch_script_synthetic_sssgs.py does not pass (its runs are "Ours (w/o Opt)")
                    SSDGS_REFINED_VARIANT: {"train_args": ("--cam_opt", "--pl_opt"), "render_args": ("--opt_pose",)}}),
@@ -198,7 +227,7 @@ SPECS: tuple[MethodSpec, ...] = (
                     "file_path + '.exr' (--hdr) or '.png'; render.py writes test/ours_<it>/renders/<index:05d>.png "
                     "in loader order, x^(1/2.2) with --gamma. Read, not run on a GPU."),
           presets={"nrhints": {"iterations": 100_000}, "gs3": {"iterations": 100_000},
-                   "sssgs": {"iterations": 100_000}}),
+                   "sssgs": {"iterations": 100_000}, "mini": _MINI}),
     _spec("NRHINTS_CODE", NRHINTS_CODE, "NRHints (NeuS with shadow and highlight hints), the authors' code (CUDA)",
           SourcePin("iamNCJ/NRHints", "291800d12c474d370ec85f99c4c1180c54b68e37", "verified",
                     "Commands are those of scripts/train_{synthetic,real}.sh at this commit (tyro sub-commands "
