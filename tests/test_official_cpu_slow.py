@@ -1,11 +1,11 @@
 """The authors' SSD-GS and GS³ code, unmodified, trained and scored on a mini scene on the CPU through the official
-runner with ``--code device=cpu`` (olatbench.methods.official.cpu_standins). Slow (each step of their code takes
-seconds here) and needs their checkouts and environment (docs/official.md, "Running the authors' code on the
-CPU"):
+runner with ``--code device=cpu`` (olatbench.methods.official.cpu_standins), at the mini presets' scale (schedule
+scaled to the run's length, the native methods' 2000 initial points). Slow (about a minute each at the default
+length) and needs their checkouts and environment (docs/official.md, "Running the authors' code on the CPU"):
 
 - ``OLATBENCH_SSDGS_CODE`` / ``OLATBENCH_GS3_CODE``: clones at the pinned commits (26e4251 / 83c8daa);
 - ``OLATBENCH_OFFICIAL_PYTHON``: the interpreter of the official environment (the authors' pins);
-- ``OLATBENCH_OFFICIAL_ITERATIONS``: training length (default 10).
+- ``OLATBENCH_OFFICIAL_ITERATIONS``: training length (default 300).
 
 Each case skips, saying which variable is missing, when it is not set, and when the mini suite is not rendered.
 """
@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -37,7 +38,7 @@ def test_authors_code_trains_and_scores_on_the_cpu(tmp_path, method, variable):
         pytest.skip("OLATBENCH_OFFICIAL_PYTHON is not set (the official environment's interpreter)")
     if not (mini_root() / "diffuse_shadow" / "transforms_train.json").is_file():
         pytest.skip(f"the mini suite is not rendered in {mini_root()} (olatbench datasets synth mini)")
-    iterations = int(os.environ.get("OLATBENCH_OFFICIAL_ITERATIONS", "10"))
+    iterations = int(os.environ.get("OLATBENCH_OFFICIAL_ITERATIONS", "300"))  # about a minute (mini preset)
     argv = [sys.executable, "-m", "olatbench", "run", "--method", method, "--suite", "mini", "--scenes",
             "diffuse_shadow", "--iterations", str(iterations), "-o", str(tmp_path / "runs"), "--code",
             f"checkout={checkout}", "--code", f"python={python}", "--code", "device=cpu"]
@@ -48,6 +49,12 @@ def test_authors_code_trains_and_scores_on_the_cpu(tmp_path, method, variable):
     official = results["official"]
     assert results["status"] == "done" and official["device"] == "cpu" and official["matches_pin"]
     assert "gsplat" in official["standins"] and official["settings"]["device"] == "cpu"
+    log = (folder / "log.txt").read_text()
+    # the mini preset's 2000 native initial points reached the authors' loader (not its 100,000 random ones)
+    assert re.search(r"Number of points at initialisation (\(create_from_pcd\) )?:\s+2000\b", log), log[-3000:]
+    assert "Generating random point cloud" not in log
+    train = official["commands"][0]["argv"]
+    assert train[train.index("--unfreeze_iterations") + 1] == str(round(5000 * iterations / 60000) or 1)
     mean = results["metrics"]["test"]["mean"]
     assert math.isfinite(mean["psnr"]) and mean["psnr"] > 10.0, mean  # a trained render, not a blank image
     renders = sorted(Path(folder, "renders", "test").iterdir())

@@ -44,9 +44,13 @@ _GS3_SCHEDULE_FLAGS = {**_SCHEDULE_FLAGS, "--spcular_freeze_step": 9_000}  # sic
 # Their Blender loader reads this file when it exists and otherwise writes 100,000 random points in [-0.5, 0.5]³
 # there (scene/dataset_readers.py:229-240 at both commits).
 _POINT_CLOUD = "points3d.ply"
-# The CPU-sized mini suite, as the native mini presets run it: the schedule of a 60K run compressed into 3000 steps
-# and 2000 initial points drawn in the ball fitted to the cameras, from the job's seed (docs/official.md).
-_MINI = {"iterations": 3_000, "reference_iterations": 60_000, "init_points": 2_000}
+# The CPU-sized mini suite, as the native mini presets run it: the schedule of a 60K run compressed into 3000 steps,
+# with the native mini presets' densification window, opacity reset and position decay (their densify_from,
+# densify_until, opacity_reset_interval, position_lr_max_steps at the 60K reference; a test checks they agree), and
+# 2000 initial points drawn in the ball fitted to the cameras, from the job's seed (docs/official.md).
+_MINI = {"iterations": 3_000, "reference_iterations": 60_000, "init_points": 2_000,
+         "schedule_args": ("--densify_from_iter", "4000", "--densify_until_iter", "44000",
+                           "--opacity_reset_interval", "30000", "--position_lr_max_steps", "60000")}
 
 # ---- GS³ (gsrelight/gs-relight) --------------------------------------------------------------------------------
 # Flags shared by its syn_train.sh and real_train.sh; the per-suite ones are in suite_args.
