@@ -138,3 +138,18 @@ def test_a_run_into_a_log_file_has_no_carriage_returns_or_cursor_codes(tmp_path,
     assert result.exit_code == 0, result.output
     assert "jobs:" in result.stderr and "Alpha" in result.stderr  # the bars were there, as lines
     assert "\r" not in result.stderr and "\x1b" not in result.stderr
+
+
+def test_one_size_parser_for_options_and_project_files() -> None:
+    """`--resolution` and a suite's ``resolution`` in olatbench.toml accept the same text forms."""
+    from olatbench.cli.options import Resolution
+    from olatbench.datasets.errors import DatasetError
+    from olatbench.datasets.suites import parse_resolution
+
+    for text, size in (("256", (256, 256)), ("320x240", (320, 240)), (" 320X240 ", (320, 240))):
+        assert Resolution().convert(text, None, None) == size == parse_resolution(text, "f")
+    for text in ("256x", "x240", "big", "1x2x3"):
+        with pytest.raises(click.BadParameter, match="expected N or WxH"):
+            Resolution().convert(text, None, None)
+        with pytest.raises(DatasetError, match="resolution must be N, WxH"):
+            parse_resolution(text, "f")

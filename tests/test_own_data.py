@@ -103,7 +103,7 @@ def test_malformed_user_suites_name_the_file_table_and_key(tmp_path, monkeypatch
         ('[suites.mine]\nscenes = ["Cup"]\ncolour = "red"\n', "unknown key(s) colour"),
         ('[suites.mine]\nscenes = "Cup"\n', "scenes must be a non-empty list"),
         ('[suites.mine]\nscenes = ["Cup"]\nformat = "gs3"\n', "in nrhints format, not gs3"),
-        ('[suites.mine]\nscenes = ["Cup"]\nresolution = "big"\n', "resolution must be WIDTHxHEIGHT"),
+        ('[suites.mine]\nscenes = ["Cup"]\nresolution = "big"\n', "resolution must be N, WxH"),
         ('[suites.gs3]\nscenes = ["Cup"]\n', "the name is taken"),
         ('[suites.data-x]\nscenes = ["Cup"]\n', "reserved for run --data"),
         ('[suites.mine]\nscenes = ["Nope"]\n', "not a folder"),

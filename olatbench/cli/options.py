@@ -22,6 +22,8 @@ from typing import Any
 
 import click
 
+from olatbench.sizes import parse_size
+
 FALSE_WORDS = ("", "0", "false", "no", "off")
 
 
@@ -78,10 +80,9 @@ class Resolution(click.ParamType):
         if isinstance(value, tuple):
             return value
         try:
-            width, _, height = str(value).strip().lower().partition("x")
-            size = (int(width), int(height or width))
-        except ValueError:
-            self.fail(f"expected N or WxH (e.g. 256 or 320x240), not {value!r}", param, ctx)
+            size = parse_size(str(value))
+        except ValueError as error:
+            self.fail(str(error), param, ctx)
         if min(size) < self.minimum:
             self.fail(f"must be at least {self.minimum} pixel(s) on each side, not {value!r}", param, ctx)
         return size

@@ -19,6 +19,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from olatbench.datasets.errors import DatasetError
+from olatbench.sizes import parse_size
 
 
 def _snake(name: str) -> str:
@@ -153,15 +154,17 @@ def get_suite(name: str) -> Suite:
 
 
 def parse_resolution(value: object, where: str) -> tuple[int, int] | None:
-    """``"256x256"``, ``[256, 256]`` or ``"native"`` (None) as (width, height); a `DatasetError` naming ``where``
-    otherwise."""
+    """``"256x256"``, ``"256"`` (256 × 256), ``[256, 256]`` or ``"native"`` (None) as (width, height); a
+    `DatasetError` naming ``where`` otherwise."""
     if value == "native":
         return None
     try:
-        parts = value.lower().split("x") if isinstance(value, str) else list(value)  # type: ignore[call-overload]
-        width, height = (int(part) for part in parts)
+        if isinstance(value, str):
+            width, height = parse_size(value)
+        else:
+            width, height = (int(part) for part in value)  # type: ignore[attr-defined]
     except (TypeError, ValueError):
-        raise DatasetError(f"{where}: resolution must be WIDTHxHEIGHT (e.g. 256x256), [W, H] or \"native\", "
+        raise DatasetError(f"{where}: resolution must be N, WxH (e.g. 256 or 320x240), [W, H] or \"native\", "
                            f"not {value!r}") from None
     if width < 1 or height < 1:
         raise DatasetError(f"{where}: resolution must be positive, not {value!r}")
