@@ -60,17 +60,17 @@ def test_mini_jobs_scale_the_schedule_and_start_from_the_native_points(tmp_path,
     [job] = plan(method, suite_of("mini"), data, tmp_path / "runs", checkout=str(checkout), python=sys.executable)
     assert {k: job.config[k] for k in ("iterations", "reference_iterations", "init_points")} == \
         {"iterations": 3000, "reference_iterations": 60000, "init_points": 2000}
-    assert "--densify_until_iter" in job.config["schedule_args"]
+    assert "--densify_until_iter" in job.config["preset_args"]
     code = SSDGS_CODE if method == "ssdgs-official" else GS3_CODE
     scene = load_scene(job.scene_path, format=job.scene_format)
     config = OfficialConfig(**{**job.config, "iterations": 300, "train_args": (), "render_args": (),
-                               "schedule_args": tuple(job.config["schedule_args"])})
+                               "preset_args": tuple(job.config["preset_args"])})
     settings = CodeSettings.from_json(job.official)
     runs = [prepare(code, settings, scene, tmp_path / f"work{seed}", job.suite, job.train_split, job.test_split,
                     None, config, seed) for seed in (0, 0, 1)]
     train = runs[0].commands[0].argv
     assert flag_value(train, "--unfreeze_iterations") == "25"  # 5000 at 60K, run at 300 steps
-    assert flag_value(train, "--densify_from_iter") == "20"  # the preset's schedule_args: 4000 at 60K
+    assert flag_value(train, "--densify_from_iter") == "20"  # the preset's preset_args: 4000 at 60K
     assert flag_value(train, "--opacity_reset_interval") == "150"  # 30000 at 60K (the parser's 3000 overridden)
     ply = runs[0].scene_dir / "points3d.ply"
     header = ply.read_bytes().split(b"end_header")[0].decode()
@@ -106,10 +106,6 @@ def test_settings_a_code_cannot_use_are_refused_before_anything_runs(tmp_path) -
         with pytest.raises(OfficialRunError, match=re.escape(message)):
             prepare(NRHINTS_CODE, settings, scene, tmp_path / "work", "mini", "train", "test", None,
                     OfficialConfig(iterations=5, **{field: 10}))
-    with pytest.raises(OfficialRunError, match="schedule_args are flags at reference_iterations"):
-        prepare(SSDGS_CODE, CodeSettings(method="ssdgs-official", checkout=str(checkout), python=sys.executable),
-                scene, tmp_path / "work", "mini", "train", "test", None,
-                OfficialConfig(iterations=5, schedule_args=("--densify_from_iter", "4")))
     assert not (tmp_path / "work").exists()  # refused before the work folder was emptied or written
     with pytest.raises(ValueError, match="init_points"):
         OfficialConfig(init_points=0)
@@ -137,18 +133,20 @@ def test_the_schedule_flags_are_every_iteration_option_of_the_checkouts_parser(c
                 if re.search(r"step|iter|interval", m[1]) and m[1] not in ("iterations", "densification_interval")}
     assert {k: v for k, v in code.schedule_flags.items() if k != "--unfreeze_iterations"} == defaults
     assert 'add_argument("--unfreeze_iterations", type=int, default=0)' in (Path(checkout) / "train.py").read_text()
+    assert "self.maximum_gs = 550_000" in text  # the Gaussian budget the mini presets set (--maximum_gs)
 
 
-def test_the_mini_presets_take_the_native_mini_presets_densification_and_position_decay() -> None:
+def test_the_mini_presets_take_the_native_mini_presets_densification_budget_and_position_decay() -> None:
     from olatbench.methods.baselines.gs3_spec import PRESETS as GS3_PRESETS
     from olatbench.methods.registry import get_spec
     from olatbench.methods.ssdgs.presets import SUITE_PRESETS
 
     for official, native in (("ssdgs-official", SUITE_PRESETS["mini"]), ("gs3-official", GS3_PRESETS["mini"])):
         preset = get_spec(official).presets["mini"]
-        args = dict(zip(preset["schedule_args"][::2], map(int, preset["schedule_args"][1::2]), strict=True))
+        args = dict(zip(preset["preset_args"][::2], map(int, preset["preset_args"][1::2]), strict=True))
         assert args == {"--densify_from_iter": native["densify_from"], "--densify_until_iter": native["densify_until"],
                         "--opacity_reset_interval": native["opacity_reset_interval"],
-                        "--position_lr_max_steps": native["position_lr_max_steps"]}
+                        "--position_lr_max_steps": native["position_lr_max_steps"],
+                        "--maximum_gs": native["max_gaussians"]}
         assert (preset["iterations"], preset["reference_iterations"], preset["init_points"]) == \
             (native["iterations"], native["reference_iterations"], native["num_init_gaussians"])

@@ -68,10 +68,10 @@ class OfficialConfig:
     reference_iterations: int | None = None
     """Length the scripts' schedule flags are written for; set, they are scaled by ``iterations`` / this
     (module docstring). None: the flags as the scripts have them."""
-    schedule_args: tuple[str, ...] = ()
-    """Train flags given at ``reference_iterations``, applied before the schedule is scaled (unlike
-    ``train_args``, which are passed as given); the mini presets put the native mini presets' densification
-    window and opacity reset here."""
+    preset_args: tuple[str, ...] = ()
+    """Train flags a preset sets (the mini presets: the native mini presets' Gaussian budget, densification window
+    and opacity reset), applied after the scene's flags and before the schedule is scaled: iteration-valued ones
+    are given at ``reference_iterations`` and scaled with the rest, unlike ``train_args`` (passed as given)."""
     init_points: int | None = None
     """Initial points olatbench writes for the loader (seeded by the job); None: the loader's own."""
     train_args: tuple[str, ...] = ()
@@ -185,8 +185,8 @@ class OfficialCode:
 
     def command(self, step: str, argv: tuple[str, ...], values: Mapping[str, str], suite: str,
                 extra: tuple[str, ...] = (), scene: str | None = None, schedule_factor: float | None = None,
-                schedule_args: tuple[str, ...] = ()) -> list[str]:
-        """One command's arguments with the placeholders filled, ``scene``'s own flags and then ``schedule_args``
+                preset_args: tuple[str, ...] = ()) -> list[str]:
+        """One command's arguments with the placeholders filled, ``scene``'s own flags and then ``preset_args``
         applied, the train step's schedule scaled by ``schedule_factor`` (when given; `scaled_schedule`) and
         ``extra`` appended (as given: a flag the user sets is never scaled)."""
         filled: list[str] = []
@@ -201,7 +201,7 @@ class OfficialCode:
                                  f"{arg!r}; known: {', '.join(sorted(values))}, {SUITE_ARGS}") from None
         filled = apply_scene_args(filled, self.args_for_scene(suite, scene, step))
         if step == SCHEDULED_STEP:
-            filled = apply_scene_args(filled, schedule_args)
+            filled = apply_scene_args(filled, preset_args)
             if schedule_factor is not None:
                 filled = self.scaled_schedule(filled, schedule_factor)
         return filled + list(extra)

@@ -66,7 +66,7 @@ def prepare(code: OfficialCode, settings: CodeSettings, source: Scene, work: Pat
     factor = None if config.reference_iterations is None else config.iterations / config.reference_iterations
     commands = [CommandRecord(step, prefix + code.command(step, argv, values, suite, extra.get(step, ()),
                                                           scene=source.name, schedule_factor=factor,
-                                                          schedule_args=tuple(config.schedule_args)),
+                                                          preset_args=tuple(config.preset_args)),
                               str(checkout))
                 for step, argv in code.commands]
     order = Path(code.render_order([record.argv for record in commands]).format_map(values))
@@ -86,9 +86,6 @@ def config_problems(code: OfficialCode, config: OfficialConfig) -> list[str]:
     if config.reference_iterations is not None and not code.schedule_flags:
         problems.append(f"reference_iterations={config.reference_iterations} is set, but olatbench knows no "
                         f"schedule flags of {code.name} to scale; unset it")
-    if config.schedule_args and config.reference_iterations is None:
-        problems.append("schedule_args are flags at reference_iterations, which is not set; set it, or pass the "
-                        "flags as train_args")
     if config.init_points is not None and not code.point_cloud:
         problems.append(f"init_points={config.init_points} is set, but {code.name}'s loader reads no initial "
                         "point cloud; unset it")

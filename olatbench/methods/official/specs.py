@@ -46,11 +46,12 @@ _GS3_SCHEDULE_FLAGS = {**_SCHEDULE_FLAGS, "--spcular_freeze_step": 9_000}  # sic
 _POINT_CLOUD = "points3d.ply"
 # The CPU-sized mini suite, as the native mini presets run it: the schedule of a 60K run compressed into 3000 steps,
 # with the native mini presets' densification window, opacity reset and position decay (their densify_from,
-# densify_until, opacity_reset_interval, position_lr_max_steps at the 60K reference; a test checks they agree), and
-# 2000 initial points drawn in the ball fitted to the cameras, from the job's seed (docs/official.md).
-_MINI = {"iterations": 3_000, "reference_iterations": 60_000, "init_points": 2_000,
-         "schedule_args": ("--densify_from_iter", "4000", "--densify_until_iter", "44000",
-                           "--opacity_reset_interval", "30000", "--position_lr_max_steps", "60000")}
+# densify_until, opacity_reset_interval, position_lr_max_steps at the 60K reference) and Gaussian budget
+# (max_gaussians: --maximum_gs, ModelParams in arguments/__init__.py:74, default 550,000; a test checks they agree),
+# and 2000 initial points drawn in the ball fitted to the cameras, from the job's seed (docs/official.md).
+_MINI_SCHEDULE = ("--densify_from_iter", "4000", "--densify_until_iter", "44000", "--opacity_reset_interval", "30000",
+                  "--position_lr_max_steps", "60000")
+_MINI = {"iterations": 3_000, "reference_iterations": 60_000, "init_points": 2_000}
 
 # ---- GS³ (gsrelight/gs-relight) --------------------------------------------------------------------------------
 # Flags shared by its syn_train.sh and real_train.sh; the per-suite ones are in suite_args.
@@ -219,7 +220,8 @@ SPECS: tuple[MethodSpec, ...] = (
                     "file_path + '.png' (RGBA over the background); render.py writes "
                     "test/ours_<it>/renders/<index:05d>.png in loader order. Read, not run on a GPU."),
           presets={"nrhints": {"iterations": 100_000}, "gs3": {"iterations": 100_000},
-                   "sssgs": {"iterations": 60_000}, "mini": _MINI,
+                   "sssgs": {"iterations": 60_000},
+                   "mini": {**_MINI, "preset_args": (*_MINI_SCHEDULE, "--maximum_gs", "5000")},
                    # the paper's "Ours (w/ Opt)" on SSS-GS: the real-data script's refinement flags, which
                    # batch_script_synthetic_sssgs.py does not pass (its runs are "Ours (w/o Opt)")
                    SSDGS_REFINED_VARIANT: {"train_args": ("--cam_opt", "--pl_opt"), "render_args": ("--opt_pose",)}}),
@@ -231,7 +233,8 @@ SPECS: tuple[MethodSpec, ...] = (
                     "file_path + '.exr' (--hdr) or '.png'; render.py writes test/ours_<it>/renders/<index:05d>.png "
                     "in loader order, x^(1/2.2) with --gamma. Read, not run on a GPU."),
           presets={"nrhints": {"iterations": 100_000}, "gs3": {"iterations": 100_000},
-                   "sssgs": {"iterations": 100_000}, "mini": _MINI}),
+                   "sssgs": {"iterations": 100_000},
+                   "mini": {**_MINI, "preset_args": (*_MINI_SCHEDULE, "--maximum_gs", "12000")}}),
     _spec("NRHINTS_CODE", NRHINTS_CODE, "NRHints (NeuS with shadow and highlight hints), the authors' code (CUDA)",
           SourcePin("iamNCJ/NRHints", "291800d12c474d370ec85f99c4c1180c54b68e37", "verified",
                     "Commands are those of scripts/train_{synthetic,real}.sh at this commit (tyro sub-commands "
