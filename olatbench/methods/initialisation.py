@@ -31,4 +31,4 @@ def initial_points(cameras: Sequence[Camera], n: int, seed: int) -> np.ndarray:
     """(n, 3) float32 world points uniform in the ball `initial_ball` fits to ``cameras``, drawn from ``seed``:
     the centres a native method with ``init_radius=None`` (the mini presets) starts from with that seed."""
     centre, radius = initial_ball(cameras, None)
-    return points_in_ball(n, radius, seed, tuple(centre.tolist())).numpy()
+    return points_in_ball(n, radius, seed, tuple(centre.tolist())).cpu().numpy()
