@@ -166,3 +166,37 @@ def test_a_nrhints_cpu_job_imports_the_lpips_standin_and_records_it(tmp_path):
     official = read_results(os.path.join(folder, "results.json"))["official"]
     assert official["device"] == "cpu" and official["standins"] == ["lpips"]
     assert not (checkout / "lpips").exists()
+
+
+def test_doctor_checks_nrhints_cpu_environment_with_its_own_standin_and_pins(tmp_path, monkeypatch):
+    import importlib
+    import importlib.metadata
+
+    from click.testing import CliRunner
+    from official_standins import write_checkout
+
+    from olatbench.cli import main
+    from olatbench.methods.official.doctor import CPU_PINS, NRHINTS_CPU_PINS, cpu_pins
+
+    assert cpu_pins("nrhints-official") is NRHINTS_CPU_PINS and cpu_pins("gs3-official") is CPU_PINS
+    monkeypatch.chdir(tmp_path)
+    checkout = write_checkout(tmp_path / "clone", "nrhints-official", git=True)
+    options = [f"nrhints-official.checkout={checkout}", f"nrhints-official.python={sys.executable}",
+               "nrhints-official.device=cpu"]
+    result = CliRunner().invoke(main, ["doctor", *[arg for option in options for arg in ("--code", option)]])
+    row = next(line for line in result.output.splitlines() if "nrhints-official: CPU stand-ins" in line)
+    assert "nrhints-official: GPU" not in result.output and "stand-ins import" in row, row
+
+    def version(name):
+        try:
+            module = importlib.import_module(name)
+        except ImportError:
+            return None
+        try:
+            return getattr(module, "__version__", None) or importlib.metadata.version(name)
+        except importlib.metadata.PackageNotFoundError:
+            return "unknown version"
+
+    mismatched = [name for name, pin in NRHINTS_CPU_PINS.items()
+                  if version(name) is None or (pin and not str(version(name)).startswith(pin))]
+    assert row.strip().startswith("NO" if mismatched else "ok"), (row, mismatched)
