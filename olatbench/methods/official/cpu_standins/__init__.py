@@ -7,10 +7,12 @@ folder `SITE` first on the commands' ``PYTHONPATH`` (and olatbench's own folder 
 import these stand-ins and its ``sitecustomize`` installs the device shim (`device`); nothing is written into the
 user's checkout, and nothing of this is importable under those names anywhere else.
 
-NRHints (291800d) runs on the CPU by itself (its encodings fall back to torch without tinycudann when
-``torch.cuda`` reports no device) but imports ``lpips``, which needs torchvision and downloads AlexNet: its jobs
-get `NRHINTS_SITE` instead, which holds only ``lpips`` (`lpips`) — not the other stand-ins, so that NRHints keeps
-its own torch fallback (the tinycudann stand-in refuses its HashGrid) and no device shim.
+NRHints (291800d) runs on the CPU by itself: it picks the CPU when ``torch.cuda`` reports no device
+(``trainer/trainer.py:48``), its networks are torch (frequency encodings, ``nn.Linear``), and ``tinycudann`` is
+only an optional import for a ``HashEncoding`` its configs do not build (``fields/encodings.py:31-36, 237``). But
+``utils/metrics.py:4`` imports ``lpips``, which needs torchvision and downloads AlexNet: its jobs get
+`NRHINTS_SITE` instead, which holds only ``lpips`` (`lpips`) — none of the other stand-ins and no device shim, so
+that its own CPU path and its optional-import fallbacks stay as the authors wrote them.
 
 ==============================================  ==============================================================
 real module                                     stand-in (this package)
@@ -48,7 +50,7 @@ SITES: dict[str, tuple[Path, tuple[str, ...]]] = {
 def standins_for(method: str) -> tuple[str, ...]:
     """The modules replaced in a ``device=cpu`` job of ``method`` (`SITES`): all of `MODULES` for the codes they
     were written for (SSD-GS, GS³); only ``lpips`` for NRHints (which takes its own CPU path when ``torch.cuda``
-    reports no device, and would pick the tinycudann stand-in over its torch fallback); none for others."""
+    reports no device; a tinycudann stand-in would turn its optional import on); none for others."""
     return SITES[method][1] if method in SITES else ()
 
 
