@@ -1,7 +1,8 @@
-"""The ``lpips`` stand-in of nrhints-official's device=cpu jobs (olatbench.methods.official.cpu_standins.lpips)
-against independent references: the ``lpips`` package's own numbers (lpips 0.1.4, recorded in tests/test_lpips.py:
-seeded random weights, and the real weights) and olatbench's `lpips` on the same images in its channel-last layout;
-its refusals; and the job environment of nrhints-official (only ``lpips`` on the path, not the other stand-ins)."""
+"""The stand-ins of nrhints-official's device=cpu jobs: ``lpips`` (olatbench.methods.official.cpu_standins.lpips)
+against independent references — the ``lpips`` package's own numbers (lpips 0.1.4, recorded in tests/test_lpips.py:
+seeded random weights, and the real weights) and olatbench's `lpips` on the same images in its channel-last layout —
+and its refusals; ``Tensor.to`` under no_grad (cpu_standins.device_copy) against a real device move; and the job
+environment of nrhints-official (only these on the path, not the other stand-ins nor the CUDA device shim)."""
 
 from __future__ import annotations
 
@@ -105,6 +106,43 @@ def test_standin_refuses_other_calls_and_layouts():
         model(x, torch.rand(1, 3, 40, 48), normalize=True)
 
 
+# ------------------------------------------------------------------------------- Tensor.to under no_grad
+@pytest.fixture()
+def device_copy():
+    from olatbench.methods.official.cpu_standins import device_copy as module
+
+    module.install()
+    yield module
+    module.uninstall()
+
+
+def nrhints_normals(x: torch.Tensor) -> torch.Tensor:
+    """fields/sdf_field.py:136-147 under get_eval_dicts' no_grad: d sdf / d x with create_graph=True."""
+    net = torch.nn.Sequential(torch.nn.Linear(3, 16), torch.nn.Softplus(beta=100), torch.nn.Linear(16, 1))
+    x.requires_grad_(True)
+    with torch.inference_mode(False), torch.enable_grad():
+        y = net(x)
+    return torch.autograd.grad(y, x, torch.ones_like(y), create_graph=True, retain_graph=True, only_inputs=True)[0]
+
+
+def test_device_move_under_no_grad_drops_the_graph_as_a_real_copy(device_copy):
+    with torch.no_grad():
+        normals = nrhints_normals(torch.rand(8, 3))
+        assert normals.grad_fn is not None  # the graph the CPU kept for every chunk
+        kept = normals.to("cpu")
+        real_copy = normals.to("meta")  # a real device move under no_grad (what .to('cpu') is on a GPU)
+        assert kept.grad_fn is None and real_copy.grad_fn is None and not kept.requires_grad
+        assert kept.data_ptr() == normals.data_ptr() and torch.equal(kept, normals)
+        assert normals.to(torch.float64).grad_fn is None  # conversions: unchanged (no graph under no_grad)
+        plain = torch.rand(3)
+        assert plain.to("cpu") is plain  # nothing to detach: the tensor itself, as torch
+    graph = nrhints_normals(torch.rand(8, 3))
+    assert graph.to("cpu") is graph  # grad mode on: unchanged, gradients still flow
+    device_copy.uninstall()
+    with torch.no_grad():
+        assert normals.to("cpu") is normals  # torch's own behaviour, which kept every chunk's graph
+
+
 # ----------------------------------------------------------------------------------------- the job environment
 NRHINTS_PROBE = """
 import importlib.util, sys, torch
@@ -113,8 +151,17 @@ assert lpips.__file__.startswith(sys.argv[1]), lpips.__file__
 for name in ("tinycudann", "gsplat", "simple_knn", "diff_gaussian_rasterization_light", "torchvision"):
     spec = importlib.util.find_spec(name)  # the real package (if installed here) or nothing, never a stand-in
     assert spec is None or "cpu_standins" not in str(spec.origin), (name, spec.origin)
-assert "cpu_standins" not in getattr(sys.modules.get("sitecustomize"), "__file__", ""), "device shim installed"
+assert sys.modules["sitecustomize"].__file__.startswith(sys.argv[1]), sys.modules["sitecustomize"].__file__
 assert torch.zeros(1).device.type == "cpu" and not torch.cuda.is_available()
+try:  # no CUDA device shim: a CUDA request fails as it does on any CPU-only machine
+    torch.zeros(1, device="cuda")
+except (AssertionError, RuntimeError):
+    pass
+else:
+    raise AssertionError("CUDA requests are served: the SSD-GS/GS3 device shim is installed")
+x = torch.rand(4, 3, requires_grad=True)
+with torch.no_grad():
+    assert x.to("cpu").grad_fn is None and not x.to("cpu").requires_grad  # device_copy installed
 try:
     lpips.pretrained_networks
 except AttributeError as error:
@@ -127,13 +174,13 @@ print("lpips", float(lpips.LPIPS(net="alex", verbose=False).cpu()(a, a, normaliz
 
 
 def test_nrhints_job_environment_puts_only_lpips_on_the_path(seeded_alex):
-    assert standins_for("nrhints-official") == ("lpips",)
+    assert standins_for("nrhints-official") == ("lpips", "sitecustomize")
     assert "lpips" not in standins_for("ssdgs-official") and "tinycudann" not in standins_for("nrhints-official")
     env = job_environment("nrhints-official", {"PYTHONPATH": "/somewhere"})
     assert env["CUDA_VISIBLE_DEVICES"] == "" and "OLATBENCH_STANDIN_LIGHT" not in env
     assert env["PYTHONPATH"].split(os.pathsep) == [str(NRHINTS_SITE), str(OLATBENCH_ROOT), "/somewhere"]
     assert NRHINTS_SITE != SITE and sorted(p.name for p in NRHINTS_SITE.iterdir() if p.name != "__pycache__") == [
-        "lpips"]
+        "lpips", "sitecustomize.py"]
     done = subprocess.run([sys.executable, "-c", NRHINTS_PROBE, str(NRHINTS_SITE)], env={**os.environ, **env},
                           capture_output=True, text=True, timeout=600)
     assert done.returncode == 0, done.stderr
@@ -164,7 +211,7 @@ def test_a_nrhints_cpu_job_imports_the_lpips_standin_and_records_it(tmp_path):
     assert outcome.status == "done", log
     assert f"lpips from {NRHINTS_SITE / 'lpips' / '__init__.py'}" in log and "tinycudann None" in log
     official = read_results(os.path.join(folder, "results.json"))["official"]
-    assert official["device"] == "cpu" and official["standins"] == ["lpips"]
+    assert official["device"] == "cpu" and official["standins"] == ["lpips", "sitecustomize"]
     assert not (checkout / "lpips").exists()
 
 

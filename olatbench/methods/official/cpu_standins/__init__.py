@@ -10,9 +10,10 @@ user's checkout, and nothing of this is importable under those names anywhere el
 NRHints (291800d) runs on the CPU by itself: it picks the CPU when ``torch.cuda`` reports no device
 (``trainer/trainer.py:48``), its networks are torch (frequency encodings, ``nn.Linear``), and ``tinycudann`` is
 only an optional import for a ``HashEncoding`` its configs do not build (``fields/encodings.py:31-36, 237``). But
-``utils/metrics.py:4`` imports ``lpips``, which needs torchvision and downloads AlexNet: its jobs get
-`NRHINTS_SITE` instead, which holds only ``lpips`` (`lpips`) — none of the other stand-ins and no device shim, so
-that its own CPU path and its optional-import fallbacks stay as the authors wrote them.
+``utils/metrics.py:4`` imports ``lpips``, which needs torchvision and downloads AlexNet, and its test-view
+rendering keeps every chunk's autograd graph on the CPU (`device_copy`): its jobs get `NRHINTS_SITE` instead,
+which holds only ``lpips`` (`lpips`) and a ``sitecustomize`` installing `device_copy` — none of the other
+stand-ins and not the CUDA device shim, so that its own CPU path and optional-import fallbacks stay as written.
 
 ==============================================  ==============================================================
 real module                                     stand-in (this package)
@@ -24,6 +25,8 @@ real module                                     stand-in (this package)
 ``torchvision.utils.save_image``                `save_image`
 ``torch.cuda`` / ``.cuda()`` / ``device=cuda``  `device` (installed by ``SITE/sitecustomize.py``)
 ``lpips.LPIPS(net="alex")`` (NRHints only)      `lpips` (olatbench's LPIPSNet, installed weights), in `NRHINTS_SITE`
+``Tensor.to`` under ``no_grad`` (NRHints only)  `device_copy` (drops the graph as a GPU copy does), by
+                                                ``NRHINTS_SITE/sitecustomize.py``
 ==============================================  ==============================================================
 """
 
@@ -34,13 +37,13 @@ from collections.abc import Mapping
 from pathlib import Path
 
 SITE = Path(__file__).resolve().parent / "site"  # SSD-GS, GS³
-NRHINTS_SITE = Path(__file__).resolve().parent / "site_nrhints"  # NRHints: lpips only
+NRHINTS_SITE = Path(__file__).resolve().parent / "site_nrhints"  # NRHints: lpips, device_copy
 OLATBENCH_ROOT = Path(__file__).resolve().parents[4]  # the folder holding the olatbench package
 MODULES = ("gsplat", "diff_gaussian_rasterization_light", "tinycudann", "simple_knn", "torchvision", "sitecustomize")
 VARIANT_VARIABLE = "OLATBENCH_STANDIN_LIGHT"  # names the forward.cu the light splat follows (light.VARIANTS)
 # The forward.cu variant of the light splat per official method.
 LIGHT_VARIANTS = {"ssdgs-official": "ssdgs-26e4251", "gs3-official": "gs3-83c8daa"}
-NRHINTS_MODULES = ("lpips",)
+NRHINTS_MODULES = ("lpips", "sitecustomize")
 # Per official method: the folder put first on PYTHONPATH and the modules it replaces (methods not named: none).
 SITES: dict[str, tuple[Path, tuple[str, ...]]] = {
     "ssdgs-official": (SITE, MODULES), "gs3-official": (SITE, MODULES),
@@ -49,8 +52,9 @@ SITES: dict[str, tuple[Path, tuple[str, ...]]] = {
 
 def standins_for(method: str) -> tuple[str, ...]:
     """The modules replaced in a ``device=cpu`` job of ``method`` (`SITES`): all of `MODULES` for the codes they
-    were written for (SSD-GS, GS³); only ``lpips`` for NRHints (which takes its own CPU path when ``torch.cuda``
-    reports no device; a tinycudann stand-in would turn its optional import on); none for others."""
+    were written for (SSD-GS, GS³); ``lpips`` and the ``sitecustomize`` of `device_copy` for NRHints (which takes
+    its own CPU path when ``torch.cuda`` reports no device; a tinycudann stand-in would turn its optional import
+    on); none for others."""
     return SITES[method][1] if method in SITES else ()
 
 
