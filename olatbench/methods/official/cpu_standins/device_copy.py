@@ -1,7 +1,7 @@
 """A device move under ``no_grad`` never carries an autograd graph, also when the tensor is already there.
 
 NRHints (291800d) renders a test view in chunks and keeps each chunk's result with ``rets.append(rendering_res.to(
-'cpu'))`` inside ``get_eval_dicts``, which runs under ``torch.no_grad`` (``pipelines/base_pipeline.py:92-120``).
+'cpu'))`` inside ``get_eval_dicts``, which runs under ``torch.no_grad`` (``pipelines/base_pipeline.py:93-120``).
 Its normals come from ``torch.autograd.grad(..., create_graph=True)`` (``fields/sdf_field.py:136-147``), so they
 carry the SDF network's double-backward graph. On a GPU, ``.to('cpu')`` is a copy made under ``no_grad``: the copy
 has no graph and each chunk's graph is freed with the chunk. On the CPU, ``Tensor.to`` returns the tensor itself,
