@@ -389,7 +389,10 @@ def test_job_environment_serves_cuda_requests_from_the_cpu_with_the_standins():
     assert paths[0] == str(SITE) and paths[-1] == "/somewhere"
     assert env["OLATBENCH_STANDIN_LIGHT"] == "ssdgs-26e4251"
     assert job_environment("gs3-official", {})["OLATBENCH_STANDIN_LIGHT"] == "gs3-83c8daa"
-    assert job_environment("nrhints-official", {"PYTHONPATH": "/x"}) == {"CUDA_VISIBLE_DEVICES": ""}
+    # nrhints-official gets only the lpips stand-in (tests/test_cpu_standins_lpips.py), not these
+    assert "OLATBENCH_STANDIN_LIGHT" not in job_environment("nrhints-official", {"PYTHONPATH": "/x"})
+    assert job_environment("nrhints-official", {})["PYTHONPATH"].split(os.pathsep)[0] != str(SITE)
+    assert job_environment("rng-official", {"PYTHONPATH": "/x"}) == {"CUDA_VISIBLE_DEVICES": ""}
     done = subprocess.run([sys.executable, "-c", SHIM_PROBE], env={**os.environ, **env}, capture_output=True,
                           text=True, timeout=600)
     assert done.returncode == 0, done.stderr

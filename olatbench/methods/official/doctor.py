@@ -1,7 +1,7 @@
 """Checks of each configured official implementation for ``olatbench doctor``: the checkout exists and is at the
 pinned commit (or says which commit it is at), the interpreter runs, and a GPU is visible from it — or, with
-``device=cpu``, that olatbench's stand-ins import there and the environment holds the authors' pins
-(`CPU_PINS`, the recipe of docs/official.md)."""
+``device=cpu``, that olatbench's stand-ins of that method import there and the environment holds the authors' pins
+(`CPU_PINS`, `NRHINTS_CPU_PINS`: the recipes of docs/official.md)."""
 
 from __future__ import annotations
 
@@ -19,9 +19,18 @@ PROBE_TIMEOUT = 300.0  # s: a container image may have to be pulled or started
 # their code needs on the CPU, and the local CPU build of torch. OpenCV: the headless build of their pinned 4.9.0.80.
 CPU_PINS = {"torch": "2.13.0+cpu", "numpy": "1.26.3", "PIL": "11.1.0", "plyfile": None, "cv2": "4.9.0",
             "tqdm": "4.67.1", "jaxtyping": None}
+# NRHints 291800d: the pins of its requirements.txt (lpips is the stand-in; PyMCubes any: its 0.1.2 does not build
+# against the numpy 2 headers pip builds it with, 0.1.6 does; OpenCV: the headless build of 4.8.1.78).
+NRHINTS_CPU_PINS = {"torch": "2.13.0+cpu", "numpy": None, "tyro": "0.5.4", "torchmetrics": "1.0.0",
+                    "jaxtyping": "0.2.19", "imageio": "2.24.0", "cv2": "4.8.1", "tensorboardX": "2.5.1",
+                    "torchinfo": "1.8.0", "mcubes": None, "trimesh": "3.18.0", "einops": None, "scipy": None,
+                    "tqdm": None, "wandb": None}
+METHOD_CPU_PINS = {"nrhints-official": NRHINTS_CPU_PINS}  # the others: CPU_PINS
+_PROBE_IMPORTS = {"simple_knn": "simple_knn._C", "torchvision": "torchvision.utils"}  # what the authors import
 _CPU_PROBE = ("import importlib, importlib.metadata as md, sys\n"
-              "import gsplat, diff_gaussian_rasterization_light, tinycudann, simple_knn._C, torchvision.utils\n"
-              "assert 'cpu_standins' in gsplat.__file__, gsplat.__file__\n"
+              "for name in STANDINS:\n"
+              "    module = importlib.import_module(name)\n"
+              "    assert 'cpu_standins' in str(module.__file__), (name, module.__file__)\n"
               "found = {}\n"
               "for name in NAMES:\n"
               "    try:\n"
@@ -29,7 +38,10 @@ _CPU_PROBE = ("import importlib, importlib.metadata as md, sys\n"
               "    except Exception as error:\n"
               "        found[name] = 'missing (' + type(error).__name__ + ')'\n"
               "        continue\n"
-              "    found[name] = getattr(module, '__version__', None) or md.version(name)\n"
+              "    try:\n"
+              "        found[name] = getattr(module, '__version__', None) or md.version(name)\n"
+              "    except md.PackageNotFoundError:\n"
+              "        found[name] = 'unknown version'\n"
               "print(repr(found))\n")
 _GPU_PROBE = ("import torch; ok = torch.cuda.is_available(); "
               "print(torch.cuda.get_device_name(0) if ok else 'torch sees no CUDA device'); raise SystemExit(0 if ok "
@@ -94,18 +106,27 @@ def check_code(spec: MethodSpec, settings: CodeSettings) -> list[Check]:
     return rows
 
 
+def cpu_pins(name: str) -> dict[str, str | None]:
+    """The packages (import name -> version prefix, None: any) the doctor checks in ``name``'s CPU environment."""
+    return METHOD_CPU_PINS.get(name, CPU_PINS)
+
+
 def _cpu_environment_check(name: str, settings: CodeSettings) -> Check:
-    """device=cpu: the stand-ins import in the method's environment and its packages are at `CPU_PINS`."""
+    """device=cpu: the method's stand-ins (`standins_for`) import in its environment from olatbench, and its
+    packages are at `cpu_pins`."""
     import ast
 
-    from olatbench.methods.official.cpu_standins import job_environment
+    from olatbench.methods.official.cpu_standins import job_environment, standins_for
 
-    code, line = _probe(settings, f"NAMES = {list(CPU_PINS)!r}\n" + _CPU_PROBE, job_environment(name))
+    pins = cpu_pins(name)
+    standins = [_PROBE_IMPORTS.get(module, module) for module in standins_for(name) if module != "sitecustomize"]
+    code, line = _probe(settings, f"NAMES = {list(pins)!r}\nSTANDINS = {standins!r}\n" + _CPU_PROBE,
+                        job_environment(name))
     fix = "build the official CPU environment as docs/official.md says (section: running on the CPU)"
     if code != 0:
         return (f"{name}: CPU stand-ins", False, f"the stand-ins do not import there: {line or code}", fix)
     found = ast.literal_eval(line)
-    wrong = [f"{module} {found[module]} (want {pin or 'any'})" for module, pin in CPU_PINS.items()
+    wrong = [f"{module} {found[module]} (want {pin or 'any'})" for module, pin in pins.items()
              if str(found[module]).startswith("missing") or (pin and not str(found[module]).startswith(pin))]
     detail = ", ".join(f"{module} {version}" for module, version in found.items())
     return (f"{name}: CPU stand-ins", not wrong, "stand-ins import; " + ("; ".join(wrong) if wrong else detail),

@@ -7,6 +7,14 @@ folder `SITE` first on the commands' ``PYTHONPATH`` (and olatbench's own folder 
 import these stand-ins and its ``sitecustomize`` installs the device shim (`device`); nothing is written into the
 user's checkout, and nothing of this is importable under those names anywhere else.
 
+NRHints (291800d) runs on the CPU by itself: it picks the CPU when ``torch.cuda`` reports no device
+(``trainer/trainer.py:48``), its networks are torch (frequency encodings, ``nn.Linear``), and ``tinycudann`` is
+only an optional import for a ``HashEncoding`` its configs do not build (``fields/encodings.py:31-36, 237``). But
+``utils/metrics.py:4`` imports ``lpips``, which needs torchvision and downloads AlexNet, and its test-view
+rendering keeps every chunk's autograd graph on the CPU (`device_copy`): its jobs get `NRHINTS_SITE` instead,
+which holds only ``lpips`` (`lpips`) and a ``sitecustomize`` installing `device_copy` — none of the other
+stand-ins and not the CUDA device shim, so that its own CPU path and optional-import fallbacks stay as written.
+
 ==============================================  ==============================================================
 real module                                     stand-in (this package)
 ==============================================  ==============================================================
@@ -16,6 +24,9 @@ real module                                     stand-in (this package)
 ``simple_knn._C.distCUDA2``                     `knn` (olatbench's exact 3-nearest-neighbour search)
 ``torchvision.utils.save_image``                `save_image`
 ``torch.cuda`` / ``.cuda()`` / ``device=cuda``  `device` (installed by ``SITE/sitecustomize.py``)
+``lpips.LPIPS(net="alex")`` (NRHints only)      `lpips` (olatbench's LPIPSNet, installed weights), in `NRHINTS_SITE`
+``Tensor.to`` under ``no_grad`` (NRHints only)  `device_copy` (drops the graph as a GPU copy does), by
+                                                ``NRHINTS_SITE/sitecustomize.py``
 ==============================================  ==============================================================
 """
 
@@ -25,33 +36,48 @@ import os
 from collections.abc import Mapping
 from pathlib import Path
 
-SITE = Path(__file__).resolve().parent / "site"
+SITE = Path(__file__).resolve().parent / "site"  # SSD-GS, GS³
+NRHINTS_SITE = Path(__file__).resolve().parent / "site_nrhints"  # NRHints: lpips, device_copy
 OLATBENCH_ROOT = Path(__file__).resolve().parents[4]  # the folder holding the olatbench package
 MODULES = ("gsplat", "diff_gaussian_rasterization_light", "tinycudann", "simple_knn", "torchvision", "sitecustomize")
 VARIANT_VARIABLE = "OLATBENCH_STANDIN_LIGHT"  # names the forward.cu the light splat follows (light.VARIANTS)
 # The forward.cu variant of the light splat per official method.
 LIGHT_VARIANTS = {"ssdgs-official": "ssdgs-26e4251", "gs3-official": "gs3-83c8daa"}
+NRHINTS_MODULES = ("lpips", "sitecustomize")
+# Per official method: the folder put first on PYTHONPATH and the modules it replaces (methods not named: none).
+SITES: dict[str, tuple[Path, tuple[str, ...]]] = {
+    "ssdgs-official": (SITE, MODULES), "gs3-official": (SITE, MODULES),
+    "nrhints-official": (NRHINTS_SITE, NRHINTS_MODULES)}
 
 
 def standins_for(method: str) -> tuple[str, ...]:
-    """The modules replaced in a ``device=cpu`` job of ``method``: all of `MODULES` for the codes they were
-    written for (SSD-GS, GS³), none for others (NRHints takes its own CPU path when ``torch.cuda`` reports no
-    device, and would pick the tinycudann stand-in over its torch fallback)."""
-    return MODULES if method in LIGHT_VARIANTS else ()
+    """The modules replaced in a ``device=cpu`` job of ``method`` (`SITES`): all of `MODULES` for the codes they
+    were written for (SSD-GS, GS³); ``lpips`` and the ``sitecustomize`` of `device_copy` for NRHints (which takes
+    its own CPU path when ``torch.cuda`` reports no device; a tinycudann stand-in would turn its optional import
+    on); none for others."""
+    return SITES[method][1] if method in SITES else ()
+
+
+def site_for(method: str) -> Path | None:
+    """The stand-in folder of a ``device=cpu`` job of ``method`` (`SITE`, `NRHINTS_SITE`), or None."""
+    return SITES[method][0] if method in SITES else None
 
 
 def job_environment(method: str, environ: Mapping[str, str] | None = None) -> dict[str, str]:
     """The environment variables a ``device=cpu`` command of ``method`` runs with (on top of ``environ``,
     default ``os.environ``): ``CUDA_VISIBLE_DEVICES`` empty (nothing may reach a GPU by another road); where
-    `standins_for` names any, ``PYTHONPATH`` = `SITE`, olatbench's folder, then the inherited one, and the light
-    splat's variant."""
+    the method has stand-ins, ``PYTHONPATH`` = its folder (`site_for`), olatbench's folder, then the inherited
+    one; for SSD-GS and GS³ the light splat's variant."""
     environ = os.environ if environ is None else environ
     env = {"CUDA_VISIBLE_DEVICES": ""}
-    if standins_for(method):
-        paths = [str(SITE), str(OLATBENCH_ROOT), *filter(None, environ.get("PYTHONPATH", "").split(os.pathsep))]
-        env.update(PYTHONPATH=os.pathsep.join(paths), **{VARIANT_VARIABLE: LIGHT_VARIANTS[method]})
+    site = site_for(method)
+    if site is not None:
+        paths = [str(site), str(OLATBENCH_ROOT), *filter(None, environ.get("PYTHONPATH", "").split(os.pathsep))]
+        env["PYTHONPATH"] = os.pathsep.join(paths)
+    if method in LIGHT_VARIANTS:
+        env[VARIANT_VARIABLE] = LIGHT_VARIANTS[method]
     return env
 
 
-__all__ = ["LIGHT_VARIANTS", "MODULES", "OLATBENCH_ROOT", "SITE", "VARIANT_VARIABLE", "job_environment",
-           "standins_for"]
+__all__ = ["LIGHT_VARIANTS", "MODULES", "NRHINTS_MODULES", "NRHINTS_SITE", "OLATBENCH_ROOT", "SITE", "SITES",
+           "VARIANT_VARIABLE", "job_environment", "site_for", "standins_for"]
