@@ -22,6 +22,7 @@ from pathlib import Path
 import pytest
 
 from olatbench.bench.results import read_results
+from olatbench.datasets.images import read_image
 from olatbench.datasets.synth.mini import default_root as mini_root
 from olatbench.methods.registry import get_spec
 
@@ -55,10 +56,16 @@ def test_authors_code_trains_and_scores_on_the_cpu(tmp_path, method, variable):
     assert "Generating random point cloud" not in log
     train = official["commands"][0]["argv"]
     assert train[train.index("--unfreeze_iterations") + 1] == str(round(5000 * iterations / 60000) or 1)
+    # it trained: the smoothed loss train.py shows (0.4·loss + 0.6·previous) fell; at 300 of the 3000 steps the
+    # models are far from fitted (about 9-11 dB), so a PSNR bound would not say more than this
+    losses = [float(value) for value in re.findall(r"Loss=([0-9.]+)", log)]
+    assert len(losses) >= 2 and losses[-1] < 0.9 * losses[0], losses[:3] + losses[-3:]
     mean = results["metrics"]["test"]["mean"]
-    assert math.isfinite(mean["psnr"]) and mean["psnr"] > 10.0, mean  # a trained render, not a blank image
+    assert all(math.isfinite(mean[name]) for name in ("psnr", "ssim", "lpips")), mean
     renders = sorted(Path(folder, "renders", "test").iterdir())
     assert len(renders) == len(results["metrics"]["test"]["per_image"]) > 0
+    image = read_image(renders[0])
+    assert image.std() > 0.02, f"{renders[0]} is blank"  # a rendered object, not a constant image
     assert not (Path(checkout) / "sitecustomize.py").exists()
     status = subprocess.run(["git", "-C", checkout, "status", "--porcelain", "--untracked-files=no"],
                             capture_output=True, text=True)
