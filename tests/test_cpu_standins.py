@@ -418,7 +418,10 @@ def test_device_setting_comes_from_every_source_and_is_checked(tmp_path):
     assert any("device=cpu" in problem and "container" in problem for problem in boxed.problems())
 
 
-def test_a_cpu_job_imports_the_standins_and_records_them(tmp_path):
+def run_cpu_job(tmp_path: Path, method: str, script: str, probe: str) -> tuple[str, dict, Path]:
+    """Plan and run a ``device=cpu`` job of ``method`` on a stand-in checkout whose ``script`` also runs the Python
+    lines ``probe`` (printing what the job's interpreter sees); its log, results.json's ``official`` block and the
+    checkout."""
     from official_standins import write_checkout
     from test_official import plan, suite_of, write_data
 
@@ -426,24 +429,31 @@ def test_a_cpu_job_imports_the_standins_and_records_them(tmp_path):
     from olatbench.bench.results import read_results
 
     data = write_data(tmp_path / "data")
-    checkout = write_checkout(tmp_path / "checkout", "ssdgs-official")
-    with open(checkout / "train.py", "a") as script:  # what the stand-in train step sees
-        script.write("import gsplat, torch\nprint('gsplat from', gsplat.__file__)\n"
-                     "print('cuda tensor on', torch.zeros(1, device='cuda').device)\n")
-    jobs = plan("ssdgs-official", suite_of("tiny"), data, tmp_path / "runs", checkout=str(checkout),
-                python=sys.executable, device="cpu")
+    checkout = write_checkout(tmp_path / "checkout", method)
+    with open(checkout / script, "a") as handle:
+        handle.write(probe)
+    jobs = plan(method, suite_of("tiny"), data, tmp_path / "runs", checkout=str(checkout), python=sys.executable,
+                device="cpu")
     [outcome] = run_inline(jobs, progress=False)
-    folder = jobs[0].folder
-    log = Path(folder, "log.txt").read_text()
+    log = Path(jobs[0].folder, "log.txt").read_text()
     assert outcome.status == "done", log
+    assert not list(checkout.rglob("sitecustomize.py"))  # nothing written into the checkout
+    return log, read_results(os.path.join(jobs[0].folder, "results.json"))["official"], checkout
+
+
+def test_a_cpu_job_imports_the_standins_and_records_them(tmp_path):
+    log, official, checkout = run_cpu_job(tmp_path, "ssdgs-official", "train.py",
+                                          "import gsplat, torch\nprint('gsplat from', gsplat.__file__)\n"
+                                          "print('cuda tensor on', torch.zeros(1, device='cuda').device)\n")
     assert f"gsplat from {SITE / 'gsplat' / '__init__.py'}" in log and "cuda tensor on cpu" in log
-    official = read_results(os.path.join(folder, "results.json"))["official"]
     assert official["device"] == "cpu" and official["settings"]["device"] == "cpu"
     assert set(official["standins"]) >= {"gsplat", "diff_gaussian_rasterization_light", "tinycudann", "simple_knn"}
-    assert not list(checkout.rglob("sitecustomize.py")) and not (checkout / "gsplat").exists()
+    assert not (checkout / "gsplat").exists()
 
 
-def test_doctor_checks_the_cpu_environment_against_the_pins(tmp_path, monkeypatch):
+@pytest.mark.parametrize("method", ["ssdgs-official", "nrhints-official"])
+def test_doctor_checks_the_cpu_environment_against_the_pins(tmp_path, monkeypatch, method):
+    """Each method's own stand-ins are imported and its own pins checked (NRHints: its requirements.txt)."""
     import importlib
     import importlib.metadata
 
@@ -451,24 +461,28 @@ def test_doctor_checks_the_cpu_environment_against_the_pins(tmp_path, monkeypatc
     from official_standins import write_checkout
 
     from olatbench.cli import main
-    from olatbench.methods.official.doctor import CPU_PINS
+    from olatbench.methods.official.doctor import CPU_PINS, NRHINTS_CPU_PINS, cpu_pins
 
+    pins = cpu_pins(method)
+    assert pins is (NRHINTS_CPU_PINS if method == "nrhints-official" else CPU_PINS)
     monkeypatch.chdir(tmp_path)
-    checkout = write_checkout(tmp_path / "clone", "ssdgs-official", git=True)
-    options = [f"ssdgs-official.checkout={checkout}", f"ssdgs-official.python={sys.executable}",
-               "ssdgs-official.device=cpu"]
+    checkout = write_checkout(tmp_path / "clone", method, git=True)
+    options = [f"{method}.checkout={checkout}", f"{method}.python={sys.executable}", f"{method}.device=cpu"]
     result = CliRunner().invoke(main, ["doctor", *[arg for option in options for arg in ("--code", option)]])
-    row = next(line for line in result.output.splitlines() if "ssdgs-official: CPU stand-ins" in line)
-    assert "ssdgs-official: GPU" not in result.output and "stand-ins import" in row
+    row = next(line for line in result.output.splitlines() if f"{method}: CPU stand-ins" in line)
+    assert f"{method}: GPU" not in result.output and "stand-ins import" in row, row
 
     def version(name):
         try:
             module = importlib.import_module(name)
         except ImportError:
             return None
-        return getattr(module, "__version__", None) or importlib.metadata.version(name)
+        try:
+            return getattr(module, "__version__", None) or importlib.metadata.version(name)
+        except importlib.metadata.PackageNotFoundError:
+            return "unknown version"
 
-    mismatched = [name for name, pin in CPU_PINS.items()
+    mismatched = [name for name, pin in pins.items()
                   if version(name) is None or (pin and not str(version(name)).startswith(pin))]
     assert row.strip().startswith("NO" if mismatched else "ok"), (row, mismatched)
     assert all(f"{name} " in row for name in mismatched)

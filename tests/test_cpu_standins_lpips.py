@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
+from test_cpu_standins import run_cpu_job
 from test_lpips import EXPECTED, EXPECTED_REAL, SEED, images, needs_weights, seeded_state
 
 from olatbench.methods.official.cpu_standins import NRHINTS_SITE, OLATBENCH_ROOT, SITE, job_environment, standins_for
@@ -192,58 +193,10 @@ def test_nrhints_job_environment_puts_only_lpips_on_the_path(seeded_alex):
 
 
 def test_a_nrhints_cpu_job_imports_the_lpips_standin_and_records_it(tmp_path):
-    from official_standins import write_checkout
-    from test_official import plan, suite_of, write_data
-
-    from olatbench.bench.executors import run_inline
-    from olatbench.bench.results import read_results
-
-    data = write_data(tmp_path / "data")
-    checkout = write_checkout(tmp_path / "checkout", "nrhints-official")
-    with open(checkout / "main.py", "a") as script:  # what the stand-in main.py sees
-        script.write("import importlib.util, lpips\nprint('lpips from', lpips.__file__)\n"
-                     "print('tinycudann', importlib.util.find_spec('tinycudann'))\n")
-    jobs = plan("nrhints-official", suite_of("tiny"), data, tmp_path / "runs", checkout=str(checkout),
-                python=sys.executable, device="cpu")
-    [outcome] = run_inline(jobs, progress=False)
-    folder = jobs[0].folder
-    log = Path(folder, "log.txt").read_text()
-    assert outcome.status == "done", log
+    log, official, checkout = run_cpu_job(tmp_path, "nrhints-official", "main.py",
+                                          "import importlib.util, lpips\nprint('lpips from', lpips.__file__)\n"
+                                          "print('tinycudann', importlib.util.find_spec('tinycudann'))\n")
     assert f"lpips from {NRHINTS_SITE / 'lpips' / '__init__.py'}" in log and "tinycudann None" in log
-    official = read_results(os.path.join(folder, "results.json"))["official"]
     assert official["device"] == "cpu" and official["standins"] == ["lpips", "sitecustomize"]
     assert not (checkout / "lpips").exists()
 
-
-def test_doctor_checks_nrhints_cpu_environment_with_its_own_standin_and_pins(tmp_path, monkeypatch):
-    import importlib
-    import importlib.metadata
-
-    from click.testing import CliRunner
-    from official_standins import write_checkout
-
-    from olatbench.cli import main
-    from olatbench.methods.official.doctor import CPU_PINS, NRHINTS_CPU_PINS, cpu_pins
-
-    assert cpu_pins("nrhints-official") is NRHINTS_CPU_PINS and cpu_pins("gs3-official") is CPU_PINS
-    monkeypatch.chdir(tmp_path)
-    checkout = write_checkout(tmp_path / "clone", "nrhints-official", git=True)
-    options = [f"nrhints-official.checkout={checkout}", f"nrhints-official.python={sys.executable}",
-               "nrhints-official.device=cpu"]
-    result = CliRunner().invoke(main, ["doctor", *[arg for option in options for arg in ("--code", option)]])
-    row = next(line for line in result.output.splitlines() if "nrhints-official: CPU stand-ins" in line)
-    assert "nrhints-official: GPU" not in result.output and "stand-ins import" in row, row
-
-    def version(name):
-        try:
-            module = importlib.import_module(name)
-        except ImportError:
-            return None
-        try:
-            return getattr(module, "__version__", None) or importlib.metadata.version(name)
-        except importlib.metadata.PackageNotFoundError:
-            return "unknown version"
-
-    mismatched = [name for name, pin in NRHINTS_CPU_PINS.items()
-                  if version(name) is None or (pin and not str(version(name)).startswith(pin))]
-    assert row.strip().startswith("NO" if mismatched else "ok"), (row, mismatched)

@@ -22,7 +22,7 @@ from typing import Any
 
 import click
 
-from olatbench.sizes import parse_size
+from olatbench.datasets.sizes import parse_size
 
 FALSE_WORDS = ("", "0", "false", "no", "off")
 

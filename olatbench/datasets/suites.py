@@ -19,7 +19,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from olatbench.datasets.errors import DatasetError
-from olatbench.sizes import parse_size
+from olatbench.datasets.sizes import parse_size
 
 
 def _snake(name: str) -> str:
