@@ -61,10 +61,10 @@ def test_mini_jobs_scale_the_schedule_and_start_from_the_native_points(tmp_path,
     assert {k: job.config[k] for k in ("iterations", "reference_iterations", "init_points")} == \
         {"iterations": 3000, "reference_iterations": 60000, "init_points": 2000}
     assert "--densify_until_iter" in job.config["preset_args"]
+    assert OfficialConfig(**{**job.config, "train_args": ["--x", "1"]}).train_args == ("--x", "1")  # JSON lists
     code = SSDGS_CODE if method == "ssdgs-official" else GS3_CODE
     scene = load_scene(job.scene_path, format=job.scene_format)
-    config = OfficialConfig(**{**job.config, "iterations": 300, "train_args": (), "render_args": (),
-                               "preset_args": tuple(job.config["preset_args"])})
+    config = OfficialConfig(**{**job.config, "iterations": 300})
     settings = CodeSettings.from_json(job.official)
     runs = [prepare(code, settings, scene, tmp_path / f"work{seed}", job.suite, job.train_split, job.test_split,
                     None, config, seed) for seed in (0, 0, 1)]

@@ -50,9 +50,7 @@ def run_official_job(job: Job, folder: Path, log: JobLog, started: str) -> JobOu
     write_json(folder / "config.json", job.config)
     code: OfficialCode = import_reference(job.method_ref)
     settings = CodeSettings.from_json(job.official or {"method": job.method})
-    config = OfficialConfig(**{**job.config, "train_args": tuple(job.config.get("train_args", ())),
-                               "render_args": tuple(job.config.get("render_args", ())),
-                               "preset_args": tuple(job.config.get("preset_args", ()))})
+    config = OfficialConfig(**job.config)
     log(f"job {job.id}: {job.method} (official code) on {job.suite}/{job.label}, {config.iterations} iterations; "
         f"official scripts cannot resume: commands run from the start")
     scene = load_scene(job.scene_path, format=job.scene_format)

@@ -54,6 +54,7 @@ SUITE_ARGS = "{*suite_args}"
 ANY_SUITE = "*"
 LOADER_ORDER = "{scene}/transforms_test.json"  # the converted test split, as the official loaders read it
 SCHEDULED_STEP = "train"  # the step whose schedule_flags a scaled run scales
+ARGUMENT_FIELDS = ("preset_args", "train_args", "render_args")  # OfficialConfig's argument lists
 
 
 @dataclass(frozen=True)
@@ -80,6 +81,8 @@ class OfficialConfig:
     """Extra arguments appended to the render command."""
 
     def __post_init__(self) -> None:
+        for name in ARGUMENT_FIELDS:  # a job.json or --set gives lists: the config holds tuples either way
+            object.__setattr__(self, name, tuple(getattr(self, name)))
         check_ranges(self, "official method")
 
 
@@ -99,6 +102,11 @@ class SceneArgs:
     source: str  # where the pinned commit says so: "real_train.sh:306-336"
 
 
+def last_index(argv: list[str], flag: str) -> int | None:
+    """The position of the last ``flag`` in ``argv`` (None when absent)."""
+    return max((i for i, arg in enumerate(argv) if arg == flag), default=None)
+
+
 def apply_scene_args(argv: list[str], args: tuple[str, ...]) -> list[str]:
     """``argv`` with each ``--flag [value]`` of ``args`` replacing that flag's value (its last occurrence), or
     appended when ``argv`` lacks the flag."""
@@ -109,7 +117,7 @@ def apply_scene_args(argv: list[str], args: tuple[str, ...]) -> list[str]:
         has_value = index + 1 < len(args) and not args[index + 1].startswith("--")
         value = [args[index + 1]] if has_value else []
         index += 1 + len(value)
-        where = max((i for i, arg in enumerate(out) if arg == flag), default=None)
+        where = last_index(out, flag)
         if where is None:
             out += [flag, *value]
         elif value and where + 1 < len(out) and not out[where + 1].startswith("--"):
@@ -177,7 +185,7 @@ class OfficialCode:
         (the scripts take some of them modulo)."""
         scaled: list[str] = []
         for flag, default in self.schedule_flags.items():
-            where = max((i for i, arg in enumerate(argv) if arg == flag), default=None)
+            where = last_index(argv, flag)
             value = int(argv[where + 1]) if where is not None else default
             new = round(value * factor)
             scaled += [flag, str(max(new, 1) if value > 0 else new)]
