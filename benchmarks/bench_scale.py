@@ -43,8 +43,69 @@ import time
 ALL_ON_STEP = 30_000  # the 100K schedule: every term on, camera/light refinement on, nothing frozen
 
 
+def analytic_views(suite: str, distinct: int):
+    """The suite's stand-in size and training-image count with closed-form images (the Lambertian sphere of
+    `olatbench.datasets.synth.analytic`): ``distinct`` rendered views repeated up to the suite's count, as
+    ``--fill-stack`` does. Needs no Mitsuba (a GPU node); the step's cost does not depend on what the images show."""
+    import numpy as np
+
+    from olatbench.datasets.synth.analytic import render_sphere, sphere_rig
+    from olatbench.datasets.synth.standins import STANDINS
+    from olatbench.methods.base import Views
+
+    standin = STANDINS[suite]
+    cameras, lights = sphere_rig(distinct, standin.resolution, seed=0)
+    rendered = [render_sphere(c, lt) for c, lt in zip(cameras, lights, strict=True)]
+    order = [index % distinct for index in range(standin.train)]
+    images = np.stack([rendered[index] for index in order])
+    return Views(cameras=[cameras[i] for i in order], lights=[lights[i] for i in order], images=images,
+                 frame_ids=[f"{i:05d}" for i in range(standin.train)], background=np.zeros(3, dtype=np.float32),
+                 scene_name=f"{suite}-analytic")
+
+
+def stand_in_views(suite: str, images: int | None, fill_stack: bool):
+    """The suite's rendered stand-in (Mitsuba, cached) loaded through the runner's own loader, and the centre of
+    its object's bounding sphere."""
+    from olatbench.bench.execute import load_views
+    from olatbench.bench.jobs import Job
+    from olatbench.datasets import load_scene
+    from olatbench.datasets.suites import get_suite
+    from olatbench.datasets.synth.standins import STANDINS, ensure_standin
+
+    suite_record = get_suite(suite)
+    folder = ensure_standin(suite, train=images, progress=False)
+    scene = load_scene(folder)
+    frames = scene.split(suite_record.train_split)
+    if fill_stack:  # the rendered frames again and again, up to the suite's realistic training-image count
+        target = STANDINS[suite].train
+        frames = [frames[index % len(frames)] for index in range(target)]
+    job = Job(method="ssdgs", method_ref="", suite=suite, scene=folder.name, variant="default", seed=0, config={},
+              scene_path=str(folder), scene_format=suite_record.format, colourspace=suite_record.colourspace,
+              resolution=suite_record.resolution, train_split=suite_record.train_split,
+              test_split=suite_record.test_split, protocol="", protocol_version=0, data_manifest=None, code="",
+              folder=tempfile.mkdtemp(prefix="bench_scale_"))  # where a memory-mapped image stack would go
+    centre = json.loads((folder / "synth.json").read_text())["object_bounding_sphere"]["centre"]
+    return load_views(frames, job), centre
+
+
+def synchronised(device, fn):
+    """``fn`` followed by a wait for the device's queued work (CUDA runs asynchronously), so a host clock around
+    the call measures the work itself."""
+    import torch
+
+    if torch.device(device).type != "cuda":
+        return fn
+
+    def run():
+        out = fn()
+        torch.cuda.synchronize(device)
+        return out
+
+    return run
+
+
 def run_case(suite: str, count: int, steps: int, repeats: int, images: int | None, threads: int,
-             fill_stack: bool = False, precision: str = "fp32") -> dict:
+             fill_stack: bool = False, precision: str = "fp32", device: str = "cpu", analytic: bool = False) -> dict:
     """One (suite, Gaussian count) case in this process; returns its measurements as plain numbers."""
     import torch
     from bench_ssdgs import (
@@ -58,57 +119,69 @@ def run_case(suite: str, count: int, steps: int, repeats: int, images: int | Non
         timed,
     )
 
-    from olatbench.bench.execute import load_views
-    from olatbench.bench.jobs import Job
     from olatbench.bench.plan import resolve_config
-    from olatbench.datasets import load_scene
     from olatbench.datasets.suites import get_suite
-    from olatbench.datasets.synth.standins import STANDINS, ensure_standin
     from olatbench.methods.registry import get_spec
     from olatbench.methods.ssdgs import SSDGS
 
     torch.set_num_threads(threads)
     torch.set_flush_denormal(True)
-    suite_record = get_suite(suite)
-    folder = ensure_standin(suite, train=images, progress=False)
-    scene = load_scene(folder)
-    frames = scene.split(suite_record.train_split)
-    if fill_stack:  # the rendered frames again and again, up to the suite's realistic training-image count
-        target = STANDINS[suite].train
-        frames = [frames[index % len(frames)] for index in range(target)]
-    job = Job(method="ssdgs", method_ref="", suite=suite, scene=folder.name, variant="default", seed=0, config={},
-              scene_path=str(folder), scene_format=suite_record.format, colourspace=suite_record.colourspace,
-              resolution=suite_record.resolution, train_split=suite_record.train_split,
-              test_split=suite_record.test_split, protocol="", protocol_version=0, data_manifest=None, code="",
-              folder=tempfile.mkdtemp(prefix="bench_scale_"))  # where a memory-mapped image stack would go
     clock = time.perf_counter()
-    views = load_views(frames, job)
+    if analytic:
+        views, centre = analytic_views(suite, images or 100), [0.0, 0.0, 0.0]
+    else:
+        views, centre = stand_in_views(suite, images, fill_stack)
     load_seconds = time.perf_counter() - clock
     never = 10**9
-    config = resolve_config(get_spec("ssdgs"), suite_record)
+    config = resolve_config(get_spec("ssdgs"), get_suite(suite))
     config = dataclasses.replace(config, num_init_gaussians=count, max_gaussians=None, densify_from=never,
                                  densify_until=never, opacity_reset_interval=never, network_precision=precision)
     method = SSDGS(config)
-    method.setup(views, "cpu", 0)
+    method.setup(views, device, 0)
+    if torch.device(device).type == "cuda":
+        torch.cuda.reset_peak_memory_stats(device)
     put_on_sphere(method, radius=0.8, opacity=0.9)
-    with torch.no_grad():  # onto the stand-in's object (the generator's bounding sphere: radius 1)
-        method.model.means += torch.tensor(json.loads((folder / "synth.json").read_text())["object_bounding_sphere"]
-                                           ["centre"], dtype=torch.float32)
+    with torch.no_grad():  # onto the scene's object (the generator's bounding sphere, radius 1; the analytic sphere)
+        method.model.means += torch.tensor(centre, dtype=torch.float32, device=method.model.means.device)
     visible = torch.arange(method.model.num_gaussians)
     stages = {"raster": raster_stage(method), "shadow": shadow_stage(method), "mlp": mlp_stage(method, visible),
               "optim": optimizer_stage(method), "rest": rest_stage(method, ALL_ON_STEP)}
-    stage_seconds = timed({name: starting_clean(method, fn) for name, fn in stages.items()}, repeats)
-    step_seconds = []
-    for offset in range(steps + 1):  # the first is a warm-up
+    stage_seconds = timed({name: synchronised(device, starting_clean(method, fn)) for name, fn in stages.items()},
+                          repeats)
+    train_step = synchronised(device, lambda: method.train_step(ALL_ON_STEP + len(step_seconds)))
+    step_seconds: list[float] = []
+    for _ in range(steps + 1):  # the first is a warm-up
         clock = time.perf_counter()
-        method.train_step(ALL_ON_STEP + offset)
+        train_step()
         step_seconds.append(time.perf_counter() - clock)
+    render_fps = measure_render_fps(method, views, device, repeats)
     camera = views.cameras[0]
+    cuda = torch.device(device).type == "cuda"
     return {"suite": suite, "gaussians": method.model.num_gaussians, "width": camera.width, "height": camera.height,
             "images": len(views), "image_gib": views.images.nbytes / 2**30, "load_seconds": load_seconds,
             "step_seconds": min(step_seconds[1:]), "step_seconds_mean": sum(step_seconds[1:]) / steps,
             "stages": stage_seconds, "peak_rss_gib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20,
+            "peak_device_gib": torch.cuda.max_memory_allocated(device) / 2**30 if cuda else None,
+            "render_fps": render_fps, "device": device, "analytic": analytic,
             "threads": threads, "precision": precision, "light_pass": light_pass_backend(method)}
+
+
+def measure_render_fps(method, views, device: str, repeats: int) -> float:
+    """Frames per second of ``method.render`` (every component, no gradients) over the first training views:
+    the median of ``max(repeats, 5)`` renders after one warm-up."""
+    import statistics
+
+    import torch
+
+    frames = [(views.cameras[i % len(views)], views.lights[i % len(views)]) for i in range(max(repeats, 5) + 1)]
+    seconds = []
+    with torch.no_grad():
+        for camera, light in frames:
+            render = synchronised(device, lambda camera=camera, light=light: method.render(camera, light))
+            clock = time.perf_counter()
+            render()
+            seconds.append(time.perf_counter() - clock)
+    return 1.0 / statistics.median(seconds[1:])
 
 
 def light_pass_backend(method) -> str:
@@ -140,16 +213,22 @@ def main() -> None:
     parser.add_argument("--threads", type=int, default=2)
     parser.add_argument("--precisions", nargs="+", default=["fp32"], choices=["fp32", "bf16", "fp16"],
                         help="network_precision of each case (e.g. fp32 bf16: every case twice)")
+    parser.add_argument("--device", default="cpu", help="torch device of the model and images (cpu, cuda, cuda:1)")
+    parser.add_argument("--analytic", action="store_true",
+                        help="closed-form images of the suite's size and count instead of the Mitsuba stand-in "
+                             "(no Mitsuba needed: a GPU node); --images distinct views (default 100)")
+    parser.add_argument("--json", metavar="FILE", help="also write every case's measurements to FILE")
     parser.add_argument("--case", nargs=3, metavar=("SUITE", "COUNT", "PRECISION"), help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.case:  # child process: one case, one JSON line
         print(json.dumps(run_case(args.case[0], int(args.case[1]), args.steps, args.repeats, args.images,
-                                  args.threads, args.fill_stack, args.case[2])))
+                                  args.threads, args.fill_stack, args.case[2], args.device, args.analytic)))
         return
     print(f"{'suite':>8} {'size':>9} {'images':>6} {'N':>7} {'prec':>4} {'step':>7} {'raster':>7} {'shadow':>7} "
           f"{'mlp':>7} {'optim':>7} {'rest':>7} {'step/rast':>9} {'rss GiB':>8} {'rss/img':>7} {'run at N':>10} "
-          f"{'light pass':>10}")
+          f"{'light pass':>10} {'dev GiB':>7} {'fps':>6}")
     worst_512 = 0.0
+    cases = []
     for suite, count, precision in itertools.product(args.suites, args.counts, args.precisions):
         command = [sys.executable, __file__, "--case", suite, str(count), precision, "--steps", str(args.steps),
                    "--repeats", str(args.repeats), "--threads", str(args.threads)]
@@ -157,10 +236,15 @@ def main() -> None:
             command += ["--images", str(args.images)]
         if args.fill_stack:
             command.append("--fill-stack")
+        if args.analytic:
+            command.append("--analytic")
+        command += ["--device", args.device]
         done = subprocess.run(command, capture_output=True, text=True)
         if done.returncode != 0:
             raise SystemExit(f"case {suite} N={count} {precision} failed:\n{done.stderr[-3000:]}")
         case = json.loads(done.stdout.strip().splitlines()[-1])
+        case["projected_seconds"] = case["step_seconds"] * get_suite(suite).iterations
+        cases.append(case)
         stages = case["stages"]
         if max(case["width"], case["height"]) >= 512:
             worst_512 = max(worst_512, case["peak_rss_gib"])
@@ -170,9 +254,15 @@ def main() -> None:
               f"{case['step_seconds'] / stages['raster']:>9.1f} {case['peak_rss_gib']:>8.2f} "
               f"{case['peak_rss_gib'] / case['image_gib']:>7.2f} "
               f"{format_duration(case['step_seconds'] * get_suite(suite).iterations):>10} "
-              f"{case['light_pass']:>10}", flush=True)
+              f"{case['light_pass']:>10} {case['peak_device_gib'] or 0.0:>7.2f} {case['render_fps']:>6.1f}",
+              flush=True)
+    if args.json:
+        from olatbench.atomic import write_json
+
+        write_json(args.json, {"device": args.device, "analytic": args.analytic, "cases": cases})
     print(f"SUMMARY bench_scale peak_rss_512_max_gib={worst_512:.2f} (target<=8) threads={args.threads} "
-          f"counts={','.join(map(str, args.counts))} stack={'filled' if args.fill_stack else 'rendered'}")
+          f"counts={','.join(map(str, args.counts))} stack={'filled' if args.fill_stack else 'rendered'} "
+          f"device={args.device} images={'analytic' if args.analytic else 'stand-in'}")
 
 
 if __name__ == "__main__":

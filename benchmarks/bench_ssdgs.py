@@ -166,10 +166,12 @@ def mlp_stage(method: SSDGS, visible: torch.Tensor) -> Callable[[], None]:
     """Θ_SSS and Θ_shad forward + backward on the visible Gaussians (random directions, fixed inputs)."""
     k = int(visible.numel())
     generator = torch.Generator().manual_seed(1)
-    positions = method.model.means.detach()[visible]
-    dirs = [torch.nn.functional.normalize(torch.randn(k, 3, generator=generator), dim=-1) for _ in range(3)]
-    material = method.model.attributes["material"].detach()[visible].requires_grad_(True)
-    coarse = torch.rand(k, 1, generator=generator)
+    device = method.model.means.device
+    positions = method.model.means.detach()[visible.to(device)]
+    dirs = [torch.nn.functional.normalize(torch.randn(k, 3, generator=generator), dim=-1).to(device)
+            for _ in range(3)]
+    material = method.model.attributes["material"].detach()[visible.to(device)].requires_grad_(True)
+    coarse = torch.rand(k, 1, generator=generator).to(device)
     shader = method.shader
 
     def run() -> None:
@@ -276,7 +278,7 @@ def cull_stage(method: SSDGS) -> Callable[[], None]:
 def raster_stage(method: SSDGS) -> Callable[[], None]:
     model, views = method.model, method.train_views
     camera = views.views.cameras[0]
-    features = torch.rand(model.num_gaussians, 3, requires_grad=True)
+    features = torch.rand(model.num_gaussians, 3, device=model.means.device, requires_grad=True)
 
     def run() -> None:
         projected = project(model.means, model.quats, model.scales, views.w2cs[0], views.Ks[0], camera.width,
