@@ -129,9 +129,9 @@ def test_scene_table_means_marks_and_footnotes(tiny_runs):
     table = rank_table(scene_table(collect(tiny_runs), average=True))
     assert table.columns[:2] == ["diffuse_shadow/Train", "diffuse_shadow/Test"]
     # mean over two seeds
-    assert table.cell("PSNR ↑", ("ssdgs",), "aniso_metal/Test").number == pytest.approx(31.5)
+    assert table.cell("PSNR ↑", ("ssdgs/mini",), "aniso_metal/Test").number == pytest.approx(31.5)
     # one seed failed: the finished seed only, marked "c"
-    partial = table.cell("PSNR ↑", ("ssdgs",), "translucent/Test")
+    partial = table.cell("PSNR ↑", ("ssdgs/mini",), "translucent/Test")
     assert partial.number == pytest.approx(32.0) and partial.marks == ("c",)
     # failed run "a", missing run "b", average over incomplete scenes "d", metric not computed "e"
     assert table.cell("PSNR ↑", ("rng",), "aniso_metal/Test").marks == ("a",)
@@ -141,12 +141,12 @@ def test_scene_table_means_marks_and_footnotes(tiny_runs):
     assert table.cell("LPIPS ↓", ("gs3",), "aniso_metal/Test").marks == ("e",)
     assert table.cell("LPIPS ↓", ("gs3",), "Average/Test").number is None
     # the average is the plain mean of the per-scene cells
-    ssdgs = [table.cell("PSNR ↑", ("ssdgs",), f"{s}/Test").number for s in SCENES]
-    assert table.cell("PSNR ↑", ("ssdgs",), "Average/Test").number == pytest.approx(np.mean(ssdgs))
-    assert table.cell("PSNR ↑", ("ssdgs",), "Average/Test").marks == ("c",)  # includes the partial seed mean
+    ssdgs = [table.cell("PSNR ↑", ("ssdgs/mini",), f"{s}/Test").number for s in SCENES]
+    assert table.cell("PSNR ↑", ("ssdgs/mini",), "Average/Test").number == pytest.approx(np.mean(ssdgs))
+    assert table.cell("PSNR ↑", ("ssdgs/mini",), "Average/Test").marks == ("c",)  # includes the partial seed mean
     assert table.cell("PSNR ↑", ("gs3",), "Average/Test").marks == ()
     # ranking: ssdgs 30.5 > gs3 29 > rng 25 on diffuse_shadow Test; lower-is-better LPIPS: gs3 0.05 best
-    assert table.cell("PSNR ↑", ("ssdgs",), "diffuse_shadow/Test").rank == 1
+    assert table.cell("PSNR ↑", ("ssdgs/mini",), "diffuse_shadow/Test").rank == 1
     assert table.cell("PSNR ↑", ("gs3",), "diffuse_shadow/Test").rank == 2
     assert table.cell("PSNR ↑", ("rng",), "diffuse_shadow/Test").rank is None
     assert table.cell("LPIPS ↓", ("gs3",), "diffuse_shadow/Test").rank == 1
@@ -159,8 +159,8 @@ def test_scene_table_means_marks_and_footnotes(tiny_runs):
 
 def test_seeds_all_gives_one_row_per_seed(tiny_runs):
     table = scene_table(collect(tiny_runs), methods=["ssdgs"], seeds="all")
-    assert [row.labels[0] for row in table.blocks[0].rows] == ["ssdgs seed0", "ssdgs seed1"]
-    assert table.cell("PSNR ↑", ("ssdgs seed1",), "translucent/Test").marks == ("a",)
+    assert [row.labels[0] for row in table.blocks[0].rows] == ["ssdgs/mini seed0", "ssdgs/mini seed1"]
+    assert table.cell("PSNR ↑", ("ssdgs/mini seed1",), "translucent/Test").marks == ("a",)
 
 
 def test_selection_errors_are_clear(tiny_runs):
@@ -189,12 +189,12 @@ def test_published_beside_runs_adds_paper_and_delta_rows(tmp_path):
     write_run(root, "mymethod", "default", "nrhints", "Cat", 0, metric_values(20.0))
     table = rank_table(scene_table(collect(root), published=True))
     labels = [row.labels[0] for row in table.blocks[0].rows]
-    assert labels == ["mymethod", "ssdgs", "Ours (paper)", "Δ ssdgs − paper"]
+    assert labels == ["mymethod", "ssdgs/nrhints", "Ours (paper)", "Δ ssdgs/nrhints − paper"]
     assert table.cell("PSNR ↑", ("Ours (paper)",), "Cat/Test").number == 27.6844
-    delta = table.cell("PSNR ↑", ("Δ ssdgs − paper",), "Cat/Test")
+    delta = table.cell("PSNR ↑", ("Δ ssdgs/nrhints − paper",), "Cat/Test")
     assert delta.number == pytest.approx(28.0 - 27.6844) and delta.text() == "+0.3156"
     assert table.cell("PSNR ↑", ("Ours (paper)",), "Cat/Test").rank is None  # paper rows are never ranked
-    assert table.cell("PSNR ↑", ("Δ ssdgs − paper",), "Fish/Test").value is None
+    assert table.cell("PSNR ↑", ("Δ ssdgs/nrhints − paper",), "Fish/Test").value is None
     assert any(note.startswith("(paper) rows") for note in table.footnotes)
 
 
@@ -204,11 +204,11 @@ def test_overview_with_published_rows(tmp_path):
         write_run(root, "ssdgs", "sssgs", "sssgs", scene, 0, metric_values(36.0 + index))
     table = rank_table(overview_table(collect(root), published=True))
     labels = [row.labels[0] for row in table.blocks[0].rows]
-    assert labels == ["ssdgs", "KiloOSF (paper)", "SSS-GS (paper)", "Ours (w/o Opt) (paper)", "Ours (w/ Opt) (paper)"]
+    assert labels == ["ssdgs/sssgs", "KiloOSF (paper)", "SSS-GS (paper)", "Ours (w/o Opt) (paper)", "Ours (w/ Opt) (paper)"]
     assert table.cell(None, ("SSS-GS (paper)",), "Test (Average)/PSNR ↑").text() == "35.01 ± 1.01"
     assert table.cell(None, ("KiloOSF (paper)",), "Train T.").text() == ">20 h"
     assert table.cell(None, ("Ours (w/ Opt) (paper)",), "Test (Average)/PSNR ↑").rank is None
-    assert table.cell(None, ("ssdgs",), "Test (Average)/PSNR ↑").number == pytest.approx(38.0)
+    assert table.cell(None, ("ssdgs/sssgs",), "Test (Average)/PSNR ↑").number == pytest.approx(38.0)
     nrhints = tmp_path / "nrhints"
     write_run(nrhints, "ssdgs", "nrhints", "nrhints", "Cat", 0, metric_values(28.0))
     derived = overview_table(collect(nrhints), published=True, metrics=["psnr"], splits=["test"])
@@ -341,9 +341,9 @@ def test_cli_report_formats(tiny_runs, tmp_path):
     runner = CliRunner()
     markdown = runner.invoke(main, ["report", str(tiny_runs), "--suite", "mini", "--average"])
     assert markdown.exit_code == 0, markdown.output
-    assert "| ssdgs | **31.5000 ± 0.7071** |" in markdown.output and "Protocol: olatbench-v1 v1" in markdown.output
+    assert "| ssdgs/mini | **31.5000 ± 0.7071** |" in markdown.output and "Protocol: olatbench-v1 v1" in markdown.output
     assert ("mean ± sample std over 1–2 seeds per cell (a one-seed cell has no ±) — seeds per cell: gs3 1; rng 1; "
-            "ssdgs 2 (translucent 1)") in markdown.output  # two seeds: sample std (ddof=1) shown
+            "ssdgs/mini 2 (translucent 1)") in markdown.output  # two seeds: sample std (ddof=1) shown
     out = tmp_path / "t.csv"
     csv = runner.invoke(main, ["report", str(tiny_runs), "--metrics", "psnr", "--splits", "test", "-o", str(out)])
     assert csv.exit_code == 0, csv.output

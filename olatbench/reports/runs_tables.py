@@ -24,7 +24,7 @@ from dataclasses import dataclass, field, replace
 
 import pandas as pd
 
-from olatbench.reports.experiments import experiment_rows
+from olatbench.reports.experiments import experiment_labels
 from olatbench.reports.layouts import (
     CellLookup,
     metric_columns_layout,
@@ -33,7 +33,7 @@ from olatbench.reports.layouts import (
     split_rows_layout,
 )
 from olatbench.reports.model import Cell, Table
-from olatbench.reports.published import VARIANT_LABELS, lookup, normalise_name, paper_method
+from olatbench.reports.published import lookup, normalise_name, paper_method
 
 #: An ablation cell's difference from the full model counts as significant when it exceeds this many
 #: pooled sample standard deviations over seeds (a two-sided 5 % t-test with 3 + 3 seeds needs
@@ -121,23 +121,16 @@ def expected_scenes(suite: str, found: Sequence[str]) -> tuple[list[str], str | 
     return scenes + extra, None
 
 
-def row_label(method: str, variant: str, variants_of_method: int) -> str:
-    """The printed row name of a run: the paper's label for ablation presets, else method[/variant]."""
-    if variant in VARIANT_LABELS and variant.startswith((*ABLATION_PREFIXES, "shadow-on-sss")):
-        return VARIANT_LABELS[variant]
-    return method if variants_of_method == 1 else f"{method}/{variant}"
-
-
 class RunCells:
     """Per-cell means over seeds (and over scenes for averages) with their footnote marks."""
 
-    def __init__(self, frame: pd.DataFrame, seeds: str = "mean") -> None:
+    def __init__(self, frame: pd.DataFrame, seeds: str = "mean", paper_variants: bool = False) -> None:
+        """``paper_variants``: rows of ablation presets are labelled as in the paper (`experiment_labels`)."""
         if seeds not in ("mean", "all"):
             raise ReportError(f"seeds must be 'mean' or 'all', not {seeds!r}")
         self.notes = Notes()
         frame = frame.copy()
-        counts = frame.groupby("method")["variant"].nunique()
-        frame["row"] = experiment_rows(frame, lambda method, variant: row_label(method, variant, int(counts[method])))
+        frame["row"] = experiment_labels(frame, paper_variants)
         if seeds == "all":
             frame["row"] = frame["row"] + " seed" + frame["seed"].astype(str)
         self.frame = frame
@@ -467,7 +460,7 @@ def ablation_table(frame: pd.DataFrame, *, suite: str | None = None, method: str
                           f"e.g. olatbench run --method {method} --variant ablation-A --suite nrhints")
     selected = selected.assign(_order=selected["variant"].map(lambda v: (v.startswith("schedule-"), v)))
     selected = selected.sort_values("_order", kind="stable").drop(columns="_order")
-    run_cells = RunCells(selected, seeds)
+    run_cells = RunCells(selected, seeds, paper_variants=True)
     rows = list(run_cells.rows)
     sets = {row: ("schedule" if run_cells.source[row][1].startswith("schedule-") else "composition") for row in rows}
     scenes = list(dict.fromkeys(selected["scene"]))
