@@ -154,7 +154,7 @@ def test_scene_table_means_marks_and_footnotes(tiny_runs):
     notes = "\n".join(table.footnotes)
     for letter in "abcde":
         assert f"{letter}: " in notes
-    assert "Failed: rng/default/aniso_metal seed0 — RuntimeError: out of memory" in notes
+    assert "Failed: rng on aniso_metal, seed 0 — RuntimeError: out of memory" in notes
 
 
 def test_seeds_all_gives_one_row_per_seed(tiny_runs):
@@ -204,7 +204,8 @@ def test_overview_with_published_rows(tmp_path):
         write_run(root, "ssdgs", "sssgs", "sssgs", scene, 0, metric_values(36.0 + index))
     table = rank_table(overview_table(collect(root), published=True))
     labels = [row.labels[0] for row in table.blocks[0].rows]
-    assert labels == ["ssdgs/sssgs", "KiloOSF (paper)", "SSS-GS (paper)", "Ours (w/o Opt) (paper)", "Ours (w/ Opt) (paper)"]
+    assert labels == ["ssdgs/sssgs", "KiloOSF (paper)", "SSS-GS (paper)", "Ours (w/o Opt) (paper)",
+                      "Ours (w/ Opt) (paper)"]
     assert table.cell(None, ("SSS-GS (paper)",), "Test (Average)/PSNR ↑").text() == "35.01 ± 1.01"
     assert table.cell(None, ("KiloOSF (paper)",), "Train T.").text() == ">20 h"
     assert table.cell(None, ("Ours (w/ Opt) (paper)",), "Test (Average)/PSNR ↑").rank is None
@@ -454,3 +455,46 @@ def test_report_json_is_every_number_with_its_jobs_identity(tiny_runs):
     assert [r["error"] for r in records if r["status"] == "failed"] == ["RuntimeError: out of memory"] * 2
     published = CliRunner().invoke(main, ["report", "--published-only", "--table", "real", "--format", "csv"])
     assert published.exit_code == 0 and published.output.startswith("table,method,suite,scene,split,metric,value")
+
+
+def write_unfinished(root: Path, method: str, variant: str, suite: str, scene: str, seed: int,
+                     step: int | None = None) -> Path:
+    """A job folder the runner planned (job.json) but has not finished: no results.json; a checkpoint at ``step``."""
+    folder = root / suite / method / variant / scene / f"seed{seed}"
+    folder.mkdir(parents=True)
+    job = {"id": f"{method}-{variant}-{scene}-{seed}", "method": method, "variant": variant, "suite": suite,
+           "scene": scene, "seed": seed, "config": {"iterations": 10}, "protocol": "olatbench-v1",
+           "protocol_version": 1, "code": "z", "data_manifest": "x", "device": "cpu"}
+    (folder / "job.json").write_text(json.dumps(job))
+    if step is not None:
+        (folder / "checkpoints").mkdir()
+        (folder / "checkpoints" / f"step_{step}.pt").write_bytes(b"")
+    return folder
+
+
+def test_unfinished_jobs_are_named_with_their_cell_not_left_out(tmp_path):
+    """A running, an interrupted and a planned job (job.json, no results.json) used to vanish from the tables."""
+    from olatbench.bench.store import job_lock
+
+    runs = tmp_path / "runs"
+    write_run(runs, "ssdgs", "default", "mini", "translucent", 0, metric_values(20.0))
+    running = write_unfinished(runs, "ssdgs", "default", "mini", "translucent", 1, step=4)
+    write_unfinished(runs, "ssdgs", "default", "mini", "aniso_metal", 0, step=6)
+    write_unfinished(runs, "gs3", "default", "mini", "translucent", 0)
+    with job_lock(running) as held:  # another process would hold it while training
+        assert held
+        frame = collect(runs)
+        result = CliRunner().invoke(main, ["report", str(runs), "--json", "--metrics", "psnr"])
+    table = scene_table(frame, metrics=["psnr"], splits=["test"])
+    assert table.cell("PSNR ↑", ("ssdgs",), "translucent/Test").marks == ("c",)  # seed 1 still running
+    assert table.cell("PSNR ↑", ("ssdgs",), "aniso_metal/Test").marks == ("r",)
+    assert table.cell("PSNR ↑", ("gs3",), "translucent/Test").marks == ("r",)
+    notes = "\n".join(table.footnotes)
+    assert "Not finished: ssdgs on translucent, seed 1 — running, step 4 of 10" in notes
+    assert "Not finished: ssdgs on aniso_metal, seed 0 — interrupted at step 6 of 10" in notes
+    assert "Not finished: gs3 on translucent, seed 0 — planned, not started" in notes
+    assert "r: the run has not finished" in notes
+    records = json.loads(result.output)
+    assert {(r["method"], r["scene"], r["seed"], r["status"]) for r in records if r["status"] != "done"} == {
+        ("ssdgs", "translucent", 1, "running"), ("ssdgs", "aniso_metal", 0, "partial"),
+        ("gs3", "translucent", 0, "pending")}

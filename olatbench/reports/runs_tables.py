@@ -45,7 +45,9 @@ ABLATION_REFERENCES = {"composition": "ablation-D", "schedule": "schedule-I"}
 NOTE_TEXTS = {
     "a": "the run failed (see the failures listed below and the job's error.txt)",
     "b": "no run found for this cell",
-    "c": "mean over the finished seeds only (others failed or are missing); an average marked c includes such a scene",
+    "c": ("mean over the finished seeds only (others failed, have not finished or are missing); an average marked c "
+          "includes such a scene"),
+    "r": "the run has not finished (running, interrupted or only planned; see the jobs listed below)",
     "d": "average not computed: at least one scene has no value",
     "e": "the run did not compute this metric (null in results.json, e.g. LPIPS weights missing)",
     "s": (f"differs from the full model (D; I for schedules) by more than {SIGNIFICANCE_FACTOR:g}× the pooled "
@@ -72,6 +74,7 @@ class Notes:
 
     used: dict[str, str] = field(default_factory=dict)
     failures: list[str] = field(default_factory=list)
+    unfinished: list[str] = field(default_factory=list)
 
     def mark(self, letter: str) -> tuple[str, ...]:
         self.used.setdefault(letter, NOTE_TEXTS[letter])
@@ -79,10 +82,11 @@ class Notes:
 
     def lines(self) -> list[str]:
         lines = [f"{letter}: {text}." for letter, text in sorted(self.used.items())]
-        shown = self.failures[:10]
-        lines += [f"Failed: {failure}" for failure in shown]
-        if len(self.failures) > len(shown):
-            lines.append(f"… and {len(self.failures) - len(shown)} more failed jobs.")
+        for title, jobs in (("Failed", self.failures), ("Not finished", self.unfinished)):
+            shown = jobs[:10]
+            lines += [f"{title}: {job}" for job in shown]
+            if len(jobs) > len(shown):
+                lines.append(f"… and {len(jobs) - len(shown)} more jobs {title.lower()}.")
         return lines
 
 
@@ -137,9 +141,9 @@ class RunCells:
         self.rows = list(dict.fromkeys(frame["row"]))
         self.source = {row: (group["method"].iloc[0], group["variant"].iloc[0]) for row, group in frame.groupby("row")}
         self.seeds = {row: sorted(set(group["seed"])) for row, group in frame.groupby("row")}
-        for _, failed in frame[frame["status"] == "failed"].iterrows():
-            self.notes.failures.append(f"{failed['method']}/{failed['variant']}/{failed['scene']} "
-                                       f"seed{failed['seed']} — {failed['error']}")
+        for _, job in frame[frame["status"] != "done"].iterrows():  # named with their cell: row, scene, seed
+            listed = self.notes.failures if job["status"] == "failed" else self.notes.unfinished
+            listed.append(f"{job['row']} on {job['scene']}, seed {job['seed']} — {job['error']}")
 
     def jobs(self, row: str, scene: str) -> pd.DataFrame:
         frame = self.frame
@@ -161,7 +165,7 @@ class RunCells:
             if jobs.empty:
                 return Cell(None, marks=mark("b"))
             if done.empty:
-                return Cell(None, marks=mark("a"))
+                return Cell(None, marks=mark("a" if (jobs["status"] == "failed").any() else "r"))
             return Cell(None, marks=mark("e" if not values.empty else "b"))
         complete = self._complete(row, scene, split, metric)
         std = float(numbers.std(ddof=1)) if with_std and len(numbers) > 1 else None
