@@ -498,3 +498,17 @@ def test_unfinished_jobs_are_named_with_their_cell_not_left_out(tmp_path):
     assert {(r["method"], r["scene"], r["seed"], r["status"]) for r in records if r["status"] != "done"} == {
         ("ssdgs", "translucent", 1, "running"), ("ssdgs", "aniso_metal", 0, "partial"),
         ("gs3", "translucent", 0, "pending")}
+
+
+def test_a_one_scene_overview_prints_no_spread(tmp_path):
+    """One scene has no spread over scenes: the overview printed "± 0.0000" (and "± 0.0" FPS)."""
+    write_run(tmp_path, "ssdgs", "default", "myscene", "Pig", 0, metric_values(20.0))
+    write_run(tmp_path, "ssdgs", "default", "myscene", "Pig", 1, metric_values(22.0))
+    table = overview_table(collect(tmp_path), metrics=["psnr"], splits=["test"])
+    assert table.cell(None, ("ssdgs",), "Test (Average)/PSNR ↑").text() == "21.0000"
+    assert table.cell(None, ("ssdgs",), "FPS").text() == "50.0"
+    assert "±" not in table.caption and "Pig" in table.caption
+    markdown = CliRunner().invoke(main, ["report", str(tmp_path), "--layout", "overview", "--layout", "scenes",
+                                         "--average", "--metrics", "psnr"]).output
+    assert "21.0000 ± 1.4142" in markdown  # the scene cell: sample std over the two seeds
+    assert "± 0.0" not in markdown  # no spread over one scene, in the overview or the Average column

@@ -188,7 +188,8 @@ class RunCells:
         return {int(seed): float(mean) for seed, (mean, count) in per_seed.iterrows() if count == len(scenes)}
 
     def average(self, row: str, scenes: Sequence[str], split: str, metric: str, with_std: bool = False) -> Cell:
-        """Mean (± population std) over scenes of the per-scene means; "—" unless every scene has a value."""
+        """Mean (± population std, ``with_std`` and two or more scenes) over scenes of the per-scene means; "—"
+        unless every scene has a value."""
         numbers, partial, posed = [], False, set()
         for scene in scenes:
             cell = self.cell(row, scene, split, metric, note=False)
@@ -198,7 +199,8 @@ class RunCells:
             partial |= not self._complete(row, scene, split, metric)
             posed |= set(cell.marks) & set(POSE_NOTES.values())
         mean = sum(numbers) / len(numbers)
-        std = math.sqrt(sum((n - mean) ** 2 for n in numbers) / len(numbers)) if with_std else None
+        spread = with_std and len(numbers) > 1  # one scene has no spread: no "± 0.0000"
+        std = math.sqrt(sum((n - mean) ** 2 for n in numbers) / len(numbers)) if spread else None
         marks = (self.notes.mark("c") if partial else ()) + tuple(m for letter in sorted(posed)
                                                                   for m in self.notes.mark(letter))
         return Cell(mean, std=std, marks=marks)
@@ -401,8 +403,10 @@ def overview_table(frame: pd.DataFrame, *, suite: str | None = None, methods: Se
     else:
         notes_before = []
     table = overview_layout(CellLookup(cells), rows, splits, metrics, name=f"tab:{suite}-overview",
-                            caption=f"Averages over the {len(scenes)} scenes of the {suite} suite "
-                                    f"(mean ± std over scenes; training time is the mean per scene).",
+                            caption=(f"Averages over the {len(scenes)} scenes of the {suite} suite "
+                                     "(mean ± std over scenes; training time is the mean per scene)."
+                                     if len(scenes) > 1 else
+                                     f"Results on the one scene of the {suite} suite ({scenes[0]})."),
                             protocol=_protocol_line(run_cells, suite, seeds),
                             extras=(("fps", "FPS", "-"), ("train_time", "Train T.", "-"), ("gpu", "Device", "-")),
                             rank_sets={row: ("all" if row in run_cells.rows else None) for row in rows})
