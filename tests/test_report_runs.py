@@ -323,19 +323,52 @@ def test_latex_output_is_balanced(tiny_runs):
             assert text.startswith("\\documentclass") and text.rstrip().endswith("\\end{document}")
 
 
+def _pdflatex(folder: Path, name: str, text: str, env: dict | None = None) -> subprocess.CompletedProcess:
+    (folder / name).write_text(text)
+    return subprocess.run(["pdflatex", "-interaction=nonstopmode", "-halt-on-error", name], cwd=folder,
+                          capture_output=True, text=True, timeout=BACKSTOP_SECONDS, env=env)
+
+
+def test_standalone_latex_needs_only_texlive_latex_recommended_and_keeps_natural_width(tiny_runs):
+    """The LaTeX text itself (no TeX needed): --standalone loaded multirow and diagbox, which Debian's
+    texlive-latex-recommended lacks, and scaled every table to \\linewidth (a huge table under a small caption)."""
+    from olatbench.reports.latex import PAPER_PACKAGES, PORTABLE_PACKAGES
+
+    runner = CliRunner()
+    standalone = runner.invoke(main, ["report", str(tiny_runs), "--format", "latex", "--standalone"]).output
+    packages = re.findall(r"\\usepackage(?:\[[^]]*\])?\{([^}]*)\}", standalone)
+    assert set(packages) == {"geometry", "xcolor", "colortbl", "booktabs", "graphicx"}
+    assert {package.split("{")[1].rstrip("}") for package in PORTABLE_PACKAGES} <= set(packages)
+    assert "\\multirow" not in standalone and "\\diagbox" not in standalone
+    assert "\\resizebox" not in standalone and latex_balance_problems(standalone) == []
+    fitted = runner.invoke(main, ["report", str(tiny_runs), "--format", "latex", "--standalone", "--fit"]).output
+    assert "\\resizebox{\\ifdim\\width>\\linewidth\\linewidth\\else\\width\\fi}{!}" in fitted  # shrinks, never enlarges
+    paper = runner.invoke(main, ["report", str(tiny_runs), "--format", "latex"]).output
+    assert paper.startswith("% Needs in the preamble:") and "texlive-latex-extra" in paper.splitlines()[1]
+    assert all(f"\\usepackage{package}" in paper.splitlines()[0] for package in PAPER_PACKAGES)
+    assert "\\diagbox" in paper  # the paper's flavour keeps the paper's corner
+
+
+@pytest.mark.skipif(shutil.which("pdflatex") is None,
+                    reason="pdflatex is not installed (apt-get install texlive-latex-recommended); the LaTeX-text test "
+                           "stands in for it")
 def test_latex_compiles_with_pdflatex(tmp_path, tiny_runs):
-    if shutil.which("pdflatex") is None:
-        pytest.skip("pdflatex is not installed on this machine; the balance test stands in for it")
     write_run(tiny_runs, "ssdgs", "nrhints", "nrhints", "Cat", 0, metric_values(28.0))
     tables = [paper_table(name) for name in PAPER_TABLES]
     tables.append(rank_table(scene_table(collect(tiny_runs), suite="nrhints", average=True, published=True)))
     for rules in ("hline", "booktabs"):
-        source = tmp_path / f"tables_{rules}.tex"
-        source.write_text(render_tables(tables, "latex", standalone=True, rules=rules))
-        run = subprocess.run(["pdflatex", "-interaction=nonstopmode", "-halt-on-error", source.name], cwd=tmp_path,
-                             capture_output=True, text=True, timeout=BACKSTOP_SECONDS)
+        for fit in (False, True):
+            name = f"tables_{rules}_{fit}.tex"
+            run = _pdflatex(tmp_path, name, render_tables(tables, "latex", standalone=True, rules=rules, fit=fit))
+            assert run.returncode == 0, run.stdout[-2000:]
+            assert (tmp_path / name.replace(".tex", ".pdf")).stat().st_size > 1000
+    extras = subprocess.run(["kpsewhich", "multirow.sty", "diagbox.sty"], capture_output=True, text=True).stdout
+    if len(extras.split()) == 2:  # the paper's flavour, in a document that loads what its first line names
+        paper = render_tables(tables, "latex")
+        preamble = paper.splitlines()[0].removeprefix("% Needs in the preamble: ").replace(", ", "\n")
+        run = _pdflatex(tmp_path, "paper.tex", f"\\documentclass{{article}}\n{preamble}\n\\begin{{document}}\n{paper}"
+                        "\\end{document}\n")
         assert run.returncode == 0, run.stdout[-2000:]
-        assert (tmp_path / f"tables_{rules}.pdf").stat().st_size > 1000
 
 
 def test_cli_report_formats(tiny_runs, tmp_path):
