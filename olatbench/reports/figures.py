@@ -35,7 +35,7 @@ PALETTE = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e
 EMBED_DPI = 150  # the PNG inside the HTML page
 FILE_DPI = 300  # PNG files (SVG and PDF are vector; their images keep their pixels)
 LOG_SCALE_KEYS = ("loss", "l1")  # training-curve panels drawn on a log axis
-KEY_FONT_SIZE = 8  # points: the key legend under a figure
+KEY_FONT_SIZE = 9  # points: the key legend under a figure
 
 
 @dataclass
@@ -73,7 +73,8 @@ def key_legend(figure: Figure, keys: Mapping[str, str], colours: Mapping[str, st
     characters = max(20, int(width_inches * 72 / (KEY_FONT_SIZE * 0.6)))  # ~0.6 em per character
     handles = [Patch(color=colours.get(label, "#000000")) for label in keys]
     texts = [f"{key}: " + "\n    ".join(textwrap.wrap(label, characters - 4) or [""]) for label, key in keys.items()]
-    figure.legend(handles, texts, loc="upper left", bbox_to_anchor=(0.0, 0.0), ncols=1, fontsize=KEY_FONT_SIZE,
+    figure.legend(handles, texts, loc="upper left", bbox_to_anchor=(figure.subplotpars.left, 0.0), ncols=1,
+                  fontsize=KEY_FONT_SIZE,
                   frameon=False, handlelength=1.0, borderaxespad=0.0, title="Key", title_fontsize=KEY_FONT_SIZE,
                   alignment="left")
 
@@ -110,9 +111,10 @@ def _show(axis, image: np.ndarray, title: str, colour: str | None = None, **kwar
 
 def comparison_figure(rows: Sequence[ComparisonRow], error_max: float = 0.2, panel_inches: float = 2.0,
                       colours: Mapping[str, str] | None = None, keys: Mapping[str, str] | None = None) -> Figure:
-    """Ground truth | each method (its key and PSNR) | each method's error map | the error scale, one row per frame,
-    and the key legend under the grid. Every image panel has the same size; a method's key and legend line take its
-    colour (``colours``, default `method_colours`; ``keys``, default `method_keys` of the labels)."""
+    """Per frame two rows: ground truth | each method's render (its key and PSNR), then under each render that
+    method's error map, with the error scale at the end; the key legend under the grid. Every image panel has the
+    same size; a method's key and legend line take its colour (``colours``, default `method_colours`; ``keys``,
+    default `method_keys` of the labels)."""
     if not rows:
         raise ValueError("comparison_grid needs at least one frame")
     labels = [label for label, _ in rows[0].predictions]
@@ -122,20 +124,23 @@ def comparison_figure(rows: Sequence[ComparisonRow], error_max: float = 0.2, pan
     height, width = rows[0].ground_truth.shape[:2]
     panel = (panel_inches, panel_inches * height / width)
     bar = 0.08  # the colour bar's column, as a fraction of a panel's width
-    figure_width = panel[0] * (1 + 2 * methods + bar)
-    figure, axes = plt.subplots(len(rows), 2 + 2 * methods, squeeze=False,
-                                figsize=(figure_width, (panel[1] + 0.35) * len(rows)),
-                                gridspec_kw={"width_ratios": [1.0] * (1 + 2 * methods) + [bar]})
+    figure_width = panel[0] * (1 + methods + bar)
+    figure, axes = plt.subplots(2 * len(rows), 2 + methods, squeeze=False,
+                                figsize=(figure_width, (panel[1] + 0.35) * 2 * len(rows)),
+                                gridspec_kw={"width_ratios": [1.0] * (1 + methods) + [bar]})
     for r, row in enumerate(rows):
-        _show(axes[r, 0], row.ground_truth, f"GT {row.frame_id}")
+        renders, errors = axes[2 * r], axes[2 * r + 1]
+        _show(renders[0], row.ground_truth, f"GT {row.frame_id}")
+        figure.delaxes(errors[0])  # nothing under the ground truth
+        figure.delaxes(renders[-1])  # the scale belongs to the error maps
         for m, (label, prediction) in enumerate(row.predictions):
             value = psnr(np.clip(prediction, 0, 1), row.ground_truth)
             colour = colours.get(label)
-            _show(axes[r, 1 + m], prediction, f"{keys[label]}: {value:.2f} dB", colour)
-            shown = _show(axes[r, 1 + methods + m], error_map(prediction, row.ground_truth), f"|error| {keys[label]}",
-                          colour, cmap="magma", vmin=0.0, vmax=error_max)
-        figure.colorbar(shown, cax=axes[r, -1])
-        axes[r, -1].tick_params(labelsize=7)
+            _show(renders[1 + m], prediction, f"{keys[label]}: {value:.2f} dB", colour)
+            shown = _show(errors[1 + m], error_map(prediction, row.ground_truth), f"|error| {keys[label]}", colour,
+                          cmap="magma", vmin=0.0, vmax=error_max)
+        figure.colorbar(shown, cax=errors[-1])
+        errors[-1].tick_params(labelsize=7)
     key_legend(figure, {label: keys[label] for label in sorted(labels, key=keys.__getitem__)}, colours, figure_width)
     return figure
 

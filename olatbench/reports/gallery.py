@@ -104,12 +104,12 @@ def comparison_for_scene(jobs: Sequence[LabelledJob], frame_ids: Sequence[str] =
         ground_truth = frame.load(colourspace="srgb", background="official", resolution=reference.resolution).rgb
         predictions = [(job.label, read_png(job.job.render_path(split, frame.frame_id))) for job in jobs]
         rows.append(ComparisonRow(frame.frame_id, ground_truth, predictions))
-    lit = "; ".join(f"row {number}: {split} frame {frame.frame_id}, point light at {_light_text(frame.light.position)}"
-                    for number, frame in enumerate(chosen, 1))
-    caption = (f"{lit} (world units). Columns: ground truth (GT, sRGB); each experiment's render (its lowest finished "
-               "seed), titled with its key and its PSNR in dB against the ground truth; each experiment's per-pixel "
-               "error |render − GT| (mean absolute error over RGB in sRGB, colour scale 0–0.2). The legend under the "
-               "grid spells out the keys.")
+    lit = "; ".join(f"rows {2 * n - 1}–{2 * n}: {split} frame {frame.frame_id}, lit by a point light at "
+                    f"{_light_text(frame.light.position)}" for n, frame in enumerate(chosen, 1))
+    caption = (f"{lit} (world units). Top row of each frame: the ground truth (GT, sRGB) and each experiment's render "
+               "(its lowest finished seed), titled with its key and its PSNR in dB against the ground truth; bottom "
+               "row: each experiment's per-pixel error |render − GT| (mean absolute error over RGB in sRGB, colour "
+               "scale 0–0.2). The legend under the grid spells out the keys.")
     return comparison_figure(rows, colours=colours, keys=keys), caption
 
 
