@@ -149,3 +149,19 @@ def test_an_embedded_figure_shows_at_the_size_it_was_drawn_for():
     # CSS pixels are 1/96 inch; the PNG stores its resolution in whole pixels per metre (150 dpi: 5905, 149.99 dpi)
     assert abs(png_css_width(data) - pixels * 96 / EMBED_DPI) <= 1
     assert f'width="{png_css_width(data)}"' in figure_html("curves", data)
+
+
+def test_the_comparison_caption_names_frame_light_and_metric_of_each_panel(tmp_path):
+    runs = toy_runs(tmp_path)
+    figures, _ = report_figures(collect(runs))
+    try:
+        grid = next(f for f in figures if "error maps" in f.title)
+        assert re.search(r"rows 1–2: test frame \S+, lit by a point light at \(-?\d+\.\d\d, -?\d+\.\d\d, -?\d+\.\d\d\)",
+                         grid.caption)
+        assert "PSNR in dB" in grid.caption and "|render − GT|" in grid.caption and "0–0.2" in grid.caption
+    finally:
+        for figure in figures:
+            figure.close()
+    page = tmp_path / "report.html"
+    assert CliRunner().invoke(main, ["report", str(runs), "--suite", "nrhints", "-o", str(page)]).exit_code == 0
+    assert "lit by a point light at" in _visible_text(page.read_text())
