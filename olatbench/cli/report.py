@@ -83,7 +83,10 @@ def _emit(text: str, output: str | None) -> None:
 def report(runs, suite, methods, metrics, splits, layouts, average, fmt, as_json, output, standalone, fit, booktabs,
            colours, published, published_only, paper_tables, seeds, figure_format, frame_ids) -> None:
     """Build the paper's tables (and an HTML page with figures) from results.json files below RUNS (default:
-    ./runs). A cell averages only jobs identical but for the seed; jobs that differ get their own rows.
+    ./runs). A cell averages only jobs identical but for the seed; jobs that differ get their own rows. Rows, figure
+    keys and JSON records name an experiment by one label: method/variant and, in parentheses, every setting that
+    differs from the suite's defaults (e.g. ssdgs/mini (iterations=200)). Failed and unfinished jobs (running,
+    interrupted, planned) are named under each table with their cell and why.
 
     A results.json that cannot be read is named on stderr and left out; the others still make the tables.
     Exit code: 0 when the report was written, 1 when there is nothing readable to report or the output cannot be
