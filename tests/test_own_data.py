@@ -135,8 +135,9 @@ def test_own_gs3_scene_runs_at_two_lengths_into_separate_folders_and_rows(tmp_pa
                        "data-gs3/3dgs/default~iterations=8/scene/seed0"]
     report = _invoke("report", runs, "--metrics", "psnr", "--splits", "test")
     assert report.exit_code == 0, report.output
-    # Markdown escapes "~" (reports/text.py)
-    assert "| 3dgs/default\\~iterations=5 |" in report.output and "| 3dgs/default\\~iterations=8 |" in report.output
+    # the label rule (reports/experiments.py): the overrides and the resolution that differs from the suite's (512²)
+    assert "| 3dgs (iterations=5, resolution=24x24) |" in report.output
+    assert "| 3dgs (iterations=8, resolution=24x24) |" in report.output
     assert "±" not in report.output and "mean over 1 seed" in report.output
     rows = json.loads(_invoke("report", runs, "--json").output)
     assert {row["config"]["iterations"] for row in rows} == {5, 8}

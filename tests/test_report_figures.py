@@ -14,7 +14,7 @@ from test_report_snapshots import toy_runs
 
 from olatbench.cli import main
 from olatbench.reports.collect import collect
-from olatbench.reports.figures import ComparisonRow, close, comparison_figure, training_curves_figure
+from olatbench.reports.figures import ComparisonRow, close, comparison_figure, method_keys, training_curves_figure
 from olatbench.reports.gallery import report_figures
 
 
@@ -22,8 +22,10 @@ def _log(steps, loss, psnr=None):
     return [{"step": s, "loss": loss(s), **({"psnr": psnr(s)} if psnr else {})} for s in steps]
 
 
-def _line_colours(axis) -> dict[str, str]:
-    return {line.get_label().split(" (")[0]: to_hex(line.get_color()) for line in axis.lines}
+def _line_colours(axis, keys: dict[str, str]) -> dict[str, str]:
+    """Label -> colour of each line of a panel (lines are named by their short key)."""
+    labels = {key: label for label, key in keys.items()}
+    return {labels[line.get_label().split(" (")[0]]: to_hex(line.get_color()) for line in axis.lines}
 
 
 def test_a_method_has_one_colour_in_the_loss_and_psnr_panels_and_both_have_legends():
@@ -31,14 +33,16 @@ def test_a_method_has_one_colour_in_the_loss_and_psnr_panels_and_both_have_legen
     # and the second in the loss panel
     logs = {"plugin": _log(range(1, 5), lambda s: 0.5), "ssdgs": _log(range(1, 5), lambda s: 1 / s, lambda s: 20 + s)}
     figure = training_curves_figure(logs)
-    loss, psnr = figure.axes
+    keys = method_keys(logs)
+    loss, psnr = figure.axes[:2]
     try:
-        assert _line_colours(loss)["ssdgs"] == _line_colours(psnr)["ssdgs"]
-        assert _line_colours(loss)["plugin"] != _line_colours(loss)["ssdgs"]
+        assert _line_colours(loss, keys)["ssdgs"] == _line_colours(psnr, keys)["ssdgs"]
+        assert _line_colours(loss, keys)["plugin"] != _line_colours(loss, keys)["ssdgs"]
         for axis in (loss, psnr):
             legend = axis.get_legend()
             assert legend is not None
-            assert {text.get_text().split(" (")[0] for text in legend.get_texts()} == set(_line_colours(axis))
+            assert {text.get_text().split(" (")[0] for text in legend.get_texts()} == {
+                keys[label] for label in _line_colours(axis, keys)}
     finally:
         close(figure)
 
@@ -51,7 +55,7 @@ def test_a_zero_loss_does_not_stretch_the_log_axis_and_the_legend_says_so():
         low, high = loss.get_ylim()
         assert loss.get_yscale() == "log" and low > 1e-3 and high < 1.0  # the data span 0.025 to 0.1
         labels = [text.get_text() for text in loss.get_legend().get_texts()]
-        assert "learning-free (4 value(s) ≤ 0 not drawn)" in labels
+        assert f"{method_keys(logs)['learning-free']} (4 value(s) ≤ 0 not drawn)" in labels
     finally:
         close(figure)
 
@@ -77,11 +81,13 @@ def test_method_colours_agree_across_the_figures_of_a_report(tmp_path):
     try:
         grid = next(f.figure for f in figures if "error maps" in f.title)
         curves = next(f.figure for f in figures if "training curves" in f.title)
-        titles = {axis.get_title().split(" (")[0]: to_hex(axis.title.get_color()) for axis in grid.axes
+        keys = method_keys(["ssdgs/nrhints", "gs3"])  # the labels of the toy runs' experiments
+        labels = {key: label for label, key in keys.items()}
+        titles = {labels[axis.get_title().split(":")[0]]: to_hex(axis.title.get_color()) for axis in grid.axes
                   if axis.images and not axis.get_title().startswith(("GT", "|error|"))}
-        assert set(titles) == {"ssdgs", "gs3"}
+        assert set(titles) == {"ssdgs/nrhints", "gs3"}
         for axis in curves.axes:
-            assert _line_colours(axis) == titles
+            assert _line_colours(axis, keys) == titles
         assert len(set(titles.values())) == 2
     finally:
         for figure in figures:
@@ -102,7 +108,7 @@ def test_figures_are_written_as_files_beside_the_page_and_linked(tmp_path, fmt, 
     files = sorted((tmp_path / "out" / "report_figures").iterdir())
     assert [path.name for path in files] == [
         f"01-nrhints-toy-ground-truth-renders-and-error-maps.{fmt}",
-        f"02-gs3-default-toy-seed0-decomposition.{fmt}",
+        f"02-gs3-toy-seed0-decomposition.{fmt}",
         f"03-ssdgs-nrhints-toy-seed0-decomposition.{fmt}", f"04-nrhints-toy-training-curves.{fmt}"]
     assert all(path.read_bytes().startswith(magic) for path in files)
     text = page.read_text()
@@ -143,3 +149,19 @@ def test_an_embedded_figure_shows_at_the_size_it_was_drawn_for():
     # CSS pixels are 1/96 inch; the PNG stores its resolution in whole pixels per metre (150 dpi: 5905, 149.99 dpi)
     assert abs(png_css_width(data) - pixels * 96 / EMBED_DPI) <= 1
     assert f'width="{png_css_width(data)}"' in figure_html("curves", data)
+
+
+def test_the_comparison_caption_names_frame_light_and_metric_of_each_panel(tmp_path):
+    runs = toy_runs(tmp_path)
+    figures, _ = report_figures(collect(runs))
+    try:
+        grid = next(f for f in figures if "error maps" in f.title)
+        assert re.search(r"rows 1–2: test frame \S+, lit by a point light at \(-?\d+\.\d\d, -?\d+\.\d\d, -?\d+\.\d\d\)",
+                         grid.caption)
+        assert "PSNR in dB" in grid.caption and "|render − GT|" in grid.caption and "0–0.2" in grid.caption
+    finally:
+        for figure in figures:
+            figure.close()
+    page = tmp_path / "report.html"
+    assert CliRunner().invoke(main, ["report", str(runs), "--suite", "nrhints", "-o", str(page)]).exit_code == 0
+    assert "lit by a point light at" in _visible_text(page.read_text())

@@ -129,9 +129,9 @@ def test_scene_table_means_marks_and_footnotes(tiny_runs):
     table = rank_table(scene_table(collect(tiny_runs), average=True))
     assert table.columns[:2] == ["diffuse_shadow/Train", "diffuse_shadow/Test"]
     # mean over two seeds
-    assert table.cell("PSNR ↑", ("ssdgs",), "aniso_metal/Test").number == pytest.approx(31.5)
+    assert table.cell("PSNR ↑", ("ssdgs/mini",), "aniso_metal/Test").number == pytest.approx(31.5)
     # one seed failed: the finished seed only, marked "c"
-    partial = table.cell("PSNR ↑", ("ssdgs",), "translucent/Test")
+    partial = table.cell("PSNR ↑", ("ssdgs/mini",), "translucent/Test")
     assert partial.number == pytest.approx(32.0) and partial.marks == ("c",)
     # failed run "a", missing run "b", average over incomplete scenes "d", metric not computed "e"
     assert table.cell("PSNR ↑", ("rng",), "aniso_metal/Test").marks == ("a",)
@@ -141,12 +141,12 @@ def test_scene_table_means_marks_and_footnotes(tiny_runs):
     assert table.cell("LPIPS ↓", ("gs3",), "aniso_metal/Test").marks == ("e",)
     assert table.cell("LPIPS ↓", ("gs3",), "Average/Test").number is None
     # the average is the plain mean of the per-scene cells
-    ssdgs = [table.cell("PSNR ↑", ("ssdgs",), f"{s}/Test").number for s in SCENES]
-    assert table.cell("PSNR ↑", ("ssdgs",), "Average/Test").number == pytest.approx(np.mean(ssdgs))
-    assert table.cell("PSNR ↑", ("ssdgs",), "Average/Test").marks == ("c",)  # includes the partial seed mean
+    ssdgs = [table.cell("PSNR ↑", ("ssdgs/mini",), f"{s}/Test").number for s in SCENES]
+    assert table.cell("PSNR ↑", ("ssdgs/mini",), "Average/Test").number == pytest.approx(np.mean(ssdgs))
+    assert table.cell("PSNR ↑", ("ssdgs/mini",), "Average/Test").marks == ("c",)  # includes the partial seed mean
     assert table.cell("PSNR ↑", ("gs3",), "Average/Test").marks == ()
     # ranking: ssdgs 30.5 > gs3 29 > rng 25 on diffuse_shadow Test; lower-is-better LPIPS: gs3 0.05 best
-    assert table.cell("PSNR ↑", ("ssdgs",), "diffuse_shadow/Test").rank == 1
+    assert table.cell("PSNR ↑", ("ssdgs/mini",), "diffuse_shadow/Test").rank == 1
     assert table.cell("PSNR ↑", ("gs3",), "diffuse_shadow/Test").rank == 2
     assert table.cell("PSNR ↑", ("rng",), "diffuse_shadow/Test").rank is None
     assert table.cell("LPIPS ↓", ("gs3",), "diffuse_shadow/Test").rank == 1
@@ -154,13 +154,13 @@ def test_scene_table_means_marks_and_footnotes(tiny_runs):
     notes = "\n".join(table.footnotes)
     for letter in "abcde":
         assert f"{letter}: " in notes
-    assert "Failed: rng/default/aniso_metal seed0 — RuntimeError: out of memory" in notes
+    assert "Failed: rng on aniso_metal, seed 0 — RuntimeError: out of memory" in notes
 
 
 def test_seeds_all_gives_one_row_per_seed(tiny_runs):
     table = scene_table(collect(tiny_runs), methods=["ssdgs"], seeds="all")
-    assert [row.labels[0] for row in table.blocks[0].rows] == ["ssdgs seed0", "ssdgs seed1"]
-    assert table.cell("PSNR ↑", ("ssdgs seed1",), "translucent/Test").marks == ("a",)
+    assert [row.labels[0] for row in table.blocks[0].rows] == ["ssdgs/mini seed0", "ssdgs/mini seed1"]
+    assert table.cell("PSNR ↑", ("ssdgs/mini seed1",), "translucent/Test").marks == ("a",)
 
 
 def test_selection_errors_are_clear(tiny_runs):
@@ -189,12 +189,12 @@ def test_published_beside_runs_adds_paper_and_delta_rows(tmp_path):
     write_run(root, "mymethod", "default", "nrhints", "Cat", 0, metric_values(20.0))
     table = rank_table(scene_table(collect(root), published=True))
     labels = [row.labels[0] for row in table.blocks[0].rows]
-    assert labels == ["mymethod", "ssdgs", "Ours (paper)", "Δ ssdgs − paper"]
+    assert labels == ["mymethod", "ssdgs/nrhints", "Ours (paper)", "Δ ssdgs/nrhints − paper"]
     assert table.cell("PSNR ↑", ("Ours (paper)",), "Cat/Test").number == 27.6844
-    delta = table.cell("PSNR ↑", ("Δ ssdgs − paper",), "Cat/Test")
+    delta = table.cell("PSNR ↑", ("Δ ssdgs/nrhints − paper",), "Cat/Test")
     assert delta.number == pytest.approx(28.0 - 27.6844) and delta.text() == "+0.3156"
     assert table.cell("PSNR ↑", ("Ours (paper)",), "Cat/Test").rank is None  # paper rows are never ranked
-    assert table.cell("PSNR ↑", ("Δ ssdgs − paper",), "Fish/Test").value is None
+    assert table.cell("PSNR ↑", ("Δ ssdgs/nrhints − paper",), "Fish/Test").value is None
     assert any(note.startswith("(paper) rows") for note in table.footnotes)
 
 
@@ -204,11 +204,12 @@ def test_overview_with_published_rows(tmp_path):
         write_run(root, "ssdgs", "sssgs", "sssgs", scene, 0, metric_values(36.0 + index))
     table = rank_table(overview_table(collect(root), published=True))
     labels = [row.labels[0] for row in table.blocks[0].rows]
-    assert labels == ["ssdgs", "KiloOSF (paper)", "SSS-GS (paper)", "Ours (w/o Opt) (paper)", "Ours (w/ Opt) (paper)"]
+    assert labels == ["ssdgs/sssgs", "KiloOSF (paper)", "SSS-GS (paper)", "Ours (w/o Opt) (paper)",
+                      "Ours (w/ Opt) (paper)"]
     assert table.cell(None, ("SSS-GS (paper)",), "Test (Average)/PSNR ↑").text() == "35.01 ± 1.01"
     assert table.cell(None, ("KiloOSF (paper)",), "Train T.").text() == ">20 h"
     assert table.cell(None, ("Ours (w/ Opt) (paper)",), "Test (Average)/PSNR ↑").rank is None
-    assert table.cell(None, ("ssdgs",), "Test (Average)/PSNR ↑").number == pytest.approx(38.0)
+    assert table.cell(None, ("ssdgs/sssgs",), "Test (Average)/PSNR ↑").number == pytest.approx(38.0)
     nrhints = tmp_path / "nrhints"
     write_run(nrhints, "ssdgs", "nrhints", "nrhints", "Cat", 0, metric_values(28.0))
     derived = overview_table(collect(nrhints), published=True, metrics=["psnr"], splits=["test"])
@@ -322,28 +323,61 @@ def test_latex_output_is_balanced(tiny_runs):
             assert text.startswith("\\documentclass") and text.rstrip().endswith("\\end{document}")
 
 
+def _pdflatex(folder: Path, name: str, text: str, env: dict | None = None) -> subprocess.CompletedProcess:
+    (folder / name).write_text(text)
+    return subprocess.run(["pdflatex", "-interaction=nonstopmode", "-halt-on-error", name], cwd=folder,
+                          capture_output=True, text=True, timeout=BACKSTOP_SECONDS, env=env)
+
+
+def test_standalone_latex_needs_only_texlive_latex_recommended_and_keeps_natural_width(tiny_runs):
+    """The LaTeX text itself (no TeX needed): --standalone loaded multirow and diagbox, which Debian's
+    texlive-latex-recommended lacks, and scaled every table to \\linewidth (a huge table under a small caption)."""
+    from olatbench.reports.latex import PAPER_PACKAGES, PORTABLE_PACKAGES
+
+    runner = CliRunner()
+    standalone = runner.invoke(main, ["report", str(tiny_runs), "--format", "latex", "--standalone"]).output
+    packages = re.findall(r"\\usepackage(?:\[[^]]*\])?\{([^}]*)\}", standalone)
+    assert set(packages) == {"geometry", "xcolor", "colortbl", "booktabs", "graphicx"}
+    assert {package.split("{")[1].rstrip("}") for package in PORTABLE_PACKAGES} <= set(packages)
+    assert "\\multirow" not in standalone and "\\diagbox" not in standalone
+    assert "\\resizebox" not in standalone and latex_balance_problems(standalone) == []
+    fitted = runner.invoke(main, ["report", str(tiny_runs), "--format", "latex", "--standalone", "--fit"]).output
+    assert "\\resizebox{\\ifdim\\width>\\linewidth\\linewidth\\else\\width\\fi}{!}" in fitted  # shrinks, never enlarges
+    paper = runner.invoke(main, ["report", str(tiny_runs), "--format", "latex"]).output
+    assert paper.startswith("% Needs in the preamble:") and "texlive-latex-extra" in paper.splitlines()[1]
+    assert all(f"\\usepackage{package}" in paper.splitlines()[0] for package in PAPER_PACKAGES)
+    assert "\\diagbox" in paper  # the paper's flavour keeps the paper's corner
+
+
+@pytest.mark.skipif(shutil.which("pdflatex") is None,
+                    reason="pdflatex is not installed (apt-get install texlive-latex-recommended); the LaTeX-text test "
+                           "stands in for it")
 def test_latex_compiles_with_pdflatex(tmp_path, tiny_runs):
-    if shutil.which("pdflatex") is None:
-        pytest.skip("pdflatex is not installed on this machine; the balance test stands in for it")
     write_run(tiny_runs, "ssdgs", "nrhints", "nrhints", "Cat", 0, metric_values(28.0))
     tables = [paper_table(name) for name in PAPER_TABLES]
     tables.append(rank_table(scene_table(collect(tiny_runs), suite="nrhints", average=True, published=True)))
     for rules in ("hline", "booktabs"):
-        source = tmp_path / f"tables_{rules}.tex"
-        source.write_text(render_tables(tables, "latex", standalone=True, rules=rules))
-        run = subprocess.run(["pdflatex", "-interaction=nonstopmode", "-halt-on-error", source.name], cwd=tmp_path,
-                             capture_output=True, text=True, timeout=BACKSTOP_SECONDS)
+        for fit in (False, True):
+            name = f"tables_{rules}_{fit}.tex"
+            run = _pdflatex(tmp_path, name, render_tables(tables, "latex", standalone=True, rules=rules, fit=fit))
+            assert run.returncode == 0, run.stdout[-2000:]
+            assert (tmp_path / name.replace(".tex", ".pdf")).stat().st_size > 1000
+    extras = subprocess.run(["kpsewhich", "multirow.sty", "diagbox.sty"], capture_output=True, text=True).stdout
+    if len(extras.split()) == 2:  # the paper's flavour, in a document that loads what its first line names
+        paper = render_tables(tables, "latex")
+        preamble = paper.splitlines()[0].removeprefix("% Needs in the preamble: ").replace(", ", "\n")
+        run = _pdflatex(tmp_path, "paper.tex", f"\\documentclass{{article}}\n{preamble}\n\\begin{{document}}\n{paper}"
+                        "\\end{document}\n")
         assert run.returncode == 0, run.stdout[-2000:]
-        assert (tmp_path / f"tables_{rules}.pdf").stat().st_size > 1000
 
 
 def test_cli_report_formats(tiny_runs, tmp_path):
     runner = CliRunner()
     markdown = runner.invoke(main, ["report", str(tiny_runs), "--suite", "mini", "--average"])
     assert markdown.exit_code == 0, markdown.output
-    assert "| ssdgs | **31.5000 ± 0.7071** |" in markdown.output and "Protocol: olatbench-v1 v1" in markdown.output
+    assert "| ssdgs/mini | **31.5000 ± 0.7071** |" in markdown.output and "Protocol: olatbench-v1 v1" in markdown.output
     assert ("mean ± sample std over 1–2 seeds per cell (a one-seed cell has no ±) — seeds per cell: gs3 1; rng 1; "
-            "ssdgs 2 (translucent 1)") in markdown.output  # two seeds: sample std (ddof=1) shown
+            "ssdgs/mini 2 (translucent 1)") in markdown.output  # two seeds: sample std (ddof=1) shown
     out = tmp_path / "t.csv"
     csv = runner.invoke(main, ["report", str(tiny_runs), "--metrics", "psnr", "--splits", "test", "-o", str(out)])
     assert csv.exit_code == 0, csv.output
@@ -454,3 +488,60 @@ def test_report_json_is_every_number_with_its_jobs_identity(tiny_runs):
     assert [r["error"] for r in records if r["status"] == "failed"] == ["RuntimeError: out of memory"] * 2
     published = CliRunner().invoke(main, ["report", "--published-only", "--table", "real", "--format", "csv"])
     assert published.exit_code == 0 and published.output.startswith("table,method,suite,scene,split,metric,value")
+
+
+def write_unfinished(root: Path, method: str, variant: str, suite: str, scene: str, seed: int,
+                     step: int | None = None) -> Path:
+    """A job folder the runner planned (job.json) but has not finished: no results.json; a checkpoint at ``step``."""
+    folder = root / suite / method / variant / scene / f"seed{seed}"
+    folder.mkdir(parents=True)
+    job = {"id": f"{method}-{variant}-{scene}-{seed}", "method": method, "variant": variant, "suite": suite,
+           "scene": scene, "seed": seed, "config": {"iterations": 10}, "protocol": "olatbench-v1",
+           "protocol_version": 1, "code": "z", "data_manifest": "x", "device": "cpu"}
+    (folder / "job.json").write_text(json.dumps(job))
+    if step is not None:
+        (folder / "checkpoints").mkdir()
+        (folder / "checkpoints" / f"step_{step}.pt").write_bytes(b"")
+    return folder
+
+
+def test_unfinished_jobs_are_named_with_their_cell_not_left_out(tmp_path):
+    """A running, an interrupted and a planned job (job.json, no results.json) used to vanish from the tables."""
+    from olatbench.bench.store import job_lock
+
+    runs = tmp_path / "runs"
+    write_run(runs, "ssdgs", "default", "mini", "translucent", 0, metric_values(20.0))
+    running = write_unfinished(runs, "ssdgs", "default", "mini", "translucent", 1, step=4)
+    write_unfinished(runs, "ssdgs", "default", "mini", "aniso_metal", 0, step=6)
+    write_unfinished(runs, "gs3", "default", "mini", "translucent", 0)
+    with job_lock(running) as held:  # another process would hold it while training
+        assert held
+        frame = collect(runs)
+        result = CliRunner().invoke(main, ["report", str(runs), "--json", "--metrics", "psnr"])
+    table = scene_table(frame, metrics=["psnr"], splits=["test"])
+    assert table.cell("PSNR ↑", ("ssdgs",), "translucent/Test").marks == ("c",)  # seed 1 still running
+    assert table.cell("PSNR ↑", ("ssdgs",), "aniso_metal/Test").marks == ("r",)
+    assert table.cell("PSNR ↑", ("gs3",), "translucent/Test").marks == ("r",)
+    notes = "\n".join(table.footnotes)
+    assert "Not finished: ssdgs on translucent, seed 1 — running, step 4 of 10" in notes
+    assert "Not finished: ssdgs on aniso_metal, seed 0 — interrupted at step 6 of 10" in notes
+    assert "Not finished: gs3 on translucent, seed 0 — planned, not started" in notes
+    assert "r: the run has not finished" in notes
+    records = json.loads(result.output)
+    assert {(r["method"], r["scene"], r["seed"], r["status"]) for r in records if r["status"] != "done"} == {
+        ("ssdgs", "translucent", 1, "running"), ("ssdgs", "aniso_metal", 0, "partial"),
+        ("gs3", "translucent", 0, "pending")}
+
+
+def test_a_one_scene_overview_prints_no_spread(tmp_path):
+    """One scene has no spread over scenes: the overview printed "± 0.0000" (and "± 0.0" FPS)."""
+    write_run(tmp_path, "ssdgs", "default", "myscene", "Pig", 0, metric_values(20.0))
+    write_run(tmp_path, "ssdgs", "default", "myscene", "Pig", 1, metric_values(22.0))
+    table = overview_table(collect(tmp_path), metrics=["psnr"], splits=["test"])
+    assert table.cell(None, ("ssdgs",), "Test (Average)/PSNR ↑").text() == "21.0000"
+    assert table.cell(None, ("ssdgs",), "FPS").text() == "50.0"
+    assert "±" not in table.caption and "Pig" in table.caption
+    markdown = CliRunner().invoke(main, ["report", str(tmp_path), "--layout", "overview", "--layout", "scenes",
+                                         "--average", "--metrics", "psnr"]).output
+    assert "21.0000 ± 1.4142" in markdown  # the scene cell: sample std over the two seeds
+    assert "± 0.0" not in markdown  # no spread over one scene, in the overview or the Average column

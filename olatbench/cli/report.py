@@ -57,7 +57,13 @@ def _emit(text: str, output: str | None) -> None:
               help="Print the results as JSON: one object per job × split × metric, numbers as numbers, with the "
                    "job's identity, seed and protocol.")
 @click.option("-o", "--output", type=click.Path(dir_okay=False), help="Write to this file instead of stdout.")
-@click.option("--standalone", is_flag=True, help="LaTeX: a complete document that compiles with pdflatex.")
+@click.option("--standalone", is_flag=True,
+              help="LaTeX: a complete document that compiles with pdflatex and texlive-latex-recommended alone (no "
+                   "multirow or diagbox). Without it: the paper's table code, opened by a comment naming the packages "
+                   "its preamble needs.")
+@click.option("--fit", is_flag=True,
+              help="LaTeX: shrink a table wider than the text to the line width (default: every table at its natural "
+                   "width, its caption at the document's size).")
 @click.option("--booktabs", is_flag=True,
               help="LaTeX: booktabs rules for every table (default: \\hline, and booktabs where the paper uses it).")
 @click.option("--colours", help='Best;second colours as rgb in [0,1], default "1,0.8,0.8;1,0.9,0.8" (the paper).')
@@ -74,10 +80,13 @@ def _emit(text: str, output: str | None) -> None:
                    "or pdf: also write each as a file in <OUTPUT name>_figures/ beside the page (PNG at 300 dpi; SVG "
                    "and PDF vector), linked from its caption; none: no figures.")
 @click.option("--frames", "frame_ids", help="HTML figures: comma-separated test frame ids (default: the first).")
-def report(runs, suite, methods, metrics, splits, layouts, average, fmt, as_json, output, standalone, booktabs,
+def report(runs, suite, methods, metrics, splits, layouts, average, fmt, as_json, output, standalone, fit, booktabs,
            colours, published, published_only, paper_tables, seeds, figure_format, frame_ids) -> None:
     """Build the paper's tables (and an HTML page with figures) from results.json files below RUNS (default:
-    ./runs). A cell averages only jobs identical but for the seed; jobs that differ get their own rows.
+    ./runs). A cell averages only jobs identical but for the seed; jobs that differ get their own rows. Rows, figure
+    keys and JSON records name an experiment by one label: method/variant and, in parentheses, every setting that
+    differs from the suite's defaults (e.g. ssdgs/mini (iterations=200)). Failed and unfinished jobs (running,
+    interrupted, planned) are named under each table with their cell and why.
 
     A results.json that cannot be read is named on stderr and left out; the others still make the tables.
     Exit code: 0 when the report was written, 1 when there is nothing readable to report or the output cannot be
@@ -89,6 +98,7 @@ def report(runs, suite, methods, metrics, splits, layouts, average, fmt, as_json
       olatbench report runs/ --json > results.json        # every number, with its job's identity
       olatbench report runs/ -o results.csv               # the same as tidy CSV
       olatbench report runs/ --suite nrhints --published -o table.tex --standalone
+      olatbench report runs/ --suite nrhints -o table.tex --fit        # paper code, at most the line wide
       olatbench report runs/ --layout ablation --format markdown
       olatbench report runs/ --suite sssgs --layout overview -o report.html
       olatbench report runs/ --suite mini -o report.html --figures pdf   # + report_figures/*.pdf
@@ -116,7 +126,7 @@ def report(runs, suite, methods, metrics, splits, layouts, average, fmt, as_json
             names = paper_tables or PAPER_TABLES
             text = published_csv(names) if fmt == "csv" else render_tables(
                 [paper_table(name) for name in names], fmt, standalone=standalone, colours=palette, rules=rules,
-                title="SSD-GS (ICLR 2026): published tables")
+                title="SSD-GS (ICLR 2026): published tables", fit=fit)
             _emit(text, output)
             return
         if not runs and Path("runs").is_dir():
@@ -133,7 +143,7 @@ def report(runs, suite, methods, metrics, splits, layouts, average, fmt, as_json
                                        "-o report.html")
             text = _report_runs(runs, suite, _split_list(methods), _split_list(metrics), _split_list(splits),
                                 layouts or ("scenes",), average, fmt, standalone, palette, rules, published, seeds,
-                                figure_format, _split_list(frame_ids) or [], output)
+                                figure_format, _split_list(frame_ids) or [], output, fit)
     except ResultsError as error:
         raise click.ClickException(f"{error}\n'olatbench status RUNS' shows which jobs finished.") from None
     except (ReportError, PublishedError, ValueError, FileNotFoundError) as error:
@@ -172,7 +182,7 @@ def _report_data(runs, suite, methods, metrics, splits, as_json: bool) -> str:
 
 
 def _report_runs(runs, suite, methods, metrics, splits, layouts, average, fmt, standalone, palette, rules,
-                 published, seeds, figure_format, frame_ids, output) -> str:
+                 published, seeds, figure_format, frame_ids, output, fit=False) -> str:
     from olatbench.reports.output import render_tables
     from olatbench.reports.ranking import rank_table
     from olatbench.reports.runs_tables import ablation_table, overview_table, scene_table, select_runs
@@ -204,7 +214,7 @@ def _report_runs(runs, suite, methods, metrics, splits, layouts, average, fmt, s
         drawn, notes = report_figures(selected, frame_ids)
         figures = page_figures(drawn, output if figure_format in FIGURE_FILE_FORMATS else None, figure_format)
     return render_tables(tables, fmt, standalone=standalone, colours=palette, rules=rules, figures=figures,
-                         notes=notes)
+                         notes=notes, fit=fit)
 
 
 @click.command("render")

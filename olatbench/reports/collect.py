@@ -1,8 +1,10 @@
 """Read every ``results.json`` below a folder into one long pandas DataFrame.
 
-Only ``results.json`` files are read (through `olatbench.bench.results.read_results`, which
+The numbers come only from ``results.json`` files (read through `olatbench.bench.results.read_results`, which
 refuses unknown schema versions), so a laptop, CI and a cluster build the same tables. A file that cannot be read
-is reported (named, with the reason) and skipped; the others still make the tables.
+is reported (named, with the reason) and skipped; the others still make the tables. A job folder below a folder
+given that has a ``job.json`` but no ``results.json`` yet (`unfinished_rows`: running, interrupted, planned) gives one
+row with its state as ``status`` and what it is doing in ``error``, so reports name it instead of leaving it out.
 
 Columns: ``method, variant, suite, scene, seed, split, metric, value, status, protocol`` plus ``device, job_id,
 error, path`` and ``test_poses``: how the split's views were posed when they were scored — "" (as given),
@@ -10,8 +12,9 @@ error, path`` and ``test_poses``: how the split's views were posed when they wer
 test-time refinement, ``evaluation.test_time_refinement``) or ``"fitted+refined"``. A finished job gives one row
 per (split, metric) of its ``metrics.<split>.mean`` (``value`` NaN when the run stored null, e.g. LPIPS without
 weights) and per-job rows with split "-" for ``fps`` (render FPS), ``train_time`` (seconds) and ``num_gaussians``.
-A failed job gives one row with status "failed", empty split and metric, and its error in ``error``. Files
-written by ``olatbench evaluate`` (``kind: "evaluate"``, no job) give no rows.
+A failed job gives one row with status "failed", empty split and metric, and its error in ``error``; an unfinished
+one likewise with status ``running``, ``partial``, ``pending`` or ``damaged`` (`olatbench.bench.store.JobState`).
+Files written by ``olatbench evaluate`` (``kind: "evaluate"``, no job) give no rows.
 
 What makes a job the experiment it is, apart from its seed and scene (`experiment_fields`): ``config`` (the
 resolved method config as canonical JSON: iterations and every override are in it), ``resolution`` (``WxH``,
@@ -34,7 +37,7 @@ from typing import Any
 import pandas as pd
 
 from olatbench.bench.results import ResultsError, read_results
-from olatbench.bench.store import find_results
+from olatbench.bench.store import JOB_FILE, RESULTS_FILE, JobState, find_results, job_state, read_job_file
 
 COLUMNS = ("method", "variant", "suite", "scene", "seed", "split", "metric", "value", "status", "protocol",
            "device", "job_id", "error", "path", "test_poses", "config", "resolution", "code", "official_commit",
@@ -86,9 +89,9 @@ def result_rows(data: dict[str, Any], path: Path) -> list[dict[str, Any]]:
             "protocol": f"{protocol.get('id', '?')} v{protocol.get('version', '?')}",
             "device": _nested(data, ("resources", "device")) or "", "job_id": job["id"], "path": str(path),
             **experiment_fields(data)}
-    if data["status"] == "failed":
+    if data["status"] != "done":  # failed, or unfinished (`unfinished_rows`)
         error = data.get("error") or {}
-        text = f"{error.get('type', 'error')}: {error.get('message', '')}".strip()
+        text = ": ".join(part for part in (error.get("type", "error"), error.get("message", "")) if part)
         return [{**base, "split": "", "metric": "", "value": math.nan, "error": text, "test_poses": ""}]
     posed = posed_splits(data)
     rows = []
@@ -131,8 +134,51 @@ def posed_splits(data: dict[str, Any]) -> dict[str, str]:
     return {split: "+".join(names) for split, names in modes.items()}
 
 
+#: Unfinished job states and what their ``error`` says (`unfinished_rows`).
+UNFINISHED = {"running": "running", "partial": "interrupted", "pending": "planned, not started",
+              "damaged": "damaged"}
+
+
+def _progress(state: JobState) -> str:
+    """``running, step 120 of 3000`` / ``interrupted at step 120 of 3000`` / ``planned, not started``, plus the
+    state's message."""
+    text = UNFINISHED.get(state.state, state.state)
+    if state.step is not None and state.state in ("running", "partial"):
+        text += f"{',' if state.state == 'running' else ' at'} step {state.step}"
+        text += f" of {state.iterations}" if state.iterations is not None else ""
+    return f"{text} ({state.message})" if state.message else text
+
+
+def unfinished_rows(runs: str | Path | Iterable[str | Path]) -> list[dict[str, Any]]:
+    """One row per job folder below the folders given that holds a ``job.json`` but no ``results.json``: the job's
+    identity from its job.json (as `result_rows` of a failed job), ``status`` its state (running, partial, pending,
+    damaged: `olatbench.bench.store.job_state`; failed for a folder with an error.txt but no results) and ``error``
+    what it is doing (``running, step 120 of 3000``)."""
+    roots = [runs] if isinstance(runs, (str, Path)) else list(runs)
+    rows: list[dict[str, Any]] = []
+    for root in map(Path, roots):
+        if not root.is_dir():
+            continue
+        for path in sorted(root.rglob(JOB_FILE)):
+            folder = path.parent
+            job = read_job_file(folder)
+            if (folder / RESULTS_FILE).exists() or job is None or not isinstance(job.get("method"), str):
+                continue
+            state = job_state(folder)
+            data = {"kind": "run", "status": state.state if state.state in UNFINISHED else "failed",
+                    "job": {key: job[key] for key in ("id", "method", "variant", "suite", "scene", "seed", "config",
+                                                        "resolution") if key in job},
+                    "protocol": {"id": job.get("protocol"), "version": job.get("protocol_version")},
+                    "hashes": {"code": job.get("code"), "data_manifest": job.get("data_manifest")},
+                    "resources": {"device": job.get("device")},
+                    "error": {"type": "", "message": _progress(state)}}
+            rows += result_rows(data, path)
+    return rows
+
+
 def collect(runs: str | Path | Iterable[str | Path], unreadable: list[str] | None = None) -> pd.DataFrame:
-    """Long-form results of every results.json below ``runs`` (a folder, a file, or several).
+    """Long-form results of every results.json below ``runs`` (a folder, a file, or several), and a row for each
+    unfinished job folder (`unfinished_rows`).
 
     A results.json that cannot be read (truncated, not JSON, unknown schema, missing keys) gives no rows and the
     others are still read: its `ResultsError` message (naming the file) is appended to ``unreadable`` when a list
@@ -150,6 +196,7 @@ def collect(runs: str | Path | Iterable[str | Path], unreadable: list[str] | Non
                 unreadable.append(message)
             continue
         rows += result_rows(data, path)
+    rows += unfinished_rows(runs)
     frame = pd.DataFrame(rows, columns=list(COLUMNS))
     frame["seed"] = frame["seed"].astype("int64")
     frame["value"] = frame["value"].astype(float)

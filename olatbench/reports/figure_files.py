@@ -26,7 +26,8 @@ def file_name(index: int, title: str, suffix: str) -> str:
 
 def page_figures(figures: Sequence[ReportFigure], page: str | Path | None, fmt: str
                  ) -> list[tuple[str, bytes, str | None]]:
-    """(title, embedded bytes, link) of each figure for `olatbench.reports.html.to_html`, closing each figure.
+    """(title and caption, embedded bytes, link) of each figure for `olatbench.reports.html.to_html`, closing each
+    figure.
     With a ``page`` path, the drawn figures (not the videos) are also written as ``fmt`` files into
     `figure_folder` (atomically) and linked by their path relative to the page."""
     embedded = []
@@ -38,7 +39,8 @@ def page_figures(figures: Sequence[ReportFigure], page: str | Path | None, fmt: 
                 name = file_name(index, figure.title, fmt)
                 write_bytes(folder / name, encode(figure.figure, fmt, FILE_DPI))
                 link = f"{folder.name}/{name}"
-            embedded.append((figure.title, figure.embedded(), link))
+            text = f"{figure.title}. {figure.caption}" if figure.caption else figure.title
+            embedded.append((text, figure.embedded(), link))
     finally:
         for figure in figures:
             figure.close()

@@ -6,7 +6,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from olatbench.reports.html import to_html
-from olatbench.reports.latex import PAPER_COLOURS, standalone_document, to_latex
+from olatbench.reports.latex import PAPER_COLOURS, packages_comment, standalone_document, to_latex
 from olatbench.reports.model import Table
 from olatbench.reports.text import join_documents, to_csv, to_markdown
 
@@ -47,12 +47,15 @@ def _unit(text: str) -> bool:
 def render_tables(tables: Sequence[Table], fmt: str, *, standalone: bool = False,
                   colours: Sequence[str] = PAPER_COLOURS, rules: str | None = None,
                   figures: Sequence[tuple[str, bytes, str | None]] = (), notes: Sequence[str] = (),
-                  title: str = "olatbench report") -> str:
+                  title: str = "olatbench report", fit: bool = False) -> str:
     """All tables in one document of format ``fmt`` (figures — title, PNG or MP4 bytes, link to the figure's file
-    or None — and notes are used by HTML only)."""
+    or None — and notes are used by HTML only). LaTeX: ``standalone`` a document in the portable flavour, else the
+    paper's flavour opened by a comment naming its packages; ``fit`` shrinks tables wider than the line
+    (`olatbench.reports.latex`)."""
     if fmt == "latex":
-        body = "\n".join(to_latex(table, colours=colours, rules=rules) for table in tables)
-        return standalone_document(body) if standalone else body
+        body = "\n".join(to_latex(table, colours=colours, rules=rules, portable=standalone, fit=fit)
+                         for table in tables)
+        return standalone_document(body) if standalone else packages_comment() + body
     if fmt == "markdown":
         return join_documents([to_markdown(table) for table in tables])
     if fmt == "csv":

@@ -24,7 +24,7 @@ from dataclasses import dataclass, field, replace
 
 import pandas as pd
 
-from olatbench.reports.experiments import experiment_rows
+from olatbench.reports.experiments import experiment_labels
 from olatbench.reports.layouts import (
     CellLookup,
     metric_columns_layout,
@@ -33,7 +33,7 @@ from olatbench.reports.layouts import (
     split_rows_layout,
 )
 from olatbench.reports.model import Cell, Table
-from olatbench.reports.published import VARIANT_LABELS, lookup, normalise_name, paper_method
+from olatbench.reports.published import lookup, normalise_name, paper_method
 
 #: An ablation cell's difference from the full model counts as significant when it exceeds this many
 #: pooled sample standard deviations over seeds (a two-sided 5 % t-test with 3 + 3 seeds needs
@@ -45,7 +45,9 @@ ABLATION_REFERENCES = {"composition": "ablation-D", "schedule": "schedule-I"}
 NOTE_TEXTS = {
     "a": "the run failed (see the failures listed below and the job's error.txt)",
     "b": "no run found for this cell",
-    "c": "mean over the finished seeds only (others failed or are missing); an average marked c includes such a scene",
+    "c": ("mean over the finished seeds only (others failed, have not finished or are missing); an average marked c "
+          "includes such a scene"),
+    "r": "the run has not finished (running, interrupted or only planned; see the jobs listed below)",
     "d": "average not computed: at least one scene has no value",
     "e": "the run did not compute this metric (null in results.json, e.g. LPIPS weights missing)",
     "s": (f"differs from the full model (D; I for schedules) by more than {SIGNIFICANCE_FACTOR:g}× the pooled "
@@ -72,6 +74,7 @@ class Notes:
 
     used: dict[str, str] = field(default_factory=dict)
     failures: list[str] = field(default_factory=list)
+    unfinished: list[str] = field(default_factory=list)
 
     def mark(self, letter: str) -> tuple[str, ...]:
         self.used.setdefault(letter, NOTE_TEXTS[letter])
@@ -79,10 +82,11 @@ class Notes:
 
     def lines(self) -> list[str]:
         lines = [f"{letter}: {text}." for letter, text in sorted(self.used.items())]
-        shown = self.failures[:10]
-        lines += [f"Failed: {failure}" for failure in shown]
-        if len(self.failures) > len(shown):
-            lines.append(f"… and {len(self.failures) - len(shown)} more failed jobs.")
+        for title, jobs in (("Failed", self.failures), ("Not finished", self.unfinished)):
+            shown = jobs[:10]
+            lines += [f"{title}: {job}" for job in shown]
+            if len(jobs) > len(shown):
+                lines.append(f"… and {len(jobs) - len(shown)} more jobs {title.lower()}.")
         return lines
 
 
@@ -121,32 +125,25 @@ def expected_scenes(suite: str, found: Sequence[str]) -> tuple[list[str], str | 
     return scenes + extra, None
 
 
-def row_label(method: str, variant: str, variants_of_method: int) -> str:
-    """The printed row name of a run: the paper's label for ablation presets, else method[/variant]."""
-    if variant in VARIANT_LABELS and variant.startswith((*ABLATION_PREFIXES, "shadow-on-sss")):
-        return VARIANT_LABELS[variant]
-    return method if variants_of_method == 1 else f"{method}/{variant}"
-
-
 class RunCells:
     """Per-cell means over seeds (and over scenes for averages) with their footnote marks."""
 
-    def __init__(self, frame: pd.DataFrame, seeds: str = "mean") -> None:
+    def __init__(self, frame: pd.DataFrame, seeds: str = "mean", paper_variants: bool = False) -> None:
+        """``paper_variants``: rows of ablation presets are labelled as in the paper (`experiment_labels`)."""
         if seeds not in ("mean", "all"):
             raise ReportError(f"seeds must be 'mean' or 'all', not {seeds!r}")
         self.notes = Notes()
         frame = frame.copy()
-        counts = frame.groupby("method")["variant"].nunique()
-        frame["row"] = experiment_rows(frame, lambda method, variant: row_label(method, variant, int(counts[method])))
+        frame["row"] = experiment_labels(frame, paper_variants)
         if seeds == "all":
             frame["row"] = frame["row"] + " seed" + frame["seed"].astype(str)
         self.frame = frame
         self.rows = list(dict.fromkeys(frame["row"]))
         self.source = {row: (group["method"].iloc[0], group["variant"].iloc[0]) for row, group in frame.groupby("row")}
         self.seeds = {row: sorted(set(group["seed"])) for row, group in frame.groupby("row")}
-        for _, failed in frame[frame["status"] == "failed"].iterrows():
-            self.notes.failures.append(f"{failed['method']}/{failed['variant']}/{failed['scene']} "
-                                       f"seed{failed['seed']} — {failed['error']}")
+        for _, job in frame[frame["status"] != "done"].iterrows():  # named with their cell: row, scene, seed
+            listed = self.notes.failures if job["status"] == "failed" else self.notes.unfinished
+            listed.append(f"{job['row']} on {job['scene']}, seed {job['seed']} — {job['error']}")
 
     def jobs(self, row: str, scene: str) -> pd.DataFrame:
         frame = self.frame
@@ -168,7 +165,7 @@ class RunCells:
             if jobs.empty:
                 return Cell(None, marks=mark("b"))
             if done.empty:
-                return Cell(None, marks=mark("a"))
+                return Cell(None, marks=mark("a" if (jobs["status"] == "failed").any() else "r"))
             return Cell(None, marks=mark("e" if not values.empty else "b"))
         complete = self._complete(row, scene, split, metric)
         std = float(numbers.std(ddof=1)) if with_std and len(numbers) > 1 else None
@@ -191,7 +188,8 @@ class RunCells:
         return {int(seed): float(mean) for seed, (mean, count) in per_seed.iterrows() if count == len(scenes)}
 
     def average(self, row: str, scenes: Sequence[str], split: str, metric: str, with_std: bool = False) -> Cell:
-        """Mean (± population std) over scenes of the per-scene means; "—" unless every scene has a value."""
+        """Mean (± population std, ``with_std`` and two or more scenes) over scenes of the per-scene means; "—"
+        unless every scene has a value."""
         numbers, partial, posed = [], False, set()
         for scene in scenes:
             cell = self.cell(row, scene, split, metric, note=False)
@@ -201,7 +199,8 @@ class RunCells:
             partial |= not self._complete(row, scene, split, metric)
             posed |= set(cell.marks) & set(POSE_NOTES.values())
         mean = sum(numbers) / len(numbers)
-        std = math.sqrt(sum((n - mean) ** 2 for n in numbers) / len(numbers)) if with_std else None
+        spread = with_std and len(numbers) > 1  # one scene has no spread: no "± 0.0000"
+        std = math.sqrt(sum((n - mean) ** 2 for n in numbers) / len(numbers)) if spread else None
         marks = (self.notes.mark("c") if partial else ()) + tuple(m for letter in sorted(posed)
                                                                   for m in self.notes.mark(letter))
         return Cell(mean, std=std, marks=marks)
@@ -404,8 +403,10 @@ def overview_table(frame: pd.DataFrame, *, suite: str | None = None, methods: Se
     else:
         notes_before = []
     table = overview_layout(CellLookup(cells), rows, splits, metrics, name=f"tab:{suite}-overview",
-                            caption=f"Averages over the {len(scenes)} scenes of the {suite} suite "
-                                    f"(mean ± std over scenes; training time is the mean per scene).",
+                            caption=(f"Averages over the {len(scenes)} scenes of the {suite} suite "
+                                     "(mean ± std over scenes; training time is the mean per scene)."
+                                     if len(scenes) > 1 else
+                                     f"Results on the one scene of the {suite} suite ({scenes[0]})."),
                             protocol=_protocol_line(run_cells, suite, seeds),
                             extras=(("fps", "FPS", "-"), ("train_time", "Train T.", "-"), ("gpu", "Device", "-")),
                             rank_sets={row: ("all" if row in run_cells.rows else None) for row in rows})
@@ -467,7 +468,7 @@ def ablation_table(frame: pd.DataFrame, *, suite: str | None = None, method: str
                           f"e.g. olatbench run --method {method} --variant ablation-A --suite nrhints")
     selected = selected.assign(_order=selected["variant"].map(lambda v: (v.startswith("schedule-"), v)))
     selected = selected.sort_values("_order", kind="stable").drop(columns="_order")
-    run_cells = RunCells(selected, seeds)
+    run_cells = RunCells(selected, seeds, paper_variants=True)
     rows = list(run_cells.rows)
     sets = {row: ("schedule" if run_cells.source[row][1].startswith("schedule-") else "composition") for row in rows}
     scenes = list(dict.fromkeys(selected["scene"]))

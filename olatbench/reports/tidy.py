@@ -1,12 +1,14 @@
 """Results as data, not display: one record per job × split × metric (``report --json`` and ``--format csv``).
 
-Each record: the job's identity (``job_id``, ``method``, ``variant``, ``suite``, ``scene``, ``seed``, ``config``,
-``resolution``, ``data``, ``code``, ``official_commit``, ``experiment``), its ``protocol`` (``{"id", "version"}``),
-``status``, ``split``, ``metric`` and ``value`` (a float, or null: not computed or the job failed), how the
-split's views were posed (``test_poses``), ``device``, ``error`` and the results file (``path``). Job-level facts
-(``fps``, ``train_time`` in seconds, ``num_gaussians``) are records with split ``"-"``; a failed job is one record
-with empty split and metric. In CSV, ``config`` is its JSON text and the protocol two columns (``protocol_id``,
-``protocol_version``); numbers are written in full (``repr``), missing ones as empty fields.
+Each record: ``label``, the name the tables and figures give the job's experiment
+(`olatbench.reports.experiments.experiment_labels`), the job's identity (``job_id``, ``method``, ``variant``,
+``suite``, ``scene``, ``seed``, ``config``, ``resolution``, ``data``, ``code``, ``official_commit``,
+``experiment``), its ``protocol`` (``{"id", "version"}``), ``status``, ``split``, ``metric`` and ``value`` (a float,
+or null: not computed or the job failed), how the split's views were posed (``test_poses``), ``device``, ``error``
+and the results file (``path``). Job-level facts (``fps``, ``train_time`` in seconds, ``num_gaussians``) are records
+with split ``"-"``; a failed job is one record with empty split and metric. In CSV, ``config`` is its JSON text and
+the protocol two columns (``protocol_id``, ``protocol_version``); numbers are written in full (``repr``), missing
+ones as empty fields.
 """
 
 from __future__ import annotations
@@ -20,8 +22,10 @@ from typing import Any
 
 import pandas as pd
 
+from olatbench.reports.experiments import experiment_labels
+
 #: The columns of the CSV, in order.
-CSV_COLUMNS = ("job_id", "method", "variant", "suite", "scene", "seed", "split", "metric", "value", "status",
+CSV_COLUMNS = ("label", "job_id", "method", "variant", "suite", "scene", "seed", "split", "metric", "value", "status",
                "protocol_id", "protocol_version", "test_poses", "experiment", "config", "resolution", "data",
                "code", "official_commit", "device", "error", "path")
 
@@ -37,15 +41,17 @@ def tidy_records(frame: pd.DataFrame, metrics: Sequence[str] | None = None,
     """The records of a `olatbench.reports.collect.collect` frame (module docstring), optionally only the given
     ``metrics`` and ``splits`` (job-level facts and failed jobs are always kept)."""
     records = []
-    for row in frame.to_dict("records"):
+    labelled = frame.assign(label=experiment_labels(frame)) if not frame.empty else frame.assign(label="")
+    for row in labelled.to_dict("records"):
         facts_or_failure = row["split"] in ("-", "")
         if not facts_or_failure and ((metrics and row["metric"] not in metrics)
                                      or (splits and row["split"] not in splits)):
             continue
         value = row["value"]
         records.append({
-            "job_id": row["job_id"], "method": row["method"], "variant": row["variant"], "suite": row["suite"],
-            "scene": row["scene"], "seed": int(row["seed"]), "split": row["split"], "metric": row["metric"],
+            "label": row["label"], "job_id": row["job_id"], "method": row["method"], "variant": row["variant"],
+            "suite": row["suite"], "scene": row["scene"], "seed": int(row["seed"]), "split": row["split"],
+            "metric": row["metric"],
             "value": None if value is None or math.isnan(value) else float(value), "status": row["status"],
             "protocol": _protocol(row["protocol"]), "test_poses": row["test_poses"],
             "experiment": row["experiment"], "config": json.loads(row["config"] or "{}"),
