@@ -175,9 +175,10 @@ def run(method, suite, data_paths, protocol_name, scenes, variants, ablation, se
     unknown = sorted(set(code) - {method})
     if unknown:
         raise click.UsageError(f"--code names {', '.join(unknown)}, but this run is of {method}")
-    # a plain dry run leaves "auto" unresolved (the device enters no job id, and resolving it would import torch);
-    # a run or a calibration resolves it here, before any method sees it
-    options = PlanOptions(device=device if dry_run and not calibrate else resolve_device(device),
+    # a dry run leaves "auto" unresolved (the device enters no job id, and resolving it would import torch; a
+    # calibration resolves it in plan_estimates, which stores the name for later dry runs); a run resolves it here,
+    # before any method sees it
+    options = PlanOptions(device=device if dry_run else resolve_device(device),
                           checkpoint_every=checkpoint_every, save_components=save_components, reuse=not no_reuse,
                           code=code.get(method, {}))
     try:
