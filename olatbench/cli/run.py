@@ -155,6 +155,7 @@ def run(method, suite, data_paths, protocol_name, scenes, variants, ablation, se
       olatbench run -m gs3-official -s gs3 --code checkout=~/src/gs-relight --code conda_env=gs3
       olatbench run -m ssdgs-official -s mini --code checkout=~/SSD-GS --code python=~/venv/bin/python --code device=cpu
     """
+    from olatbench.bench.executors import Terminated
     from olatbench.bench.plan import PlanOptions, make_plan, parse_overrides
     from olatbench.bench.reuse import order_for_reuse, reuse_notes
     from olatbench.bench.store import job_state
@@ -274,15 +275,16 @@ def run(method, suite, data_paths, protocol_name, scenes, variants, ablation, se
             from olatbench.bench.executors import run_inline
 
             outcomes = run_inline(to_run, progress, report)
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as interrupted:  # Ctrl-C, or SIGTERM to the local executor (its workers are stopped)
         click.echo(f"\nInterrupted. Rerun the same command to resume from the last checkpoints "
                    f"(olatbench status {out} shows where each job stands).", err=True)
-        sys.exit(130)
+        sys.exit(EXIT_TERMINATED if isinstance(interrupted, Terminated) else EXIT_INTERRUPTED)
     _print_summary(jobs, out)
     _exit_for(outcomes, len(running))
 
 
 EXIT_DONE, EXIT_FAILED, EXIT_USAGE, EXIT_RUNNING_ELSEWHERE = 0, 1, 2, 3
+EXIT_INTERRUPTED, EXIT_TERMINATED = 130, 143  # 128 + SIGINT, 128 + SIGTERM: the shells' convention
 
 
 def _exit_for(outcomes, running: int) -> None:
