@@ -1,8 +1,10 @@
-"""The runner's fault battery (#38): each fault gives one clear error, the documented exit code, no traceback, and
-loses nothing.
+"""The runner's fault battery (#38, #48): each fault gives one clear error, the documented exit code, no traceback,
+and loses nothing.
 
 Faults: a read-only run folder (`status`, `run`, `report`, `evaluate`), a disk that fills up during a run, a damaged
-results.json / job.json of a finished job, an unreadable newest checkpoint, and a job run by another process.
+results.json / job.json of a finished job, a newest checkpoint that does not load (every way: unreadable, another
+format, job or config, a field missing, RNG states), a job run by another process, a job another process finished
+(or another job took its folder) after the plan, a ``--jobs 2`` worker killed, and SIGTERM to ``olatbench run``.
 
 Read-only folders and full disks are each tested up to three ways: a real tmpfs mounted in the test's folder (root
 with CAP_SYS_ADMIN; remounted read-only, or filled up), file modes (read-only cases; they bind a non-root user
@@ -652,7 +654,9 @@ def test_sigterm_to_olatbench_run_jobs_2_stops_its_workers_and_releases_the_lock
 # ---- the count ------------------------------------------------------------------------------------------------------
 
 FAULT_COUNT = (len(READ_ONLY_CASES) + 1 + len(RESULTS_DAMAGE) + len(JOB_FILE_DAMAGE) + 1 + len(CHECKPOINT_DAMAGE)
-               + 1)  # read-only entry points, full disk, results.json, job.json, report, checkpoints, concurrent
+               + 1 + len(FINISHED_ELSEWHERE) + 1 + len(WORKER_DEATHS) + 1)
+# read-only entry points, full disk, results.json, job.json, report, checkpoints, concurrent, finished after the plan,
+# a folder another job took, a worker killed, SIGTERM to the main process
 
 
 def test_the_battery_states_its_fault_count_in_the_docs():
