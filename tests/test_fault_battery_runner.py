@@ -630,21 +630,32 @@ def test_sigterm_to_olatbench_run_jobs_2_stops_its_workers_and_releases_the_lock
               "from olatbench.datasets import suites; suites.SUITES['tiny'] = support.tiny_suite(); "
               "from olatbench.cli import main; main(sys.argv[1:])")
     argv = [str(arg) for arg in run_args(data, out, "--jobs", "2", "--iterations", "1000", "--checkpoint-every", "2")]
-    process = subprocess.Popen([sys.executable, "-c", script, *argv], stdout=subprocess.PIPE,
-                               stderr=subprocess.STDOUT, text=True, env={**os.environ, support.STEP_SLEEP_ENV: "0.2"})
+    output = tmp_path / "output.txt"  # not a pipe: a process the run left behind would hold it open
+    with open(output, "w") as handle:
+        process = subprocess.Popen([sys.executable, "-c", script, *argv], stdout=handle, stderr=subprocess.STDOUT,
+                                   env={**os.environ, support.STEP_SLEEP_ENV: "0.2"})
     folders = [job_folder(out, scene, variant="default~iterations=1000") for scene in ("Alpha", "Beta")]
-    wait_until(lambda: all(list_checkpoints(folder) for folder in folders), "a checkpoint of both jobs",
-               process=process)
-    children = _children(process.pid)
-    assert len(children) >= 2, children  # the two workers (and multiprocessing's resource tracker)
-    process.send_signal(signal.SIGTERM)
-    output, _ = process.communicate(timeout=BACKSTOP_SECONDS)
-    assert process.returncode == 143, output
-    assert "Interrupted" in output and "Traceback" not in output, output
-    wait_until(lambda: all(process_gone(child) for child in children), "the end of every process of the run")
-    for folder in folders:
-        assert not is_locked(folder)
-        assert job_state(folder).state == "partial"
+    children: list[int] = []
+    try:
+        wait_until(lambda: all(list_checkpoints(folder) for folder in folders), "a checkpoint of both jobs",
+                   process=process)
+        children = _children(process.pid)
+        assert len(children) >= 2, children  # the two workers (and multiprocessing's resource tracker)
+        process.send_signal(signal.SIGTERM)
+        process.wait(timeout=BACKSTOP_SECONDS)
+        text = output.read_text()
+        assert process.returncode == 143, text
+        assert "Interrupted" in text and "Traceback" not in text, text
+        wait_until(lambda: all(process_gone(child) for child in children), "the end of every process of the run")
+        for folder in folders:
+            assert not is_locked(folder)
+            assert job_state(folder).state == "partial"
+    finally:  # a failed check leaves no process behind either
+        process.kill()
+        process.wait()
+        for child in children:
+            if not process_gone(child):
+                os.kill(child, signal.SIGKILL)
     rerun = run_cli(*argv)
     assert rerun.exit_code == 0, rerun.output
     for folder in folders:
