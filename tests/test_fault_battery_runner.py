@@ -476,6 +476,49 @@ def test_an_unreadable_newest_checkpoint_resumes_from_the_newest_that_loads(data
     assert torch.equal(*weights)
 
 
+GAUSSIAN_STATE_DAMAGE = {  # the 3DGS method's own check refuses the state: the issue's "not a 3DGS checkpoint"
+    "another model's format tag": (lambda state: state.update(format="olatbench.ssdgs/1"), "not a 3DGS checkpoint"),
+    "another config's": (lambda state: state["config"].update(sh_degree=0), "written with a different config"),
+}
+
+
+@pytest.mark.parametrize("damage", list(GAUSSIAN_STATE_DAMAGE))
+def test_a_gaussian_checkpoint_its_method_refuses_is_set_aside_and_named(tmp_path, monkeypatch, damage):
+    """#48 item 3 with a real Gaussian method: a newest checkpoint that 3DGS refuses (``ValueError: not a 3DGS
+    checkpoint``, naming no file, stopped every rerun) is set aside, named, and the job resumes from the one before."""
+    import dataclasses
+
+    from olatbench.bench.plan import load_method_class
+
+    edit, phrase = GAUSSIAN_STATE_DAMAGE[damage]
+    data = support.write_tiny_data(tmp_path / "data", scenes=("Alpha",))
+    job = make_plan("3dgs", support.tiny_suite(scenes=("Alpha",)), tmp_path / "runs", variants=["mini"],
+                    iterations=12, data_root=data, progress=False, options=PlanOptions(checkpoint_every=4))[0]
+    job = dataclasses.replace(job, config={**job.config, "num_init_gaussians": 300}).with_id()
+    method_class = load_method_class(job)
+    train_step = method_class.train_step
+
+    def interrupted_at_10(self, step):
+        if step == 10:
+            raise KeyboardInterrupt
+        return train_step(self, step)
+
+    monkeypatch.setattr(method_class, "train_step", interrupted_at_10)
+    with pytest.raises(KeyboardInterrupt):
+        run_job(job, progress=False)
+    monkeypatch.setattr(method_class, "train_step", train_step)
+    folder = Path(job.folder)
+    assert [step for step, _ in list_checkpoints(folder)] == [4, 8]
+    newest = list_checkpoints(folder)[-1][1]
+    _edit_payload(lambda payload: edit(payload["method"]))(newest)
+
+    outcome = run_job(job, progress=False)
+    assert outcome.status == "done", outcome.error
+    log = (folder / "log.txt").read_text()
+    assert phrase in log and str(newest) in log and "resumed from step_00000004.pt" in log, log
+    assert (folder / "checkpoints" / "step_00000008.pt.unreadable").is_file()
+
+
 # ---- a job run by another process (#38 item 12) ---------------------------------------------------------------------
 
 def test_a_run_that_leaves_a_job_to_another_process_exits_3_and_the_rerun_0(data, tmp_path):
@@ -665,7 +708,7 @@ def test_sigterm_to_olatbench_run_jobs_2_stops_its_workers_and_releases_the_lock
 # ---- the count ------------------------------------------------------------------------------------------------------
 
 FAULT_COUNT = (len(READ_ONLY_CASES) + 1 + len(RESULTS_DAMAGE) + len(JOB_FILE_DAMAGE) + 1 + len(CHECKPOINT_DAMAGE)
-               + 1 + len(FINISHED_ELSEWHERE) + 1 + len(WORKER_DEATHS) + 1)
+               + len(GAUSSIAN_STATE_DAMAGE) + 1 + len(FINISHED_ELSEWHERE) + 1 + len(WORKER_DEATHS) + 1)
 # read-only entry points, full disk, results.json, job.json, report, checkpoints, concurrent, finished after the plan,
 # a folder another job took, a worker killed, SIGTERM to the main process
 
