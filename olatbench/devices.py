@@ -3,7 +3,8 @@
 ``auto`` means ``cuda`` when torch sees a CUDA device, else ``cpu``. Every verb and the runner call
 `resolve_device` before a method, a model or a calibration sees the name, so no torch call ever gets
 ``"auto"`` (``torch.device("auto")`` raises). Torch is imported only to resolve ``auto``, so a dry run
-that keeps ``auto`` (the device enters no job id) stays torch-free.
+that keeps ``auto`` (the device enters no job id) stays torch-free; its time estimates name ``auto`` from what a
+calibration stored (`olatbench.bench.estimate`), and only ``--calibrate`` resolves it.
 """
 
 from __future__ import annotations

@@ -1,8 +1,10 @@
-"""The runner's fault battery (#38): each fault gives one clear error, the documented exit code, no traceback, and
-loses nothing.
+"""The runner's fault battery (#38, #48): each fault gives one clear error, the documented exit code, no traceback,
+and loses nothing.
 
 Faults: a read-only run folder (`status`, `run`, `report`, `evaluate`), a disk that fills up during a run, a damaged
-results.json / job.json of a finished job, an unreadable newest checkpoint, and a job run by another process.
+results.json / job.json of a finished job, a newest checkpoint that does not load (every way: unreadable, another
+format, job or config, a field missing, RNG states), a job run by another process, a job another process finished
+(or another job took its folder) after the plan, a ``--jobs 2`` worker killed, and SIGTERM to ``olatbench run``.
 
 Read-only folders and full disks are each tested up to three ways: a real tmpfs mounted in the test's folder (root
 with CAP_SYS_ADMIN; remounted read-only, or filled up), file modes (read-only cases; they bind a non-root user
@@ -17,8 +19,10 @@ import builtins
 import errno
 import os
 import shutil
+import signal
 import stat
 import subprocess
+import sys
 import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -28,12 +32,13 @@ import pytest
 import test_runner_support as support
 import torch
 from click.testing import CliRunner
+from waiting import BACKSTOP_SECONDS, process_gone, wait_until
 
 from olatbench.bench.checkpoints import list_checkpoints
 from olatbench.bench.execute import run_job
 from olatbench.bench.plan import PlanOptions, make_plan
 from olatbench.bench.results import read_results
-from olatbench.bench.store import job_lock, job_state
+from olatbench.bench.store import is_locked, job_lock, job_state
 from olatbench.cli import main
 from olatbench.datasets import suites
 
@@ -402,16 +407,44 @@ def test_report_lists_each_unreadable_results_json_and_fails_only_when_none_is_r
 
 # ---- an unreadable newest checkpoint (#38 item 11) ------------------------------------------------------------------
 
-CHECKPOINT_DAMAGE = {
-    "truncated": _truncate,
-    "zero bytes": lambda path: path.write_bytes(b""),
-    "not a checkpoint": lambda path: path.write_bytes(os.urandom(4096)),
-    "every checkpoint": None,  # all of them truncated: the job starts over
+def _edit_payload(edit):
+    """A damage that loads the checkpoint, applies ``edit(payload)`` and saves it back (a well-formed file)."""
+
+    def damage(path: Path) -> None:
+        payload = torch.load(path, weights_only=True)
+        edit(payload)
+        torch.save(payload, path)
+
+    return damage
+
+
+CHECKPOINT_DAMAGE = {  # name: (damage, phrase of the message, every checkpoint damaged or only the newest)
+    "truncated": (_truncate, "cannot read checkpoint", False),
+    "zero bytes": (lambda path: path.write_bytes(b""), "cannot read checkpoint", False),
+    "not a checkpoint": (lambda path: path.write_bytes(os.urandom(4096)), "cannot read checkpoint", False),
+    "every checkpoint": (_truncate, "cannot read checkpoint", True),  # all of them truncated: the job starts over
+    "not a zip": (lambda path: path.write_text('{"step": 8}'), "cannot read checkpoint", False),
+    "an object weights_only refuses": (_edit_payload(lambda payload: payload.update(note=Path("x"))),
+                                       "cannot read checkpoint", False),
+    "another format tag": (_edit_payload(lambda payload: payload.update(format=99)), "checkpoint format 99", False),
+    "another job's": (_edit_payload(lambda payload: payload.update(job_id="0" * 16)), "checkpoint of job 0000",
+                      False),
+    "a field missing": (_edit_payload(lambda payload: payload.pop("rng")), "field 'rng' is not a dict", False),
+    "another config's state": (_edit_payload(lambda payload: payload["method"].update(gain=torch.ones(2))),
+                               "does not load into trivial (RuntimeError", False),
+    "every checkpoint another config's": (_edit_payload(lambda payload: payload["method"].update(gain=torch.ones(2))),
+                                          "does not load into trivial (RuntimeError", True),
+    "damaged RNG states": (_edit_payload(lambda payload: payload["rng"].update(torch=torch.zeros(3).byte())),
+                           "does not load into trivial", False),
 }
 
 
 @pytest.mark.parametrize("damage", list(CHECKPOINT_DAMAGE))
 def test_an_unreadable_newest_checkpoint_resumes_from_the_newest_that_loads(data, tmp_path, damage):
+    """Whatever keeps a checkpoint from loading into its job's method, it is set aside as ``.unreadable``, named with
+    the reason on stderr and in log.txt, and the next older one is used (step 0 when none loads, from the same
+    set-up as an uninterrupted run even after a state half-loaded into the method): the result is bit-exact."""
+    harm, phrase, every = CHECKPOINT_DAMAGE[damage]
     options = PlanOptions(checkpoint_every=4)
     job = plan(data, tmp_path / "runs", scenes=["Alpha"], iterations=10, options=options)[0]
     reference = plan(data, tmp_path / "reference", scenes=["Alpha"], iterations=10, options=options)[0]
@@ -420,17 +453,18 @@ def test_an_unreadable_newest_checkpoint_resumes_from_the_newest_that_loads(data
         run_job(interrupted, progress=False)
     folder = Path(job.folder)
     assert [step for step, _ in list_checkpoints(folder)] == [4, 8]
-    damaged = list_checkpoints(folder) if damage == "every checkpoint" else list_checkpoints(folder)[-1:]
+    damaged = list_checkpoints(folder) if every else list_checkpoints(folder)[-1:]
     for _, path in damaged:
-        (CHECKPOINT_DAMAGE[damage] or _truncate)(path)
+        harm(path)
     kept = {path.name + ".unreadable": path.read_bytes() for _, path in damaged}
 
     result = run_cli(*run_args(data, tmp_path / "runs", "--scenes", "Alpha", "--iterations", "10",
                                "--checkpoint-every", "4"))
     assert result.exit_code == 0 and "Traceback" not in result.output, result.output
-    assert "cannot read checkpoint" in result.stderr and "step_00000008.pt.unreadable" in result.stderr
+    assert phrase in result.stderr and "step_00000008.pt.unreadable" in result.stderr, result.stderr
+    assert str(damaged[-1][1]) in result.stderr  # the file is named
     log = (folder / "log.txt").read_text()
-    assert ("resumed from step_00000004.pt" in log) == (damage != "every checkpoint")
+    assert phrase in log and ("resumed from step_00000004.pt" in log) == (not every)
     for name, content in kept.items():  # the damaged files are kept aside, not deleted
         assert (folder / "checkpoints" / name).read_bytes() == content
 
@@ -440,6 +474,49 @@ def test_an_unreadable_newest_checkpoint_resumes_from_the_newest_that_loads(data
     weights = [torch.load(list_checkpoints(j.folder)[-1][1], weights_only=True)["method"]["logits"]
                for j in (job, reference)]
     assert torch.equal(*weights)
+
+
+GAUSSIAN_STATE_DAMAGE = {  # the 3DGS method's own check refuses the state: the issue's "not a 3DGS checkpoint"
+    "another model's format tag": (lambda state: state.update(format="olatbench.ssdgs/1"), "not a 3DGS checkpoint"),
+    "another config's": (lambda state: state["config"].update(sh_degree=0), "written with a different config"),
+}
+
+
+@pytest.mark.parametrize("damage", list(GAUSSIAN_STATE_DAMAGE))
+def test_a_gaussian_checkpoint_its_method_refuses_is_set_aside_and_named(tmp_path, monkeypatch, damage):
+    """#48 item 3 with a real Gaussian method: a newest checkpoint that 3DGS refuses (``ValueError: not a 3DGS
+    checkpoint``, naming no file, stopped every rerun) is set aside, named, and the job resumes from the one before."""
+    import dataclasses
+
+    from olatbench.bench.plan import load_method_class
+
+    edit, phrase = GAUSSIAN_STATE_DAMAGE[damage]
+    data = support.write_tiny_data(tmp_path / "data", scenes=("Alpha",))
+    job = make_plan("3dgs", support.tiny_suite(scenes=("Alpha",)), tmp_path / "runs", variants=["mini"],
+                    iterations=12, data_root=data, progress=False, options=PlanOptions(checkpoint_every=4))[0]
+    job = dataclasses.replace(job, config={**job.config, "num_init_gaussians": 300}).with_id()
+    method_class = load_method_class(job)
+    train_step = method_class.train_step
+
+    def interrupted_at_10(self, step):
+        if step == 10:
+            raise KeyboardInterrupt
+        return train_step(self, step)
+
+    monkeypatch.setattr(method_class, "train_step", interrupted_at_10)
+    with pytest.raises(KeyboardInterrupt):
+        run_job(job, progress=False)
+    monkeypatch.setattr(method_class, "train_step", train_step)
+    folder = Path(job.folder)
+    assert [step for step, _ in list_checkpoints(folder)] == [4, 8]
+    newest = list_checkpoints(folder)[-1][1]
+    _edit_payload(lambda payload: edit(payload["method"]))(newest)
+
+    outcome = run_job(job, progress=False)
+    assert outcome.status == "done", outcome.error
+    log = (folder / "log.txt").read_text()
+    assert phrase in log and str(newest) in log and "resumed from step_00000004.pt" in log, log
+    assert (folder / "checkpoints" / "step_00000008.pt.unreadable").is_file()
 
 
 # ---- a job run by another process (#38 item 12) ---------------------------------------------------------------------
@@ -474,10 +551,166 @@ def test_a_run_that_leaves_a_job_to_another_process_exits_3_and_the_rerun_0(data
     assert exited.value.code == 3
 
 
+# ---- a job another process finished after this one planned it (#48 item 1) ----------------------------------------
+
+def _as_planned_before(monkeypatch, folder: Path, state: str = "pending") -> None:
+    """The CLI sees ``folder`` in ``state``, as a process that planned it before another one finished it did."""
+    import olatbench.bench.store as store
+
+    real = store.job_state
+
+    def planned_view(path, expected_id=None):
+        found = real(path, expected_id)
+        return store.JobState(found.folder, state, found.job_id) if Path(path) == folder else found
+
+    monkeypatch.setattr(store, "job_state", planned_view)
+
+
+def _run_cli_with_the_plan_outdated(data, out, monkeypatch, folder):
+    _as_planned_before(monkeypatch, folder)
+    return run_cli(*run_args(data, out))
+
+
+def _run_job_of_the_outdated_plan(data, out, monkeypatch, folder):
+    return run_job(plan(data, out, scenes=["Alpha"])[0], progress=False)
+
+
+def _run_local_of_the_outdated_plan(data, out, monkeypatch, folder):
+    from olatbench.bench.executors import run_local
+
+    return run_local(plan(data, out, scenes=["Alpha"]), workers=2, progress=False)[0]
+
+
+FINISHED_ELSEWHERE = {  # how the process that planned the job before it finished gets to it
+    "olatbench run (planned as pending)": _run_cli_with_the_plan_outdated,
+    "run_job of the outdated plan": _run_job_of_the_outdated_plan,
+    "--jobs 2 worker of the outdated plan": _run_local_of_the_outdated_plan,
+}
+
+
+@pytest.mark.parametrize("way", list(FINISHED_ELSEWHERE))
+def test_a_job_finished_after_the_plan_is_never_redone(data, tmp_path, monkeypatch, way):
+    """Process B planned the job while it was pending; process A finished it; B then takes the free lock. B reads the
+    job's state again under the lock and leaves it: its DONE, results.json, checkpoint and log are untouched."""
+    out = tmp_path / "runs"
+    assert run_cli(*run_args(data, out, "--scenes", "Alpha")).exit_code == 0  # process A
+    folder = job_folder(out)
+    finished = snapshot(folder)
+    outcome = FINISHED_ELSEWHERE[way](data, out, monkeypatch, folder)
+    if way.startswith("olatbench run"):
+        assert outcome.exit_code == 0 and "Traceback" not in outcome.output, outcome.output
+        assert job_state(job_folder(out, "Beta")).state == "done"  # the other job of B's plan ran
+    else:
+        assert outcome.status == "done", outcome
+        assert outcome.test_metrics == read_results(folder / "results.json")["metrics"]["test"]["mean"]
+    assert snapshot(folder) == finished
+    assert job_state(folder).state == "done"
+
+
+def test_a_folder_that_another_job_took_after_the_plan_is_left_alone(data, tmp_path):
+    """The folder now holds another job (written by another olatbench version or config after this plan): this job
+    fails with one line naming the folder and --force, and writes nothing into it."""
+    out = tmp_path / "runs"
+    job = plan(data, out, scenes=["Alpha"])[0]
+    other = type(job)(**{**job.__dict__, "config": {**job.config, "lr": 0.2}, "id": ""}).with_id()
+    assert other.folder == job.folder and other.id != job.id
+    assert run_job(other, progress=False).status == "done"
+    before = snapshot(Path(job.folder))
+    outcome = run_job(job, progress=False)
+    assert outcome.status == "failed" and not outcome.recorded
+    assert str(job.folder) in outcome.error and "--force" in outcome.error and other.id in outcome.error
+    assert snapshot(Path(job.folder)) == before
+
+
+def test_force_still_retrains_a_finished_job(data, tmp_path):
+    out = tmp_path / "runs"
+    assert run_cli(*run_args(data, out, "--scenes", "Alpha")).exit_code == 0
+    log = job_folder(out) / "log.txt"
+    assert log.read_text().count("job ") == 1
+    forced = run_cli(*run_args(data, out, "--scenes", "Alpha", "--force"))
+    assert forced.exit_code == 0 and "0 already done, 1 to run" in forced.output, forced.output
+    assert log.read_text().count("job ") == 1 and "resumed" not in log.read_text()  # a new folder, trained again
+
+
+# ---- --jobs 2: a worker killed, the main process terminated (#48 item 2) --------------------------------------------
+
+WORKER_DEATHS = ("SIGKILL", "SIGSEGV", "exit")
+
+
+@pytest.mark.parametrize("death", WORKER_DEATHS)
+def test_a_killed_worker_fails_its_own_job_only(data, tmp_path, death):
+    """One of three jobs on two workers dies mid-training (the OOM killer's SIGKILL, a crash, an exit from a
+    library): that job alone fails, saying how its worker died; the sibling running beside it and the job queued
+    after it finish; the killed job resumes on the next run."""
+    from olatbench.bench.executors import run_local
+
+    out = tmp_path / "runs"
+    jobs = plan(data, out, seeds=2, options=PlanOptions(checkpoint_every=2))[:3]
+    dying = type(jobs[0])(**{**jobs[0].__dict__, "config": {**jobs[0].config, "die_at_step": 5, "die_by": death}})
+    outcomes = run_local([dying, *jobs[1:]], workers=2, progress=False)
+    assert [outcome.status for outcome in outcomes] == ["failed", "done", "done"], outcomes
+    how = "exit code 3" if death == "exit" else f"killed by signal {death}"
+    assert f"worker process died ({how})" in outcomes[0].error and not outcomes[0].recorded
+    state = job_state(jobs[0].folder, jobs[0].id)
+    assert state.state == "partial" and state.step == 4, state
+    assert run_local(jobs[:1], workers=2, progress=False)[0].status == "done"
+    assert "resumed from step_00000004.pt" in (Path(jobs[0].folder) / "log.txt").read_text()
+
+
+def _children(pid: int) -> list[int]:
+    """The child processes of ``pid`` (Linux /proc)."""
+    path = Path(f"/proc/{pid}/task/{pid}/children")
+    return [int(child) for child in path.read_text().split()] if path.exists() else []
+
+
+@pytest.mark.skipif(not Path("/proc/self/task").is_dir(), reason="finds the worker processes through Linux /proc")
+def test_sigterm_to_olatbench_run_jobs_2_stops_its_workers_and_releases_the_locks(data, tmp_path):
+    """SIGTERM to the main process of ``olatbench run --jobs 2`` while both workers train: it stops them and exits
+    143; no process of the run is left, no lock held, both jobs are partial (nothing finished behind its back), and
+    the same command finishes them."""
+    out = tmp_path / "runs"
+    script = (f"import sys; sys.path.insert(0, {str(support.TESTS)!r}); import test_runner_support as support; "
+              "from olatbench.datasets import suites; suites.SUITES['tiny'] = support.tiny_suite(); "
+              "from olatbench.cli import main; main(sys.argv[1:])")
+    argv = [str(arg) for arg in run_args(data, out, "--jobs", "2", "--iterations", "1000", "--checkpoint-every", "2")]
+    output = tmp_path / "output.txt"  # not a pipe: a process the run left behind would hold it open
+    with open(output, "w") as handle:
+        process = subprocess.Popen([sys.executable, "-c", script, *argv], stdout=handle, stderr=subprocess.STDOUT,
+                                   env={**os.environ, support.STEP_SLEEP_ENV: "0.2"})
+    folders = [job_folder(out, scene, variant="default~iterations=1000") for scene in ("Alpha", "Beta")]
+    children: list[int] = []
+    try:
+        wait_until(lambda: all(list_checkpoints(folder) for folder in folders), "a checkpoint of both jobs",
+                   process=process)
+        children = _children(process.pid)
+        assert len(children) >= 2, children  # the two workers (and multiprocessing's resource tracker)
+        process.send_signal(signal.SIGTERM)
+        process.wait(timeout=BACKSTOP_SECONDS)
+        text = output.read_text()
+        assert process.returncode == 143, text
+        assert "Interrupted" in text and "Traceback" not in text, text
+        wait_until(lambda: all(process_gone(child) for child in children), "the end of every process of the run")
+        for folder in folders:
+            assert not is_locked(folder)
+            assert job_state(folder).state == "partial"
+    finally:  # a failed check leaves no process behind either
+        process.kill()
+        process.wait()
+        for child in children:
+            if not process_gone(child):
+                os.kill(child, signal.SIGKILL)
+    rerun = run_cli(*argv)
+    assert rerun.exit_code == 0, rerun.output
+    for folder in folders:
+        assert "resumed from step_" in (folder / "log.txt").read_text()
+
+
 # ---- the count ------------------------------------------------------------------------------------------------------
 
 FAULT_COUNT = (len(READ_ONLY_CASES) + 1 + len(RESULTS_DAMAGE) + len(JOB_FILE_DAMAGE) + 1 + len(CHECKPOINT_DAMAGE)
-               + 1)  # read-only entry points, full disk, results.json, job.json, report, checkpoints, concurrent
+               + len(GAUSSIAN_STATE_DAMAGE) + 1 + len(FINISHED_ELSEWHERE) + 1 + len(WORKER_DEATHS) + 1)
+# read-only entry points, full disk, results.json, job.json, report, checkpoints, concurrent, finished after the plan,
+# a folder another job took, a worker killed, SIGTERM to the main process
 
 
 def test_the_battery_states_its_fault_count_in_the_docs():

@@ -17,6 +17,7 @@ import pytest
 from waiting import BACKSTOP_SECONDS
 
 from olatbench.bench.jobs import code_hash
+from olatbench.devices import resolve_device
 from olatbench.methods import registry
 from olatbench.methods.spec import MethodSpec
 
@@ -65,6 +66,28 @@ def test_ablation_dry_run_imports_no_torch_and_expands_the_specs_grid(tmp_path):
     assert not result["torch"]
     for letter in "ABCDEF":
         assert f"ablation-{letter}" in result["output"]
+
+
+def test_a_dry_run_with_a_stored_calibration_names_auto_without_torch(tmp_path, monkeypatch):
+    """#48: a calibration stored by an earlier ``--dry-run --calibrate`` made every later dry run import torch to
+    name ``--device auto``; the calibration now stores what auto named, and the dry run reads it."""
+    from click.testing import CliRunner
+
+    import olatbench.bench.estimate as estimate
+    from olatbench.cli import main
+
+    timed = []
+    monkeypatch.setattr(estimate, "calibrate", lambda job, progress=True: timed.append(job.device) or
+                        estimate.StepCost(a=0.5, b=0.0, measured={"0": 0.5}))  # not timing: the file is the point
+    args = ["run", "--method", "ssdgs", "--suite", "mini", "--scenes", "diffuse_shadow", "--iterations", "20",
+            "--dry-run", "-o", str(tmp_path / "runs")]
+    calibrated = CliRunner().invoke(main, [*args, "--calibrate", "--quiet"])
+    assert calibrated.exit_code == 0, calibrated.output
+    assert timed == [resolve_device("auto")]
+    result = _cli_without_torch(args)
+    assert result["code"] == 0, result["output"]
+    assert not result["torch"]
+    assert "10 s" in result["output"], result["output"]  # 20 steps at 0.5 s: the stored calibration was used
 
 
 def test_official_method_list_show_and_dry_run_import_no_torch(tmp_path):

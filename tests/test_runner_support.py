@@ -8,6 +8,8 @@ runner restores both RNG states and the optimiser state.
 
 from __future__ import annotations
 
+import os
+import signal
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -22,6 +24,8 @@ from olatbench.methods.registry import register
 from olatbench.metrics.protocols import Protocol, protocol_names, register_protocol
 
 TESTS = Path(__file__).resolve().parent
+STEP_SLEEP_ENV = "OLATBENCH_TEST_STEP_SLEEP"  # seconds per step of every trivial job of a process and its workers,
+# kept out of the config (so out of the job id): a slowed first attempt and its rerun are the same job
 
 
 @dataclass
@@ -32,6 +36,8 @@ class TrivialConfig:
     fail_at_step: int = -1  # raise in train_step at this step (failure-isolation tests)
     step_sleep: float = 0.0  # seconds per step (kill tests)
     interrupt_at_step: int = -1  # raise KeyboardInterrupt at this step (an in-process Ctrl-C)
+    die_at_step: int = -1  # end the whole process at this step, as `die_by` says (a worker killed from outside)
+    die_by: str = "SIGKILL"  # a signal the process sends itself (SIGKILL, SIGSEGV, ...) or "exit" (os._exit(3))
 
 
 class TrivialMethod(Method):
@@ -69,8 +75,13 @@ class TrivialMethod(Method):
             raise RuntimeError(f"injected failure at step {step}")
         if step == self.config.interrupt_at_step:
             raise KeyboardInterrupt
-        if self.config.step_sleep:
-            time.sleep(self.config.step_sleep)
+        if step == self.config.die_at_step:
+            if self.config.die_by == "exit":
+                os._exit(3)
+            os.kill(os.getpid(), getattr(signal, self.config.die_by))
+        sleep = self.config.step_sleep or float(os.environ.get(STEP_SLEEP_ENV, 0))
+        if sleep:
+            time.sleep(sleep)
         index = int(torch.randint(len(self.images), (1,)).item())
         noise = torch.from_numpy(np.random.normal(0.0, self.config.noise, self.images.shape[1:]).astype(np.float32))
         loss = torch.mean((self._image() - self.images[index] - noise.to(self.device)) ** 2)

@@ -80,12 +80,17 @@ def prune_checkpoints(folder: str | Path, keep: int) -> None:
 
 
 class CheckpointUnreadable(RuntimeError):
-    """A checkpoint file torch cannot load (truncated, zero bytes, not a checkpoint); the message names it."""
+    """A checkpoint file that is no checkpoint of the job asked for: torch cannot load it (truncated, zero bytes, not
+    a zip, an object ``weights_only`` refuses), or it is not a dict of this format with the payload's fields, or it
+    belongs to another job. The message names the file and the reason."""
+
+
+_PAYLOAD_FIELDS = {"step": int, "method": dict, "rng": dict, "train_seconds": float}
 
 
 def load_checkpoint(path: str | Path, job_id: str) -> dict[str, Any]:
-    """Load a checkpoint (``weights_only=True``) and check that it belongs to ``job_id``; a file that does not load
-    is a `CheckpointUnreadable`."""
+    """Load a checkpoint (``weights_only=True``) and check that it is one of this format, with its fields, belonging
+    to ``job_id``; anything else is a `CheckpointUnreadable`."""
     path = Path(path)
     try:
         payload = torch.load(path, map_location="cpu", weights_only=True)
@@ -96,8 +101,12 @@ def load_checkpoint(path: str | Path, job_id: str) -> dict[str, Any]:
     if not isinstance(payload, dict):
         raise CheckpointUnreadable(f"{path}: not a checkpoint (holds a {type(payload).__name__})")
     if payload.get("format") != CHECKPOINT_FORMAT:
-        raise RuntimeError(f"{path}: checkpoint format {payload.get('format')!r} is not {CHECKPOINT_FORMAT}")
+        raise CheckpointUnreadable(f"{path}: checkpoint format {payload.get('format')!r} is not {CHECKPOINT_FORMAT}")
     if payload.get("job_id") != job_id:
-        raise RuntimeError(f"{path}: checkpoint of job {payload.get('job_id')} cannot resume job {job_id}; "
-                           "rerun with --force to start over")
+        raise CheckpointUnreadable(f"{path}: checkpoint of job {payload.get('job_id')} cannot resume job {job_id}; "
+                                   "rerun with --force to start over")
+    for name, kind in _PAYLOAD_FIELDS.items():
+        if not isinstance(payload.get(name), kind):
+            raise CheckpointUnreadable(f"{path}: field '{name}' is not a {kind.__name__} "
+                                       f"({type(payload.get(name)).__name__})")
     return payload

@@ -9,7 +9,10 @@ trained one looks, a closed nearly opaque surface (`olatbench.gaussians.surface`
 initial cloud: at opacity 0.1 that cloud blends many Gaussians per pixel and stepped 2.1× slower than the trained
 model of the same size on mini (the estimate was 1.8× too high on an Intel Xeon for that reason). It fits seconds
 per step as ``a + b·N`` and stores that per machine and per (method, config, resolution, device) in
-``$XDG_CACHE_HOME/olatbench/calibration.json``.
+``$XDG_CACHE_HOME/olatbench/calibration.json``, together with the device ``--device auto`` named on the machine when
+it was measured (``"auto_devices": {machine: "cpu" | "cuda"}``): naming it needs torch, which a plain dry run never
+imports, so a dry run with ``auto`` reads the stored name instead (none stored: no estimate, ``--calibrate`` stores
+it).
 
 `estimate` (torch-free, for ``olatbench run --dry-run``) sums ``a + b·N(step)`` over the job's steps with the
 Gaussian count modelled as the config's initial count until the first densification (the first multiple of
@@ -33,9 +36,10 @@ from typing import Any
 
 from olatbench.atomic import write_json
 from olatbench.bench.jobs import Job, hash_json
-from olatbench.devices import resolve_device
+from olatbench.devices import AUTO, resolve_device
 
 CALIBRATION_FILE = "calibration.json"
+AUTO_DEVICES = "auto_devices"  # the file's key of what --device auto named on each machine (module docstring)
 SCHEDULE_POINTS = (0.1, 0.5, 0.9)
 STEPS_PER_POINT = 2
 CALIBRATION_VIEWS = 4
@@ -81,14 +85,28 @@ def load_costs(path: Path | None = None) -> dict[str, StepCost]:
     return {key: StepCost(**value) for key, value in stored.get(machine_id(), {}).items()}
 
 
-def save_cost(job: Job, cost: StepCost, path: Path | None = None) -> None:
-    """Add one calibration to the machine's entry (the file is rewritten atomically)."""
+def stored_auto_device(path: Path | None = None) -> str | None:
+    """The device ``--device auto`` named on this machine when a calibration was last measured (None: never)."""
+    path = calibration_path() if path is None else path
+    try:
+        stored = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, json.JSONDecodeError):
+        return None
+    named = stored.get(AUTO_DEVICES, {}).get(machine_id()) if isinstance(stored, dict) else None
+    return named if isinstance(named, str) else None
+
+
+def save_cost(job: Job, cost: StepCost, path: Path | None = None, auto: str | None = None) -> None:
+    """Add one calibration to the machine's entry (the file is rewritten atomically); ``auto``: the device
+    ``--device auto`` names on this machine, stored beside it."""
     path = calibration_path() if path is None else path
     try:
         stored = json.loads(path.read_text(encoding="utf-8"))
     except (OSError, json.JSONDecodeError):
         stored = {}
     stored.setdefault(machine_id(), {})[cost_key(job)] = {"a": cost.a, "b": cost.b, "measured": cost.measured}
+    if auto is not None:
+        stored.setdefault(AUTO_DEVICES, {})[machine_id()] = auto
     path.parent.mkdir(parents=True, exist_ok=True)
     write_json(path, stored)
 
@@ -192,23 +210,30 @@ def format_duration(seconds: float) -> str:
 
 def plan_estimates(jobs: list[Job], measure: bool = False, progress: bool = True) -> list[float | None]:
     """Estimated training seconds of each job from this machine's stored calibrations (None where there is
-    none); ``measure`` calibrates (and stores) the missing ones first — jobs need their data for that."""
+    none); ``measure`` calibrates (and stores) the missing ones first — jobs need their data for that.
+
+    Without ``measure`` no torch is imported: a job's ``auto`` device is named from the calibration file (module
+    docstring)."""
     from olatbench.methods.registry import config_class, get_spec
 
     costs = load_costs()
+    auto = resolve_device(AUTO) if measure else stored_auto_device()
     estimates: list[float | None] = []
     for job in jobs:
         if job.official is not None:  # the authors' code: not timed by olatbench's calibration
             estimates.append(None)
             continue
-        if costs or measure:  # calibrations name the device they ran on: never "auto", which no method accepts
-            job = replace(job, device=resolve_device(job.device))
+        device = auto if job.device == AUTO else job.device
+        if device is None:  # "auto", never named on this machine by a calibration
+            estimates.append(None)
+            continue
+        job = replace(job, device=device)  # calibrations name the device they ran on: never "auto"
         key = cost_key(job)
         if key not in costs and measure:
             if not job.scene_path:
                 raise ValueError(f"{job.label}: the scene's data is missing, so the job cannot be timed")
             costs[key] = calibrate(job, progress=progress)
-            save_cost(job, costs[key])
+            save_cost(job, costs[key], auto=auto)
         if key not in costs:
             estimates.append(None)
             continue

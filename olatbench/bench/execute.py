@@ -14,6 +14,7 @@ import math
 import os
 import time
 import traceback
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -24,8 +25,10 @@ from olatbench.atomic import write_json, write_text
 from olatbench.bench.checkpoints import (
     CheckpointUnreadable,
     list_checkpoints,
+    load_checkpoint,
     prune_checkpoints,
     restore_rng_states,
+    rng_states,
     save_checkpoint,
     seed_everything,
 )
@@ -44,10 +47,9 @@ from olatbench.bench.outcome import (
 )
 from olatbench.bench.plan import load_method_class
 from olatbench.bench.provenance import utc_now
-from olatbench.bench.restore import load_state
-from olatbench.bench.results import write_results
+from olatbench.bench.results import read_results, write_results
 from olatbench.bench.reuse import adopt_finished_model, find_reusable
-from olatbench.bench.store import DONE_FILE, ERROR_FILE, JOB_FILE, RESULTS_FILE, TRAIN_LOG_FILE, job_lock
+from olatbench.bench.store import DONE_FILE, ERROR_FILE, JOB_FILE, RESULTS_FILE, TRAIN_LOG_FILE, job_lock, job_state
 from olatbench.bench.views import VIEWS_FILE, load_views, view_camera
 from olatbench.datasets import colour, load_scene
 from olatbench.datasets.formats._common import safe_file_stem
@@ -65,19 +67,38 @@ def run_job(job: Job, progress: bool = True, position: int = 1) -> JobOutcome:
     """Run ``job`` to completion; a failure is recorded in the folder and returned, never raised.
 
     ``KeyboardInterrupt`` is not a failure: the job stays partial and resumes on the next run. A job
-    whose folder is locked by another process (running elsewhere) is returned as ``skipped``. A folder that
-    cannot be written (read-only, full disk) fails the job, not the plan: the failure is recorded in the folder
-    where the disk still allows it, and always in the outcome.
+    whose folder is locked by another process (running elsewhere) is returned as ``skipped``. The folder's state is
+    read again once the lock is held, since another process may have finished the job after this one planned it:
+    a finished job is returned as ``done`` with its recorded metrics and nothing in its folder changes (``--force``
+    clears folders before the run, not here), and a folder that now holds another job is left alone and the job
+    fails. A folder that cannot be written (read-only, full disk) fails the job, not the plan: the failure is
+    recorded in the folder where the disk still allows it, and always in the outcome.
     """
     folder = Path(job.folder)
     try:
         with job_lock(folder) as acquired:
             if not acquired:
                 return JobOutcome(job.id, job.label, str(folder), "skipped", error="running in another process")
+            state = job_state(folder, job.id)  # under the lock: "done" and "stale" are final (running: this one)
+            if state.state == "done":
+                return _finished_outcome(job, folder)
+            if state.state == "stale":
+                return JobOutcome(job.id, job.label, str(folder), "failed", recorded=False,
+                                  error=f"{folder} {state.message} (written after this run planned it); rerun with "
+                                        "--force to replace it, or choose another --output")
             return _run_locked(job, folder, progress, position)
     except OSError as error:  # the folder or its lock file cannot be made: nothing was written
         return JobOutcome(job.id, job.label, str(folder), "failed", recorded=False,
                           error=f"cannot write the job folder {folder}: {error.strerror or error}")
+
+
+def _finished_outcome(job: Job, folder: Path) -> JobOutcome:
+    """The outcome of a job found finished (by `job_state`): its metrics and timings as its results.json records."""
+    results = read_results(folder / RESULTS_FILE)
+    timing = results.get("timing") or {}
+    test = results["metrics"].get(job.test_split, {}).get("mean", {})
+    return JobOutcome(job.id, job.label, str(folder), "done", test, timing.get("train_seconds"),
+                      timing.get("render_fps"))
 
 
 def _run_locked(job: Job, folder: Path, progress: bool, position: int) -> JobOutcome:
@@ -188,14 +209,19 @@ def _train(method: Method, views: Views, job: Job, folder: Path, log: JobLog, pr
     Train seconds: ``setup`` plus the optimisation steps (checkpoint writes excluded), accumulated
     over resumed sessions.
     """
+    before_setup = rng_states()
+
+    def set_up() -> None:  # from the same RNG states each time: a redone set-up is the first one
+        restore_rng_states(before_setup)
+        method.setup(views, job.device, job.seed)
+
     clock = time.perf_counter()
-    method.setup(views, job.device, job.seed)
+    set_up()
     setup_seconds = time.perf_counter() - clock
     log(f"device {job.device}; backends: {format_backends(method.backends()) or 'not reported by the method'}")
     start, train_seconds = 0, setup_seconds
-    payload = _resume(method, folder, job, log)
+    payload = _resume(method, folder, job, log, set_up)
     if payload is not None:
-        restore_rng_states(payload["rng"])
         start, train_seconds = payload["step"], payload["train_seconds"]
     iterations = job.iterations
     train_log = _TrainLog(folder / TRAIN_LOG_FILE, start)
@@ -234,27 +260,43 @@ def _train(method: Method, views: Views, job: Job, folder: Path, log: JobLog, pr
     return train_seconds
 
 
-def _resume(method: Method, folder: Path, job: Job, log: JobLog) -> dict[str, Any] | None:
-    """Load the newest checkpoint of the folder that loads into ``method``; returns its payload (None: start
-    from step 0).
+def _resume(method: Method, folder: Path, job: Job, log: JobLog, set_up: Callable[[], None]) -> dict[str, Any] | None:
+    """Load the newest checkpoint of the folder that loads into ``method`` and restore its RNG states; returns its
+    payload (None: start from step 0).
 
-    A checkpoint that torch cannot read (cut short by a crash, a full disk, a damaged file) is renamed to
-    ``<name>.unreadable`` (kept, no longer listed or pruned) and the next older one is tried; each such step is
-    said in log.txt and on stderr.
+    A checkpoint that does not load, whatever the reason — torch cannot read it (cut short by a crash, a full disk,
+    a damaged file, not a zip, an object ``weights_only`` refuses), it is not a checkpoint of this format or of this
+    job, or the method refuses its state (another config, another method) — is renamed to ``<name>.unreadable``
+    (kept, no longer listed or pruned) and the next older one is tried; each such step is said, with the file and the
+    reason, in log.txt and on stderr. After the method refused a state (which may have changed part of it), it is set
+    up again (``set_up``, from the RNG states of the first set-up) before the next one is tried or training starts.
     """
     for _, path in reversed(list_checkpoints(folder)):
         try:
-            payload = load_state(method, path, job.id)
+            payload = load_checkpoint(path, job.id)
         except CheckpointUnreadable as error:
-            aside = path.with_name(path.name + ".unreadable")
-            os.replace(path, aside)
-            message = f"{job.label}: {error}; kept as {aside.name}, trying the next older checkpoint"
-            log(message)
-            progress_write(message)
+            _set_aside(path, str(error), job, log)
+            continue
+        try:
+            method.load_state_dict(payload["method"])
+            restore_rng_states(payload["rng"])
+        except Exception as error:  # the method's own check (e.g. another model's tensors): any reason sets it aside
+            reason = str(error).strip().splitlines()[0] if str(error).strip() else "no message"
+            _set_aside(path, f"{path}: does not load into {job.method} ({type(error).__name__}: {reason})", job, log)
+            set_up()
             continue
         log(f"resumed from {path.name} (step {payload['step']} of {job.iterations})")
         return payload
     return None
+
+
+def _set_aside(path: Path, reason: str, job: Job, log: JobLog) -> None:
+    """Rename a checkpoint that does not load to ``<name>.unreadable`` and say so in log.txt and on stderr."""
+    aside = path.with_name(path.name + ".unreadable")
+    os.replace(path, aside)
+    message = f"{job.label}: {reason}; kept as {aside.name}, trying the next older checkpoint"
+    log(message)
+    progress_write(message)
 
 
 class _TrainLog:

@@ -8,10 +8,14 @@ from __future__ import annotations
 
 import multiprocessing
 import os
+import signal
 import sys
-from collections.abc import Callable, Sequence
-from concurrent.futures import ProcessPoolExecutor, as_completed
+import threading
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass
+from multiprocessing.connection import Connection
+from multiprocessing.connection import wait as connection_wait
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -22,6 +26,7 @@ if TYPE_CHECKING:  # the job runner imports torch: loaded when a job runs, not w
     from olatbench.bench.outcome import JobOutcome
 
 EXECUTORS = ("inline", "local", "slurm")
+STOP_GRACE_SECONDS = 10.0  # how long a stopped worker gets to end after SIGTERM before it is killed
 OnOutcome = Callable[["JobOutcome"], None]
 
 
@@ -41,53 +46,123 @@ def run_inline(jobs: Sequence[Job], progress: bool = True, on_outcome: OnOutcome
     return outcomes
 
 
-def _worker(job: Job, slots, progress: bool, threads: int) -> JobOutcome:
-    """Run one job in a pool process; ``slots`` hands out the tqdm row of the per-job bar."""
+class Terminated(KeyboardInterrupt):
+    """SIGTERM reached the process running the local executor: its workers were stopped (their jobs stay partial and
+    resume on the next run) and their locks released. A `KeyboardInterrupt`, so it ends a run as Ctrl-C does."""
+
+
+def _worker(job: Job, sender: Connection, slot: int, progress: bool, threads: int) -> None:
+    """Run one job in its own process and send its outcome back; ``slot`` is the tqdm row of the per-job bar."""
     import torch
 
     from olatbench.bench.execute import run_job
 
     torch.set_num_threads(threads)
-    slot = slots.get()
     try:
-        return run_job(job, progress=progress, position=slot)
+        sender.send(run_job(job, progress=progress, position=slot))
+    except KeyboardInterrupt:  # Ctrl-C reaches the whole process group: the job stays partial, the parent reports
+        sys.exit(130)
+
+
+@dataclass
+class _Running:
+    """One worker process of `run_local` and what it runs."""
+
+    index: int
+    job: Job
+    process: multiprocessing.process.BaseProcess
+    receiver: Connection
+    slot: int
+
+
+def _died(running: _Running) -> JobOutcome:
+    """The outcome of a worker process that ended without reporting one (killed, crashed, out of memory)."""
+    from olatbench.bench.outcome import JobOutcome
+
+    code = running.process.exitcode
+    how = f"killed by signal {signal.Signals(-code).name}" if code is not None and code < 0 else f"exit code {code}"
+    return JobOutcome(running.job.id, running.job.label, running.job.folder, "failed", recorded=False,
+                      error=f"worker process died ({how}); the next run resumes the job from its last checkpoint")
+
+
+@contextmanager
+def _sigterm_as_terminated() -> Iterator[None]:
+    """Within: SIGTERM raises `Terminated` in the main thread (elsewhere: nothing changes)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def terminated(signum, frame):
+        raise Terminated
+
+    previous = signal.signal(signal.SIGTERM, terminated)
+    try:
+        yield
     finally:
-        slots.put(slot)
+        signal.signal(signal.SIGTERM, previous)
+
+
+def _stop(workers: dict[int, _Running]) -> None:
+    """Stop every worker (SIGTERM, then SIGKILL after `STOP_GRACE_SECONDS`) and wait for each to end: the kernel
+    releases the job locks of a process that ends, however it ends."""
+    for running in workers.values():
+        running.process.terminate()
+    for running in workers.values():
+        running.process.join(STOP_GRACE_SECONDS)
+        if running.process.is_alive():
+            running.process.kill()
+            running.process.join()
+        running.receiver.close()
 
 
 def run_local(jobs: Sequence[Job], workers: int, progress: bool = True, on_outcome: OnOutcome | None = None
               ) -> list[JobOutcome]:
-    """Run the jobs in ``workers`` spawned processes, a fresh one per job on Python ≥ 3.11 (honest peak
-    memory, isolation from crashes); torch threads are shared out between the workers."""
-    from olatbench.bench.outcome import JobOutcome
+    """Run the jobs in up to ``workers`` spawned processes at once, a fresh one per job (honest peak memory, and
+    isolation: a worker that dies — a segfault, the OOM killer, SIGKILL — fails its own job only, as
+    ``worker process died (killed by signal SIGKILL)``); torch threads are shared out between the workers.
 
+    Ctrl-C or SIGTERM to this process stops every worker (their jobs stay partial and resume on the next run), waits
+    for them to end (so their job locks are released) and raises `KeyboardInterrupt` (`Terminated` for SIGTERM).
+    No process outlives the call.
+    """
     context = multiprocessing.get_context("spawn")
     threads = max(1, (os.cpu_count() or 1) // workers)
+    waiting = list(enumerate(jobs))
+    free_slots = list(range(1, workers + 1))
+    active: dict[int, _Running] = {}
     outcomes: dict[int, JobOutcome] = {}
-    with context.Manager() as manager:
-        slots = manager.Queue()
-        for slot in range(1, workers + 1):
-            slots.put(slot)
-        fresh = {"max_tasks_per_child": 1} if sys.version_info >= (3, 11) else {}
-        with ProcessPoolExecutor(max_workers=workers, mp_context=context, **fresh) as pool, \
-                progress_bar(total=len(jobs), desc="jobs", position=0, disable=not progress, unit="job") as bar:
-            futures = {pool.submit(_worker, job, slots, progress, threads): index for index, job in enumerate(jobs)}
-            try:
-                for future in as_completed(futures):
-                    index = futures[future]
+    with _sigterm_as_terminated(), \
+            progress_bar(total=len(jobs), desc="jobs", position=0, disable=not progress, unit="job") as bar:
+        try:
+            while waiting or active:
+                while waiting and len(active) < workers:
+                    index, job = waiting.pop(0)
+                    receiver, sender = context.Pipe(duplex=False)
+                    slot = free_slots.pop(0)
+                    process = context.Process(target=_worker, args=(job, sender, slot, progress, threads),
+                                              name=f"olatbench-job-{job.label}")
+                    process.start()
+                    sender.close()  # the child holds the only write end: its death closes the pipe
+                    active[index] = _Running(index, job, process, receiver, slot)
+                connection_wait([running.receiver for running in active.values()])
+                for running in [r for r in active.values() if r.receiver.poll()]:
                     try:
-                        outcome = future.result()
-                    except Exception as error:  # the worker process died (segfault, OOM kill)
-                        job = jobs[index]
-                        outcome = JobOutcome(job.id, job.label, job.folder, "failed",
-                                             error=f"worker process died: {type(error).__name__}: {error}")
-                    outcomes[index] = outcome
+                        outcome = running.receiver.recv()
+                    except EOFError:  # the pipe closed without an outcome: the process died
+                        running.process.join()
+                        outcome = _died(running)
+                    else:
+                        running.process.join()
+                    running.receiver.close()
+                    del active[running.index]
+                    free_slots.append(running.slot)
+                    outcomes[running.index] = outcome
                     if on_outcome:
                         on_outcome(outcome)
                     bar.update(1)
-            except KeyboardInterrupt:
-                pool.shutdown(wait=False, cancel_futures=True)
-                raise
+        except BaseException:
+            _stop(active)
+            raise
     return [outcomes[index] for index in sorted(outcomes)]
 
 

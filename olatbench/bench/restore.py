@@ -5,7 +5,7 @@ one at ``job.iterations``; with ``partial=True`` the newest one, of a job still 
 the job's ``method_ref``, sets it up on the job's training views and loads the checkpoint's state. The views carry
 cameras, lights and frame ids in training order; their images are read only when the method declares it needs them
 (`Method.restore_needs_images`; the Gaussian methods do not), so rendering a trained model reads no training image.
-`load_state` — a checkpoint into a set-up method — is shared with the runner's resume.
+`load_state` loads a checkpoint into a set-up method (`load_checkpoint` checks the file, as the runner's resume does).
 
 Every problem with the folder is one `RestoreError` whose message names the file, raised before anything
 expensive (scene loading, set-up) happens where the check allows it.

@@ -155,6 +155,7 @@ def run(method, suite, data_paths, protocol_name, scenes, variants, ablation, se
       olatbench run -m gs3-official -s gs3 --code checkout=~/src/gs-relight --code conda_env=gs3
       olatbench run -m ssdgs-official -s mini --code checkout=~/SSD-GS --code python=~/venv/bin/python --code device=cpu
     """
+    from olatbench.bench.executors import Terminated
     from olatbench.bench.plan import PlanOptions, make_plan, parse_overrides
     from olatbench.bench.reuse import order_for_reuse, reuse_notes
     from olatbench.bench.store import job_state
@@ -175,9 +176,10 @@ def run(method, suite, data_paths, protocol_name, scenes, variants, ablation, se
     unknown = sorted(set(code) - {method})
     if unknown:
         raise click.UsageError(f"--code names {', '.join(unknown)}, but this run is of {method}")
-    # a plain dry run leaves "auto" unresolved (the device enters no job id, and resolving it would import torch);
-    # a run or a calibration resolves it here, before any method sees it
-    options = PlanOptions(device=device if dry_run and not calibrate else resolve_device(device),
+    # a dry run leaves "auto" unresolved (the device enters no job id, and resolving it would import torch; a
+    # calibration resolves it in plan_estimates, which stores the name for later dry runs); a run resolves it here,
+    # before any method sees it
+    options = PlanOptions(device=device if dry_run else resolve_device(device),
                           checkpoint_every=checkpoint_every, save_components=save_components, reuse=not no_reuse,
                           code=code.get(method, {}))
     try:
@@ -273,15 +275,16 @@ def run(method, suite, data_paths, protocol_name, scenes, variants, ablation, se
             from olatbench.bench.executors import run_inline
 
             outcomes = run_inline(to_run, progress, report)
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as interrupted:  # Ctrl-C, or SIGTERM to the local executor (its workers are stopped)
         click.echo(f"\nInterrupted. Rerun the same command to resume from the last checkpoints "
                    f"(olatbench status {out} shows where each job stands).", err=True)
-        sys.exit(130)
+        sys.exit(EXIT_TERMINATED if isinstance(interrupted, Terminated) else EXIT_INTERRUPTED)
     _print_summary(jobs, out)
     _exit_for(outcomes, len(running))
 
 
 EXIT_DONE, EXIT_FAILED, EXIT_USAGE, EXIT_RUNNING_ELSEWHERE = 0, 1, 2, 3
+EXIT_INTERRUPTED, EXIT_TERMINATED = 130, 143  # 128 + SIGINT, 128 + SIGTERM: the shells' convention
 
 
 def _exit_for(outcomes, running: int) -> None:
