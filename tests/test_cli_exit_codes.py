@@ -52,15 +52,15 @@ CASES = [
     ("run -m trivial -s tiny --data-root {data} --variant zzz", 2, "no preset zzz"),
     ("run -m trivial -s tiny --data-root {data} --json", 2, "--json goes with --dry-run"),
     ("status {runs}", 0, "1 done, 1 failed"),
-    ("status {empty}", 1, "no job folders"),  # nothing to show (docs/guarantees.md)
+    ("status {empty}", 2, "no job folders"),  # no job below it: a usage error (docs/guarantees.md)
     ("status {runs} -s nope", 2, "unknown suite 'nope'"),
     ("report {runs}", 0, "trivial"),
-    ("report {empty}", 1, "no results.json"),  # nothing to report
+    ("report {empty}", 2, "no job folder and no results.json"),  # nothing of olatbench's: a usage error
     ("report {runs} --suite nope", 2, "unknown suite 'nope'"),
     ("report {runs} --methods nope", 2, "no results match"),
     ("report {runs} --colours red", 2, "three comma-separated numbers"),
     ("render {empty}", 2, "job.json"),
-    ("view {empty}", 1, "no job.json"),  # nothing to show
+    ("view {empty}", 2, "no job.json"),  # no job below it: a usage error
     ("view {runs} -s nope", 2, "unknown suite 'nope'"),
     ("export {empty} -o {tmp}/model.ply", 1, "job.json"),  # nothing to export
     ("export {empty}", 2, "Missing option '-o'"),

@@ -3,11 +3,14 @@ official format (`datasets_trees`), meets each entry point — ``olatbench datas
 datasets info`` and ``load_scene``/``Frame.load`` — and must end in one error naming the file (and the field
 where there is one), the documented exit code, and no traceback. Damaged and malicious archives meet
 ``olatbench datasets download`` through a ``file://`` mirror: one error naming the archive, nothing written
-outside the data root's temporary folder, no hash recorded, nothing left that a rerun would trip over.
+outside the data root's temporary folder, no hash recorded, the archive set aside so that the rerun after the
+mirror is fixed installs the scene. A ``file://`` copy cut off half-way leaves nothing under the cache's name.
+Damaged scene manifests meet ``datasets verify`` and ``datasets download``; damaged Hub listings meet ``datasets
+download``: one error naming the file (or listing entry) and the field.
 
 Counts (kept true by `test_the_counts_in_this_docstring_are_true`, quoted in docs/guarantees.md):
-30 corruptions give 87 broken scenes over the three formats, met by 3 entry points: 261 dataset cases;
-18 archives; 279 cases in all.
+34 corruptions give 99 broken scenes over the three formats, met by 3 entry points: 297 dataset cases;
+22 archives, 1 cut-off copy, 7 damaged manifests, 4 damaged Hub listings: 331 cases in all.
 
 Exit codes checked: ``validate`` 1 on any error; ``info`` 1 when a scene cannot be read; both 0 otherwise
 (``info`` reads the transforms files and at most one image header, so a broken image elsewhere is for
@@ -38,7 +41,7 @@ from datasets_trees import write_gs3_tree, write_nrhints_tree, write_sssgs_tree
 
 from olatbench.cli import main
 from olatbench.datasets import DatasetError, load_scene
-from olatbench.datasets.download import archives, fetch
+from olatbench.datasets.download import archives, fetch, manifest
 from olatbench.datasets.errors import printable
 from olatbench.datasets.images import write_image
 
@@ -286,11 +289,33 @@ def _json_cases() -> dict[str, Callable[[Path, Layout, str], Expected | None]]:
         _frame_edit(root, layout, change)
         return Expected(layout.split_file, layout.image_key, "expected a non-empty relative path")
 
+    def json_nested_too_deep(root, layout, fmt):
+        (root / layout.split_file).write_text('{"frames": ' + "[" * 100_000 + "]" * 100_000 + "}")
+        return Expected(layout.split_file, None, "nested too deeply")
+
+    def json_integer_too_long(root, layout, fmt):
+        path = root / layout.split_file
+        path.write_text(path.read_text().replace('"frames"', '"scale": ' + "7" * 5000 + ', "frames"', 1))
+        return Expected(layout.split_file, None, "an integer with more digits")
+
+    def matrix_reflection(root, layout, fmt):
+        def mirror(frame):
+            frame["transform_matrix"] = [[-row[0], *row[1:]] for row in frame["transform_matrix"][:3]] + \
+                frame["transform_matrix"][3:]
+
+        _frame_edit(root, layout, mirror)
+        return Expected(layout.split_file, "transform_matrix", "reflection")
+
+    def light_huge(root, layout, fmt):
+        _frame_edit(root, layout, lambda frame: _set_light(frame, fmt, [1e308, 0.0, 1.0]))
+        return Expected(layout.split_file, layout.light_key, "magnitude above")
+
     return {f.__name__: f for f in (json_truncated, json_zero_byte, json_not_utf8, json_not_an_object,
-                                    json_folder_instead, json_link_loop, json_dangling_link, frames_missing,
-                                    frames_not_a_list, frame_not_an_object, frames_empty, matrix_missing,
-                                    matrix_nan, matrix_wrong_shape, light_inf, light_wrong_shape, bad_intrinsics,
-                                    path_escapes, path_not_a_string)}
+                                    json_folder_instead, json_link_loop, json_dangling_link, json_nested_too_deep,
+                                    json_integer_too_long, frames_missing, frames_not_a_list, frame_not_an_object,
+                                    frames_empty, matrix_missing, matrix_nan, matrix_wrong_shape, matrix_reflection,
+                                    light_inf, light_huge, light_wrong_shape, bad_intrinsics, path_escapes,
+                                    path_not_a_string)}
 
 
 CORRUPTIONS = {**_image_cases(), **_json_cases()}
@@ -335,6 +360,7 @@ def _no_traceback(result) -> None:
     assert "Traceback" not in result.output
 
 
+@pytest.mark.filterwarnings("error::RuntimeWarning")  # an overflow in numpy is no error message
 @pytest.mark.parametrize("entry", ENTRY_POINTS)
 @pytest.mark.parametrize(("name", "fmt"), BROKEN_SCENES, ids=[f"{n}-{f}" for n, f in BROKEN_SCENES])
 def test_broken_scene(clean_trees, tmp_path, name, fmt, entry):
@@ -439,6 +465,13 @@ def _archives(scene_tar: bytes, scene_zip_deflated: bytes) -> dict[str, tuple[by
         "symlink_member_zip": (symlink_zip.getvalue(), "link or device"),
         "hardlink_member": (_tar([_special("scene/link", tarfile.LNKTYPE, "/etc/passwd")]), "link or device"),
         "dot_member": (_tar([(".", b"x")]), "without a file name"),
+        "file_and_folder_of_one_name": (_tar([("CatSmall/a", b"x"), ("CatSmall/a/b", b"y")]),
+                                        "folder of the same name"),
+        "file_and_folder_of_one_name_zip": (_zip([("CatSmall/a.png/b", b"y"), ("CatSmall/a.png", b"x")]),
+                                            "folder of the same name"),
+        "member_name_too_long": (_zip([("CatSmall/" + "n" * 300 + ".png", b"x")]), "cannot be unpacked as a file"),
+        "member_path_too_long": (_tar([("CatSmall/" + "/".join(["d" * 200] * 25) + "/x.png", b"x")]),
+                                 "cannot be unpacked as a file"),
     }
 
 
@@ -457,40 +490,155 @@ def archive_cases(clean_trees, tmp_path_factory) -> dict[str, tuple[bytes, str]]
     return _archives(buffer.getvalue(), deflated.getvalue())
 
 
+@pytest.fixture(scope="module")
+def good_archive(clean_trees) -> bytes:
+    """A valid CatSmall scene as the zip the source serves: what a fixed mirror holds."""
+    buffer = io.BytesIO()
+    with zipfile.ZipFile(buffer, "w") as bundle:
+        for path in sorted(clean_trees["nrhints"].rglob("*")):
+            if path.is_file():
+                bundle.write(path, f"CatSmall/{path.relative_to(clean_trees['nrhints'])}")
+    return buffer.getvalue()
+
+
 ARCHIVE_CASES = ("zip_truncated", "zip_corrupt_deflate", "tar_truncated", "tar_gz_truncated", "tar_gz_corrupt",
                  "tar_bz2_truncated", "tar_xz_truncated", "zero_byte", "not_an_archive", "bomb_zip", "bomb_tar_gz",
                  "traversal_dotdot", "traversal_absolute", "traversal_drive", "symlink_member", "symlink_member_zip",
-                 "hardlink_member", "dot_member")
+                 "hardlink_member", "dot_member", "file_and_folder_of_one_name", "file_and_folder_of_one_name_zip",
+                 "member_name_too_long", "member_path_too_long")
+
+
+def _download(root: Path, mirror: Path):
+    return CliRunner().invoke(main, ["datasets", "download", "nrhints", "--scenes", "CatSmall", "--data-root",
+                                     str(root), "--source", "nrhints-project", "--mirror", mirror.as_uri(), "--quiet"])
 
 
 @pytest.mark.parametrize("case", ARCHIVE_CASES)
-def test_broken_archive(archive_cases, tmp_path, case):
+def test_broken_archive(archive_cases, good_archive, tmp_path, case):
     data, phrase = archive_cases[case]
     mirror = tmp_path / "mirror"
     mirror.mkdir()
     (mirror / "CatSmall.zip").write_bytes(data)  # the source's file name, whatever the content
     root = tmp_path / "box" / "data"
     root.mkdir(parents=True)
-    result = CliRunner().invoke(main, ["datasets", "download", "nrhints", "--scenes", "CatSmall", "--data-root",
-                                       str(root), "--source", "nrhints-project", "--mirror", mirror.as_uri(),
-                                       "--quiet"])
+    result = _download(root, mirror)
     _no_traceback(result)
     assert result.exit_code == 1, result.output
     assert re.search(rf"CatSmall\.zip: .*{re.escape(phrase)}", result.output), result.output
+    assert ".unpack-" not in result.output  # the archive is named, not the temporary folder it was unpacked in
     assert len(re.findall(r"FAILED", result.output)) == 1
     assert sorted(p.name for p in (tmp_path / "box").iterdir()) == ["data"]  # nothing escaped the root
     assert sorted(p.name for p in root.iterdir()) == [fetch.DOWNLOADS]  # no scene, no recorded hash, no temp
     cached = sorted(p.name for p in (root / fetch.DOWNLOADS / "nrhints-project").iterdir())
-    damaged = "damaged or truncated" in phrase
-    assert cached == (["CatSmall.zip.damaged"] if damaged else ["CatSmall.zip"])  # a rerun downloads it again
+    assert cached == ["CatSmall.zip.damaged"]  # set aside: a rerun downloads it again
+    (mirror / "CatSmall.zip").write_bytes(good_archive)  # the mirror is fixed: the plain rerun installs the scene
+    rerun = _download(root, mirror)
+    assert rerun.exit_code == 0, rerun.output
+    assert load_scene(root / "CatSmall").name == "CatSmall"
+
+
+def test_a_local_copy_cut_off_mid_way_leaves_nothing_under_the_cache_name(good_archive, tmp_path, monkeypatch):
+    """A ``file://`` copy interrupted half-way (Ctrl-C, a killed process) leaves at most a ``.part`` file: the
+    next run copies it afresh and installs the scene at once (#48)."""
+    mirror = tmp_path / "mirror"
+    mirror.mkdir()
+    (mirror / "CatSmall.zip").write_bytes(good_archive)
+    root = tmp_path / "data"
+    real_copyfile = shutil.copyfile
+
+    def cut_off(source, target, *args, **kwargs):
+        Path(target).write_bytes(Path(source).read_bytes()[: len(good_archive) // 2])
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(shutil, "copyfile", cut_off)
+    with pytest.raises(KeyboardInterrupt):
+        fetch.download_scene("nrhints", "CatSmall", root, source="nrhints-project", mirror=mirror.as_uri(),
+                             progress=False)
+    monkeypatch.setattr(shutil, "copyfile", real_copyfile)
+    assert not (root / fetch.DOWNLOADS / "nrhints-project" / "CatSmall.zip").exists()
+    rerun = _download(root, mirror)
+    assert rerun.exit_code == 0, rerun.output
+    assert load_scene(root / "CatSmall").name == "CatSmall"
+
+
+# --- damaged scene manifests: `datasets verify` names the file and the field; `datasets download` replaces the scene
+
+MANIFEST_DAMAGE = {
+    "a list": (lambda path: path.write_text("[]"), "expected a JSON object"),
+    "files not an object": (lambda path: path.write_text('{"source": "x", "files": ["a.png"]}'), "key 'files'"),
+    "files missing": (lambda path: path.write_text('{"source": "x"}'), "key 'files'"),
+    "a hash that is no text": (lambda path: path.write_text('{"files": {"test/000.png": 5}}'),
+                               "key 'files.test/000.png'"),
+    "not UTF-8": (lambda path: path.write_bytes(b'{"files": {"\xff\xfe": "0"}}'), "not UTF-8"),
+    "truncated": (lambda path: path.write_bytes(path.read_bytes()[: path.stat().st_size // 2]), "malformed JSON"),
+    "nested too deep": (lambda path: path.write_text("[" * 100_000 + "]" * 100_000), "nested too deeply"),
+}
+
+
+@pytest.mark.parametrize("damage", list(MANIFEST_DAMAGE))
+def test_a_damaged_scene_manifest(good_archive, tmp_path, damage):
+    mirror = tmp_path / "mirror"
+    mirror.mkdir()
+    (mirror / "CatSmall.zip").write_bytes(good_archive)
+    root = tmp_path / "data"
+    assert _download(root, mirror).exit_code == 0
+    write, phrase = MANIFEST_DAMAGE[damage]
+    path = root / "CatSmall" / manifest.MANIFEST_NAME
+    write(path)
+    verify = CliRunner().invoke(main, ["datasets", "verify", str(root)])
+    _no_traceback(verify)
+    assert verify.exit_code == 1 and "CatSmall: DAMAGED" in verify.output, verify.output
+    (line,) = [line for line in verify.output.splitlines() if line.startswith("Error:")]
+    assert f"{printable(path)}: malformed manifest" in line and phrase in line, line
+    rerun = _download(root, mirror)  # a scene whose manifest is damaged is set aside and downloaded again
+    _no_traceback(rerun)
+    assert rerun.exit_code == 0, rerun.output
+    assert manifest.verify_folder(root / "CatSmall") == []
+    assert len(list(root.glob("CatSmall.replaced-*"))) == 1
+
+
+# --- damaged Hub listings: one error naming the listing, the entry and the field -------------------------------
+
+HUB_DAMAGE = {
+    "size that is text": ({"size": "big"}, "key 'size'"),
+    "negative size": ({"size": -1}, "key 'size'"),
+    "lfs that is a list": ({"lfs": ["oid"]}, "key 'lfs'"),
+    "lfs oid that is no sha256": ({"lfs": {"oid": 5, "size": 1}}, "key 'lfs.oid'"),
+}
+
+
+@pytest.mark.parametrize("damage", list(HUB_DAMAGE))
+def test_a_damaged_hub_listing(good_archive, tmp_path, damage):
+    from http_fixture import LocalServer, ServerState
+
+    from olatbench.datasets.download.sources import GS3_REPO, GS3_REVISION
+
+    state = ServerState()
+    name = "NRHints/Cat_on_Decor.zip"
+    state.files[f"/datasets/{GS3_REPO}/resolve/{GS3_REVISION}/{name}"] = good_archive
+    change, phrase = HUB_DAMAGE[damage]
+    state.listings[f"/api/datasets/{GS3_REPO}/tree/{GS3_REVISION}"] = [
+        {"type": "file", "path": name, "size": len(good_archive), **change}]
+    root = tmp_path / "data"
+    with LocalServer(state) as server:
+        result = CliRunner().invoke(main, ["datasets", "download", "nrhints", "--scenes", "CatSmall", "--data-root",
+                                           str(root), "--source", "gs3-hf", "--mirror", server.url, "--quiet"])
+    _no_traceback(result)
+    assert result.exit_code == 1, result.output
+    assert re.search(rf"tree/{GS3_REVISION}\?recursive=true: entry 0 \('{name}'\): {re.escape(phrase)}",
+                     result.output), result.output
+    assert not (root / "CatSmall").exists()
 
 
 def test_the_counts_in_this_docstring_are_true(archive_cases):
     assert tuple(archive_cases) == ARCHIVE_CASES
     scenes, dataset_cases = len(BROKEN_SCENES), len(BROKEN_SCENES) * len(ENTRY_POINTS)
     stated = re.search(r"(\d+) corruptions give (\d+) broken scenes over the three formats, met by (\d+) entry "
-                       r"points: (\d+) dataset cases;\s+(\d+) archives; (\d+) cases in all", __doc__)
+                       r"points: (\d+) dataset cases;\s+(\d+) archives, 1 cut-off copy, (\d+) damaged manifests, "
+                       r"(\d+) damaged Hub listings: (\d+) cases in all", __doc__)
     assert stated is not None
+    others = len(ARCHIVE_CASES) + 1 + len(MANIFEST_DAMAGE) + len(HUB_DAMAGE)
     assert tuple(map(int, stated.groups())) == (len(CORRUPTIONS), scenes, len(ENTRY_POINTS), dataset_cases,
-                                                len(ARCHIVE_CASES), dataset_cases + len(ARCHIVE_CASES))
+                                                len(ARCHIVE_CASES), len(MANIFEST_DAMAGE), len(HUB_DAMAGE),
+                                                dataset_cases + others)
     assert archives.UNPACK_FLOOR < 80 << 20  # the bombs above exceed the limit whatever the archive's size

@@ -243,7 +243,7 @@ def test_cli_errors_are_one_line_with_a_next_step(data, tmp_path, cli_suite):
     result = runner.invoke(main, ["run", "-m", "trivial", "-s", "tiny", "--resolution", "big"])
     assert result.exit_code == 2 and "N or WxH" in result.output
     result = runner.invoke(main, ["status", str(tmp_path)])
-    assert result.exit_code == 1 and "olatbench run" in result.output  # nothing to show (docs/guarantees.md)
+    assert result.exit_code == 2 and "olatbench run" in result.output  # no job: a usage error (docs/guarantees.md)
     result = runner.invoke(main, ["run", "-m", "trivial", "-s", "tiny", "--data-root", str(data), "--set", "lr"])
     assert result.exit_code == 2 and "KEY=VALUE" in result.output and "Traceback" not in result.output
     result = runner.invoke(main, ["run", "-m", "trivial", "-s", "tiny", "--data-root", str(data), "--set", "x=1"])

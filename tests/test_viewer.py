@@ -149,6 +149,25 @@ def test_snapping_to_a_test_frame_reproduces_the_stored_test_render(app, trained
     np.testing.assert_allclose(session.light_handle.position, frame.light.position)
 
 
+def test_snap_to_a_frame_name_not_in_the_list_is_said_in_the_tab_not_raised_on_the_server(app):
+    """The tab sends the dropdown's value as text: a name that is no frame (a stale or forged message) must give one
+    line in the tab and leave the camera and light where they were; the click handler raises nothing into viser's
+    thread, which would print a traceback on the server and tell the browser nothing (#48)."""
+    client = connect_home(app)
+    try:
+        dropdown = client.wait_for(lambda m: m.get("type") == "GuiDropdownMessage" and m["props"]["label"] == "frame")
+        owner = client.wait_for(lambda m: m.get("type") == "TransformControlsMessage")["owner"]
+        session = app.sessions[int(owner)]
+        light = np.array(session.light_handle.position)
+        client.send(_messages.GuiUpdateMessage(dropdown["uuid"], {"value": "test/no-such-frame"}))
+        wait_until(lambda: str(session.frame_dropdown.value) == "test/no-such-frame", "the forged frame name")
+        session._snap_clicked(None)  # what viser runs when the tab's Snap button is clicked
+    finally:
+        client.close()
+    assert session.status.content == f"**cannot snap**: {session.model.label}: no frame 'test/no-such-frame'"
+    np.testing.assert_array_equal(session.light_handle.position, light)
+
+
 def test_two_tabs_have_their_own_light(app):
     model = app.model(app.folders[0])
     first, second = connect_home(app), connect_home(app)
@@ -269,7 +288,7 @@ def test_a_job_still_training_is_followed_to_its_newest_checkpoint(trained, tmp_
 def test_bad_folders_fail_before_a_server_starts(trained, tmp_path):
     runner = CliRunner()
     empty = runner.invoke(main, ["view", str(tmp_path)])
-    assert empty.exit_code == 1 and "no job.json in or below it" in empty.output
+    assert empty.exit_code == 2 and "no job.json in or below it" in empty.output  # a usage error
     copy = tmp_path / "job"
     shutil.copytree(trained, copy)
     job = json.loads((copy / "job.json").read_text())

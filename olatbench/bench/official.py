@@ -94,17 +94,24 @@ def _share_threads(run: OfficialRun) -> None:
 
 def _failed(job: Job, folder: Path, log: JobLog, error: OfficialRunError, run: OfficialRun | None,
             started: str) -> JobOutcome:
-    """Record a failed official job: error.txt ends with the one-line summary `olatbench status` shows."""
+    """Record a failed official job: error.txt ends with the one-line summary `olatbench status` shows. The outcome
+    always carries the official command's summary; a disk that refuses the records (full, read-only) is said after
+    it, as `olatbench.bench.execute` does for native jobs (the job then stays unrecorded and the next run retries)."""
     message = str(error)
     summary, _, details = message.partition("\n")
-    write_text(folder / ERROR_FILE, (details + "\n" if details else "") + summary + "\n")
-    log(f"FAILED: {summary}")
-    results = base_results(job, "failed", started)
-    results["error"] = {"type": type(error).__name__, "message": message}
-    settings = CodeSettings.from_json(job.official or {"method": job.method})
-    results.update(_provenance(job, run, settings))
-    write_results(folder / RESULTS_FILE, results)
-    return JobOutcome(job.id, job.label, str(folder), "failed", error=summary)
+    outcome = JobOutcome(job.id, job.label, str(folder), "failed", error=summary)
+    try:
+        write_text(folder / ERROR_FILE, (details + "\n" if details else "") + summary + "\n")
+        log(f"FAILED: {summary}")
+        results = base_results(job, "failed", started)
+        results["error"] = {"type": type(error).__name__, "message": message}
+        settings = CodeSettings.from_json(job.official or {"method": job.method})
+        results.update(_provenance(job, run, settings))
+        write_results(folder / RESULTS_FILE, results)
+    except OSError as unrecorded:
+        outcome.error = f"{summary} (not recorded in the folder: {unrecorded})"
+        outcome.recorded = False
+    return outcome
 
 
 def _provenance(job: Job, run: OfficialRun | None, settings: CodeSettings) -> dict[str, Any]:

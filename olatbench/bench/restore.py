@@ -13,7 +13,6 @@ expensive (scene loading, set-up) happens where the check allows it.
 
 from __future__ import annotations
 
-import json
 from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -23,6 +22,7 @@ from olatbench.bench.jobs import Job
 from olatbench.bench.plan import load_method_class
 from olatbench.bench.store import JOB_FILE, list_checkpoints
 from olatbench.bench.views import frame_views, load_views
+from olatbench.datasets.jsontext import parse_json
 
 if TYPE_CHECKING:
     from olatbench.methods.base import Method
@@ -38,11 +38,11 @@ def read_job(folder: str | Path) -> Job:
     """The `Job` of a job folder's ``job.json`` (a `RestoreError` if it is missing or not a job)."""
     path = Path(folder) / JOB_FILE
     try:
-        data = json.loads(path.read_text(encoding="utf-8"))
+        data = parse_json(path.read_text(encoding="utf-8"))
     except FileNotFoundError:
         raise RestoreError(f"{path}: not found; is {folder} a job folder "
                            "(<out>/<suite>/<method>/<variant>/<scene>/seed<k>)?") from None
-    except (OSError, json.JSONDecodeError) as error:
+    except (OSError, ValueError) as error:  # not UTF-8, malformed, nested too deep, an integer too long
         raise RestoreError(f"{path}: unreadable ({error})") from None
     if not isinstance(data, dict):
         raise RestoreError(f"{path}: not a job (expected a JSON object)")
@@ -87,6 +87,16 @@ def method_class(job: Job, folder: str | Path = "") -> type[Method]:
     return found
 
 
+def method_config(job: Job, cls: type[Method], folder: str | Path = "") -> Any:
+    """The config of ``cls`` built from job.json's ``config`` (a `RestoreError` naming the file and the field when
+    the config is not one of that method's, e.g. a job.json whose ``method`` was changed by hand)."""
+    try:
+        return cls.resolve_config(None, **job.config)
+    except (TypeError, ValueError) as error:
+        raise RestoreError(f"{Path(folder) / JOB_FILE}: config: not a config of method '{job.method}' "
+                           f"({error})") from None
+
+
 def load_state(method: Method, path: str | Path, job_id: str) -> dict[str, Any]:
     """Load checkpoint ``path`` of job ``job_id`` into ``method`` (already set up on the job's training views);
     returns the whole payload (``step``, ``rng``, ``train_seconds``, …) for a resume."""
@@ -117,7 +127,7 @@ def restore(job_folder: str | Path, device: str = "cpu", *, train_images: bool =
         raise RestoreError(f"{folder / JOB_FILE}: cannot read the scene {job.scene_path} ({error})") from None
     needs_images = train_images or cls.restore_needs_images
     views = load_views(frames, job, progress, 0) if needs_images else frame_views(frames, job)
-    method = cls(cls.resolve_config(None, **job.config))
+    method = cls(method_config(job, cls, folder))
     method.setup(views, device, job.seed)
     try:
         load_state(method, checkpoint, job.id)
@@ -135,13 +145,15 @@ def check_job(job_folder: str | Path, device: str = "cpu", *, partial: bool = Fa
     job = replace(read_job(folder), device=device, folder=str(folder))
     config_path = folder / CONFIG_FILE
     try:
-        config = json.loads(config_path.read_text(encoding="utf-8"))
+        config = parse_json(config_path.read_text(encoding="utf-8"))
     except FileNotFoundError:
         raise RestoreError(f"{config_path}: not found (the runner writes it beside job.json)") from None
-    except (OSError, json.JSONDecodeError) as error:
+    except (OSError, ValueError) as error:
         raise RestoreError(f"{config_path}: unreadable ({error})") from None
     if config != job.config:
         raise RestoreError(f"{config_path}: differs from the config in job.json; the checkpoint was trained with "
                            f"job.json's")
     checkpoint = newest_checkpoint(folder)[1] if partial else final_checkpoint(folder, job)
-    return job, checkpoint, method_class(job, folder)
+    cls = method_class(job, folder)
+    method_config(job, cls, folder)
+    return job, checkpoint, cls

@@ -63,17 +63,21 @@ checkpoint hash) is read and upgraded in memory (`upgrade_results`): ``kind`` be
 lacks are absent, which readers treat as ``null``.
 """
 
-import json
+import functools
 import sys
+import types
+import typing
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any, Literal, TypedDict
 
 from olatbench.atomic import write_json
+from olatbench.datasets.jsontext import parse_json
 
 if sys.version_info >= (3, 11):
-    from typing import NotRequired
-else:  # pragma: no cover - Python 3.10
-    from typing_extensions import NotRequired
+    from typing import NotRequired, get_type_hints
+else:  # pragma: no cover - Python 3.10: typing's get_type_hints would keep typing_extensions' NotRequired
+    from typing_extensions import NotRequired, get_type_hints
 
 # The schema as types (no `from __future__ import annotations` here: the TypedDicts' required/optional keys stay
 # introspectable at run time). New keys that old files lack are `NotRequired`.
@@ -246,8 +250,109 @@ def upgrade_results(data: dict[str, Any]) -> dict[str, Any]:
     return data
 
 
+def _describe(hint: Any) -> str:
+    """What a type hint of the schema asks for, in words (for error messages)."""
+    origin, args = typing.get_origin(hint), typing.get_args(hint)
+    if hint is type(None):
+        return "null"
+    if origin in (typing.Union, types.UnionType):
+        return " or ".join(dict.fromkeys(_describe(arg) for arg in args))
+    if origin is Literal:
+        return " or ".join(repr(arg) for arg in args)
+    if origin is list:
+        return "a list"
+    if origin is dict or typing.is_typeddict(hint):
+        return "an object"
+    return {str: "text", int: "an integer", float: "a number", bool: "true or false"}.get(hint, str(hint))
+
+
+def _found(value: Any) -> str:
+    """A short description of a JSON value that did not fit."""
+    kinds = {type(None): "null", bool: "a boolean", int: "an integer", float: "a number", str: "text",
+             list: "a list", dict: "an object"}
+    shown = repr(value) if isinstance(value, (bool, int, float, str)) and len(repr(value)) <= 40 else ""
+    return kinds.get(type(value), type(value).__name__) + (f" {shown}" if shown else "")
+
+
+def _key(where: str, key: str) -> str:
+    """The dotted name of ``key`` inside ``where`` (the top level: "")."""
+    return f"{where}.{key}" if where else key
+
+
+Check = Callable[[Any, str], "str | None"]  # (value, its dotted key) -> None when it fits, else the problem
+_LEAVES = {int: (int,), float: (int, float), str: (str,), bool: (bool,), type(None): (type(None),)}
+
+
+def _is_object(hint: Any) -> bool:
+    return typing.get_origin(hint) is dict or typing.is_typeddict(hint)
+
+
+@functools.cache
+def _checker(hint: Any) -> Check:
+    """The check of one type hint of the schema, built once per hint (a results.json holds thousands of per-image
+    values: each is then checked by one ``isinstance``, not by inspecting its type hint again)."""
+    origin, args = typing.get_origin(hint), typing.get_args(hint)
+    expected = _describe(hint)
+
+    def mismatch(value: Any, where: str) -> str:
+        return f"{where}: expected {expected}, found {_found(value)}"
+
+    if hint is Any:
+        return lambda value, where: None
+    leaves = args if origin in (typing.Union, types.UnionType) else (hint,)
+    if all(leaf in _LEAVES for leaf in leaves):
+        accepted = tuple(kind for leaf in leaves for kind in _LEAVES[leaf])
+        booleans = bool in leaves  # a boolean is an int to Python, not a number to the schema
+
+        def leaf(value: Any, where: str) -> str | None:
+            fits = isinstance(value, accepted) and (booleans or not isinstance(value, bool))
+            return None if fits else mismatch(value, where)
+
+        return leaf
+    if origin in (typing.Union, types.UnionType):
+        options = [_checker(arg) for arg in args]
+        objects = [_checker(arg) for arg in args if _is_object(arg)]
+
+        def union(value: Any, where: str) -> str | None:
+            if any(option(value, where) is None for option in options):
+                return None
+            # an object that fits no alternative: the object-shaped one's own problem says more
+            return objects[0](value, where) if isinstance(value, dict) and objects else mismatch(value, where)
+
+        return union
+    if origin is Literal:
+        allowed = frozenset((type(arg), arg) for arg in args)
+        return lambda value, where: None if isinstance(value, (str, int)) and (type(value), value) in allowed \
+            else mismatch(value, where)
+    if origin is list:
+        item = _checker(args[0])
+        return lambda value, where: mismatch(value, where) if not isinstance(value, list) else next(
+            (problem for index, entry in enumerate(value) if (problem := item(entry, f"{where}[{index}]"))), None)
+    if origin is dict:
+        item = _checker(args[1])
+        return lambda value, where: mismatch(value, where) if not isinstance(value, dict) else next(
+            (problem for key, entry in value.items() if (problem := item(entry, _key(where, key)))), None)
+    if typing.is_typeddict(hint):
+        fields = {key: _checker(field) for key, field in get_type_hints(hint).items()}
+        required = sorted(hint.__required_keys__, key=list(fields).index)
+
+        def typed(value: Any, where: str) -> str | None:
+            if not isinstance(value, dict):
+                return mismatch(value, where)
+            missing = [key for key in required if key not in value]
+            if missing:
+                return f"missing keys {', '.join(_key(where, key) for key in missing)}"
+            return next((problem for key, entry in value.items() if key in fields
+                         if (problem := fields[key](entry, _key(where, key)))), None)
+
+        return typed
+    raise TypeError(f"the results schema uses a type the check does not know: {hint!r}")
+
+
 def validate_results(data: Any, source: str = "results") -> Results:
-    """Check the structure of a results dict of the current version; return it unchanged or raise `ResultsError`."""
+    """Check a results dict of the current version against the schema (`Results`, every block and value: objects
+    where objects belong, numbers or null as metric values, the job's fields with their types; keys the schema
+    does not know are allowed); return it unchanged or raise a `ResultsError` naming ``source`` and the key."""
     if not isinstance(data, dict):
         raise ResultsError(f"{source}: expected a JSON object, found {type(data).__name__}")
     version = data.get("schema_version")
@@ -256,17 +361,15 @@ def validate_results(data: Any, source: str = "results") -> Results:
                            f"(it reads versions {', '.join(map(str, READABLE_VERSIONS))}); upgrade olatbench or "
                            "re-run the job")
     missing = [key for key in REQUIRED_KEYS if key not in data]
-    if data.get("kind") == "run":
-        missing += [f"job.{key}" for key in JOB_KEYS if key not in (data.get("job") or {})]
+    if data.get("kind") == "run" and isinstance(data.get("job"), dict):
+        missing += [f"job.{key}" for key in JOB_KEYS if key not in data["job"]]
     if missing:
         raise ResultsError(f"{source}: missing keys {', '.join(missing)}")
-    if data["kind"] not in KINDS:
-        raise ResultsError(f"{source}: kind must be 'run' or 'evaluate', found {data['kind']!r}")
-    if data["status"] not in ("done", "failed"):
-        raise ResultsError(f"{source}: status must be 'done' or 'failed', found {data['status']!r}")
-    for split, block in data["metrics"].items():
-        if not isinstance(block, dict) or "mean" not in block:
-            raise ResultsError(f"{source}: metrics.{split} has no 'mean'")
+    if data["kind"] == "run" and not isinstance(data["job"], dict):
+        raise ResultsError(f"{source}: job: expected an object (a run's job), found {_found(data['job'])}")
+    problem = _checker(Results)(data, "")
+    if problem is not None:
+        raise ResultsError(f"{source}: {problem}")
     return data
 
 
@@ -274,13 +377,13 @@ def read_results(path: str | Path) -> Results:
     """Read, upgrade (`upgrade_results`) and validate one results.json."""
     path = Path(path)
     try:
-        data = json.loads(path.read_text(encoding="utf-8"))
+        data = parse_json(path.read_text(encoding="utf-8"))
     except FileNotFoundError:
         raise ResultsError(f"{path}: file not found") from None
-    except json.JSONDecodeError as error:
-        raise ResultsError(f"{path}: malformed JSON ({error})") from None
     except UnicodeDecodeError as error:
         raise ResultsError(f"{path}: not UTF-8 text ({error})") from None
+    except ValueError as error:  # malformed, nested too deep, an integer too long: parse_json says which
+        raise ResultsError(f"{path}: {error}") from None
     except OSError as error:
         raise ResultsError(f"{path}: unreadable ({error.strerror or error})") from None
     if isinstance(data, dict):

@@ -8,7 +8,6 @@ and a ``results.json`` with ``status: "failed"``.
 
 from __future__ import annotations
 
-import json
 import re
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -17,6 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from olatbench.bench.results import ResultsError, read_results
+from olatbench.datasets.jsontext import parse_json
 
 JOB_FILE = "job.json"
 DONE_FILE = "DONE"
@@ -90,10 +90,10 @@ def _job_file(folder: str | Path) -> dict[str, Any] | None:
     (truncated, not JSON, not an object)."""
     path = Path(folder) / JOB_FILE
     try:
-        data = json.loads(path.read_text(encoding="utf-8"))
+        data = parse_json(path.read_text(encoding="utf-8"))
     except FileNotFoundError:
         return None
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as error:
+    except (OSError, ValueError) as error:  # not UTF-8, malformed, nested too deep, an integer too long
         raise ValueError(f"{path} is unreadable ({error})") from None
     if not isinstance(data, dict) or not isinstance(data.get("id", ""), str):
         raise ValueError(f"{path} is not a job (expected a JSON object with an id)")

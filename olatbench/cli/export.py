@@ -6,6 +6,8 @@ from pathlib import Path
 
 import click
 
+from olatbench.atomic import WriteError
+
 
 @click.command("export", context_settings={"help_option_names": ["-h", "--help"]})
 @click.argument("job", type=click.Path(exists=True, file_okay=False, path_type=Path))
@@ -30,5 +32,7 @@ def export(job: Path, output: Path) -> None:
         exported = export_ply(job, output)
     except RestoreError as error:
         raise click.ClickException(str(error)) from None
+    except WriteError as error:  # a read-only folder or a full disk: one line, the old file (if any) untouched
+        raise click.ClickException(f"{error}; choose another -o") from None
     extras = f"; extra properties from {', '.join(exported.extras)}" if exported.extras else ""
     click.echo(f"wrote {exported.path}: {exported.gaussians} Gaussians at step {exported.step}{extras}")

@@ -90,7 +90,8 @@ def report(runs, suite, methods, metrics, splits, layouts, average, fmt, as_json
 
     A results.json that cannot be read is named on stderr and left out; the others still make the tables.
     Exit code: 0 when the report was written, 1 when there is nothing readable to report or the output cannot be
-    written (one line says why), 2 for a usage error (nothing matches the selection, an unknown suite, ...).
+    written (one line says why), 2 for a usage error (RUNS holds neither a job folder nor a results.json, nothing
+    matches the selection, an unknown suite, ...).
 
     \b
     Examples:
@@ -165,10 +166,21 @@ def _collect(runs):
         raise ResultsError(f"no readable results.json below {', '.join(map(str, runs))} ({len(unreadable)} "
                            "unreadable, listed above); 'olatbench run' with the same options re-evaluates a "
                            "finished job whose results.json is damaged")
+    if frame.empty and not any(_holds_jobs(Path(path)) for path in runs):
+        raise click.UsageError(f"no job folder and no results.json below {', '.join(map(str, runs))}; give the "
+                               "--output folder of 'olatbench run', or run 'olatbench run --method ssdgs --suite "
+                               "mini' first")
     if frame.empty:
         raise ResultsError(f"no results.json below {', '.join(map(str, runs))}; run "
                            "'olatbench run --method ssdgs --suite mini' first")
     return frame
+
+
+def _holds_jobs(path: Path) -> bool:
+    """Whether ``path`` is, or holds below it, a job folder (job.json)."""
+    from olatbench.bench.store import JOB_FILE
+
+    return path.is_file() or any(path.rglob(JOB_FILE))
 
 
 def _report_data(runs, suite, methods, metrics, splits, as_json: bool) -> str:

@@ -435,8 +435,8 @@ def status(runs: Path, suite: str | None, as_json: bool) -> None:
     another process) or damaged (an unreadable job.json or results.json; the line below the table says how to
     repair it). Only reads, so a read-only run folder can be inspected.
 
-    Exit code: 0 when the states are shown (whatever they are), 1 when RUNS holds no job folder (of the suite
-    given with -s), 2 for a usage error (e.g. an unknown suite).
+    Exit code: 0 when the states are shown (whatever they are); 2 for a usage error: an unknown suite, or RUNS
+    holds no job folder (of the suite given with -s), as when it does not exist.
 
     \b
     Example:
@@ -451,7 +451,7 @@ def status(runs: Path, suite: str | None, as_json: bool) -> None:
     suite = checked_suite(suite)
     states = [state for state in scan_runs(runs) if in_suite(state.folder, suite)]
     if not states:
-        raise click.ClickException(f"no job folders (job.json){'' if suite is None else f' of suite {suite}'} below "
+        raise click.UsageError(f"no job folders (job.json){'' if suite is None else f' of suite {suite}'} below "
                                    f"{runs}; start one with: olatbench run --method ssdgs --suite {suite or 'mini'} "
                                    f"--output {runs}")
     if as_json:

@@ -41,6 +41,9 @@ def view(folder, suite, port, host, device, max_resolution, drag_scale, record, 
     """Open a web viewer on a trained job (or every job of a run folder); a job still training is followed, its
     newest checkpoint shown as the runner writes it.
 
+    Exit code: 1 when no job below FOLDER can be shown (each one's reason is listed), 2 for a usage error (FOLDER
+    holds no job.json at all, an unknown suite).
+
     \b
     Move the light (handle or sliders), orbit the camera, switch outputs (rgb, diffuse, specular, sss, shadow, …),
     snap to a dataset frame to see its ground truth and PSNR.
@@ -56,7 +59,7 @@ def view(folder, suite, port, host, device, max_resolution, drag_scale, record, 
     device = resolve_device(device)
     from olatbench.bench.restore import RestoreError
     from olatbench.bench.store import in_suite
-    from olatbench.viewer.jobs import job_folders
+    from olatbench.viewer.jobs import NoJobFolder, job_folders
     from olatbench.viewer.model import ViewerModel
 
     suite = checked_suite(suite)
@@ -69,6 +72,8 @@ def view(folder, suite, port, host, device, max_resolution, drag_scale, record, 
         for line in skipped:
             click.echo(f"skipped: {line}", err=True)
         first = ViewerModel.open(folders[0], device)
+    except NoJobFolder as error:  # like a folder that does not exist: the argument is wrong (exit 2)
+        raise click.UsageError(str(error)) from None
     except RestoreError as error:
         raise click.ClickException(str(error)) from None
     if record is not None:

@@ -9,7 +9,6 @@ components/<name>/<stem>.png`` is read too), where ``stem`` is the frame id made
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -18,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from olatbench.datasets.formats._common import safe_file_stem
+from olatbench.datasets.jsontext import parse_json
 
 REQUIRED_JOB_KEYS = ("id", "method", "variant", "suite", "scene", "seed", "config", "scene_path", "scene_format",
                      "colourspace", "train_split", "test_split")
@@ -40,12 +40,14 @@ class JobFolder:
         folder = Path(folder)
         path = folder / "job.json"
         try:
-            job = json.loads(path.read_text(encoding="utf-8"))
+            job = parse_json(path.read_text(encoding="utf-8"))
         except FileNotFoundError:
             raise JobFolderError(f"{path}: not found; is {folder} a job folder "
                                  "(<out>/<suite>/<method>/<variant>/<scene>/seed<k>)?") from None
-        except json.JSONDecodeError as error:
-            raise JobFolderError(f"{path}: malformed JSON ({error})") from None
+        except (OSError, ValueError) as error:  # not UTF-8, malformed, nested too deep, an integer too long
+            raise JobFolderError(f"{path}: unreadable ({error})") from None
+        if not isinstance(job, dict):
+            raise JobFolderError(f"{path}: not a job (expected a JSON object, found {type(job).__name__})")
         missing = [key for key in REQUIRED_JOB_KEYS if key not in job]
         if missing:
             raise JobFolderError(f"{path}: missing keys {', '.join(missing)}")
@@ -102,9 +104,9 @@ class JobFolder:
             if not line.strip():
                 continue
             try:
-                entry = json.loads(line)
-            except json.JSONDecodeError as error:
-                raise JobFolderError(f"{path}:{number}: malformed JSON ({error})") from None
+                entry = parse_json(line)
+            except ValueError as error:
+                raise JobFolderError(f"{path}:{number}: {error}") from None
             if not isinstance(entry, dict) or "step" not in entry:
                 raise JobFolderError(f"{path}:{number}: expected an object with 'step'")
             entries.append({k: (math.nan if v is None else float(v)) for k, v in entry.items()

@@ -10,11 +10,15 @@ from olatbench.bench.restore import RestoreError, check_job
 from olatbench.bench.store import JOB_FILE
 
 
+class NoJobFolder(RestoreError):
+    """The folder given holds no job folder at all (no job.json in or below it): a usage error of the command."""
+
+
 def job_folders(folder: str | Path, device: str = "cpu") -> tuple[list[Path], list[str]]:
     """(job folders to serve, one line per job folder skipped and why).
 
     A job folder must be restorable (a `RestoreError` otherwise); a run folder must hold at least one restorable
-    job (the error then names why each one is not).
+    job (the error then names why each one is not); a folder with no job.json in or below it is a `NoJobFolder`.
     """
     folder = Path(folder)
     if (folder / JOB_FILE).is_file():
@@ -22,7 +26,7 @@ def job_folders(folder: str | Path, device: str = "cpu") -> tuple[list[Path], li
         return [folder], []
     candidates = sorted(path.parent for path in folder.rglob(JOB_FILE))
     if not candidates:
-        raise RestoreError(f"{folder}: no job.json in or below it; pass a job folder "
+        raise NoJobFolder(f"{folder}: no job.json in or below it; pass a job folder "
                            "(<out>/<suite>/<method>/<variant>/<scene>/seed<k>) or a run folder holding some")
     found, skipped = [], []
     for candidate in candidates:

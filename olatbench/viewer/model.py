@@ -10,7 +10,6 @@ frame the user snaps to, and compared in the job's evaluation colour space as th
 
 from __future__ import annotations
 
-import json
 import threading
 from dataclasses import dataclass
 from pathlib import Path
@@ -19,7 +18,8 @@ from typing import Any
 import numpy as np
 
 from olatbench.bench.restore import RestoreError, newest_checkpoint, restore
-from olatbench.bench.store import list_checkpoints
+from olatbench.bench.results import ResultsError, read_results
+from olatbench.bench.store import RESULTS_FILE, list_checkpoints
 from olatbench.bench.views import view_camera
 from olatbench.datasets import colour, load_scene
 from olatbench.datasets.records import Camera, Frame, PointLight
@@ -159,16 +159,12 @@ class ViewerModel:
 
     def _recorded_psnr(self) -> dict[str, float]:
         """``<split>/<frame id>`` -> the PSNR the runner recorded (results.json), when it is there."""
-        try:
-            results = json.loads((self.folder / "results.json").read_text(encoding="utf-8"))
-        except (OSError, json.JSONDecodeError):
+        try:  # the one reader of results.json: a damaged or hand-edited file is refused there, whatever its shape
+            results = read_results(self.folder / RESULTS_FILE)
+        except ResultsError:  # none, or unreadable (`olatbench status` names it): the viewer shows no recorded PSNR
             return {}
-        found = {}
-        for split, block in (results.get("metrics") or {}).items():
-            for frame_id, scores in (block.get("per_image") or {}).items():
-                if isinstance(scores, dict) and isinstance(scores.get("psnr"), (int, float)):
-                    found[f"{split}/{frame_id}"] = float(scores["psnr"])
-        return found
+        return {f"{split}/{frame_id}": float(scores["psnr"]) for split, block in results["metrics"].items()
+                for frame_id, scores in block.get("per_image", {}).items() if scores.get("psnr") is not None}
 
 
 def _restore_newest(folder: Path, device: str, attempts: int = 3) -> tuple[Any, Any, int]:

@@ -416,7 +416,12 @@ class ClientSession:
 
     @_locked
     def _snap_clicked(self, event: Any) -> None:
-        self.snap(self.model.frame(str(self.frame_dropdown.value)))
+        try:  # the tab sends the name: one that is not in the list is said there, not raised on the server
+            frame = self.model.frame(str(self.frame_dropdown.value))
+        except KeyError as error:
+            self.status.content = f"**cannot snap**: {error.args[0]}"
+            return
+        self.snap(frame)
 
     @_locked
     def _job_chosen(self, event: Any) -> None:

@@ -2,11 +2,13 @@
 
 Every failure is one exception naming the archive: `UnsafeArchiveError` for a member that must not be written
 (including an archive that unpacks to more than `unpack_limit` bytes), `ArchiveError` for an archive that cannot
-be read (truncated, corrupt, not an archive). Errors of the disk being written (full, read-only) stay `OSError`.
+be read (truncated, corrupt, not an archive) or whose members cannot be laid out as files (a file and a folder of
+one name, a name too long for the file system). Errors of the disk being written (full, read-only) stay `OSError`.
 """
 
 from __future__ import annotations
 
+import errno
 import lzma
 import shutil
 import stat
@@ -29,7 +31,8 @@ class UnsafeArchiveError(ValueError):
 
 
 class ArchiveError(ValueError):
-    """An archive that cannot be read: truncated, corrupt, or not a zip or tar file."""
+    """An archive that cannot be read (truncated, corrupt, not a zip or tar file) or unpacked as files (members
+    that collide, a name too long)."""
 
 
 def unpack_limit(archive_bytes: int) -> int:
@@ -110,12 +113,23 @@ def _check_members(members: list[tuple[str, str, object]], destination: Path, ar
     """Refuse the whole archive before anything is written when one member is unsafe."""
     if len(members) > MAX_MEMBERS:
         raise UnsafeArchiveError(f"{archive.name}: {len(members)} members, more than the limit of {MAX_MEMBERS}")
+    files: dict[Path, str] = {}
+    folders: dict[Path, str] = {}
     for name, kind, _ in members:
         target = _safe_member_path(destination, name, archive)
         if kind == "link":
             raise UnsafeArchiveError(f"{archive.name}: member '{name}' is a link or device")
         if kind == "file" and target == destination.resolve():
             raise UnsafeArchiveError(f"{archive.name}: member '{name}' is a file without a file name")
+        (files if kind == "file" else folders)[target] = name
+        for parent in target.parents:
+            if parent == destination.resolve():
+                break
+            folders.setdefault(parent, name)
+    for target, name in files.items():
+        if target in folders:
+            raise ArchiveError(f"{archive.name}: member '{name}' is a file, and member '{folders[target]}' makes "
+                               "a folder of the same name; the archive cannot be unpacked as files")
 
 
 def _copy_bounded(source: IO[bytes], target: Path, budget: int, archive: Path, limit: int) -> int:
@@ -147,12 +161,32 @@ def extract(archive: Path, destination: Path, max_bytes: int | None = None) -> l
         _check_members(members, destination, archive)
         for name, kind, member in members:
             target = _safe_member_path(destination, name, archive)
-            if kind == "dir":
-                target.mkdir(parents=True, exist_ok=True)
-                continue
-            target.parent.mkdir(parents=True, exist_ok=True)
-            source = bundle.open(member) if isinstance(bundle, zipfile.ZipFile) else bundle.extractfile(member)
-            with source:
-                budget -= _copy_bounded(source, target, budget, archive, limit)
+            with _laying_out(archive, name):
+                if kind == "dir":
+                    target.mkdir(parents=True, exist_ok=True)
+                    continue
+                target.parent.mkdir(parents=True, exist_ok=True)
+                source = bundle.open(member) if isinstance(bundle, zipfile.ZipFile) else bundle.extractfile(member)
+                with source:
+                    budget -= _copy_bounded(source, target, budget, archive, limit)
             written.append(target)
     return written
+
+
+# What the file system answers to a member the archive itself makes impossible to write: a name too long, or a
+# file and a folder of one name that `_check_members` could not see (names differing only in case on a
+# case-insensitive file system, a zip that stores one name twice).
+_LAYOUT_ERRORS = (errno.ENAMETOOLONG, errno.EEXIST, errno.ENOTDIR, errno.EISDIR)
+
+
+@contextmanager
+def _laying_out(archive: Path, name: str) -> Iterator[None]:
+    """Turn an `OSError` caused by member ``name`` itself into an `ArchiveError` naming the archive and the member
+    (not the temporary folder it was unpacked into); the disk's own errors (full, read-only) pass unchanged."""
+    try:
+        yield
+    except OSError as error:
+        if error.errno not in _LAYOUT_ERRORS:
+            raise
+        raise ArchiveError(f"{archive.name}: member '{name[:120]}{'…' if len(name) > 120 else ''}' cannot be "
+                           f"unpacked as a file ({error.strerror})") from None

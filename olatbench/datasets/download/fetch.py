@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import fnmatch
-import json
 import os
 import re
 import shlex
@@ -17,10 +16,11 @@ from pathlib import Path
 
 from olatbench.atomic import write_json
 from olatbench.datasets.download import archives, manifest, transfer
-from olatbench.datasets.download.archives import ArchiveError
+from olatbench.datasets.download.archives import ArchiveError, UnsafeArchiveError
 from olatbench.datasets.download.sources import HF_ENDPOINT, Source, sources_for
 from olatbench.datasets.errors import DatasetError
 from olatbench.datasets.files import present
+from olatbench.datasets.jsontext import parse_json
 
 KNOWN_HASHES = ".olatbench-sources.json"
 DOWNLOADS = ".downloads"
@@ -95,9 +95,8 @@ def _hub_files(source: Source, mirror: str | None) -> list[RemoteFile]:
     endpoint = hub_endpoint(mirror)
     revision = resolve_revision(source, endpoint)
     where = f"{source.repo}@{revision}"
-    listing = transfer.fetch_json_pages(f"{endpoint}/api/datasets/{source.repo}/tree/{revision}?recursive=true",
-                                        headers=hub_headers())
-    entries = {str(e.get("path")): e for e in listing if isinstance(e, dict) and e.get("type") == "file"}
+    url = f"{endpoint}/api/datasets/{source.repo}/tree/{revision}?recursive=true"
+    entries = _hub_listing(transfer.fetch_json_pages(url, headers=hub_headers()), url)
     held = ", ".join(sorted(entries)[:20]) or "nothing"
     if source.files:
         missing = [path for path in source.files if path not in entries]
@@ -116,6 +115,31 @@ def _hub_files(source: Source, mirror: str | None) -> list[RemoteFile]:
         files.append(RemoteFile(path.rsplit("/", 1)[-1], f"{resolve}/{path}", size=entries[path].get("size"),
                                 sha256=lfs.get("oid") or lfs.get("sha256"), hub=True))
     return files
+
+
+def _hub_listing(listing: list, url: str) -> dict[str, dict]:
+    """{path: entry} of the files in a Hub tree listing, the fields olatbench uses checked (``path`` text, ``size``
+    a byte count, ``lfs`` an object whose ``oid``/``sha256`` is a hex sha256); a `transfer.DownloadError` naming
+    the listing, the entry and the field otherwise."""
+    entries = {}
+    for index, entry in enumerate(listing):
+        if not isinstance(entry, dict) or entry.get("type") != "file":
+            continue
+        path, size, lfs = entry.get("path"), entry.get("size"), entry.get("lfs")
+        where = f"{url}: entry {index} ({path!r})"
+        if not isinstance(path, str):
+            raise transfer.DownloadError(f"{where}: key 'path': expected text, found {type(path).__name__}")
+        if size is not None and (type(size) is not int or size < 0):
+            raise transfer.DownloadError(f"{where}: key 'size': expected a byte count, found {size!r:.40}")
+        if lfs is not None and not isinstance(lfs, dict):
+            raise transfer.DownloadError(f"{where}: key 'lfs': expected an object, found {type(lfs).__name__}")
+        for key in ("oid", "sha256"):
+            value = (lfs or {}).get(key)
+            if value is not None and not (isinstance(value, str) and re.fullmatch(r"[0-9a-f]{64}", value)):
+                raise transfer.DownloadError(f"{where}: key 'lfs.{key}': expected a hex sha256, found "
+                                             f"{value!r:.80}")
+        entries[path] = entry
+    return entries
 
 
 def _matches(path: str, pattern: str) -> bool:
@@ -163,12 +187,12 @@ def _known_hashes(root: Path) -> dict[str, str]:
     if not present(path):
         return {}
     try:
-        known = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as error:
+        known = parse_json(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as error:  # UnicodeDecodeError included
         raise DatasetError(f"unreadable record of archive hashes ({error}); repair it, or delete it to record "
                            "the hashes afresh at the next download", path=path) from None
-    if not isinstance(known, dict):
-        raise DatasetError("expected a JSON object of archive hashes", path=path)
+    if not isinstance(known, dict) or not all(isinstance(value, str) for value in known.values()):
+        raise DatasetError("expected a JSON object of archive hashes (text values)", path=path)
     return known
 
 
@@ -246,7 +270,8 @@ def _set_aside(destination: Path) -> Path:
 
 
 def _out_of_the_cache(cache: Path, files: list[RemoteFile], archive: Path, problem: str) -> str:
-    """Move the downloaded files of an archive that failed (cannot be read, or is no valid scene) out of the cache
+    """Move the downloaded files of an archive that failed (cannot be read or unpacked safely, or is no valid
+    scene) out of the cache
     to ``<name>.damaged``, so that a rerun downloads them again; ``problem`` plus where they went and what next."""
     moved = []
     for path in sorted({archive, *(cache / f.name for f in files)}):
@@ -313,8 +338,8 @@ def _install(suite: str, scene: str, source: Source, files: list[RemoteFile], re
         unpacked = Path(temporary) / "content"
         try:
             archives.extract(archive, unpacked)
-        except ArchiveError as error:
-            raise ArchiveError(_out_of_the_cache(cache, files, archive, str(error))) from None
+        except (ArchiveError, UnsafeArchiveError) as error:  # the archive's fault: set aside, so a rerun refetches
+            raise type(error)(_out_of_the_cache(cache, files, archive, str(error))) from None
         folder = _scene_folder(unpacked)
         report = validate_folder(folder)  # a tree that is not a valid scene is refused before it is put in place
         if not report.ok:

@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 import hashlib
-import json
 from pathlib import Path
 
 from olatbench.atomic import write_json
+from olatbench.datasets.jsontext import parse_json
 
 MANIFEST_NAME = ".olatbench-manifest.json"
 
@@ -43,15 +43,40 @@ def write_manifest(folder: Path, source: str, archives: dict[str, str]) -> Path:
                                                "files": scene_manifest(folder)})
 
 
+def read_manifest_files(path: Path) -> dict[str, str]:
+    """The ``files`` entry ({relative path: sha256}) of a scene's manifest, its shape checked: a `ValueError`
+    naming ``path`` and the field when the file is not UTF-8 JSON, not an object, or ``files`` is not an object of
+    text values (a manifest edited or damaged by hand)."""
+    try:
+        data = parse_json(path.read_text(encoding="utf-8"))
+    except UnicodeDecodeError as error:
+        raise ValueError(f"{path}: malformed manifest: not UTF-8 text ({error})") from None
+    except OSError as error:
+        raise ValueError(f"{path}: unreadable manifest ({error.strerror or error})") from None
+    except ValueError as error:
+        raise ValueError(f"{path}: malformed manifest: {error}") from None
+    if not isinstance(data, dict):
+        raise ValueError(f"{path}: malformed manifest: expected a JSON object, found {type(data).__name__}")
+    files = data.get("files")
+    if not isinstance(files, dict):
+        found = "nothing" if files is None else type(files).__name__
+        raise ValueError(f"{path}: malformed manifest: key 'files': expected an object of file hashes, found {found}")
+    for name, digest in files.items():
+        if not isinstance(digest, str):
+            raise ValueError(f"{path}: malformed manifest: key 'files.{name}': expected a sha256 as text, found "
+                             f"{type(digest).__name__}")
+    return files
+
+
 def verify_folder(folder: Path) -> list[str]:
     """Problems found when re-hashing a downloaded scene against its manifest (empty = intact)."""
     path = folder / MANIFEST_NAME
     if not path.is_file():
         return [f"{folder}: no manifest ({MANIFEST_NAME}); it was not downloaded by olatbench"]
     try:
-        recorded = json.loads(path.read_text())["files"]
-    except (json.JSONDecodeError, KeyError) as error:
-        return [f"{path}: malformed manifest ({error})"]
+        recorded = read_manifest_files(path)
+    except ValueError as error:
+        return [str(error)]
     problems = []
     current = scene_manifest(folder)
     for name, digest in recorded.items():

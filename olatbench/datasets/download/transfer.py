@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import http.client
-import json
 import re
 import shutil
 import time
@@ -11,6 +10,8 @@ import urllib.error
 import urllib.parse
 import urllib.request
 from pathlib import Path
+
+from olatbench.datasets.jsontext import parse_json
 
 CHUNK = 1 << 20
 USER_AGENT = "olatbench-downloader/1"
@@ -58,8 +59,8 @@ def _fetch_page(url: str, timeout: float, headers: Headers | None) -> tuple[obje
     """(JSON document, URL of the next page from the ``Link`` header or None)."""
     try:
         with _open(url, timeout=timeout, headers=headers) as response:
-            return json.loads(response.read().decode("utf-8")), next_link(response.headers.get("Link"))
-    except (urllib.error.URLError, OSError, json.JSONDecodeError) as error:
+            return parse_json(response.read().decode("utf-8")), next_link(response.headers.get("Link"))
+    except (urllib.error.URLError, OSError, ValueError) as error:  # ValueError: not UTF-8, not JSON, too deep
         raise DownloadError(f"{url}: cannot read JSON ({error})") from error
 
 
@@ -79,6 +80,27 @@ def fetch_json_pages(url: str, timeout: float = 30.0, headers: Headers | None = 
     raise DownloadError(f"{url}: more than {MAX_PAGES} pages; stopping")
 
 
+def _copy_local(url: str, target: Path, partial: Path, expected_size: int | None, progress) -> Path:
+    """Copy a ``file://`` URL to ``partial``, check its size (``expected_size``, else the source's) and rename it
+    onto ``target``."""
+    source = Path(urllib.request.url2pathname(urllib.parse.urlparse(url).path))
+    if not source.is_file():
+        raise DownloadError(f"{url}: no such file in the mirror folder")
+    try:
+        expected = source.stat().st_size if expected_size is None else expected_size
+        shutil.copyfile(source, partial)
+        size = partial.stat().st_size
+    except OSError as error:
+        raise DownloadError(f"{url}: cannot copy from the mirror folder ({error})") from error
+    if size != expected:
+        raise DownloadError(f"{url}: copied {size} bytes, expected {expected} (the mirror's file changed while it "
+                            f"was copied?); the partial copy {partial} is replaced by the next run")
+    if progress is not None:
+        progress.update(size)
+    partial.replace(target)
+    return target
+
+
 def download(url: str, target: Path, *, expected_size: int | None = None, retries: int = 5,
              progress=None, timeout: float = 30.0, backoff: float = 0.5, headers: Headers | None = None) -> Path:
     """Download ``url`` to ``target``, resuming from ``target.with_suffix(+'.part')``.
@@ -86,22 +108,15 @@ def download(url: str, target: Path, *, expected_size: int | None = None, retrie
     Each retry asks for the remaining bytes with a ``Range`` header; a server that ignores it
     (status 200) restarts the file. ``progress`` is a tqdm-like object updated with byte counts. ``headers`` are
     sent to ``url``'s host only (not across redirects).
-    The finished file is renamed onto ``target``; the ``.part`` file survives failures.
+    The finished file is renamed onto ``target`` once it has its full size; the ``.part`` file survives failures.
+    A ``file://`` URL (a local mirror) is copied to the ``.part`` file the same way, so a copy cut off mid-way
+    never lies under ``target``'s name.
     """
     target = Path(target)
     target.parent.mkdir(parents=True, exist_ok=True)
-    if urllib.parse.urlparse(url).scheme == "file":
-        source = Path(urllib.request.url2pathname(urllib.parse.urlparse(url).path))
-        if not source.is_file():
-            raise DownloadError(f"{url}: no such file in the mirror folder")
-        try:
-            shutil.copyfile(source, target)
-        except OSError as error:
-            raise DownloadError(f"{url}: cannot copy from the mirror folder ({error})") from error
-        if progress is not None:
-            progress.update(target.stat().st_size)
-        return target
     partial = target.with_name(target.name + ".part")
+    if urllib.parse.urlparse(url).scheme == "file":
+        return _copy_local(url, target, partial, expected_size, progress)
     last_error: Exception | None = None
     for attempt in range(retries + 1):
         start = partial.stat().st_size if partial.exists() else 0

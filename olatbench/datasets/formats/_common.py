@@ -6,7 +6,6 @@ read from a JSON file are resolved and must stay inside the dataset root.
 
 from __future__ import annotations
 
-import json
 import os
 import re
 from collections import Counter
@@ -19,7 +18,9 @@ import numpy as np
 from olatbench.datasets.cameras import opengl_to_opencv
 from olatbench.datasets.errors import DatasetError
 from olatbench.datasets.files import present, require_file
+from olatbench.datasets.jsontext import parse_json
 
+MAX_MAGNITUDE = 1e18  # |coordinate| bound: squared distances of such values stay finite in float32 (3.4e38)
 IMAGE_SUFFIXES = (".png", ".exr", ".jpg", ".jpeg", ".tif", ".tiff", ".hdr", ".npy")
 
 
@@ -31,10 +32,9 @@ def read_json(path: Path) -> dict[str, Any]:
     except (OSError, UnicodeDecodeError) as error:
         raise DatasetError(f"cannot read ({error})", path=path) from None
     try:
-        data = json.loads(text)
-    except json.JSONDecodeError as error:
-        raise DatasetError(f"malformed JSON (line {error.lineno}, column {error.colno}: {error.msg})",
-                           path=path) from None
+        data = parse_json(text)
+    except ValueError as error:
+        raise DatasetError(str(error), path=path) from None
     if not isinstance(data, dict):
         raise DatasetError("expected a JSON object at the top level", path=path)
     return data
@@ -61,15 +61,18 @@ def require(mapping: Mapping[str, Any], key: str, *, path: Path, frame: str | in
 
 
 def as_array(value: Any, shape: tuple[int, ...], *, path: Path, frame: str | int | None, key: str) -> np.ndarray:
-    """A finite float64 array of exactly ``shape``."""
+    """A finite float64 array of exactly ``shape``, every value of magnitude at most `MAX_MAGNITUDE`."""
     try:
         array = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise DatasetError(f"expected numbers of shape {shape}", path=path, frame=frame, key=key) from None
     if array.shape != shape:
         raise DatasetError(f"expected shape {shape}, found {array.shape}", path=path, frame=frame, key=key)
     if not np.all(np.isfinite(array)):
         raise DatasetError("holds NaN or Inf", path=path, frame=frame, key=key)
+    if np.any(np.abs(array) > MAX_MAGNITUDE):
+        raise DatasetError(f"holds a value of magnitude above {MAX_MAGNITUDE:.0e} ({np.abs(array).max():.3g}); the "
+                           "renderers square distances in 32-bit floats", path=path, frame=frame, key=key)
     return array
 
 
@@ -98,6 +101,10 @@ def opencv_c2w(value: Any, *, path: Path, frame: str | int | None, key: str = "t
     c2w = as_array(value, shape, path=path, frame=frame, key=key)
     if shape == (4, 4) and not np.allclose(c2w[3], [0.0, 0.0, 0.0, 1.0]):
         raise DatasetError(f"last row must be [0, 0, 0, 1], found {c2w[3].tolist()}", path=path, frame=frame, key=key)
+    determinant = float(np.linalg.det(c2w[:3, :3]))
+    if determinant <= 0.0:
+        raise DatasetError(f"the rotation is a reflection or singular (determinant {determinant:.3g}, expected +1); "
+                           "a mirrored camera renders every image flipped", path=path, frame=frame, key=key)
     return opengl_to_opencv(c2w)
 
 
