@@ -392,7 +392,9 @@ def test_job_environment_serves_cuda_requests_from_the_cpu_with_the_standins():
     # nrhints-official gets only the lpips stand-in (tests/test_cpu_standins_lpips.py), not these
     assert "OLATBENCH_STANDIN_LIGHT" not in job_environment("nrhints-official", {"PYTHONPATH": "/x"})
     assert job_environment("nrhints-official", {})["PYTHONPATH"].split(os.pathsep)[0] != str(SITE)
-    assert job_environment("rng-official", {"PYTHONPATH": "/x"}) == {"CUDA_VISIBLE_DEVICES": ""}
+    assert job_environment("gigs-official", {"PYTHONPATH": "/x"}) == {"CUDA_VISIBLE_DEVICES": ""}
+    rng = job_environment("rng-official", {"PYTHONPATH": "/x"})  # RNG's forks: tests/test_cpu_standins_rng.py
+    assert rng["PYTHONPATH"].split(os.pathsep)[0] == str(SITE) and "OLATBENCH_STANDIN_LIGHT" not in rng
     done = subprocess.run([sys.executable, "-c", SHIM_PROBE], env={**os.environ, **env}, capture_output=True,
                           text=True, timeout=600)
     assert done.returncode == 0, done.stderr
