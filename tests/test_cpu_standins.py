@@ -453,9 +453,10 @@ def test_a_cpu_job_imports_the_standins_and_records_them(tmp_path):
     assert not (checkout / "gsplat").exists()
 
 
-@pytest.mark.parametrize("method", ["ssdgs-official", "nrhints-official"])
+@pytest.mark.parametrize("method", ["ssdgs-official", "nrhints-official", "rng-official"])
 def test_doctor_checks_the_cpu_environment_against_the_pins(tmp_path, monkeypatch, method):
-    """Each method's own stand-ins are imported and its own pins checked (NRHints: its requirements.txt)."""
+    """Each method's own stand-ins are imported and its own pins checked (NRHints: its requirements.txt; RNG: its
+    environment.yml and the imports it does not list)."""
     import importlib
     import importlib.metadata
 
@@ -463,10 +464,10 @@ def test_doctor_checks_the_cpu_environment_against_the_pins(tmp_path, monkeypatc
     from official_standins import write_checkout
 
     from olatbench.cli import main
-    from olatbench.methods.official.doctor import CPU_PINS, NRHINTS_CPU_PINS, cpu_pins
+    from olatbench.methods.official.doctor import CPU_PINS, NRHINTS_CPU_PINS, RNG_CPU_PINS, cpu_pins
 
     pins = cpu_pins(method)
-    assert pins is (NRHINTS_CPU_PINS if method == "nrhints-official" else CPU_PINS)
+    assert pins is {"nrhints-official": NRHINTS_CPU_PINS, "rng-official": RNG_CPU_PINS}.get(method, CPU_PINS)
     monkeypatch.chdir(tmp_path)
     checkout = write_checkout(tmp_path / "clone", method, git=True)
     options = [f"{method}.checkout={checkout}", f"{method}.python={sys.executable}", f"{method}.device=cpu"]
