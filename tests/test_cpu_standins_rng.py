@@ -334,18 +334,22 @@ def test_torchmetrics_lpips_is_olatbenchs_lpips_on_inputs_taken_as_minus_one_to_
 
 
 PROBE = """
-import torch
+import sys, torch
 import diff_gaussian_rasterization, diff_gaussian_rasterization_orthographic, simple_knn._C, torchvision.utils
 from torchmetrics.functional.image import peak_signal_noise_ratio, learned_perceptual_image_patch_similarity
 x = torch.zeros(2, 3).cuda()
+torch.save((x + 1, 30), sys.argv[1])
+(loaded, iteration) = torch.load(sys.argv[1], map_location='cuda')  # train.py:46, the stage-1 checkpoint
+assert iteration == 30 and loaded.device.type == "cpu" and float(loaded.sum()) == 6
 print(diff_gaussian_rasterization.__file__, diff_gaussian_rasterization_orthographic.__file__, x.device)
 """
 
 
-def test_an_rng_job_imports_its_standins_from_the_site_folder() -> None:
+def test_an_rng_job_imports_its_standins_from_the_site_folder(tmp_path) -> None:
     assert standins_for("rng-official") == ("diff_gaussian_rasterization", "diff_gaussian_rasterization_orthographic",
                                             "simple_knn", "torchvision", "torchmetrics", "sitecustomize")
     env = {**os.environ, **job_environment("rng-official", {})}
-    out = subprocess.run([sys.executable, "-c", PROBE], env=env, capture_output=True, text=True, timeout=300)
+    out = subprocess.run([sys.executable, "-c", PROBE, str(tmp_path / "chkpnt30.pth")], env=env, capture_output=True,
+                         text=True, timeout=300)
     assert out.returncode == 0, out.stderr
     assert str(SITE / "diff_gaussian_rasterization") in out.stdout and out.stdout.strip().endswith("cpu")
