@@ -13,8 +13,9 @@ and its LPIPS downloads torchvision's AlexNet weights. These are the same functi
 - SSIM: 11×11 Gaussian window (σ = 1.5), inputs reflect-padded by 5, the SSIM map cropped by 5 on each side and
   averaged per image, then over the batch; ``R = max(range(preds), range(target))``, ``C1 = (0.01 R)²``,
   ``C2 = (0.03 R)²``;
-- LPIPS: AlexNet v0.1 with ``normalize=False`` (the inputs are taken as already in [-1, 1]; values outside it
-  raise ValueError, as torchmetrics does), mean over the batch; olatbench's `LPIPSNet` with the weights
+- LPIPS: AlexNet v0.1 with ``normalize=False`` (the inputs are taken as already in [-1, 1]; as torchmetrics
+  1.4.0's ``_valid_img`` (``functional/image/lpips.py:377-380``), values below -1 raise ValueError and values
+  above 1 do not: RNG's colour MLP has no output activation), mean over the batch; olatbench's `LPIPSNet` with the weights
   ``olatbench weights install`` put in place (`olatbench.metrics.lpips.get_network`), no download.
 
 Other arguments raise `NotImplementedError` naming them.
@@ -90,9 +91,9 @@ def learned_perceptual_image_patch_similarity(img1: torch.Tensor, img2: torch.Te
                                   "defaults (RNG's render.py:115)")
     _check(img1, img2)
     for name, image in (("img1", img1), ("img2", img2)):
-        if image.shape[1] != 3 or not (image.min() >= -1 and image.max() <= 1):
-            raise ValueError(f"{_NAME}: {name} must be [N, 3, H, W] with values in [-1, 1] (normalize=False), "
-                             f"got {tuple(image.shape)} in [{float(image.min()):g}, {float(image.max()):g}]")
+        if image.shape[1] != 3 or not image.min() >= -1:
+            raise ValueError(f"{_NAME}: {name} must be [N, 3, H, W] with values from -1 (normalize=False), "
+                             f"got {tuple(image.shape)} with minimum {float(image.min()):g}")
     network = get_network("alex")
     parameter = next(network.parameters())
     with torch.no_grad():
