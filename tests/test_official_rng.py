@@ -22,7 +22,7 @@ from olatbench.methods.official.process import OfficialRunError
 from olatbench.methods.official.runner import prepare, step_file
 from olatbench.methods.official.settings import CodeSettings
 from olatbench.methods.official.specs import RNG_CODE
-from olatbench.reports.published import paper_method
+from olatbench.reports.published import lookup, paper_method
 
 
 def flag_value(argv: list[str], flag: str) -> str:
@@ -123,4 +123,6 @@ def test_methods_show_lists_both_stages_with_their_sources_and_rng_is_the_papers
     assert "{stage1_iterations} = 30000" in shown
     listing = CliRunner().invoke(main, ["methods", "list"]).output
     assert "rng-official      [official, verified]" in listing and "no public code" not in listing
-    assert paper_method("rng-official") == "RNG"
+    assert paper_method("rng-official") == "RNG"  # report --published puts the paper's RNG rows beside it
+    assert lookup("RNG", "nrhints", "Cat", "test", "psnr") is not None and lookup("RNG", "gs3", "AnisoMetal", "test",
+                                                                                    "psnr") is not None
