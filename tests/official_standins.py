@@ -202,6 +202,9 @@ RNG_RENDER = textwrap.dedent('''
     assert trained["load_pc"] and int(trained["iterations"]) == args.iteration, trained
     out = Path(args.model_path) / "test" / f"ours_{args.iteration}" / "renders"
     lib.write_renders(trained["source_path"], out, "{index:05d}.png", ".png", trained["white_background"])
+    # render.py:82 saves the ground truth of each view it rendered beside it (SHIFT: of the frame it rendered)
+    lib.write_renders(trained["source_path"], out.parent / "gt", "{index:05d}.png", ".png",
+                      trained["white_background"])
     print(f"rendered to {out}")
 ''')
 RNG_FLAGS = ["--iterations", "--save_iterations", "--densify_until_iter", "--densify_from_iter",

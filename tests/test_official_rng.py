@@ -62,6 +62,18 @@ def test_rng_runs_stage_1_then_stage_2_from_its_checkpoint_then_renders(tmp_path
     assert results["timing"]["train_seconds"] == pytest.approx(seconds[0] + seconds[1], abs=2e-3)
 
 
+def test_renders_whose_ground_truth_is_another_frame_are_refused(tmp_path) -> None:
+    """render.py writes each view's ground truth beside its render (render.py:82): a render script that rendered
+    frame i+1 as render i (the stand-in's SHIFT) is caught by it, before anything is scored."""
+    data = write_data(tmp_path / "data")
+    checkout = write_checkout(tmp_path / "checkout", "rng-official")
+    (checkout / "SHIFT").write_text("")
+    [job] = plan("rng-official", suite_of("mini"), data, tmp_path / "runs", checkout=str(checkout),
+                 python=sys.executable)
+    [outcome] = run_inline([job], progress=False)
+    assert outcome.status == "failed" and "render 0 was rendered for another image than frame" in outcome.error
+
+
 def test_a_rerun_after_stage_2_failed_redoes_only_stage_2_and_the_render(tmp_path) -> None:
     data = write_data(tmp_path / "data")
     checkout = write_checkout(tmp_path / "checkout", "rng-official")

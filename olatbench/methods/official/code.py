@@ -13,7 +13,9 @@ An `OfficialCode` says, for the authors' scripts:
   command carries a flag of ``render_orders``, which names the file the script then reads instead (SSD-GS and
   GS³ ``render.py --opt_pose`` read the refined cameras their ``train.py`` saved, in its shuffled order). Renders
   are paired with frames through that file's ``img_path`` / ``file_path``, never by position in olatbench's split
-  (`olatbench.methods.official.convert.pair_renders`).
+  (`olatbench.methods.official.convert.pair_renders`). A render script that also writes the ground truth it
+  rendered each view for (RNG's ``gt/<index:05d>.png``) names it in ``render_ground_truths``; each is then checked
+  against its paired frame's image (`olatbench.methods.official.convert.check_ground_truths`).
 
 Placeholders in ``argv`` and ``renders`` (`str.format` fields), filled per job:
 
@@ -152,6 +154,7 @@ class OfficialCode:
     schedule_flags: Mapping[str, int] = field(default_factory=dict)  # train flag -> parser default (scaled runs)
     point_cloud: str = ""  # where in the scene folder the loader reads its initial points ("": it reads none)
     unsupported: str = ""  # why olatbench's scenes cannot be fed to this code ("" = runnable)
+    render_ground_truths: str = ""  # where the render script writes the ground truth of render {index} ("": none)
     train_steps: tuple[str, ...] = (TRAIN_STEP,)  # the training commands: scaled, timed, given train_args
     milestones: Mapping[str, int] = field(default_factory=dict)  # placeholder -> iterations at the scripts' length
     sources: tuple[tuple[str, str], ...] = ()  # (what, where the pinned commit says so), for `methods show`

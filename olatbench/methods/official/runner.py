@@ -21,7 +21,7 @@ import numpy as np
 from olatbench.atomic import write_json
 from olatbench.datasets.records import Frame, Scene
 from olatbench.methods.official.code import OfficialCode, OfficialConfig
-from olatbench.methods.official.convert import pair_renders, write_for_code
+from olatbench.methods.official.convert import check_ground_truths, pair_renders, write_for_code
 from olatbench.methods.official.process import CommandRecord, OfficialRunError, run_command
 from olatbench.methods.official.settings import CodeSettings
 
@@ -157,9 +157,11 @@ def execute(run: OfficialRun, log_path: Path) -> None:
 
 
 def collect(run: OfficialRun) -> dict[str, Path]:
-    """``{frame id: its render}``, paired through ``run.render_order`` (`pair_renders`) and checked to exist;
+    """``{frame id: its render}``, paired through ``run.render_order`` (`pair_renders`; confirmed by the ground
+    truths the script wrote, where it writes them: `check_ground_truths`) and checked to exist;
     `OfficialRunError` listing the missing ones otherwise."""
     renders = pair_renders(run.code, run.render_order, run.frame_ids, run.values)
+    check_ground_truths(run.code, run.render_order, run.values)
     missing = [(frame_id, path) for frame_id, path in renders.items() if not path.is_file()]
     if missing:
         shown = "\n".join(f"  {frame_id}: {path}" for frame_id, path in missing[:5])

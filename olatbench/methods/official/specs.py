@@ -219,6 +219,8 @@ RNG_CODE = OfficialCode(
     # (scene/dataset_readers.py:222-233: --less 0 keeps every frame; max_training_images is 0 for the test split,
     # dataset_readers.py:304), so render i is the i-th frame of the converted transforms_test.json.
     renders="{model}/test/ours_{iterations}/renders/{index:05d}.png",
+    # render_set saves view idx's ground truth (original_image, the loader's composite) beside it (render.py:42, 82)
+    render_ground_truths="{model}/test/ours_{iterations}/gt/{index:05d}.png",
     data_formats={ANY_SUITE: "nrhints"},  # PIL reads file_path + file_ext (8-bit RGBA; dataset_readers.py:236-257)
     # The paper (appendix, the commented paragraph at ssdgs_iclr2026.tex:535) says RNG kept its original black
     # background on the synthetic (GS³) scenes as well ("we did not retrain RNG ... under this setting"): no suite

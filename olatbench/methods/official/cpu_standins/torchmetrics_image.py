@@ -15,8 +15,8 @@ and its LPIPS downloads torchvision's AlexNet weights. These are the same functi
   ``C2 = (0.03 R)²``;
 - LPIPS: AlexNet v0.1 with ``normalize=False`` (the inputs are taken as already in [-1, 1]; as torchmetrics
   1.4.0's ``_valid_img`` (``functional/image/lpips.py:377-380``), values below -1 raise ValueError and values
-  above 1 do not: RNG's colour MLP has no output activation), mean over the batch; olatbench's `LPIPSNet` with the weights
-  ``olatbench weights install`` put in place (`olatbench.metrics.lpips.get_network`), no download.
+  above 1 do not: RNG's colour MLP has no output activation), mean over the batch; olatbench's `LPIPSNet` with
+  the weights ``olatbench weights install`` put in place (`olatbench.metrics.lpips.get_network`), no download.
 
 Other arguments raise `NotImplementedError` naming them.
 """
