@@ -151,6 +151,69 @@ GS3_SWITCHES = ["--use_nerual_phasefunc", "--eval", "--hdr", "--white_background
 SSDGS_FLAGS = [name.replace("spcular", "specular") for name in GS3_FLAGS]
 SSDGS_SWITCHES = ["--use_nerual_phasefunc", "--eval", "--white_background", "--cam_opt", "--pl_opt"]
 
+# RNG: train.py runs stage 1 (no --load_pc) or stage 2 (--load_pc <model>/chkpnt<it>.pth, which must exist) and
+# saves <model>/chkpnt<iterations>.pth (train.py:186); render.py reads the arguments train.py stored (cfg_args,
+# render.py:335) and renders the test frames in the loader's order. Each call is appended to calls.txt.
+RNG_TRAIN = textwrap.dedent('''
+    import argparse, json
+    from pathlib import Path
+    import standin_lib as lib
+    parser = argparse.ArgumentParser()
+    parser.add_argument("-s", "--source_path", required=True)
+    parser.add_argument("-m", "--model_path", required=True)
+    for name in {flags!r}:
+        parser.add_argument(name)
+    for name in {switches!r}:
+        parser.add_argument(name, action="store_true")
+    args = parser.parse_args()
+    with open(lib.CHECKOUT / "calls.txt", "a") as calls:
+        calls.write(("stage2" if args.load_pc else "stage1") + "\\n")
+    lib.control()
+    for split in ("train", "test"):
+        for frame in lib.frames(args.source_path, split):
+            assert (Path(args.source_path) / (frame["file_path"] + frame["file_ext"])).is_file()
+    model = Path(args.model_path)
+    if args.load_pc:
+        assert Path(args.load_pc).is_file(), f"stage 2 loads {{args.load_pc}}, which stage 1 did not write"
+        assert int(Path(args.load_pc).read_text()) < int(args.iterations)
+    model.mkdir(parents=True, exist_ok=True)
+    (model / "cfg.json").write_text(json.dumps(vars(args)))
+    (model / f"chkpnt{{args.iterations}}.pth").write_text(args.iterations)
+    print(f"trained to {{args.iterations}} on {{args.source_path}}")
+''')
+
+RNG_RENDER = textwrap.dedent('''
+    import argparse, json
+    from pathlib import Path
+    import standin_lib as lib
+    parser = argparse.ArgumentParser()
+    parser.add_argument("-m", "--model_path", required=True)
+    parser.add_argument("--iteration", type=int, default=-1)
+    for name in ("--in_channels", "--depth_mlp_modifier", "--encoding_levels_each", "--encoding_levels_shadow",
+                 "--max_reso", "--crop_pc"):
+        parser.add_argument(name)
+    for name in ("--skip_train", "--eval", "--json", "--color_mlp", "--defer_shading", "--shadow_map",
+                 "--depth_mlp"):
+        parser.add_argument(name, action="store_true")
+    args = parser.parse_args()
+    with open(lib.CHECKOUT / "calls.txt", "a") as calls:
+        calls.write("render\\n")
+    trained = json.loads((Path(args.model_path) / "cfg.json").read_text())
+    assert trained["load_pc"] and int(trained["iterations"]) == args.iteration, trained
+    out = Path(args.model_path) / "test" / f"ours_{args.iteration}" / "renders"
+    lib.write_renders(trained["source_path"], out, "{index:05d}.png", ".png", trained["white_background"])
+    # render.py:82 saves the ground truth of each view it rendered beside it (SHIFT: of the frame it rendered)
+    lib.write_renders(trained["source_path"], out.parent / "gt", "{index:05d}.png", ".png",
+                      trained["white_background"])
+    print(f"rendered to {out}")
+''')
+RNG_FLAGS = ["--iterations", "--save_iterations", "--densify_until_iter", "--densify_from_iter",
+             "--opacity_reset_interval", "--position_lr_max_steps", "--in_channels", "--max_training_images",
+             "--max_reso", "--loss", "--load_pc", "--depth_mlp_modifier", "--encoding_levels_each",
+             "--encoding_levels_shadow", "--crop_pc"]
+RNG_SWITCHES = ["--eval", "--json", "--color_mlp", "--defer_shading", "--shadow_map", "--shadow_grad", "--depth_mlp",
+                "--white_background"]
+
 # NRHints: main.py <tyro sub-command> --config.<a>.<b> VALUE ...; renders after training.
 NRHINTS_MAIN = textwrap.dedent('''
     import json, sys
@@ -202,12 +265,16 @@ def _write(path: Path, text: str) -> None:
 
 
 def write_checkout(root: Path, code: str, git: bool = False) -> Path:
-    """A stand-in checkout of ``code`` ("gs3-official", "ssdgs-official" or "nrhints-official") at ``root``;
+    """A stand-in checkout of ``code`` ("gs3-official", "ssdgs-official", "nrhints-official" or "rng-official") at
+    ``root``;
     ``git`` makes it a git repository with one commit."""
     root.mkdir(parents=True, exist_ok=True)
     _write(root / "standin_lib.py", LIB)
     if code == "nrhints-official":
         _write(root / "main.py", NRHINTS_MAIN)
+    elif code == "rng-official":
+        _write(root / "train.py", RNG_TRAIN.format(flags=RNG_FLAGS, switches=RNG_SWITCHES))
+        _write(root / "render.py", RNG_RENDER)
     else:
         flags, switches = ((GS3_FLAGS, GS3_SWITCHES) if code == "gs3-official" else (SSDGS_FLAGS, SSDGS_SWITCHES))
         _write(root / "train.py", GAUSSIAN_TRAIN.format(flags=flags, switches=switches))

@@ -392,7 +392,9 @@ def test_job_environment_serves_cuda_requests_from_the_cpu_with_the_standins():
     # nrhints-official gets only the lpips stand-in (tests/test_cpu_standins_lpips.py), not these
     assert "OLATBENCH_STANDIN_LIGHT" not in job_environment("nrhints-official", {"PYTHONPATH": "/x"})
     assert job_environment("nrhints-official", {})["PYTHONPATH"].split(os.pathsep)[0] != str(SITE)
-    assert job_environment("rng-official", {"PYTHONPATH": "/x"}) == {"CUDA_VISIBLE_DEVICES": ""}
+    assert job_environment("gigs-official", {"PYTHONPATH": "/x"}) == {"CUDA_VISIBLE_DEVICES": ""}
+    rng = job_environment("rng-official", {"PYTHONPATH": "/x"})  # RNG's forks: tests/test_cpu_standins_rng.py
+    assert rng["PYTHONPATH"].split(os.pathsep)[0] == str(SITE) and "OLATBENCH_STANDIN_LIGHT" not in rng
     done = subprocess.run([sys.executable, "-c", SHIM_PROBE], env={**os.environ, **env}, capture_output=True,
                           text=True, timeout=600)
     assert done.returncode == 0, done.stderr
@@ -451,9 +453,10 @@ def test_a_cpu_job_imports_the_standins_and_records_them(tmp_path):
     assert not (checkout / "gsplat").exists()
 
 
-@pytest.mark.parametrize("method", ["ssdgs-official", "nrhints-official"])
+@pytest.mark.parametrize("method", ["ssdgs-official", "nrhints-official", "rng-official"])
 def test_doctor_checks_the_cpu_environment_against_the_pins(tmp_path, monkeypatch, method):
-    """Each method's own stand-ins are imported and its own pins checked (NRHints: its requirements.txt)."""
+    """Each method's own stand-ins are imported and its own pins checked (NRHints: its requirements.txt; RNG: its
+    environment.yml and the imports it does not list)."""
     import importlib
     import importlib.metadata
 
@@ -461,10 +464,10 @@ def test_doctor_checks_the_cpu_environment_against_the_pins(tmp_path, monkeypatc
     from official_standins import write_checkout
 
     from olatbench.cli import main
-    from olatbench.methods.official.doctor import CPU_PINS, NRHINTS_CPU_PINS, cpu_pins
+    from olatbench.methods.official.doctor import CPU_PINS, NRHINTS_CPU_PINS, RNG_CPU_PINS, cpu_pins
 
     pins = cpu_pins(method)
-    assert pins is (NRHINTS_CPU_PINS if method == "nrhints-official" else CPU_PINS)
+    assert pins is {"nrhints-official": NRHINTS_CPU_PINS, "rng-official": RNG_CPU_PINS}.get(method, CPU_PINS)
     monkeypatch.chdir(tmp_path)
     checkout = write_checkout(tmp_path / "clone", method, git=True)
     options = [f"{method}.checkout={checkout}", f"{method}.python={sys.executable}", f"{method}.device=cpu"]

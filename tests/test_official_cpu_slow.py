@@ -70,3 +70,42 @@ def test_authors_code_trains_and_scores_on_the_cpu(tmp_path, method, variable):
     status = subprocess.run(["git", "-C", checkout, "status", "--porcelain", "--untracked-files=no"],
                             capture_output=True, text=True)
     assert status.stdout.strip() == "", status.stdout  # no tracked file of the checkout changed
+
+
+def test_rng_trains_both_stages_renders_and_scores_on_the_cpu(tmp_path):
+    """RNG (4e8748e) through its three commands at the mini preset's scale (``OLATBENCH_RNG_CODE``: a clone at the
+    pin; ``OLATBENCH_RNG_PYTHON``: the RNG environment of docs/official.md; ``OLATBENCH_RNG_ITERATIONS``, default
+    200: about 20 minutes on 2 shared cores, most of it stage 1's per-Gaussian MLP on 100,000 points)."""
+    checkout, python = os.environ.get("OLATBENCH_RNG_CODE"), os.environ.get("OLATBENCH_RNG_PYTHON")
+    if not checkout:
+        pytest.skip("OLATBENCH_RNG_CODE is not set (a clone of sssssy/RNG_release at the pinned commit)")
+    if not python:
+        pytest.skip("OLATBENCH_RNG_PYTHON is not set (the RNG environment's interpreter)")
+    if not (mini_root() / "diffuse_shadow" / "transforms_train.json").is_file():
+        pytest.skip(f"the mini suite is not rendered in {mini_root()} (olatbench datasets synth mini)")
+    iterations = int(os.environ.get("OLATBENCH_RNG_ITERATIONS", "200"))
+    argv = [sys.executable, "-m", "olatbench", "run", "--method", "rng-official", "--suite", "mini", "--scenes",
+            "diffuse_shadow", "--iterations", str(iterations), "-o", str(tmp_path / "runs"), "--code",
+            f"checkout={checkout}", "--code", f"python={python}", "--code", "device=cpu"]
+    done = subprocess.run(argv, cwd=tmp_path, capture_output=True, text=True, timeout=6 * 3600)
+    [folder] = (tmp_path / "runs").rglob("seed0")
+    assert done.returncode == 0, done.stdout + done.stderr + (folder / "log.txt").read_text()[-5000:]
+    results = read_results(folder / "results.json")
+    official = results["official"]
+    assert results["status"] == "done" and official["device"] == "cpu" and official["matches_pin"]
+    assert {"diff_gaussian_rasterization", "diff_gaussian_rasterization_orthographic", "torchmetrics"} <= \
+        set(official["standins"])
+    stage1, stage2, render = (command["argv"] for command in official["commands"])
+    end1 = str(round(30000 * iterations / 100000))
+    assert stage1[stage1.index("--iterations") + 1] == end1 and stage2[stage2.index("--load_pc") + 1].endswith(
+        f"chkpnt{end1}.pth") and "--skip_train" in render
+    log = (folder / "log.txt").read_text()
+    assert "Loaded point cloud" in log and "Training complete." in log and "PSNR:" in log  # render.py's metrics
+    mean = results["metrics"]["test"]["mean"]
+    assert all(math.isfinite(mean[name]) for name in ("psnr", "ssim", "lpips")), mean
+    renders = sorted(Path(folder, "renders", "test").iterdir())
+    assert len(renders) == len(results["metrics"]["test"]["per_image"]) > 0
+    assert read_image(renders[0]).std() > 0.02, f"{renders[0]} is blank"
+    status = subprocess.run(["git", "-C", checkout, "status", "--porcelain", "--untracked-files=no"],
+                            capture_output=True, text=True)
+    assert status.stdout.strip() == "", status.stdout

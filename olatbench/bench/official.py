@@ -1,12 +1,12 @@
 """Run one job of an official implementation: the runner's counterpart of the in-process training loop.
 
 In the job folder: ``job.json`` and ``config.json`` first; ``official/`` (the converted scene and the official
-scripts' outputs, emptied at every start: the scripts cannot resume, so an interrupted job reruns its commands from
-the start); every command's output appended to ``log.txt``; the test renders copied to
-``renders/<test split>/<frame id>.png`` (8-bit sRGB, as every method's); ``results.json`` scored under the suite's
-protocol with ``method_kind: "official"`` and an ``official`` block (repository, pinned and checked-out commit,
-launcher, command lines with exit codes and wall times); ``DONE`` last. A failing command leaves ``error.txt``
-(the log's last lines, then one line with the step and exit code) and a failed ``results.json``.
+scripts' outputs; the scripts cannot resume a command, so an interrupted job reruns the commands that had not
+finished: `olatbench.methods.official.runner`); every command's output appended to ``log.txt``; the test renders
+copied to ``renders/<test split>/<frame id>.png`` (8-bit sRGB, as every method's); ``results.json`` scored under the
+suite's protocol with ``method_kind: "official"`` and an ``official`` block (repository, pinned and checked-out
+commit, launcher, command lines with exit codes and wall times); ``DONE`` last. A failing command leaves
+``error.txt`` (the log's last lines, then one line with the step and exit code) and a failed ``results.json``.
 """
 
 from __future__ import annotations
@@ -52,7 +52,7 @@ def run_official_job(job: Job, folder: Path, log: JobLog, started: str) -> JobOu
     settings = CodeSettings.from_json(job.official or {"method": job.method})
     config = OfficialConfig(**job.config)
     log(f"job {job.id}: {job.method} (official code) on {job.suite}/{job.label}, {config.iterations} iterations; "
-        f"official scripts cannot resume: commands run from the start")
+        f"official scripts cannot resume: commands that had not finished run from their start")
     scene = load_scene(job.scene_path, format=job.scene_format)
     run: OfficialRun | None = None
     try:
@@ -69,7 +69,7 @@ def run_official_job(job: Job, folder: Path, log: JobLog, started: str) -> JobOu
     results = base_results(job, "done", started)
     results["metrics"] = metrics
     results["files"] = {job.test_split: scored_files(scene.split(job.test_split), folder, job.test_split)}
-    train_seconds = sum(r.seconds or 0.0 for r in run.commands if r.step == "train")
+    train_seconds = sum(r.seconds or 0.0 for r in run.commands if r.step in code.train_steps)
     results["timing"].update(train_seconds=round(train_seconds, 3), render_fps=None)
     results.update(_provenance(job, run, settings))
     write_results(folder / RESULTS_FILE, results)

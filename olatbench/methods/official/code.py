@@ -13,7 +13,9 @@ An `OfficialCode` says, for the authors' scripts:
   command carries a flag of ``render_orders``, which names the file the script then reads instead (SSD-GS and
   GS³ ``render.py --opt_pose`` read the refined cameras their ``train.py`` saved, in its shuffled order). Renders
   are paired with frames through that file's ``img_path`` / ``file_path``, never by position in olatbench's split
-  (`olatbench.methods.official.convert.pair_renders`).
+  (`olatbench.methods.official.convert.pair_renders`). A render script that also writes the ground truth it
+  rendered each view for (RNG's ``gt/<index:05d>.png``) names it in ``render_ground_truths``; each is then checked
+  against its paired frame's image (`olatbench.methods.official.convert.check_ground_truths`).
 
 Placeholders in ``argv`` and ``renders`` (`str.format` fields), filled per job:
 
@@ -28,11 +30,17 @@ Where the authors' scripts give one scene other flags than its suite's (GS³ ``r
 100K), ``scene_args`` holds them as `SceneArgs`, keyed by the canonical scene name and citing script and lines; a
 scene's flag replaces the value the command already has for it, or is appended.
 
+A code that trains in several commands (RNG: stage 1, then stage 2 from stage 1's checkpoint) names them in
+``train_steps`` (default: the one step ``train``); ``milestones`` are the iteration counts its commands name
+besides the run's end, as placeholders (RNG's ``{stage1_iterations}``: 30000 in its README), and ``sources`` says
+where each command and per-suite argument came from (`olatbench methods show`).
+
 Runs shorter than the scripts' (the CPU-sized ``mini`` suite) scale the schedule as the native presets do: with
 ``reference_iterations`` set in the job's config, every flag of ``schedule_flags`` (the train script's
 iteration-valued options: freeze, warm-up and decay steps, densification window, opacity reset) is multiplied by
 ``iterations / reference_iterations`` — its value on the command line, or the parser's default named there — and
-rounded (`OfficialCode.scaled_schedule`); cadences such as the densification interval are not scaled. With
+rounded (`OfficialCode.scaled_schedule`), in every train step, and so is every milestone
+(`OfficialCode.milestone_values`); cadences such as the densification interval are not scaled. With
 ``init_points`` set, olatbench writes that many initial points, drawn like a native method's from the job's seed
 (`olatbench.methods.initialisation.initial_points`), where the loader reads its initial point cloud
 (``point_cloud``), instead of the loader's own initialisation.
@@ -53,7 +61,7 @@ from olatbench.methods.ranges import AT_LEAST_ONE, Range, check_ranges
 SUITE_ARGS = "{*suite_args}"
 ANY_SUITE = "*"
 LOADER_ORDER = "{scene}/transforms_test.json"  # the converted test split, as the official loaders read it
-SCHEDULED_STEP = "train"  # the step whose schedule_flags a scaled run scales
+TRAIN_STEP = "train"  # the train step of a code that names no others (OfficialCode.train_steps)
 ARGUMENT_FIELDS = ("preset_args", "train_args", "render_args")  # OfficialConfig's argument lists
 
 
@@ -146,6 +154,10 @@ class OfficialCode:
     schedule_flags: Mapping[str, int] = field(default_factory=dict)  # train flag -> parser default (scaled runs)
     point_cloud: str = ""  # where in the scene folder the loader reads its initial points ("": it reads none)
     unsupported: str = ""  # why olatbench's scenes cannot be fed to this code ("" = runnable)
+    render_ground_truths: str = ""  # where the render script writes the ground truth of render {index} ("": none)
+    train_steps: tuple[str, ...] = (TRAIN_STEP,)  # the training commands: scaled, timed, given train_args
+    milestones: Mapping[str, int] = field(default_factory=dict)  # placeholder -> iterations at the scripts' length
+    sources: tuple[tuple[str, str], ...] = ()  # (what, where the pinned commit says so), for `methods show`
 
     def __post_init__(self) -> None:
         if not self.commands and not self.unsupported:
@@ -153,8 +165,11 @@ class OfficialCode:
         steps = [step for step, _ in self.commands]
         if len(set(steps)) != len(steps):
             raise ValueError(f"official code {self.name!r}: step names repeat: {steps}")
+        unknown = sorted(set(self.train_steps) - set(steps))
+        if self.commands and unknown:
+            raise ValueError(f"official code {self.name!r}: train_steps {unknown} are no step of {steps}")
         for attribute in ("data_formats", "render_colourspace", "suite_args", "env", "render_orders",
-                          "schedule_flags"):
+                          "schedule_flags", "milestones"):
             object.__setattr__(self, attribute, _frozen(getattr(self, attribute)))
 
     @property
@@ -191,6 +206,17 @@ class OfficialCode:
             scaled += [flag, str(max(new, 1) if value > 0 else new)]
         return apply_scene_args(argv, tuple(scaled))
 
+    def milestone_values(self, iterations: int, factor: float | None) -> dict[str, int]:
+        """The ``milestones`` for a run of ``iterations`` steps: as the scripts write them, or × ``factor`` (a scaled
+        run) and rounded; `ValueError` when one is not between 1 and ``iterations`` - 1 (a stage would be empty)."""
+        values = {name: value if factor is None else round(value * factor) for name, value in self.milestones.items()}
+        for name, value in values.items():
+            if not 1 <= value < iterations:
+                raise ValueError(f"{name} = {value} (the scripts' {self.milestones[name]}"
+                                 f"{'' if factor is None else f' × {factor:g}'}) must lie between 1 and iterations - 1 "
+                                 f"= {iterations - 1}: run more iterations, or set reference_iterations to scale it")
+        return values
+
     def command(self, step: str, argv: tuple[str, ...], values: Mapping[str, str], suite: str,
                 extra: tuple[str, ...] = (), scene: str | None = None, schedule_factor: float | None = None,
                 preset_args: tuple[str, ...] = ()) -> list[str]:
@@ -208,7 +234,7 @@ class OfficialCode:
                 raise ValueError(f"official code {self.name!r}, step {step!r}: unknown placeholder {error} in "
                                  f"{arg!r}; known: {', '.join(sorted(values))}, {SUITE_ARGS}") from None
         filled = apply_scene_args(filled, self.args_for_scene(suite, scene, step))
-        if step == SCHEDULED_STEP:
+        if step in self.train_steps:
             filled = apply_scene_args(filled, preset_args)
             if schedule_factor is not None:
                 filled = self.scaled_schedule(filled, schedule_factor)
@@ -235,6 +261,9 @@ class OfficialCode:
         if self.schedule_flags:
             lines.append("scaled with reference_iterations (defaults in brackets): " + " ".join(
                 f"{flag} [{default}]" for flag, default in self.schedule_flags.items()))
+        if self.milestones:
+            lines.append("milestones (scaled with reference_iterations): " + " ".join(
+                f"{{{name}}} = {value}" for name, value in self.milestones.items()))
         if self.point_cloud:
             lines.append(f"init_points: written to {{scene}}/{self.point_cloud}")
         lines.append(f"renders: {self.renders}")
@@ -242,4 +271,5 @@ class OfficialCode:
         lines.append(f"render i shows the i-th frame of {LOADER_ORDER}{orders} (paired by img_path/file_path)")
         if self.env:
             lines.append("environment: " + " ".join(f"{k}={v}" for k, v in self.env.items()))
+        lines += [f"source of {what}: {where}" for what, where in self.sources]
         return lines

@@ -136,3 +136,39 @@ def pair_renders(code: OfficialCode, order_file: Path, frame_ids: list[str], val
         raise OfficialRunError(f"{code.name}: {order_file} lists {len(paired)} of the {len(frame_ids)} test frames; "
                                f"left out, e.g. {', '.join(left_out[:5])}")
     return {frame_id: paired[frame_id] for frame_id in frame_ids}
+
+
+GROUND_TRUTH_TOLERANCE = 2.0 / 255  # mean absolute difference: 8-bit rounding of the loader's composite
+
+
+def check_ground_truths(code: OfficialCode, order_file: Path, values: Mapping[str, object]) -> None:
+    """Check that the ground truth the render script wrote for render ``i`` (``code.render_ground_truths``) is the
+    image of the ``i``-th frame of ``order_file`` composited over black or white, as the loader composites (mean
+    absolute difference at most `GROUND_TRUTH_TOLERANCE`): what the script says it rendered each view for
+    confirms the pairing of `pair_renders`. `OfficialRunError` naming the render, the frame and the file otherwise;
+    nothing to check when the code writes no ground truths."""
+    from olatbench.datasets.images import read_image
+
+    if not code.render_ground_truths:
+        return
+    entries = json.loads(Path(order_file).read_text(encoding="utf-8"))["frames"]
+    for index, entry in enumerate(entries):
+        written_path = Path(code.render_ground_truths.format_map({**values, "index": index}))
+        source = Path(order_file).parent / (str(entry["file_path"]) + str(entry.get("file_ext", ".png")))
+        if not written_path.is_file():
+            raise OfficialRunError(f"{code.name}: the render script wrote no ground truth for render {index} "
+                                   f"({written_path} is missing)")
+        written = read_image(written_path)[..., :3]
+        image = read_image(source)
+        rgb, alpha = image[..., :3], image[..., 3:4] if image.shape[-1] == 4 else np.ones_like(image[..., :1])
+        if written.shape != rgb.shape:
+            raise OfficialRunError(f"{code.name}: the ground truth {written_path} of render {index} is "
+                                   f"{written.shape[1]}×{written.shape[0]}, frame {source.stem} {rgb.shape[1]}×"
+                                   f"{rgb.shape[0]}")
+        error = min(float(np.abs(written - (rgb * alpha + background * (1 - alpha))).mean())
+                    for background in (0.0, 1.0))
+        if error > GROUND_TRUTH_TOLERANCE:
+            raise OfficialRunError(f"{code.name}: render {index} was rendered for another image than frame "
+                                   f"{source.stem}, the {index}-th of {order_file}: the ground truth the script wrote "
+                                   f"with it ({written_path}) differs from that frame's image by {error:.3f} on "
+                                   "average; renders cannot be paired")

@@ -1,7 +1,7 @@
 """Checks of each configured official implementation for ``olatbench doctor``: the checkout exists and is at the
 pinned commit (or says which commit it is at), the interpreter runs, and a GPU is visible from it — or, with
 ``device=cpu``, that olatbench's stand-ins of that method import there and the environment holds the authors' pins
-(`CPU_PINS`, `NRHINTS_CPU_PINS`: the recipes of docs/official.md)."""
+(`CPU_PINS`, `NRHINTS_CPU_PINS`, `RNG_CPU_PINS`: the recipes of docs/official.md)."""
 
 from __future__ import annotations
 
@@ -25,8 +25,15 @@ NRHINTS_CPU_PINS = {"torch": "2.13.0+cpu", "numpy": None, "tyro": "0.5.4", "torc
                     "jaxtyping": "0.2.19", "imageio": "2.24.0", "cv2": "4.8.1", "tensorboardX": "2.5.1",
                     "torchinfo": "1.8.0", "mcubes": None, "trimesh": "3.18.0", "einops": None, "scipy": None,
                     "tqdm": None, "wandb": None}
-METHOD_CPU_PINS = {"nrhints-official": NRHINTS_CPU_PINS}  # the others: CPU_PINS
-_PROBE_IMPORTS = {"simple_knn": "simple_knn._C", "torchvision": "torchvision.utils"}  # what the authors import
+# RNG 4e8748e: environment.yml pins python 3.7.13, pytorch 1.12.1 and torchvision 0.13.1 (CUDA 11.6 builds; here the
+# local CPU torch, and torchvision is a stand-in) and plyfile, tqdm unpinned; its code also imports numpy, PIL,
+# cv2 (scene/dataset_readers.py:20), matplotlib (train.py:30) and OpenEXR (exr.py:6), which it does not list.
+# Pillow 11.1.0 as for SSD-GS: dataset_readers.py:265 passes an np.byte array to Image.fromarray(..., "RGB").
+RNG_CPU_PINS = {"torch": "2.13.0+cpu", "numpy": "1.26.3", "PIL": "11.1.0", "plyfile": None, "tqdm": None,
+                "cv2": None, "matplotlib": None, "OpenEXR": None}
+METHOD_CPU_PINS = {"nrhints-official": NRHINTS_CPU_PINS, "rng-official": RNG_CPU_PINS}  # the others: CPU_PINS
+_PROBE_IMPORTS = {"simple_knn": "simple_knn._C", "torchvision": "torchvision.utils",  # what the authors import
+                  "torchmetrics": "torchmetrics.functional.image"}
 _CPU_PROBE = ("import importlib, importlib.metadata as md, sys\n"
               "for name in STANDINS:\n"
               "    module = importlib.import_module(name)\n"

@@ -25,17 +25,20 @@ class OfficialRunError(RuntimeError):
 
 @dataclass
 class CommandRecord:
-    """What ran: the step, its argument list, working folder, exit code (None: did not finish) and wall time (s)."""
+    """What ran: the step, its argument list, working folder, exit code (None: did not finish) and wall time (s);
+    ``resumed``: an earlier attempt of the job finished it (its exit code and time), so it was not run again."""
 
     step: str
     argv: list[str]
     cwd: str
     exit_code: int | None = None
     seconds: float | None = None
+    resumed: bool = False
 
     def to_json(self) -> dict:
         return {"step": self.step, "argv": self.argv, "command": shlex.join(self.argv), "cwd": self.cwd,
-                "exit_code": self.exit_code, "seconds": None if self.seconds is None else round(self.seconds, 3)}
+                "exit_code": self.exit_code, "seconds": None if self.seconds is None else round(self.seconds, 3),
+                "resumed": self.resumed}
 
 
 def log_tail(path: Path, start: int = 0, lines: int = LOG_TAIL_LINES) -> str:

@@ -1,21 +1,27 @@
 """One run of an official implementation on one scene: convert, fill in the commands, run them, find the renders.
 
 Layout below the job's working folder ``work`` (``<job folder>/official``):
-``scene/`` the converted scene, ``model/`` what the official scripts write. The official scripts cannot resume,
-so `prepare` always starts from an empty ``work`` folder.
+``scene/`` the converted scene, ``model/`` what the official scripts write, ``steps/<step>.json`` one file per
+command that finished (exit code 0: its argument list and wall time), written after it. The official scripts
+cannot resume a command, but a job can resume between commands: `prepare` keeps ``model/`` when the first commands
+of the job are recorded in ``steps/`` with the same argument lists, and marks them done, so a rerun redoes only the
+commands that did not finish (RNG's stage 2 and render after its stage 1); otherwise it starts from an empty
+``work`` folder. The scene is written anew either way.
 """
 
 from __future__ import annotations
 
+import json
 import shutil
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from olatbench.atomic import write_json
 from olatbench.datasets.records import Frame, Scene
 from olatbench.methods.official.code import OfficialCode, OfficialConfig
-from olatbench.methods.official.convert import pair_renders, write_for_code
+from olatbench.methods.official.convert import check_ground_truths, pair_renders, write_for_code
 from olatbench.methods.official.process import CommandRecord, OfficialRunError, run_command
 from olatbench.methods.official.settings import CodeSettings
 
@@ -51,24 +57,27 @@ def prepare(code: OfficialCode, settings: CodeSettings, source: Scene, work: Pat
     if problems:
         raise OfficialRunError(f"{code.name}: " + "; ".join(problems) + " (see docs/official.md)")
     work = Path(work).resolve()
-    if work.exists():
-        shutil.rmtree(work)
-    work.mkdir(parents=True)
     checkout = Path(str(settings.checkout)).expanduser().resolve()
-    scene_dir = write_for_code(code, source, work / "scene", suite, train_split, test_split, resolution)
-    if config.init_points is not None:
-        write_initial_points(scene_dir / code.point_cloud, source.split(train_split), config.init_points, seed)
-    model_dir = work / "model"
-    values: dict[str, object] = {"scene": str(scene_dir), "model": str(model_dir), "checkout": str(checkout),
-                                 "iterations": int(config.iterations)}
-    prefix = settings.prefix(work)
-    extra = {"train": tuple(config.train_args), "render": tuple(config.render_args)}
+    scene_dir, model_dir = work / "scene", work / "model"
     factor = None if config.reference_iterations is None else config.iterations / config.reference_iterations
+    values: dict[str, object] = {"scene": str(scene_dir), "model": str(model_dir), "checkout": str(checkout),
+                                 "iterations": int(config.iterations),
+                                 **code.milestone_values(int(config.iterations), factor)}
+    prefix = settings.prefix(work)
+    extra = {**{step: tuple(config.train_args) for step in code.train_steps}, "render": tuple(config.render_args)}
     commands = [CommandRecord(step, prefix + code.command(step, argv, values, suite, extra.get(step, ()),
                                                           scene=source.name, schedule_factor=factor,
                                                           preset_args=tuple(config.preset_args)),
                               str(checkout))
                 for step, argv in code.commands]
+    if not mark_finished(work, commands) and work.exists():
+        shutil.rmtree(work)
+    shutil.rmtree(scene_dir, ignore_errors=True)
+    work.mkdir(parents=True, exist_ok=True)
+    if write_for_code(code, source, scene_dir, suite, train_split, test_split, resolution) != scene_dir:
+        raise OfficialRunError(f"{code.name}: the scene was not written to {scene_dir}")
+    if config.init_points is not None:
+        write_initial_points(scene_dir / code.point_cloud, source.split(train_split), config.init_points, seed)
     order = Path(code.render_order([record.argv for record in commands]).format_map(values))
     env = dict(code.env)
     if settings.device == "cpu":
@@ -80,9 +89,38 @@ def prepare(code: OfficialCode, settings: CodeSettings, source: Scene, work: Pat
                        render_order=order, values=values, colourspace=code.colourspace_for(suite), env=env)
 
 
+STEPS_DIR = "steps"  # below work: <step>.json for each command that finished (module docstring)
+
+
+def step_file(work: Path, step: str) -> Path:
+    """Where ``work`` records that the command of ``step`` finished."""
+    return work / STEPS_DIR / f"{step}.json"
+
+
+def mark_finished(work: Path, commands: list[CommandRecord]) -> int:
+    """Mark as done (``resumed``, with their recorded wall time) the leading ``commands`` that an earlier attempt
+    in ``work`` finished with the same argument lists; returns how many (0: start from scratch)."""
+    done = 0
+    for record in commands:
+        try:
+            earlier = json.loads(step_file(work, record.step).read_text())
+        except (OSError, ValueError):
+            break
+        if not isinstance(earlier, dict) or earlier.get("argv") != record.argv:
+            break
+        record.exit_code, record.seconds, record.resumed = 0, float(earlier.get("seconds") or 0.0), True
+        done += 1
+    return done
+
+
 def config_problems(code: OfficialCode, config: OfficialConfig) -> list[str]:
     """What in ``config`` ``code`` cannot do (empty when it can)."""
     problems = []
+    factor = None if config.reference_iterations is None else config.iterations / config.reference_iterations
+    try:
+        code.milestone_values(int(config.iterations), factor)
+    except ValueError as error:
+        problems.append(str(error))
     if config.reference_iterations is not None and not code.schedule_flags:
         problems.append(f"reference_iterations={config.reference_iterations} is set, but olatbench knows no "
                         f"schedule flags of {code.name} to scale; unset it")
@@ -105,16 +143,25 @@ def write_initial_points(path: Path, frames: list[Frame], count: int, seed: int)
 
 
 def execute(run: OfficialRun, log_path: Path) -> None:
-    """Run the commands in order with their output appended to ``log_path`` (`OfficialRunError` on failure)."""
+    """Run the commands in order with their output appended to ``log_path`` (`OfficialRunError` on failure),
+    skipping those an earlier attempt finished (`mark_finished`) and recording each that finishes (`step_file`)."""
     minutes = run.settings.timeout_minutes
     for record in run.commands:
+        if record.resumed:
+            with open(log_path, "a") as log:
+                marker = step_file(run.work, record.step)
+                log.write(f"{record.step}: finished by an earlier attempt of this job ({marker}), not rerun\n")
+            continue
         run_command(record, log_path, run.env, None if minutes is None else 60.0 * minutes)
+        write_json(step_file(run.work, record.step), {"argv": record.argv, "seconds": record.seconds})
 
 
 def collect(run: OfficialRun) -> dict[str, Path]:
-    """``{frame id: its render}``, paired through ``run.render_order`` (`pair_renders`) and checked to exist;
+    """``{frame id: its render}``, paired through ``run.render_order`` (`pair_renders`; confirmed by the ground
+    truths the script wrote, where it writes them: `check_ground_truths`) and checked to exist;
     `OfficialRunError` listing the missing ones otherwise."""
     renders = pair_renders(run.code, run.render_order, run.frame_ids, run.values)
+    check_ground_truths(run.code, run.render_order, run.values)
     missing = [(frame_id, path) for frame_id, path in renders.items() if not path.is_file()]
     if missing:
         shown = "\n".join(f"  {frame_id}: {path}" for frame_id, path in missing[:5])

@@ -1,5 +1,5 @@
 """The official implementations olatbench knows, as `OfficialCode` (how to run it) and `MethodSpec` (what the
-registry lists): ``ssdgs-official``, ``gs3-official``, ``nrhints-official`` run; ``rng-official``,
+registry lists): ``ssdgs-official``, ``gs3-official``, ``nrhints-official``, ``rng-official`` run;
 ``gigs-official``, ``tensoir-official`` and ``r3dg-official`` are listed with the reason they cannot be run.
 
 "Verified" here means: the repository and the pinned commit exist (a git mirror of the repository was read at
@@ -180,14 +180,86 @@ NRHINTS_CODE = OfficialCode(
                           "scripts/train_real.sh:12"),),
 )
 
+# ---- RNG (sssssy/RNG_release) ----------------------------------------------------------------------------------
+# README.md:20-41 at 4e8748e: stage 1 (forward shading: a per-Gaussian colour MLP) for 30K steps, stage 2 (deferred
+# shading with a shadow map and a depth MLP) from stage 1's checkpoint to 100K, in the same model folder; render.py
+# with stage 2's pipeline flags. The stages' flags are the README's; olatbench names stage 1's length
+# {stage1_iterations} (30000 at the README's 100K, scaled in shorter runs), saves only at the stages' ends (the
+# README's extra --save_iteration 7000 snapshot is read by nothing) and adds --skip_train to the render (the README
+# renders the training views too, render.py:296-297).
+_RNG_STAGE1 = ("--eval", "--json", "--color_mlp", "--in_channels", "16", "--max_training_images", "1000",
+               "--max_reso", "512", "--loss", "l1")
+_RNG_STAGE2_PIPE = ("--color_mlp", "--defer_shading", "--in_channels", "16", "--shadow_map", "--depth_mlp",
+                    "--depth_mlp_modifier", "1.0", "--encoding_levels_each", "2", "--encoding_levels_shadow", "8",
+                    "--max_reso", "512", "--crop_pc", "1.0")
+# OptimizationParams (arguments/__init__.py:97-117): the iteration-valued ones. Not scaled: --densification_interval
+# and --shadow_cache_rebuild (cadences), train.py:88's `iteration % 1000` SH step (no SH with --color_mlp) and
+# train.py:192-201's fixed `iteration % 15000` learning-rate decay (x0.75; a constant of the script, not a flag:
+# it never fires in a run shorter than 15000 steps). --position_lr_max_steps is scaled but unused: train.py:85
+# has update_learning_rate commented out.
+_RNG_SCHEDULE_FLAGS = {"--position_lr_max_steps": 30_000, "--densify_from_iter": 500,
+                       "--densify_until_iter": 15_000, "--opacity_reset_interval": 3_000}
+_RNG_WHITE = "white"  # the variant preset that trains on a white background (docs/official.md)
+
+RNG_CODE = OfficialCode(
+    name="rng-official", paper="RNG: Relightable Neural Gaussians (Fan et al., CVPR 2025)",
+    commands=(
+        ("train", ("train.py", "-s", "{scene}", "-m", "{model}", "--iterations", "{stage1_iterations}",
+                   "--save_iterations", "{stage1_iterations}", "--densify_until_iter", "30000", *_RNG_STAGE1,
+                   SUITE_ARGS)),
+        ("train_stage2", ("train.py", "-s", "{scene}", "-m", "{model}", "--iterations", "{iterations}",
+                          "--save_iterations", "{iterations}", "--load_pc", "{model}/chkpnt{stage1_iterations}.pth",
+                          "--eval", "--json", "--loss", "l1", "--max_training_images", "1000", *_RNG_STAGE2_PIPE,
+                          "--shadow_grad", SUITE_ARGS)),
+        ("render", ("render.py", "-m", "{model}", "--iteration", "{iterations}", "--eval", "--json",
+                    *_RNG_STAGE2_PIPE, "--skip_train", SUITE_ARGS)),
+    ),
+    # render_set (render.py:35-105) writes test view idx as <idx:05d>.png, iterating scene.getTestCameras() of
+    # Scene(shuffle=False) (render.py:231); readCamerasFromTransforms keeps transforms_test.json's order
+    # (scene/dataset_readers.py:222-233: --less 0 keeps every frame; max_training_images is 0 for the test split,
+    # dataset_readers.py:304), so render i is the i-th frame of the converted transforms_test.json.
+    renders="{model}/test/ours_{iterations}/renders/{index:05d}.png",
+    # render_set saves view idx's ground truth (original_image, the loader's composite) beside it (render.py:42, 82)
+    render_ground_truths="{model}/test/ours_{iterations}/gt/{index:05d}.png",
+    data_formats={ANY_SUITE: "nrhints"},  # PIL reads file_path + file_ext (8-bit RGBA; dataset_readers.py:236-257)
+    # The paper (appendix, the commented paragraph at ssdgs_iclr2026.tex:535) says RNG kept its original black
+    # background on the synthetic (GS³) scenes as well ("we did not retrain RNG ... under this setting"): no suite
+    # passes --white_background (default False, arguments/__init__.py:54); the variant preset `white` adds it.
+    suite_args={},
+    env={"TORCH_FORCE_NO_WEIGHTS_ONLY_LOAD": "1"},  # train.py:46 torch.load()s its own stage-1 checkpoint
+    schedule_flags=_RNG_SCHEDULE_FLAGS,
+    single_camera_model=True,  # one camera_intrinsics / camera_angle_x per transforms file (dataset_readers.py:213)
+    train_steps=("train", "train_stage2"),
+    milestones={"stage1_iterations": 30_000},
+    sources=(
+        ("train (stage 1, forward shading)", "README.md:26 (python train.py ... --iterations 30000 --color_mlp)"),
+        ("train_stage2 (deferred shading)", "README.md:29 (--iterations 100000 --load_pc OUTPUT_PATH/chkpnt30000.pth "
+                                            "--defer_shading --shadow_map --shadow_grad --depth_mlp ...)"),
+        ("render", "README.md:39 (render.py --iteration 100000 ... ; --skip_train added)"),
+        ("the checkpoint stage 2 loads", "train.py:283-284 (checkpoint_iterations = save_iterations + [iterations]) "
+                                         "and train.py:186 (<model>/chkpnt<it>.pth)"),
+        ("--in_channels 16", "the Gaussians' latent feature size fed to the colour MLP (arguments/__init__.py:75, "
+                             "gaussian_renderer/__init__.py:99); the same for every suite; the rasterizer is built "
+                             "for 16 channels (diff-gaussian-rasterization/cuda_rasterizer/config.h:15)"),
+        ("--max_training_images 1000", "a seeded random subset of at most 1000 training images "
+                                       "(dataset_readers.py:225-233; np.random seeded 0 by safe_state): all of mini's "
+                                       "100, of GS³'s 2000 synthetic images half"),
+        ("--max_reso 512", "halves an image whose height and width both exceed 512 (dataset_readers.py:258-260); "
+                           "mini's 80x80 images are kept; renders of halved images would not match the ground "
+                           "truth's size and the job fails saying so"),
+        ("background", "black on every suite: ssdgs_iclr2026.tex:535 (RNG kept its original black background on the "
+                       "synthetic data too); variant `white` adds --white_background (arguments/__init__.py:54)"),
+        ("initial points", "not taken: readNerfSyntheticInfo always draws 100,000 random points in [-1.3, 1.3]^3 "
+                           "(dataset_readers.py:314-325, `if True:`) from np.random seeded 0 (utils/general_utils.py"
+                           ":133-135), so the job's seed changes nothing"),
+    ),
+)
+
 # ---- listed, not runnable --------------------------------------------------------------------------------------
 _ENVMAP = ("its code relights with environment maps (HDR light probes) and has no point-light input, so "
            "olatbench's OLAT scenes (one point light per image) cannot be fed to it without changing the "
            "authors' code")
 
-RNG_CODE = OfficialCode(
-    name="rng-official", paper="RNG: Relightable Neural Gaussians (Fan et al., CVPR 2025)", commands=(),
-    renders="", unsupported="no public repository could be found or fetched from here (see `methods show`)")
 GIGS_CODE = OfficialCode(
     name="gigs-official",
     paper="GI-GS: Global Illumination Decomposition on Gaussian Splatting (Chen et al., ICLR 2025)",
@@ -245,11 +317,18 @@ SPECS: tuple[MethodSpec, ...] = (
                     "(with camera optimisation it first fits each test view's pose for 500 steps). Read, not run."),
           presets={"nrhints": {"iterations": 1_000_000}, "gs3": {"iterations": 1_000_000},
                    "sssgs": {"iterations": 1_000_000}}),
-    _spec("RNG_CODE", RNG_CODE, "RNG (Relightable Neural Gaussians): no public code found",
-          SourcePin("whois-jiahui/RNG", "unverified", "no public code",
-                    "No repository found: the project page (whois-jiahui.fun/project_pages/RNG) names none that "
-                    "could be reached from here, and github.com/whois-jiahui/RNG could not be fetched "
-                    "(2026-11-24). Add its commands here once the code is public and read.")),
+    _spec("RNG_CODE", RNG_CODE, "RNG (Relightable Neural Gaussians), the authors' code (CUDA): two stages",
+          SourcePin("sssssy/RNG_release", "4e8748e1cc9915b1c9d67538d2ec46dc59c0d7f4", "verified",
+                    "Commands are the README's (README.md:20-41) at this commit: stage 1 forward shading, stage 2 "
+                    "deferred shading from stage 1's checkpoint, render.py; every flag found in arguments/__init__.py "
+                    "and train.py / render.py; the loader (--json) reads transforms_{train,test}.json and file_path "
+                    "+ file_ext with PIL (RGBA over the background); render.py writes test/ours_<it>/renders/"
+                    "<index:05d>.png in loader order. Read, and run on the CPU with the stand-ins (docs/official.md); "
+                    "not run on a GPU."),
+          presets={"nrhints": {"iterations": 100_000}, "gs3": {"iterations": 100_000},
+                   "sssgs": {"iterations": 100_000},
+                   "mini": {"iterations": 3_000, "reference_iterations": 100_000},
+                   _RNG_WHITE: {"train_args": ("--white_background",)}}),
     _spec("GIGS_CODE", GIGS_CODE, "GI-GS: environment-map relighting only, cannot take OLAT data",
           SourcePin("stopaimme/GI-GS-official-implementation", "9e75c82674726178e955dd3e6c4aca165cba9b31",
                     "verified",

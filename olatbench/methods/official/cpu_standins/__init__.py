@@ -7,6 +7,12 @@ folder `SITE` first on the commands' ``PYTHONPATH`` (and olatbench's own folder 
 import these stand-ins and its ``sitecustomize`` installs the device shim (`device`); nothing is written into the
 user's checkout, and nothing of this is importable under those names anywhere else.
 
+RNG (4e8748e) needs CUDA through its two rasterizer forks (``diff_gaussian_rasterization`` with a low-pass radius
+and depth/alpha outputs, ``diff_gaussian_rasterization_orthographic``), ``simple_knn`` and ``.cuda()`` calls;
+its ``render.py`` imports ``torchvision`` (``save_image``) and ``torchmetrics.functional.image`` (PSNR, SSIM, LPIPS
+for a metrics.txt). Its jobs get `SITE` with `RNG_MODULES` (the other methods' modules there are not imported by
+its code).
+
 NRHints (291800d) runs on the CPU by itself: it picks the CPU when ``torch.cuda`` reports no device
 (``trainer/trainer.py:48``), its networks are torch (frequency encodings, ``nn.Linear``), and ``tinycudann`` is
 only an optional import for a ``HashEncoding`` its configs do not build (``fields/encodings.py:31-36, 237``). But
@@ -22,6 +28,9 @@ real module                                     stand-in (this package)
 ``diff_gaussian_rasterization_light``           `light` (forward.cu per pinned commit; C++ per-pixel loop)
 ``tinycudann.Encoding`` / ``Network``           `tcnn` (Frequency; FullyFusedMLP LeakyReLU/Sigmoid)
 ``simple_knn._C.distCUDA2``                     `knn` (olatbench's exact 3-nearest-neighbour search)
+``diff_gaussian_rasterization`` (RNG's fork)    `rng_rasterizer` (forward.cu/__init__.py of RNG's fork)
+``diff_gaussian_rasterization_orthographic``    `rng_orthographic` (RNG; forward only, as the fork)
+``torchmetrics.functional.image`` (RNG only)    `torchmetrics_image` (PSNR, SSIM, LPIPS at render.py's defaults)
 ``torchvision.utils.save_image``                `save_image`
 ``torch.cuda`` / ``.cuda()`` / ``device=cuda``  `device` (installed by ``SITE/sitecustomize.py``)
 ``lpips.LPIPS(net="alex")`` (NRHints only)      `lpips` (olatbench's LPIPSNet, installed weights), in `NRHINTS_SITE`
@@ -44,17 +53,19 @@ VARIANT_VARIABLE = "OLATBENCH_STANDIN_LIGHT"  # names the forward.cu the light s
 # The forward.cu variant of the light splat per official method.
 LIGHT_VARIANTS = {"ssdgs-official": "ssdgs-26e4251", "gs3-official": "gs3-83c8daa"}
 NRHINTS_MODULES = ("lpips", "sitecustomize")
+RNG_MODULES = ("diff_gaussian_rasterization", "diff_gaussian_rasterization_orthographic", "simple_knn", "torchvision",
+               "torchmetrics", "sitecustomize")
 # Per official method: the folder put first on PYTHONPATH and the modules it replaces (methods not named: none).
 SITES: dict[str, tuple[Path, tuple[str, ...]]] = {
     "ssdgs-official": (SITE, MODULES), "gs3-official": (SITE, MODULES),
-    "nrhints-official": (NRHINTS_SITE, NRHINTS_MODULES)}
+    "nrhints-official": (NRHINTS_SITE, NRHINTS_MODULES), "rng-official": (SITE, RNG_MODULES)}
 
 
 def standins_for(method: str) -> tuple[str, ...]:
     """The modules replaced in a ``device=cpu`` job of ``method`` (`SITES`): all of `MODULES` for the codes they
     were written for (SSD-GS, GS³); ``lpips`` and the ``sitecustomize`` of `device_copy` for NRHints (which takes
     its own CPU path when ``torch.cuda`` reports no device; a tinycudann stand-in would turn its optional import
-    on); none for others."""
+    on); `RNG_MODULES` for RNG; none for others."""
     return SITES[method][1] if method in SITES else ()
 
 
@@ -79,5 +90,5 @@ def job_environment(method: str, environ: Mapping[str, str] | None = None) -> di
     return env
 
 
-__all__ = ["LIGHT_VARIANTS", "MODULES", "NRHINTS_MODULES", "NRHINTS_SITE", "OLATBENCH_ROOT", "SITE", "SITES",
-           "VARIANT_VARIABLE", "job_environment", "site_for", "standins_for"]
+__all__ = ["LIGHT_VARIANTS", "MODULES", "NRHINTS_MODULES", "NRHINTS_SITE", "OLATBENCH_ROOT", "RNG_MODULES", "SITE",
+           "SITES", "VARIANT_VARIABLE", "job_environment", "site_for", "standins_for"]

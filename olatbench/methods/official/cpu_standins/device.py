@@ -7,6 +7,8 @@ itself) makes, for the rest of the process:
   ``torch.device("cuda")``, or a positional device as in ``x.to("cuda")``) use the CPU instead, through a
   `torch.overrides.TorchFunctionMode` that stays entered;
 - ``Tensor.cuda(...)`` return the tensor on the CPU and ``Module.cuda(...)`` return the module unchanged;
+- ``torch.load(..., map_location="cuda")`` (RNG's ``train.py:46`` loads its stage-1 checkpoint so) load onto the
+  CPU: a CUDA device given as ``map_location`` (str or torch.device) becomes the CPU;
 - ``torch.cuda.Stream``/``stream``/``current_stream``/``Event``/``synchronize``/``empty_cache``/``set_device``
   harmless on the CPU: streams are placeholders whose ``wait_stream`` does nothing and ``stream(s)`` is an empty
   context (CPU work is already ordered); an ``Event`` records the wall clock, so ``start.elapsed_time(end)``
@@ -127,6 +129,15 @@ def _module_cuda(self: torch.nn.Module, *args: Any, **kwargs: Any) -> torch.nn.M
     return self
 
 
+def _load(*args: Any, **kwargs: Any) -> Any:
+    """``torch.load`` with a CUDA ``map_location`` (str or torch.device) replaced by the CPU."""
+    if "map_location" in kwargs:
+        kwargs["map_location"] = to_cpu_device(kwargs["map_location"])
+    elif len(args) > 1:
+        args = (args[0], to_cpu_device(args[1]), *args[2:])
+    return _installed["load"](*args, **kwargs)
+
+
 def install() -> None:
     """Install the shim for the rest of the process (module docstring); a second call does nothing."""
     if _installed:
@@ -140,6 +151,8 @@ def install() -> None:
     _installed["Tensor.cuda"], _installed["Module.cuda"] = torch.Tensor.cuda, torch.nn.Module.cuda
     torch.Tensor.cuda = _tensor_cuda  # type: ignore[method-assign]
     torch.nn.Module.cuda = _module_cuda  # type: ignore[method-assign]
+    _installed["load"] = torch.load
+    torch.load = _load  # type: ignore[assignment]
     mode = CpuForCuda()
     mode.__enter__()
     _installed["mode"] = mode
@@ -152,5 +165,6 @@ def uninstall() -> None:
     _installed.pop("mode").__exit__(None, None, None)
     torch.Tensor.cuda = _installed.pop("Tensor.cuda")  # type: ignore[method-assign]
     torch.nn.Module.cuda = _installed.pop("Module.cuda")  # type: ignore[method-assign]
+    torch.load = _installed.pop("load")  # type: ignore[assignment]
     for key in list(_installed):
         setattr(torch.cuda, key.removeprefix("cuda."), _installed.pop(key))
