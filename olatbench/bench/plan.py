@@ -26,6 +26,7 @@ from olatbench.datasets.suites import Suite, get_suite
 from olatbench.methods.overrides import OverrideError, check_overrides
 from olatbench.methods.registry import config_class, get_spec
 from olatbench.methods.spec import DEFAULT_VARIANT, MethodSpec, import_reference, preset_overrides
+from olatbench.names import did_you_mean, match_name
 
 DATA_ENV = "OLATBENCH_DATA"
 
@@ -63,7 +64,8 @@ def expand_variants(spec: MethodSpec, variants: Sequence[str] = (), ablation: st
     if ablation is not None:
         if ablation not in spec.ablations:
             grids = ", ".join(sorted(spec.ablations)) or "none"
-            raise PlanError(f"method '{spec.name}' has no ablation grid '{ablation}'; its grids: {grids}. "
+            raise PlanError(f"method '{spec.name}' has no ablation grid '{ablation}'"
+                            f"{did_you_mean(ablation, spec.ablations)}; its grids: {grids}. "
                             f"See: olatbench methods show {spec.name}")
         names += spec.ablations[ablation]
     names = list(dict.fromkeys(names or [DEFAULT_VARIANT]))
@@ -71,7 +73,8 @@ def expand_variants(spec: MethodSpec, variants: Sequence[str] = (), ablation: st
                if part not in spec.presets]
     if missing:
         known = ", ".join(sorted(spec.presets)) or "none"
-        raise PlanError(f"method '{spec.name}' has no preset {', '.join(missing)}; its presets: {known}. "
+        hints = "".join(did_you_mean(part, spec.presets) for part in missing)
+        raise PlanError(f"method '{spec.name}' has no preset {', '.join(missing)}{hints}; its presets: {known}. "
                         f"See: olatbench methods show {spec.name}")
     return names
 
@@ -174,9 +177,10 @@ def resolve_scenes(suite: Suite, scenes: Sequence[str] = ()) -> list[str]:
         return list(suite.scenes)
     resolved = []
     for name in scenes:
-        canonical = suite.canonical(name)
+        canonical = suite.canonical(name) or match_name(name, suite.scenes)
         if canonical is None:
-            raise PlanError(f"suite '{suite.name}' has no scene '{name}'; scenes: {', '.join(suite.scenes)}")
+            raise PlanError(f"suite '{suite.name}' has no scene '{name}'{did_you_mean(name, suite.scenes)}; "
+                            f"scenes: {', '.join(suite.scenes)}")
         resolved.append(canonical)
     return list(dict.fromkeys(resolved))
 
@@ -275,6 +279,7 @@ def make_plan(method: str, suite: str | Suite, out: str | Path, scenes: Sequence
         raise PlanError(f"{error.args[0]}. See: olatbench methods list") from None
     except ImportError as error:
         raise PlanError(str(error)) from None
+    method = spec.name  # "SSDGS" plans the ssdgs jobs
     if seeds < 1:
         raise PlanError(f"--seeds must be at least 1, not {seeds}")
     from olatbench.metrics.protocols import get_protocol

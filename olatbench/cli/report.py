@@ -230,7 +230,7 @@ def render(run, kind, count, start_frame, component, fps, device, resolution, ou
     """
     from olatbench.datasets.errors import DatasetError
     from olatbench.reports.jobfolder import JobFolder, JobFolderError
-    from olatbench.reports.video import render_sweep
+    from olatbench.reports.video import RenderRequestError, render_sweep
 
     try:
         job = JobFolder.open(run)
@@ -240,6 +240,8 @@ def render(run, kind, count, start_frame, component, fps, device, resolution, ou
         result = render_sweep(job, kind, output or run / "videos", count=count, frame_id=start_frame,
                               component=component, fps=fps, device=resolve_device(device), resolution=resolution,
                               progress=show_progress(quiet))
+    except RenderRequestError as error:  # a --component or --start-frame the job does not have: says what it has
+        raise click.UsageError(str(error)) from None
     except (JobFolderError, DatasetError, RuntimeError, OSError, ValueError) as error:
         raise click.ClickException(f"{error}\nCheck the job with 'olatbench status {run.parent.parent.parent}'.") \
             from None

@@ -160,7 +160,12 @@ def run(method, suite, data_paths, protocol_name, scenes, variants, ablation, se
     from olatbench.bench.store import job_state
     from olatbench.datasets.errors import DatasetError
     from olatbench.methods.official.settings import SettingsError, parse_code_options
+    from olatbench.methods.registry import canonical_method_name
 
+    try:
+        method = canonical_method_name(method)  # -m SSDGS runs ssdgs; -m ssgds: "did you mean 'ssdgs'?"
+    except KeyError as error:
+        raise click.UsageError(f"{error.args[0]}. See: olatbench methods list") from None
     progress = show_progress(quiet or as_json)
     if as_json and not dry_run:
         raise click.UsageError("--json goes with --dry-run")

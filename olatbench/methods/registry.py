@@ -17,6 +17,7 @@ from importlib.metadata import entry_points
 from typing import TYPE_CHECKING
 
 from olatbench.methods.spec import MethodSpec, import_reference
+from olatbench.names import did_you_mean, match_name
 
 if TYPE_CHECKING:
     from olatbench.methods.base import Method
@@ -87,17 +88,28 @@ def method_names() -> list[str]:
     return sorted(builtin | set(_plugin_entries(builtin)) | set(_registered))
 
 
+def canonical_method_name(name: str) -> str:
+    """The known method ``name`` names (exactly, or ignoring case when only one matches: `olatbench.names`); a
+    `KeyError` with a "did you mean" and the known names otherwise."""
+    known = method_names()
+    matched = match_name(name, known)
+    if matched is None:
+        raise KeyError(f"unknown method '{name}'{did_you_mean(name, known)}; known methods: "
+                       f"{', '.join(known) or 'none'}")
+    return matched
+
+
 def get_spec(name: str) -> MethodSpec:
     """The spec of method ``name``; a `KeyError` listing the known names, or an `ImportError` naming the entry
-    point of a plugin that cannot be loaded."""
+    point of a plugin that cannot be loaded. Names match ignoring case where that is unambiguous (``SSDGS``)."""
+    builtin = builtin_specs()
+    if name not in _registered and name not in builtin:
+        name = canonical_method_name(name)
     if name in _registered:
         return _registered[name]
-    builtin = builtin_specs()
     if name in builtin:
         return builtin[name]
-    entry = _plugin_entries(set(builtin)).get(name)
-    if entry is None:
-        raise KeyError(f"unknown method '{name}'; known methods: {', '.join(method_names()) or 'none'}")
+    entry = _plugin_entries(set(builtin))[name]
     try:
         target = entry.load()  # type: ignore[attr-defined]
     except Exception as error:  # a broken plugin must say which one, not crash with its traceback

@@ -17,10 +17,16 @@ import numpy as np
 from olatbench.atomic import atomic_path
 from olatbench.datasets import colour
 from olatbench.datasets.images import write_image
+from olatbench.names import did_you_mean
 from olatbench.progress import progress_bar
 from olatbench.reports.encode import open_video
 from olatbench.reports.jobfolder import JobFolder, JobFolderError
 from olatbench.reports.sweeps import SweepFrame, orbit_frame, subsample, trajectory
+
+
+class RenderRequestError(JobFolderError):
+    """What was asked of a job is not there (a component its method does not render, a frame its scene lacks);
+    the message says what there is."""
 
 
 @dataclass(frozen=True)
@@ -51,17 +57,33 @@ def sweep_frames(job: JobFolder, kind: str, frame_id: str | None = None, count: 
     scene = job.load_scene()
     frames = scene.split(job.job["test_split"])
     train = scene.split(job.job["train_split"])
-    if frame_id is None:
-        start = frames[0]
-    else:
-        matches = [f for f in frames + train if f.frame_id == frame_id]
-        if not matches:
-            raise JobFolderError(f"{job.job['scene_path']}: no frame {frame_id!r} in the test or train split")
-        start = matches[0]
+    start = frames[0] if frame_id is None else find_frame(frames + train, frame_id, job)
     size = resolution or job.resolution
     camera = start.camera.resized(*size) if size else start.camera
     centre, up = orbit_frame([frame.camera for frame in train])
     return subsample(trajectory(kind, camera, start.light, centre, up), count)
+
+
+def find_frame(frames: list, frame_id: str, job: JobFolder):
+    """The frame of ``frames`` called ``frame_id``; a `RenderRequestError` naming the close ids and the range of
+    the test split's otherwise."""
+    matches = [frame for frame in frames if frame.frame_id == frame_id]
+    if matches:
+        return matches[0]
+    ids = [frame.frame_id for frame in frames]
+    test = [frame.frame_id for frame in job.load_scene().split(job.job["test_split"])]
+    span = f"{test[0]} … {test[-1]}" if len(test) > 1 else test[0] if test else "none"
+    raise RenderRequestError(f"{job.job['scene_path']}: no frame {frame_id!r} in the test or train split"
+                             f"{did_you_mean(frame_id, ids)}; the test frames are {span} ({len(test)}), "
+                             "or leave --start-frame out to start at the first")
+
+
+def checked_component(output: dict, component: str, job: JobFolder) -> None:
+    """A `RenderRequestError` listing what the method renders when ``component`` is not among its outputs."""
+    if component not in output:
+        raise RenderRequestError(f"method '{job.job['method']}' renders no component {component!r}"
+                                 f"{did_you_mean(component, output)}; it renders {', '.join(sorted(output))} "
+                                 "(choose one with --component)")
 
 
 def display_image(tensor, colourspace: str) -> np.ndarray:
@@ -102,9 +124,7 @@ def render_sweep(job: JobFolder, kind: str, out_dir: str | Path, *, count: int |
             with torch.no_grad():
                 for index, frame in enumerate(progress_bar(frames, desc=f"{job.label}: {kind}", disable=not progress)):
                     output = method.render(frame.camera, frame.light)
-                    if component not in output:
-                        raise JobFolderError(f"method '{job.job['method']}' renders no component {component!r}; "
-                                             f"it renders {', '.join(sorted(output))}")
+                    checked_component(output, component, job)
                     image = display_image(output[component], job.job["colourspace"])
                     write_image(frames_dir / f"{index:05d}.png", image)
                     writer.write(colour.quantize_8bit(image))
