@@ -19,6 +19,14 @@ from olatbench.datasets import colour
 from olatbench.datasets.images import write_image
 from olatbench.names import did_you_mean
 from olatbench.progress import progress_bar
+from olatbench.reports.camera_paths import (
+    CameraPathError,
+    orbit_cameras,
+    parse_light,
+    path_frames,
+    read_camera_path,
+    read_light_path,
+)
 from olatbench.reports.encode import open_video
 from olatbench.reports.jobfolder import JobFolder, JobFolderError
 from olatbench.reports.sweeps import SweepFrame, orbit_frame, subsample, trajectory
@@ -62,6 +70,47 @@ def sweep_frames(job: JobFolder, kind: str, frame_id: str | None = None, count: 
     camera = start.camera.resized(*size) if size else start.camera
     centre, up = orbit_frame([frame.camera for frame in train])
     return subsample(trajectory(kind, camera, start.light, centre, up), count)
+
+
+@dataclass(frozen=True)
+class Orbit:
+    """An orbit about the scene centre (`olatbench.reports.camera_paths.orbit_cameras`): elevation in degrees,
+    radius in scene units (None: the training cameras' mean distance from the centre), number of frames."""
+
+    elevation: float = 20.0
+    radius: float | None = None
+    frames: int = 120
+
+
+def free_path_frames(job: JobFolder, *, camera_path: str | Path | None = None, orbit: Orbit | None = None,
+                     light: str | None = None, light_path: str | Path | None = None,
+                     resolution: tuple[int, int] | None = None) -> tuple[list[SweepFrame], float | None]:
+    """The frames of a camera path (nerfstudio JSON) or an orbit, under ``light`` (a training light index or
+    ``x,y,z``), the lights of ``light_path``, or by default the first test frame's light; and the path file's
+    frame rate (None for an orbit). ``resolution`` resizes the cameras (default: the path's size; for an orbit the
+    job's). Errors in what was asked are `RenderRequestError`s naming the file and field."""
+    if (camera_path is None) == (orbit is None):
+        raise RenderRequestError("give a camera path or an orbit (one of them)")
+    scene = job.load_scene()
+    test, train = scene.split(job.job["test_split"]), scene.split(job.job["train_split"])
+    try:
+        default = parse_light(light, train) if light is not None else test[0].light
+        lights = read_light_path(light_path, default) if light_path is not None else [default]
+        if camera_path is not None:
+            read = read_camera_path(camera_path)
+            cameras, fps, phase = read.cameras, read.fps, "camera path"
+            if resolution:
+                cameras = [camera.resized(*resolution) for camera in cameras]
+        else:
+            size = resolution or job.resolution
+            template = test[0].camera.resized(*size) if size else test[0].camera
+            centre, up = orbit_frame([frame.camera for frame in train])
+            radius = orbit.radius or float(np.mean([np.linalg.norm(f.camera.position - centre) for f in train]))
+            cameras = orbit_cameras(template, centre, up, orbit.elevation, radius, orbit.frames)
+            fps, phase = None, "orbit"
+        return path_frames(cameras, lights, phase), fps
+    except CameraPathError as error:
+        raise RenderRequestError(str(error)) from None
 
 
 def find_frame(frames: list, frame_id: str, job: JobFolder):
