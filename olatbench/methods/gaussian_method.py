@@ -18,7 +18,7 @@ from __future__ import annotations
 from abc import abstractmethod
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 import torch
@@ -35,6 +35,9 @@ from olatbench.methods.training import (
     photometric_loss,
     psnr_of,
 )
+
+if TYPE_CHECKING:
+    from olatbench.datasets.records import Camera, PointLight
 
 
 @dataclass
@@ -99,6 +102,13 @@ class GaussianMethod(Method):
         the job's ``colourspace``, for ``olatbench export``. A method on this base says how (default: it cannot)."""
         raise NotImplementedError(f"{cls.label} does not say how its Gaussians are coloured in a splat viewer "
                                   "(GaussianMethod.splat_colour)")
+
+    def colours_under(self, camera: Camera, light: PointLight) -> torch.Tensor:
+        """The colour (N, 3) each trained Gaussian contributes to a render from ``camera`` under ``light``, in the
+        job's colour space, for every Gaussian (none culled); for `olatbench export --under-light`. A relightable
+        method on this base says how (default: it cannot)."""
+        raise NotImplementedError(f"{self.label} does not say what colour its Gaussians have under a light "
+                                  "(GaussianMethod.colours_under)")
 
     # ------------------------------------------------------------------------------------------- set-up
     def setup(self, train: Views, device: str | torch.device, seed: int) -> None:

@@ -15,8 +15,9 @@ the scene's world frame as olatbench loads it (the frame of the training cameras
 ``elevation`` degrees above the plane through the centre and ``radius`` scene units from it, looking at the centre,
 starting at the azimuth of a template camera whose intrinsics and size they keep.
 
-**Lights**: one light for every frame (a training frame's light by its index in the training split, or a position
-``x,y,z`` in world units with the first training light's intensity), or a light-path JSON: ``{"lights":
+**Lights**: one light for every frame (`olatbench.datasets.lights.parse_light`: a training frame's light by its
+index in the training split, or a position ``x,y,z`` in world units with the first training light's intensity), or
+a light-path JSON: ``{"lights":
 [{"position": [x, y, z], "intensity": [r, g, b]}, ...]}`` (intensity optional: the first training light's), one
 light per camera, or one for all.
 """
@@ -139,32 +140,6 @@ def orbit_cameras(
     return cameras
 
 
-def training_light(train: list, index: int) -> PointLight:
-    """The light of the training split's frame ``index`` (a `CameraPathError` naming the valid range)."""
-    if not 0 <= index < len(train):
-        raise CameraPathError(
-            f"light {index}: the training split has {len(train)} frames (lights 0 … {len(train) - 1})"
-        )
-    return train[index].light
-
-
-def parse_light(text: str, train: list) -> PointLight:
-    """``"12"`` (the light of training frame 12) or ``"x,y,z"`` (a position in world units, with the first
-    training light's intensity)."""
-    parts = [part.strip() for part in text.split(",")]
-    if len(parts) == 1 and parts[0].isdigit():
-        return training_light(train, int(parts[0]))
-    try:
-        position = np.array([float(part) for part in parts]) if len(parts) == 3 else None
-    except ValueError:
-        position = None
-    if position is None or not np.all(np.isfinite(position)):
-        raise CameraPathError(
-            f"light {text!r}: expected a training light index (0 … {len(train) - 1}) or a position x,y,z"
-        )
-    return replace(train[0].light, position=position)
-
-
 def read_light_path(path: str | Path, default: PointLight) -> list[PointLight]:
     """The lights of a light-path JSON file (module docstring); a missing intensity is ``default``'s."""
     path = Path(path)
@@ -201,9 +176,7 @@ __all__ = [
     "CameraPath",
     "CameraPathError",
     "orbit_cameras",
-    "parse_light",
     "path_frames",
     "read_camera_path",
     "read_light_path",
-    "training_light",
 ]

@@ -17,12 +17,12 @@ import numpy as np
 from olatbench.atomic import atomic_path
 from olatbench.datasets import colour
 from olatbench.datasets.images import write_image
+from olatbench.datasets.lights import parse_light
 from olatbench.names import did_you_mean
 from olatbench.progress import progress_bar
 from olatbench.reports.camera_paths import (
     CameraPathError,
     orbit_cameras,
-    parse_light,
     path_frames,
     read_camera_path,
     read_light_path,
@@ -94,7 +94,10 @@ def free_path_frames(job: JobFolder, *, camera_path: str | Path | None = None, o
     scene = job.load_scene()
     test, train = scene.split(job.job["test_split"]), scene.split(job.job["train_split"])
     try:
-        default = parse_light(light, train) if light is not None else test[0].light
+        default = parse_light(light, [frame.light for frame in train]) if light is not None else test[0].light
+    except ValueError as error:  # not a training light index or a position
+        raise RenderRequestError(str(error)) from None
+    try:
         lights = read_light_path(light_path, default) if light_path is not None else [default]
         if camera_path is not None:
             read = read_camera_path(camera_path)
