@@ -28,7 +28,9 @@ class Views:
 
     ``images`` is (N, H, W, 3) float32 in [0, 1] in ``colourspace``, composited on ``background`` (3,); it is
     None when a trained method is restored for rendering and declared it needs no images
-    (`Method.restore_needs_images`).
+    (`Method.restore_needs_images`). ``points`` (P, 3) float64 are world points (the scene's frame) for a method
+    with the ``init_points`` capability to start its Gaussians at (the scene's ``points3d.ply`` or
+    ``run --init-points``), or None.
     """
 
     cameras: list[Camera]
@@ -38,6 +40,7 @@ class Views:
     colourspace: str = "srgb"
     background: np.ndarray = field(default_factory=lambda: np.zeros(3, dtype=np.float32))
     scene_name: str = ""
+    points: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.cameras)

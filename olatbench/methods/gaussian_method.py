@@ -29,6 +29,7 @@ from olatbench.methods.base import Method, Views
 from olatbench.methods.shading.precision import check_precision, loss_scaler_for
 from olatbench.methods.training import (
     TrainingViews,
+    initial_count,
     initial_model,
     make_densifier,
     per_gaussian_groups,
@@ -120,8 +121,8 @@ class GaussianMethod(Method):
         self.prepare(train)
         torch.manual_seed(seed)
         self.train_views = TrainingViews(train, self.device, seed)  # tensors, scene extent, epoch-wise view order
-        self.model = initial_model(train, self.config, self.initial_attributes(self.config.num_init_gaussians), seed,
-                                   self.device)
+        self.model = initial_model(train, self.config, self.initial_attributes(initial_count(train, self.config)),
+                                   seed, self.device)
         self.build_modules(train)
         self._build_optimisers()
         self.densifier = make_densifier(self.config, np.asarray(train.background, dtype=np.float32).reshape(3), seed)
