@@ -151,3 +151,16 @@ def test_bake_requests_the_job_cannot_give_are_usage_errors(ssdgs_job, tmp_path,
     result = CliRunner().invoke(main, ["export", str(ssdgs_job), *args, "-o", str(tmp_path / "x.ply")])
     assert result.exit_code == 2 and message in result.output, result.output
     assert not (tmp_path / "x.ply").exists()
+
+
+def test_gs3_bakes_and_3dgs_which_is_not_relightable_is_refused(tmp_path_factory, tmp_path):
+    gs3 = train_tiny("gs3", tmp_path_factory.mktemp("bake_gs3"), iterations=4)
+    result = CliRunner().invoke(
+        main, ["export", str(gs3), "--under-light", "0", "--max-views", "2", "-q", "-o", str(tmp_path / "gs3.ply")]
+    )
+    assert result.exit_code == 0, result.output
+    comments, _, table = parse_ply(tmp_path / "gs3.ply")
+    assert any("a bake, not relightable" in line for line in comments) and np.isfinite(columns(table, "f_dc_", 3)).all()
+    plain = train_tiny("3dgs", tmp_path_factory.mktemp("bake_3dgs"), iterations=4)
+    refused = CliRunner().invoke(main, ["export", str(plain), "--under-light", "0", "-o", str(tmp_path / "x.ply")])
+    assert refused.exit_code == 2 and "export it without --under-light" in refused.output, refused.output
