@@ -65,7 +65,7 @@ def sweep_frames(job: JobFolder, kind: str, frame_id: str | None = None, count: 
     scene = job.load_scene()
     frames = scene.split(job.job["test_split"])
     train = scene.split(job.job["train_split"])
-    start = frames[0] if frame_id is None else find_frame(frames + train, frame_id, job)
+    start = frames[0] if frame_id is None else find_frame(frames, train, frame_id, job.job["scene_path"])
     size = resolution or job.resolution
     camera = start.camera.resized(*size) if size else start.camera
     centre, up = orbit_frame([frame.camera for frame in train])
@@ -116,16 +116,15 @@ def free_path_frames(job: JobFolder, *, camera_path: str | Path | None = None, o
         raise RenderRequestError(str(error)) from None
 
 
-def find_frame(frames: list, frame_id: str, job: JobFolder):
-    """The frame of ``frames`` called ``frame_id``; a `RenderRequestError` naming the close ids and the range of
-    the test split's otherwise."""
-    matches = [frame for frame in frames if frame.frame_id == frame_id]
-    if matches:
-        return matches[0]
-    ids = [frame.frame_id for frame in frames]
-    test = [frame.frame_id for frame in job.load_scene().split(job.job["test_split"])]
-    span = f"{test[0]} … {test[-1]}" if len(test) > 1 else test[0] if test else "none"
-    raise RenderRequestError(f"{job.job['scene_path']}: no frame {frame_id!r} in the test or train split"
+def find_frame(test: list, train: list, frame_id: str, scene_path: str):
+    """The frame called ``frame_id``, searched in the ``test`` then the ``train`` split's frames; a
+    `RenderRequestError` naming the close ids and the test split's range otherwise."""
+    for frame in test + train:
+        if frame.frame_id == frame_id:
+            return frame
+    ids = [frame.frame_id for frame in test + train]
+    span = f"{test[0].frame_id} … {test[-1].frame_id}" if len(test) > 1 else ids[0] if ids else "none"
+    raise RenderRequestError(f"{scene_path}: no frame {frame_id!r} in the test or train split"
                              f"{did_you_mean(frame_id, ids)}; the test frames are {span} ({len(test)}), "
                              "or leave --start-frame out to start at the first")
 
