@@ -79,15 +79,20 @@ class Method(ABC):
     #: Training steps the method always takes, replacing the suite's (None: the suite's; 0: learning-free, all the
     #: work is in `setup`), for methods registered as a class; built-in methods declare it in their `MethodSpec`.
     training_iterations: ClassVar[int | None] = None
+    #: What the method can do (`olatbench.methods.spec.CAPABILITIES`), for methods registered as a class; built-in
+    #: methods declare them in their `MethodSpec`.
+    capabilities: ClassVar[frozenset[str]] = frozenset()
 
     def __init_subclass__(cls, spec: MethodSpec | None = None, **kwargs: Any) -> None:
-        """``class SSDGS(GaussianMethod, spec=SPEC)`` takes ``name``, ``presets``, ``description`` and
-        ``ablations`` from the method's spec, so they are written once."""
+        """``class SSDGS(GaussianMethod, spec=SPEC)`` takes ``name``, ``presets``, ``description``, ``ablations``
+        and ``capabilities`` from the method's spec, so they are written once (and a class registered by name
+        keeps them)."""
         super().__init_subclass__(**kwargs)
         if spec is not None:
             cls.name, cls.presets, cls.description = spec.name, dict(spec.presets), spec.description
             cls.ablations = dict(spec.ablations)
             cls.training_iterations = spec.iterations
+            cls.capabilities = frozenset(spec.capabilities)
 
     def __init__(self, config: Any) -> None:
         self.config = config

@@ -37,12 +37,13 @@ _registered_classes: dict[str, type[Method]] = {}
 
 
 def spec_from_class(name: str, method_class: type[Method], kind: str = "plugin") -> MethodSpec:
-    """A spec describing an old-style method class (its presets, ablation grids and description)."""
+    """A spec describing an old-style method class (its presets, ablation grids, description and capabilities)."""
     config_class = method_class.config_class
     return MethodSpec(name=name, description=(method_class.description or "").strip(),
                       implementation=_reference(method_class), config=_reference(config_class), kind=kind,  # type: ignore[arg-type]
                       presets=dict(method_class.presets), ablations=dict(getattr(method_class, "ablations", {})),
-                      iterations=getattr(method_class, "training_iterations", None))
+                      iterations=getattr(method_class, "training_iterations", None),
+                      capabilities=frozenset(getattr(method_class, "capabilities", frozenset())))
 
 
 def register(name: str | MethodSpec, method_class: type[Method] | None = None) -> None:
