@@ -3,9 +3,11 @@
 On a terminal `progress_bar` is tqdm (``tqdm.auto``), redrawn in place with ``\\r`` and, for nested bars
 (``position`` > 0), cursor-movement codes. Written into a file, a pipe, a Slurm log or a CI log those codes turn
 into clutter, so when the stream is not a terminal `progress_bar` returns a `PlainProgress` instead: it writes
-whole lines only (``desc: 30/100 step (30%) 0:12 elapsed, loss=0.12``), at the start, each time another tenth is
-done, every ``interval`` seconds in between, and at the end. `progress_write` prints a message between the bars
-in either mode.
+whole lines only (``desc: 30/100 step (30%) 0:12 elapsed, loss=0.12``): one at the start and a summary at the end;
+in between, for work long enough to need it, a line when another tenth is done and ``interval`` seconds have passed
+since the last line (so at most one per 10 %; a bar without a total: one every ``interval`` seconds). A verb that
+takes seconds (validating 36 frames) writes two lines. `progress_write` prints a message between the bars in
+either mode.
 """
 
 from __future__ import annotations
@@ -16,7 +18,7 @@ import time
 from collections.abc import Iterable, Iterator, Mapping
 from typing import IO, Any
 
-PLAIN_INTERVAL_SECONDS = 60.0  # a plain line at least this often while a bar moves
+PLAIN_INTERVAL_SECONDS = 60.0  # between the first and last plain lines, at least this long between two lines
 
 
 def _is_terminal(stream: IO[str] | None) -> bool:
@@ -80,8 +82,9 @@ class PlainProgress:
             self.n += n
             if self.disable:
                 return
-            tenth = int(10 * self.n / self.total) if self.total else -1
-            if tenth > self._last_tenth or time.monotonic() - self._last_line >= self.interval:
+            if time.monotonic() - self._last_line < self.interval:
+                return
+            if not self.total or int(10 * self.n / self.total) > self._last_tenth:
                 self._write_line()
 
     def set_postfix(self, values: Mapping[str, Any] | None = None, refresh: bool = True, **kwargs: Any) -> None:

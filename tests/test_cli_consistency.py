@@ -121,13 +121,29 @@ def test_nested_progress_bars_write_plain_lines_into_a_file():
     assert sum(line.startswith("job 2:") for line in lines) <= 12  # a line per tenth, not per step
 
 
-def test_a_plain_bar_writes_a_line_per_interval_between_tenths():
+def test_a_plain_bar_of_quick_work_writes_a_start_line_and_a_summary():
+    """Off a terminal, validating 36 frames in a few seconds is two lines (it was one per tenth: 11 lines)."""
+    log = io.StringIO()
+    for _ in PlainProgress(range(36), desc="validate", unit="frame", file=log):
+        pass
+    lines = log.getvalue().splitlines()
+    assert [line.split(" 0:")[0] for line in lines] == ["validate: 0/36 frame (0%)", "validate: 36/36 frame (100%)"]
+
+
+def test_a_plain_bar_of_long_work_writes_at_most_a_line_per_tenth():
+    """With ``interval`` passed between every update (0 s here), a line per tenth done, never more."""
     log = io.StringIO()
     bar = PlainProgress(total=1000, desc="steps", file=log, interval=0.0)
-    for _ in range(5):
+    for _ in range(1000):
         bar.update(1)
     bar.close()
-    assert len(log.getvalue().splitlines()) == 1 + 5
+    lines = log.getvalue().splitlines()
+    assert len(lines) == 1 + 10 and lines[5].startswith("steps: 500/1000")
+    untimed = io.StringIO()
+    heartbeat = PlainProgress(desc="download", file=untimed, interval=0.0)  # no total: a line per interval
+    heartbeat.update(3)
+    heartbeat.close()
+    assert len(untimed.getvalue().splitlines()) == 2
 
 
 def test_a_run_into_a_log_file_has_no_carriage_returns_or_cursor_codes(tmp_path, monkeypatch):

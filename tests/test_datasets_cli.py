@@ -39,6 +39,14 @@ def test_info_on_one_scene_and_on_a_folder_of_scenes(tmp_path):
     assert summaries[1]["lights"]["distance_to_origin"] == pytest.approx([5.0, 5.0])
 
 
+def test_info_takes_several_paths(tmp_path):
+    write_gs3_tree(tmp_path / "Lego")
+    write_sssgs_tree(tmp_path / "more" / "bunny_small", share_first=True)
+    result = run("info", tmp_path / "Lego", tmp_path / "more", tmp_path / "Lego", "--json")
+    assert result.exit_code == 0, result.output
+    assert [s["scene"] for s in json.loads(result.output)] == ["Lego", "Bunny"]  # each scene once
+
+
 def test_validate_ok_and_failing(tmp_path):
     write_nrhints_tree(tmp_path / "a")
     ok = run("validate", tmp_path / "a")

@@ -66,8 +66,8 @@ def layer(module: str) -> str | None:
 
 
 # the root package (__version__) and the stdlib-only leaf helpers every layer may use: atomic writes, progress
-# lines, the olatbench.toml reader (each imports nothing of olatbench: the leaf rules below)
-SHARED = {"olatbench", "atomic", "progress", "project_file"}
+# lines, the olatbench.toml reader, matching typed names (each imports nothing of olatbench: the leaf rules below)
+SHARED = {"olatbench", "atomic", "progress", "project_file", "names"}
 
 
 @dataclass(frozen=True)
@@ -109,6 +109,7 @@ RULES = [
     Rule("atomic imports nothing of olatbench", "atomic", leaf=True),
     Rule("progress imports nothing of olatbench", "progress", leaf=True),
     Rule("project_file imports nothing of olatbench", "project_file", leaf=True),
+    Rule("names imports nothing of olatbench", "names", leaf=True),
     Rule("gaussians import no methods, bench, reports or cli", "gaussians",
          forbidden=frozenset({"methods", "bench", "reports", "cli"})),
     Rule("metrics import no gaussians, methods, bench, reports or cli", "metrics",

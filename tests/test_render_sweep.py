@@ -171,6 +171,14 @@ def test_cli_render_component_and_errors(tmp_path):
     assert np.allclose(read_png(tmp_path / "v" / "paper_frames" / "00002.png"), 64 / 255, atol=1 / 255)
     missing = CliRunner().invoke(main, ["render", str(folder), "--frames", "2", "--component", "specular",
                                         "-o", str(tmp_path / "w")])
-    assert missing.exit_code == 1 and "renders no component 'specular'" in missing.output
+    assert missing.exit_code == 2 and "renders no component 'specular'" in missing.output
+    assert "it renders rgb, shadow (choose one with --component)" in missing.output
+    assert "olatbench status" not in missing.output  # the job is fine: the advice is about the option
+    near = CliRunner().invoke(main, ["render", str(folder), "--frames", "2", "--component", "shadw",
+                                     "-o", str(tmp_path / "w")])
+    assert near.exit_code == 2 and "(did you mean 'shadow'?)" in near.output
+    frame = CliRunner().invoke(main, ["render", str(folder), "--start-frame", "r_9999", "-o", str(tmp_path / "w")])
+    assert frame.exit_code == 2 and "no frame 'r_9999'" in frame.output and "olatbench status" not in frame.output
+    assert "the test frames are" in frame.output and "leave --start-frame out" in frame.output
     not_a_job = CliRunner().invoke(main, ["render", str(tmp_path)])
     assert not_a_job.exit_code == 2 and "job.json: not found" in not_a_job.output

@@ -9,6 +9,7 @@ the RNG states restored, so it reaches the result of an uninterrupted run.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import json
 import math
 import os
@@ -32,6 +33,7 @@ from olatbench.bench.checkpoints import (
     save_checkpoint,
     seed_everything,
 )
+from olatbench.bench.init_points import load_init_points
 from olatbench.bench.jobs import Job
 from olatbench.bench.outcome import (
     JobLog,
@@ -145,6 +147,10 @@ def _run(job: Job, folder: Path, log: JobLog, progress: bool, position: int, sta
     clock = time.perf_counter()
     train_views = load_views(scene.split(job.train_split), job, progress, position)
     log(f"loaded {len(train_views)} training views in {time.perf_counter() - clock:.1f} s")
+    if job.init_points:
+        train_views = dataclasses.replace(
+            train_views, points=load_init_points(job.init_points, job.init_points_digest, scene))
+        log(f"starting from the {len(train_views.points)} points of {job.init_points}")
 
     method_class = load_method_class(job)
     method = method_class(method_class.resolve_config(None, **job.config))

@@ -4,6 +4,12 @@ The Gaussians are read from the job's final checkpoint (the folder is checked as
 it; no scene or image is read): the core parameters as stored (centres, log-scales, wxyz quaternions, opacity
 logits), the colour as the method says (`GaussianMethod.splat_colour`: SSD-GS and GS³ their diffuse albedo as a
 degree-0 SH colour, 3DGS its SH coefficients), and every other per-Gaussian attribute as extra properties.
+
+With ``under_light`` the colour is instead **baked** under one light (`baked_colour`): the trained method is
+restored, each Gaussian's colour under that light (`GaussianMethod.colours_under`) is taken from a set of cameras
+(the training cameras, or one named frame's), converted to sRGB, and fitted per Gaussian by least squares with SH
+of degree ``sh_degree`` (`olatbench.methods.baselines.sh.SHFit`; degree 0: the mean over the cameras, the
+view-independent part). The file is a picture of the model under that light, not a relightable model.
 """
 
 from __future__ import annotations
@@ -11,11 +17,15 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
 import torch
 
 from olatbench.bench.checkpoints import load_checkpoint
 from olatbench.bench.restore import RestoreError, check_job
 from olatbench.gaussians.splat_ply import SplatCloud, write_splat_ply
+from olatbench.methods.gaussian_method import SplatColour
+from olatbench.names import did_you_mean
+from olatbench.progress import progress_bar
 
 ATTRIBUTE_PREFIX = "attributes."
 
@@ -35,9 +45,29 @@ def _numpy(tensor: torch.Tensor):
     return tensor.detach().to("cpu", torch.float32).numpy()
 
 
-def export_ply(job_folder: str | Path, output: str | Path) -> Exported:
-    """Write the Gaussians of the finished job in ``job_folder`` to ``output`` (a `RestoreError` naming the file
-    when the folder, its checkpoint or its method cannot give them)."""
+class BakeRequestError(RestoreError):
+    """A bake the job cannot give (a light or frame it does not have, an SH degree out of range, a method without
+    colours under a light); the message says what it has."""
+
+
+@dataclass(frozen=True)
+class Bake:
+    """What `export_ply` bakes into the colours: the light (`olatbench.datasets.lights.parse_light`: a training
+    light index or ``x,y,z``), the SH degree of the fit (0 … 3), and the cameras seen from: ``view`` a frame id of
+    the test split, else of the training split (that camera alone), else up to ``max_views`` training cameras
+    spread evenly over the split's order."""
+
+    light: str
+    sh_degree: int = 0
+    view: str | None = None
+    max_views: int = 64
+
+
+def export_ply(job_folder: str | Path, output: str | Path, bake: Bake | None = None, device: str = "cpu",
+               progress: bool = False) -> Exported:
+    """Write the Gaussians of the finished job in ``job_folder`` to ``output``, coloured as the method says or,
+    with ``bake``, under a light (`baked_colour`); a `RestoreError` naming the file when the folder, its checkpoint
+    or its method cannot give them."""
     from olatbench.methods.gaussian_method import GaussianMethod
 
     folder = Path(job_folder)
@@ -56,9 +86,13 @@ def export_ply(job_folder: str | Path, output: str | Path) -> Exported:
     attributes = {name[len(ATTRIBUTE_PREFIX):]: value for name, value in model.items()
                   if name.startswith(ATTRIBUTE_PREFIX)}
     try:
-        colour = cls.splat_colour(attributes, job.colourspace)
+        colour = cls.splat_colour(attributes, job.colourspace) if bake is None else \
+            baked_colour(folder, bake, device, progress)
     except (KeyError, NotImplementedError) as error:
         raise RestoreError(f"{checkpoint}: cannot colour the Gaussians of '{job.method}' ({error})") from None
+    if len(colour.sh_dc) != len(model["means"]):
+        raise RestoreError(f"{checkpoint}: the restored model has {len(colour.sh_dc)} Gaussians, the checkpoint "
+                           f"{len(model['means'])}")
     extras = {name: _numpy(value) for name, value in attributes.items() if name not in colour.encoded}
     cloud = SplatCloud(means=_numpy(model["means"]), log_scales=_numpy(model["log_scales"]),
                        quats=_numpy(model["quats"]), opacity_logits=_numpy(model["opacity_logits"]).reshape(-1),
@@ -70,4 +104,58 @@ def export_ply(job_folder: str | Path, output: str | Path) -> Exported:
     return Exported(path, len(cloud.means), int(payload["step"]), tuple(extras))
 
 
-__all__ = ["Exported", "export_ply"]
+def bake_cameras(method, job, bake: Bake) -> list:
+    """The cameras a bake sees the Gaussians from (see `Bake`), at the job's resolution."""
+    from olatbench.bench.views import view_camera
+    from olatbench.datasets import load_scene
+
+    train = method.train_views.views
+    if bake.view is None:
+        count = min(bake.max_views, len(train))
+        return [train.cameras[i] for i in np.linspace(0, len(train) - 1, count).round().astype(int)]
+    scene = load_scene(job.scene_path, format=job.scene_format)
+    frames = scene.split(job.test_split) + scene.split(job.train_split)  # test first, as render --start-frame
+    for frame in frames:
+        if frame.frame_id == bake.view:
+            return [view_camera(frame, job)]
+    raise BakeRequestError(f"{job.scene_path}: no frame {bake.view!r} in the test or train split"
+                       f"{did_you_mean(bake.view, [frame.frame_id for frame in frames])}")
+
+
+def baked_colour(job_folder: str | Path, bake: Bake, device: str = "cpu", progress: bool = False) -> SplatColour:
+    """The job's Gaussians' colours under ``bake.light`` as sRGB SH coefficients (degree-3 layout, the
+    coefficients above ``bake.sh_degree`` zero), fitted over the bake's cameras (module docstring)."""
+    from olatbench.bench.restore import restore
+    from olatbench.datasets.colour import convert_colourspace
+    from olatbench.datasets.lights import parse_light
+    from olatbench.methods.baselines.sh import MAX_DEGREE, SHFit, num_coefficients
+    from olatbench.methods.gaussian_method import VIEWER_SH_REST, GaussianMethod
+
+    if not 0 <= bake.sh_degree <= MAX_DEGREE:
+        raise BakeRequestError(f"--sh-degree must be 0 … {MAX_DEGREE}, not {bake.sh_degree}")
+    method, job = restore(job_folder, device, progress=progress)
+    if not isinstance(method, GaussianMethod) or type(method).colours_under is GaussianMethod.colours_under:
+        raise BakeRequestError(f"{Path(job_folder) / 'job.json'}: method '{job.method}' has no colour under a light "
+                           "(it is not relightable, or does not say: GaussianMethod.colours_under); export it "
+                           "without --under-light")
+    try:
+        light = parse_light(bake.light, method.train_views.views.lights)
+    except ValueError as error:
+        raise BakeRequestError(str(error)) from None
+    cameras = bake_cameras(method, job, bake)
+    means = method.model.means.detach().double()
+    fit = SHFit(len(means), bake.sh_degree, device=means.device)
+    for camera in progress_bar(cameras, desc=f"bake {job.method}/{job.scene}", unit="view", disable=not progress):
+        colours = method.colours_under(camera, light).detach().double().cpu().numpy()
+        shown = torch.from_numpy(convert_colourspace(colours, job.colourspace, "srgb"))
+        fit.add(torch.nn.functional.normalize(means - torch.as_tensor(camera.position).to(means), dim=-1), shown)
+    coefficients = fit.solve().cpu()
+    rest = torch.zeros(len(means), VIEWER_SH_REST, 3)
+    rest[:, : num_coefficients(bake.sh_degree) - 1] = coefficients[:, 1:]
+    seen = f"camera of frame {bake.view}" if bake.view is not None else f"{len(cameras)} training cameras"
+    return SplatColour(coefficients[:, 0], rest, (), f"colour: a bake, not relightable: the colour under light "
+                       f"{bake.light} ({job.colourspace} -> sRGB, not clipped) fitted with degree-{bake.sh_degree} "
+                       f"SH over the {seen}")
+
+
+__all__ = ["Bake", "BakeRequestError", "Exported", "bake_cameras", "baked_colour", "export_ply"]

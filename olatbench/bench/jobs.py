@@ -5,6 +5,8 @@ A job's id is a content hash of everything that decides its result:
 * the method name and its fully resolved config (after suite preset, variant preset and overrides),
 * the suite, scene, seed, training colour space, image resolution and the train/test split names,
 * the scene's data manifest (`data_manifest_hash`: every file's relative path and content hash),
+* the point cloud the Gaussians start from, when one is used (``init_points_digest``: its content hash; the
+  file's path is not part of the id),
 * the evaluation protocol id and version,
 * the code version (`code_hash`: olatbench's version, the method's source files and the
   Gaussian core's sources; for official implementations the ``olatbench/methods/official`` package, which holds
@@ -69,6 +71,8 @@ class Job:
     save_components: bool = False
     official: dict[str, Any] | None = None  # official code only: where it lives and runs (settings.CodeSettings)
     reuse: bool = True  # start from a finished job of the same experiment under another variant name (bench.reuse)
+    init_points: str = ""  # the point PLY the Gaussians start from (bench.init_points), "" for the method's own init
+    init_points_digest: str | None = None  # its content digest (`file_digest`), part of the id when set
     id: str = field(default="")
 
     @property
@@ -96,6 +100,8 @@ class Job:
             "data_manifest": self.data_manifest,
             "protocol": {"id": self.protocol, "version": self.protocol_version},
             "code": self.code,
+            # only when used, so that the ids of jobs without a point cloud stay what they were
+            **({"init_points": self.init_points_digest} if self.init_points_digest else {}),
         }
 
     def with_id(self) -> Job:

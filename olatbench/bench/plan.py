@@ -19,6 +19,7 @@ from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
+from olatbench.bench.init_points import InitPointsError, init_points_file, points_digest
 from olatbench.bench.jobs import Job, code_hash, config_to_dict, data_manifest_hash
 from olatbench.bench.store import job_folder
 from olatbench.datasets.errors import DatasetError
@@ -26,6 +27,7 @@ from olatbench.datasets.suites import Suite, get_suite
 from olatbench.methods.overrides import OverrideError, check_overrides
 from olatbench.methods.registry import config_class, get_spec
 from olatbench.methods.spec import DEFAULT_VARIANT, MethodSpec, import_reference, preset_overrides
+from olatbench.names import did_you_mean, match_name
 
 DATA_ENV = "OLATBENCH_DATA"
 
@@ -63,7 +65,8 @@ def expand_variants(spec: MethodSpec, variants: Sequence[str] = (), ablation: st
     if ablation is not None:
         if ablation not in spec.ablations:
             grids = ", ".join(sorted(spec.ablations)) or "none"
-            raise PlanError(f"method '{spec.name}' has no ablation grid '{ablation}'; its grids: {grids}. "
+            raise PlanError(f"method '{spec.name}' has no ablation grid '{ablation}'"
+                            f"{did_you_mean(ablation, spec.ablations)}; its grids: {grids}. "
                             f"See: olatbench methods show {spec.name}")
         names += spec.ablations[ablation]
     names = list(dict.fromkeys(names or [DEFAULT_VARIANT]))
@@ -71,7 +74,8 @@ def expand_variants(spec: MethodSpec, variants: Sequence[str] = (), ablation: st
                if part not in spec.presets]
     if missing:
         known = ", ".join(sorted(spec.presets)) or "none"
-        raise PlanError(f"method '{spec.name}' has no preset {', '.join(missing)}; its presets: {known}. "
+        hints = "".join(did_you_mean(part, spec.presets) for part in missing)
+        raise PlanError(f"method '{spec.name}' has no preset {', '.join(missing)}{hints}; its presets: {known}. "
                         f"See: olatbench methods show {spec.name}")
     return names
 
@@ -174,9 +178,10 @@ def resolve_scenes(suite: Suite, scenes: Sequence[str] = ()) -> list[str]:
         return list(suite.scenes)
     resolved = []
     for name in scenes:
-        canonical = suite.canonical(name)
+        canonical = suite.canonical(name) or match_name(name, suite.scenes)
         if canonical is None:
-            raise PlanError(f"suite '{suite.name}' has no scene '{name}'; scenes: {', '.join(suite.scenes)}")
+            raise PlanError(f"suite '{suite.name}' has no scene '{name}'{did_you_mean(name, suite.scenes)}; "
+                            f"scenes: {', '.join(suite.scenes)}")
         resolved.append(canonical)
     return list(dict.fromkeys(resolved))
 
@@ -260,12 +265,15 @@ def make_plan(method: str, suite: str | Suite, out: str | Path, scenes: Sequence
               variants: Sequence[str] = (), ablation: str | None = None, seeds: int = 1,
               iterations: int | None = None, resolution: tuple[int, int] | None = None,
               data_root: str | Path | None = None, options: PlanOptions | None = None,
-              generate: bool = True, progress: bool = True, overrides: dict[str, Any] | None = None) -> list[Job]:
+              generate: bool = True, progress: bool = True, overrides: dict[str, Any] | None = None,
+              init_points: str | Path | None = None) -> list[Job]:
     """Expand one method on one suite into jobs (scene-major, then variant, then seed).
 
     ``resolution`` (width, height) overrides the suite's; ``overrides`` are config values applied to every
     variant (and named in its label). ``generate=False`` (dry runs) never creates a generator suite's data:
-    when it is missing, jobs have ``data_manifest=None`` and no id.
+    when it is missing, jobs have ``data_manifest=None`` and no id. A method with the ``init_points`` capability
+    starts from ``init_points`` (a point PLY; named in the label as ``init_points=<file stem>``) or else from a
+    scene folder's ``points3d.ply`` (`olatbench.bench.init_points`); the file's digest enters the job id.
     """
     options = options or PlanOptions()
     suite = get_suite(suite) if isinstance(suite, str) else suite
@@ -275,8 +283,12 @@ def make_plan(method: str, suite: str | Suite, out: str | Path, scenes: Sequence
         raise PlanError(f"{error.args[0]}. See: olatbench methods list") from None
     except ImportError as error:
         raise PlanError(str(error)) from None
+    method = spec.name  # "SSDGS" plans the ssdgs jobs
     if seeds < 1:
         raise PlanError(f"--seeds must be at least 1, not {seeds}")
+    if init_points is not None and "init_points" not in spec.capabilities:
+        raise PlanError(f"method '{spec.name}' cannot start from a point cloud (--init-points); methods that can "
+                        "declare the capability init_points (olatbench methods show METHOD)")
     from olatbench.metrics.protocols import get_protocol
 
     protocol = get_protocol(suite.protocol)
@@ -295,9 +307,14 @@ def make_plan(method: str, suite: str | Suite, out: str | Path, scenes: Sequence
     for scene in scene_names:
         scene_path = suite.scene_path(root, scene) if root is not None or suite.scene_paths else None
         manifest = data_manifest_hash(scene_path) if scene_path is not None else None
+        try:
+            points = init_points_file(scene_path, init_points) if "init_points" in spec.capabilities else None
+        except InitPointsError as error:
+            raise PlanError(str(error)) from None
+        named = {"init_points": Path(init_points).stem} if init_points is not None else {}
         for variant in variant_names:
             for seed in range(seeds):
-                label = variant_label(variant, overrides)
+                label = variant_label(variant, {**(overrides or {}), **named})
                 job = Job(method=method, method_ref=spec.implementation, suite=suite.name, scene=scene,
                           variant=label, seed=seed, config=configs[variant],
                           scene_path=str(scene_path) if scene_path else "", scene_format=suite.format,
@@ -307,6 +324,8 @@ def make_plan(method: str, suite: str | Suite, out: str | Path, scenes: Sequence
                           code=code, folder=str(job_folder(out, suite.name, method, label, scene, seed)),
                           device=options.device, checkpoint_every=options.checkpoint_every,
                           checkpoint_minutes=options.checkpoint_minutes, keep_checkpoints=options.keep_checkpoints,
-                          save_components=options.save_components, official=official, reuse=options.reuse)
+                          save_components=options.save_components, official=official, reuse=options.reuse,
+                          init_points=str(points) if points else "",
+                          init_points_digest=points_digest(points) if points else None)
                 jobs.append(job.with_id() if manifest is not None else job)
     return jobs

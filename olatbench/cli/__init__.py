@@ -41,8 +41,8 @@ HELP_LINES: dict[str, str] = {
     "metrics": "Explain the metric protocols.",
     "weights": "Install and locate the LPIPS weights.",
     "report": "Build the paper's tables and figures from results.json files.",
-    "render": "Render relighting sweeps (videos) from a finished run.",
-    "export": "Write a finished job's Gaussians as a PLY for splat viewers.",
+    "render": "Render relighting sweeps, camera paths and orbits (videos) of a finished job.",
+    "export": "Write a finished job's Gaussians as a PLY for splat viewers (or baked under a light).",
     "view": "Interactive relighting viewer for trained jobs (web, viser).",
     "doctor": "Show what this machine supports and how to fix what is missing.",
 }

@@ -22,22 +22,24 @@ def _scene_folders(path: Path) -> list[Path]:
 
 
 @click.command()
-@click.argument("path", type=click.Path(exists=True, file_okay=False, path_type=Path))
+@click.argument("paths", nargs=-1, required=True, type=click.Path(exists=True, file_okay=False, path_type=Path))
 @click.option("--format", "fmt", type=click.Choice(["nrhints", "gs3", "sssgs"]), default=None,
               help="Skip auto-detection.")
 @click.option("--json", "as_json", is_flag=True, help="Print JSON instead of text.")
-def info(path: Path, fmt: str | None, as_json: bool) -> None:
-    """Summarise a scene folder, or every scene folder inside PATH.
+def info(paths: tuple[Path, ...], fmt: str | None, as_json: bool) -> None:
+    """Summarise each scene folder PATH, or every scene folder inside it.
 
     \b
-    Example:
+    Examples:
       olatbench datasets info data/nrhints
+      olatbench datasets info data/nrhints/Pixiu data/gs3/Lego
     """
     from olatbench.datasets import load_scene
     from olatbench.datasets.info import format_summary, scene_summary
 
+    folders = list(dict.fromkeys(folder for path in paths for folder in _scene_folders(path)))
     summaries, failures = [], []
-    for folder in _scene_folders(path):
+    for folder in folders:
         try:
             summaries.append(scene_summary(load_scene(folder, fmt)))
         except DatasetError as error:

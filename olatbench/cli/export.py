@@ -7,29 +7,58 @@ from pathlib import Path
 import click
 
 from olatbench.atomic import WriteError
+from olatbench.cli.options import device_option, quiet_option, show_progress
 
 
 @click.command("export", context_settings={"help_option_names": ["-h", "--help"]})
 @click.argument("job", type=click.Path(exists=True, file_okay=False, path_type=Path))
 @click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path), required=True,
               help="The PLY file to write.")
-def export(job: Path, output: Path) -> None:
+@click.option("--under-light", metavar="LIGHT",
+              help="Bake the colours under this light instead of the albedo: a training light index (the light of "
+                   "that training frame) or a position x,y,z in scene units. A picture of the model under that "
+                   "light, not a relightable model.")
+@click.option("--sh-degree", type=click.IntRange(0, 3), default=0, show_default=True,
+              help="With --under-light: the SH degree fitted to the colours seen from the cameras (0: their mean, "
+                   "the view-independent part; 1-3 keep some view dependence).")
+@click.option("--view", metavar="FRAME_ID",
+              help="With --under-light: bake the colours as this frame's camera sees them (exact from that camera) "
+                   "instead of fitting them over the training cameras.")
+@click.option("--max-views", type=click.IntRange(min=1), default=64, show_default=True,
+              help="With --under-light: fit over at most this many training cameras, spread evenly.")
+@device_option
+@quiet_option
+def export(job: Path, output: Path, under_light: str | None, sh_degree: int, view: str | None, max_views: int,
+           device: str, quiet: bool) -> None:
     """Write the trained Gaussians of the finished JOB folder as a PLY in the layout of 3D Gaussian Splatting.
 
     Centres, log-scales, wxyz rotations and opacity logits as trained; the colour as degree-0 spherical harmonics
-    of the method's diffuse albedo (SSD-GS, GS³; 3DGS: its own SH coefficients); the method's other per-Gaussian
-    attributes as extra properties (<name>_<i>). Splat viewers and editors that read properties by name
-    (SuperSplat, nerfstudio's importer) open the file; docs/export.md lists the properties.
+    of the method's diffuse albedo (SSD-GS, GS³; 3DGS: its own SH coefficients), or with --under-light the colour
+    under that light (SSD-GS, GS³), fitted as SH over the training cameras (or taken from one --view); the
+    method's other per-Gaussian attributes as extra properties (<name>_<i>). Splat viewers and editors that read
+    properties by name (SuperSplat, nerfstudio's importer) open the file; docs/export.md lists the properties.
 
     \b
-    Example:
+    Examples:
       olatbench export runs/mini/ssdgs/default/translucent/seed0 -o translucent.ply
+      olatbench export runs/mini/ssdgs/default/translucent/seed0 --under-light 0 -o lit.ply
+      olatbench export runs/mini/ssdgs/default/translucent/seed0 --under-light 0,0,4 --sh-degree 3 -o lit3.ply
     """
-    from olatbench.bench.export import export_ply
+    from olatbench.bench.export import Bake, BakeRequestError, export_ply
     from olatbench.bench.restore import RestoreError
+    from olatbench.devices import resolve_device
 
+    if under_light is None and (view is not None or sh_degree != 0):
+        raise click.UsageError("--view and --sh-degree go with --under-light")
+    if view is not None and sh_degree != 0:
+        raise click.UsageError("--view bakes the colours one camera sees: --sh-degree 0 (a fit over one direction "
+                               "has no view dependence to keep)")
+    bake = Bake(under_light, sh_degree, view, max_views) if under_light is not None else None
     try:
-        exported = export_ply(job, output)
+        exported = export_ply(job, output, bake, device=resolve_device(device) if bake else "cpu",
+                              progress=show_progress(quiet))
+    except BakeRequestError as error:  # a light, frame or method that cannot be baked: says what can
+        raise click.UsageError(str(error)) from None
     except RestoreError as error:
         raise click.ClickException(str(error)) from None
     except WriteError as error:  # a read-only folder or a full disk: one line, the old file (if any) untouched

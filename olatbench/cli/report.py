@@ -231,37 +231,80 @@ def _report_runs(runs, suite, methods, metrics, splits, layouts, average, fmt, s
 
 @click.command("render")
 @click.argument("run", type=click.Path(exists=True, file_okay=False, path_type=Path))
-@click.option("--sweep", "kind", type=click.Choice(("light-orbit", "view-orbit", "paper")), default="light-orbit",
-              show_default=True, help="Light 360° (2.4° steps), camera 360° (2° steps), or the paper's trajectory.")
-@click.option("--frames", "count", type=click.IntRange(min=1), help="Spread this many frames over the sweep.")
+@click.option("--sweep", "kind", type=click.Choice(("light-orbit", "view-orbit", "paper")),
+              help="Light 360° (2.4° steps), camera 360° (2° steps), or the paper's trajectory (default: light-orbit "
+                   "unless --camera-path or --orbit is given).")
+@click.option("--camera-path", type=click.Path(dir_okay=False, path_type=Path),
+              help="Render along a nerfstudio camera-path JSON (camera_path frames of camera_to_world, OpenGL axes, "
+                   "and vertical fov in degrees; render_width/height; fps) in the scene's world frame.")
+@click.option("--orbit", is_flag=True, help="Render an orbit of the camera about the scene centre (see --elevation, "
+                                            "--radius, --frames).")
+@click.option("--elevation", type=click.FloatRange(-89.9, 89.9), default=20.0, show_default=True,
+              help="With --orbit: degrees above the plane through the scene centre.")
+@click.option("--radius", type=click.FloatRange(min=0, min_open=True),
+              help="With --orbit: distance from the scene centre in scene units (default: the training cameras' "
+                   "mean distance).")
+@click.option("--light", help="With --camera-path/--orbit: the light of every frame, a training light index (the "
+                              "light of that training frame) or a position x,y,z (default: the first test frame's).")
+@click.option("--light-path", type=click.Path(dir_okay=False, path_type=Path),
+              help='With --camera-path/--orbit: a JSON {"lights": [{"position": [x, y, z]}, ...]}, one light per '
+                   "frame (or one for all).")
+@click.option("--frames", "count", type=click.IntRange(min=1),
+              help="Spread this many frames over the sweep or camera path (an orbit: its number of frames, "
+                   "default 120).")
 @click.option("--start-frame", help="Test frame id whose camera and light start the sweep (default: the first).")
 @click.option("--component", default="rgb", show_default=True, help="What to render: rgb, diffuse, shadow, ...")
-@click.option("--fps", type=click.FloatRange(min=1), default=30.0, show_default=True, help="Video frame rate.")
+@click.option("--fps", type=click.FloatRange(min=1), help="Video frame rate (default: the camera path's, else 30).")
 @device_option
-@click.option("--resolution", type=Resolution(), help="Frame size N (N×N) or WxH (default: the job's).")
+@click.option("--resolution", type=Resolution(), help="Frame size N (N×N) or WxH (default: the job's; a camera "
+                                                      "path: its render_width × render_height).")
 @click.option("-o", "--output", type=click.Path(file_okay=False, path_type=Path),
-              help="Folder for <sweep>.mp4 and <sweep>_frames/ (default: RUN/videos).")
+              help="Folder for <sweep>.mp4 and <sweep>_frames/ (camera-path.mp4, orbit.mp4; default: RUN/videos).")
 @quiet_option
-def render(run, kind, count, start_frame, component, fps, device, resolution, output, quiet) -> None:
-    """Render a relighting sweep of a finished job to an MP4 and a frame folder.
+def render(run, kind, camera_path, orbit, elevation, radius, light, light_path, count, start_frame, component, fps,
+           device, resolution, output, quiet) -> None:
+    """Render a relighting sweep, a camera path or an orbit of a finished job to an MP4 and a frame folder.
 
     \b
     Examples:
       olatbench render runs/mini/ssdgs/default/translucent/seed0 --sweep light-orbit
       olatbench render runs/nrhints/ssdgs/default/Pixiu/seed0 --sweep paper --resolution 256x256
+      olatbench render runs/mini/ssdgs/default/translucent/seed0 --camera-path path.json --light 0
+      olatbench render runs/mini/ssdgs/default/translucent/seed0 --orbit --elevation 30 --frames 90 --light 1,2,3
     """
     from olatbench.datasets.errors import DatasetError
     from olatbench.reports.jobfolder import JobFolder, JobFolderError
-    from olatbench.reports.video import render_sweep
+    from olatbench.reports.sweeps import subsample
+    from olatbench.reports.video import Orbit, RenderRequestError, free_path_frames, render_sweep
 
+    free = camera_path is not None or orbit
+    if camera_path is not None and orbit:
+        raise click.UsageError("give --camera-path or --orbit, not both")
+    if free and (kind or start_frame):
+        raise click.UsageError("--sweep and --start-frame go without --camera-path and --orbit")
+    if not free and (light is not None or light_path is not None):
+        raise click.UsageError("--light and --light-path go with --camera-path or --orbit")
+    if light is not None and light_path is not None:
+        raise click.UsageError("give --light or --light-path, not both")
     try:
         job = JobFolder.open(run)
     except JobFolderError as error:  # RUN is not a finished job folder
         raise click.UsageError(str(error)) from None
     try:
-        result = render_sweep(job, kind, output or run / "videos", count=count, frame_id=start_frame,
-                              component=component, fps=fps, device=resolve_device(device), resolution=resolution,
-                              progress=show_progress(quiet))
+        frames = None
+        if free:
+            name = "camera-path" if camera_path is not None else "orbit"
+            frames, path_fps = free_path_frames(
+                job, camera_path=camera_path, light=light, light_path=light_path, resolution=resolution,
+                orbit=Orbit(elevation, radius, count or Orbit.frames) if orbit else None)
+            frames = subsample(frames, count)
+            fps = fps or path_fps
+        result = render_sweep(job, name if free else kind or "light-orbit", output or run / "videos", count=count,
+                              frame_id=start_frame, component=component, fps=fps or 30.0,
+                              device=resolve_device(device), resolution=resolution, progress=show_progress(quiet),
+                              frames=frames)
+    except RenderRequestError as error:  # something asked of the job that it does not have: says what it has
+        raise click.UsageError(str(error)) from None
     except (JobFolderError, DatasetError, RuntimeError, OSError, ValueError) as error:
         raise click.ClickException(f"{error}\nCheck the job with 'olatbench status {run.parent.parent.parent}'.") \
             from None

@@ -95,6 +95,11 @@ def _metric(metrics: dict, key: str) -> str:
                    "(repeatable; not part of the job id). See docs/official.md.")
 @click.option("--resolution", type=Resolution(), help="Image size N (N×N) or WxH (default: the suite's, else "
               "native).")
+@click.option("--init-points", type=click.Path(exists=True, dir_okay=False, path_type=Path),
+              help="Start the Gaussians at the points of this PLY (world units, the scene's frame) instead of the "
+                   "method's own initialisation (methods with the init_points capability: ssdgs, gs3, 3dgs). "
+                   "Without it a scene folder's points3d.ply is used when there is one. The file's content is part "
+                   "of the job id; its name joins the variant label (~init_points=<stem>).")
 @click.option("--data-root", type=click.Path(file_okay=False, path_type=Path),
               help="Folder holding the suite's scene folders (default: $OLATBENCH_DATA; mini: its cache).")
 @option("-o", "--output", "out", aliases=("--out",), default=Path("runs"), show_default=True,
@@ -130,8 +135,8 @@ def _metric(metrics: dict, key: str) -> str:
 @quiet_option
 @click.option("--json", "as_json", is_flag=True, help="With --dry-run: print the plan as JSON (one object per job).")
 def run(method, suite, data_paths, protocol_name, scenes, variants, ablation, seeds, iterations, overrides,
-        code_settings, resolution, data_root, out, device, executor, workers, dry_run, calibrate, force, no_reuse,
-        checkpoint_every, save_components, slurm_partition, slurm_time, slurm_gpus, slurm_cpus,
+        code_settings, resolution, init_points, data_root, out, device, executor, workers, dry_run, calibrate, force,
+        no_reuse, checkpoint_every, save_components, slurm_partition, slurm_time, slurm_gpus, slurm_cpus,
         slurm_array_parallelism, wait, quiet, as_json) -> None:
     """Train and evaluate METHOD on every scene of SUITE (or on your own scene folders, --data); rerunning skips
     finished jobs and resumes interrupted ones from their last checkpoint.
@@ -151,6 +156,7 @@ def run(method, suite, data_paths, protocol_name, scenes, variants, ablation, se
       olatbench run -m ssdgs -s nrhints --scenes Pixiu --ablation components --dry-run
       olatbench run -m ssdgs -s gs3 --scenes Lego --data-root /data/gs3 --dry-run --calibrate   # + time estimate
       olatbench run -m ssdgs -s mini --scenes translucent --set shadow_mode=density --set num_asg=8
+      olatbench run -m 3dgs --data captures/cup --init-points captures/cup/sparse.ply   # start from a point cloud
       olatbench run -m ssdgs -s gs3 --seeds 3 --executor slurm --slurm-partition gpu --slurm-gpus 1
       olatbench run -m gs3-official -s gs3 --code checkout=~/src/gs-relight --code conda_env=gs3
       olatbench run -m ssdgs-official -s mini --code checkout=~/SSD-GS --code python=~/venv/bin/python --code device=cpu
@@ -161,7 +167,12 @@ def run(method, suite, data_paths, protocol_name, scenes, variants, ablation, se
     from olatbench.bench.store import job_state
     from olatbench.datasets.errors import DatasetError
     from olatbench.methods.official.settings import SettingsError, parse_code_options
+    from olatbench.methods.registry import canonical_method_name
 
+    try:
+        method = canonical_method_name(method)  # -m SSDGS runs ssdgs; -m ssgds: "did you mean 'ssdgs'?"
+    except KeyError as error:
+        raise click.UsageError(f"{error.args[0]}. See: olatbench methods list") from None
     progress = show_progress(quiet or as_json)
     if as_json and not dry_run:
         raise click.UsageError("--json goes with --dry-run")
@@ -188,7 +199,8 @@ def run(method, suite, data_paths, protocol_name, scenes, variants, ablation, se
                                      variants=_split_names(variants), ablation=ablation, seeds=seeds,
                                      iterations=iterations, resolution=resolution,
                                      data_root=data_root, options=options, generate=not dry_run or calibrate,
-                                     progress=progress, overrides=parse_overrides(overrides))]
+                                     progress=progress, overrides=parse_overrides(overrides),
+                                     init_points=init_points)]
     except OverridesError as error:  # a usage error (exit 2), naming the field
         raise click.UsageError(str(error)) from None
     except (PlanError, DatasetError, KeyError, FileNotFoundError) as error:  # what was asked cannot be planned

@@ -20,6 +20,7 @@ from pathlib import Path
 
 from olatbench.datasets.errors import DatasetError
 from olatbench.datasets.sizes import parse_size
+from olatbench.names import did_you_mean, match_name
 
 
 def _snake(name: str) -> str:
@@ -139,8 +140,8 @@ def suite_names() -> list[str]:
 
 def get_suite(name: str) -> Suite:
     """The suite called ``name``: built-in, a user suite of olatbench.toml, or ``data-<format>`` (the suite of
-    ``run --data`` folders, here without scenes: its runs name them); a `DatasetError` listing the known suites
-    otherwise."""
+    ``run --data`` folders, here without scenes: its runs name them); case does not matter where only one suite
+    matches (``Mini``); a `DatasetError` with a "did you mean" and the known suites otherwise."""
     if name in SUITES:
         return SUITES[name]
     users = user_suites()
@@ -149,8 +150,12 @@ def get_suite(name: str) -> Suite:
     fmt = name.removeprefix(DATA_SUITE_PREFIX)
     if name.startswith(DATA_SUITE_PREFIX) and fmt in SUITES:
         return _own_suite(name, fmt, {})
-    known = ", ".join([*SUITES, *users]) + f" (and {DATA_SUITE_PREFIX}<format> for run --data)"
-    raise DatasetError(f"unknown suite '{name}'; known suites: {known}")
+    names = [*SUITES, *users]
+    matched = match_name(name, names)  # "Mini": case does not matter where only one suite matches
+    if matched is not None:
+        return SUITES[matched] if matched in SUITES else users[matched]
+    known = ", ".join(names) + f" (and {DATA_SUITE_PREFIX}<format> for run --data)"
+    raise DatasetError(f"unknown suite '{name}'{did_you_mean(name, names)}; known suites: {known}")
 
 
 def parse_resolution(value: object, where: str) -> tuple[int, int] | None:

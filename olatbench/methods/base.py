@@ -28,7 +28,9 @@ class Views:
 
     ``images`` is (N, H, W, 3) float32 in [0, 1] in ``colourspace``, composited on ``background`` (3,); it is
     None when a trained method is restored for rendering and declared it needs no images
-    (`Method.restore_needs_images`).
+    (`Method.restore_needs_images`). ``points`` (P, 3) float64 are world points (the scene's frame) for a method
+    with the ``init_points`` capability to start its Gaussians at (the scene's ``points3d.ply`` or
+    ``run --init-points``), or None.
     """
 
     cameras: list[Camera]
@@ -38,6 +40,7 @@ class Views:
     colourspace: str = "srgb"
     background: np.ndarray = field(default_factory=lambda: np.zeros(3, dtype=np.float32))
     scene_name: str = ""
+    points: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.cameras)
@@ -76,15 +79,20 @@ class Method(ABC):
     #: Training steps the method always takes, replacing the suite's (None: the suite's; 0: learning-free, all the
     #: work is in `setup`), for methods registered as a class; built-in methods declare it in their `MethodSpec`.
     training_iterations: ClassVar[int | None] = None
+    #: What the method can do (`olatbench.methods.spec.CAPABILITIES`), for methods registered as a class; built-in
+    #: methods declare them in their `MethodSpec`.
+    capabilities: ClassVar[frozenset[str]] = frozenset()
 
     def __init_subclass__(cls, spec: MethodSpec | None = None, **kwargs: Any) -> None:
-        """``class SSDGS(GaussianMethod, spec=SPEC)`` takes ``name``, ``presets``, ``description`` and
-        ``ablations`` from the method's spec, so they are written once."""
+        """``class SSDGS(GaussianMethod, spec=SPEC)`` takes ``name``, ``presets``, ``description``, ``ablations``
+        and ``capabilities`` from the method's spec, so they are written once (and a class registered by name
+        keeps them)."""
         super().__init_subclass__(**kwargs)
         if spec is not None:
             cls.name, cls.presets, cls.description = spec.name, dict(spec.presets), spec.description
             cls.ablations = dict(spec.ablations)
             cls.training_iterations = spec.iterations
+            cls.capabilities = frozenset(spec.capabilities)
 
     def __init__(self, config: Any) -> None:
         self.config = config

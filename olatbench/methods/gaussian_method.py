@@ -18,7 +18,7 @@ from __future__ import annotations
 from abc import abstractmethod
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 import torch
@@ -29,12 +29,16 @@ from olatbench.methods.base import Method, Views
 from olatbench.methods.shading.precision import check_precision, loss_scaler_for
 from olatbench.methods.training import (
     TrainingViews,
+    initial_count,
     initial_model,
     make_densifier,
     per_gaussian_groups,
     photometric_loss,
     psnr_of,
 )
+
+if TYPE_CHECKING:
+    from olatbench.datasets.records import Camera, PointLight
 
 
 @dataclass
@@ -100,6 +104,13 @@ class GaussianMethod(Method):
         raise NotImplementedError(f"{cls.label} does not say how its Gaussians are coloured in a splat viewer "
                                   "(GaussianMethod.splat_colour)")
 
+    def colours_under(self, camera: Camera, light: PointLight) -> torch.Tensor:
+        """The colour (N, 3) each trained Gaussian contributes to a render from ``camera`` under ``light``, in the
+        job's colour space, for every Gaussian (none culled); for `olatbench export --under-light`. A relightable
+        method on this base says how (default: it cannot)."""
+        raise NotImplementedError(f"{self.label} does not say what colour its Gaussians have under a light "
+                                  "(GaussianMethod.colours_under)")
+
     # ------------------------------------------------------------------------------------------- set-up
     def setup(self, train: Views, device: str | torch.device, seed: int) -> None:
         if len(train) == 0:
@@ -110,8 +121,8 @@ class GaussianMethod(Method):
         self.prepare(train)
         torch.manual_seed(seed)
         self.train_views = TrainingViews(train, self.device, seed)  # tensors, scene extent, epoch-wise view order
-        self.model = initial_model(train, self.config, self.initial_attributes(self.config.num_init_gaussians), seed,
-                                   self.device)
+        self.model = initial_model(train, self.config, self.initial_attributes(initial_count(train, self.config)),
+                                   seed, self.device)
         self.build_modules(train)
         self._build_optimisers()
         self.densifier = make_densifier(self.config, np.asarray(train.background, dtype=np.float32).reshape(3), seed)

@@ -17,6 +17,7 @@ from importlib.metadata import entry_points
 from typing import TYPE_CHECKING
 
 from olatbench.methods.spec import MethodSpec, import_reference
+from olatbench.names import did_you_mean, match_name
 
 if TYPE_CHECKING:
     from olatbench.methods.base import Method
@@ -36,12 +37,13 @@ _registered_classes: dict[str, type[Method]] = {}
 
 
 def spec_from_class(name: str, method_class: type[Method], kind: str = "plugin") -> MethodSpec:
-    """A spec describing an old-style method class (its presets, ablation grids and description)."""
+    """A spec describing an old-style method class (its presets, ablation grids, description and capabilities)."""
     config_class = method_class.config_class
     return MethodSpec(name=name, description=(method_class.description or "").strip(),
                       implementation=_reference(method_class), config=_reference(config_class), kind=kind,  # type: ignore[arg-type]
                       presets=dict(method_class.presets), ablations=dict(getattr(method_class, "ablations", {})),
-                      iterations=getattr(method_class, "training_iterations", None))
+                      iterations=getattr(method_class, "training_iterations", None),
+                      capabilities=frozenset(getattr(method_class, "capabilities", frozenset())))
 
 
 def register(name: str | MethodSpec, method_class: type[Method] | None = None) -> None:
@@ -87,17 +89,28 @@ def method_names() -> list[str]:
     return sorted(builtin | set(_plugin_entries(builtin)) | set(_registered))
 
 
+def canonical_method_name(name: str) -> str:
+    """The known method ``name`` names (exactly, or ignoring case when only one matches: `olatbench.names`); a
+    `KeyError` with a "did you mean" and the known names otherwise."""
+    known = method_names()
+    matched = match_name(name, known)
+    if matched is None:
+        raise KeyError(f"unknown method '{name}'{did_you_mean(name, known)}; known methods: "
+                       f"{', '.join(known) or 'none'}")
+    return matched
+
+
 def get_spec(name: str) -> MethodSpec:
     """The spec of method ``name``; a `KeyError` listing the known names, or an `ImportError` naming the entry
-    point of a plugin that cannot be loaded."""
+    point of a plugin that cannot be loaded. Names match ignoring case where that is unambiguous (``SSDGS``)."""
+    builtin = builtin_specs()
+    if name not in _registered and name not in builtin:
+        name = canonical_method_name(name)
     if name in _registered:
         return _registered[name]
-    builtin = builtin_specs()
     if name in builtin:
         return builtin[name]
-    entry = _plugin_entries(set(builtin)).get(name)
-    if entry is None:
-        raise KeyError(f"unknown method '{name}'; known methods: {', '.join(method_names()) or 'none'}")
+    entry = _plugin_entries(set(builtin))[name]
     try:
         target = entry.load()  # type: ignore[attr-defined]
     except Exception as error:  # a broken plugin must say which one, not crash with its traceback

@@ -29,6 +29,7 @@ CAPABILITIES = frozenset({
     "refine_view",  # implements Method.refine_view (test-time pose/light refinement)
     "components",  # renders named components beside rgb (see MethodSpec.outputs)
     "checkpoint",  # state_dict / load_state_dict: resumable in-process training
+    "init_points",  # starts its Gaussians at Views.points (a scene's points3d.ply, run --init-points)
 })
 
 

@@ -146,12 +146,23 @@ def psnr_of(image: torch.Tensor, target: torch.Tensor) -> float:
 
 
 
+def initial_count(views: Views, config: Any) -> int:
+    """How many Gaussians `initial_model` makes: one per point of ``views.points``, else
+    ``config.num_init_gaussians``."""
+    return len(views.points) if views.points is not None else config.num_init_gaussians
+
+
 def initial_model(views: Views, config: Any, attributes: dict[str, torch.Tensor], seed: int,
                   device: torch.device) -> GaussianModel:
     """``config.num_init_gaussians`` Gaussians with opacity ``config.init_opacity`` and the given per-Gaussian
     ``attributes`` (each (num_init_gaussians, ...)), uniform in `initial_ball` (``config.init_radius``) or, with
     ``config.init_shape == "box"``, in the cube of half-side radius / 2 around its centre (radius 1: the official
-    SSD-GS code's [-0.5, 0.5]³; a fitted radius scales the cube with the scene)."""
+    SSD-GS code's [-0.5, 0.5]³; a fitted radius scales the cube with the scene). With ``views.points``: one
+    Gaussian on each point instead (``attributes`` then have one row per point; `initial_count`), scaled as 3DGS
+    does by the distance to its nearest neighbours (`GaussianModel.from_points`)."""
+    if views.points is not None:
+        return GaussianModel.from_points(views.points, attributes=attributes, opacity=config.init_opacity,
+                                         device=device)
     centre, radius = initial_ball(views.cameras, config.init_radius)
     if config.init_shape == "box":
         return GaussianModel.random_in_box(config.num_init_gaussians, tuple((centre - radius / 2).tolist()),

@@ -17,10 +17,24 @@ import numpy as np
 from olatbench.atomic import atomic_path
 from olatbench.datasets import colour
 from olatbench.datasets.images import write_image
+from olatbench.datasets.lights import parse_light
+from olatbench.names import did_you_mean
 from olatbench.progress import progress_bar
+from olatbench.reports.camera_paths import (
+    CameraPathError,
+    orbit_cameras,
+    path_frames,
+    read_camera_path,
+    read_light_path,
+)
 from olatbench.reports.encode import open_video
 from olatbench.reports.jobfolder import JobFolder, JobFolderError
 from olatbench.reports.sweeps import SweepFrame, orbit_frame, subsample, trajectory
+
+
+class RenderRequestError(JobFolderError):
+    """What was asked of a job is not there (a component its method does not render, a frame its scene lacks);
+    the message says what there is."""
 
 
 @dataclass(frozen=True)
@@ -51,17 +65,76 @@ def sweep_frames(job: JobFolder, kind: str, frame_id: str | None = None, count: 
     scene = job.load_scene()
     frames = scene.split(job.job["test_split"])
     train = scene.split(job.job["train_split"])
-    if frame_id is None:
-        start = frames[0]
-    else:
-        matches = [f for f in frames + train if f.frame_id == frame_id]
-        if not matches:
-            raise JobFolderError(f"{job.job['scene_path']}: no frame {frame_id!r} in the test or train split")
-        start = matches[0]
+    start = frames[0] if frame_id is None else find_frame(frames, train, frame_id, job.job["scene_path"])
     size = resolution or job.resolution
     camera = start.camera.resized(*size) if size else start.camera
     centre, up = orbit_frame([frame.camera for frame in train])
     return subsample(trajectory(kind, camera, start.light, centre, up), count)
+
+
+@dataclass(frozen=True)
+class Orbit:
+    """An orbit about the scene centre (`olatbench.reports.camera_paths.orbit_cameras`): elevation in degrees,
+    radius in scene units (None: the training cameras' mean distance from the centre), number of frames."""
+
+    elevation: float = 20.0
+    radius: float | None = None
+    frames: int = 120
+
+
+def free_path_frames(job: JobFolder, *, camera_path: str | Path | None = None, orbit: Orbit | None = None,
+                     light: str | None = None, light_path: str | Path | None = None,
+                     resolution: tuple[int, int] | None = None) -> tuple[list[SweepFrame], float | None]:
+    """The frames of a camera path (nerfstudio JSON) or an orbit, under ``light`` (a training light index or
+    ``x,y,z``), the lights of ``light_path``, or by default the first test frame's light; and the path file's
+    frame rate (None for an orbit). ``resolution`` resizes the cameras (default: the path's size; for an orbit the
+    job's). Errors in what was asked are `RenderRequestError`s naming the file and field."""
+    if (camera_path is None) == (orbit is None):
+        raise RenderRequestError("give a camera path or an orbit (one of them)")
+    scene = job.load_scene()
+    test, train = scene.split(job.job["test_split"]), scene.split(job.job["train_split"])
+    try:
+        default = parse_light(light, [frame.light for frame in train]) if light is not None else test[0].light
+    except ValueError as error:  # not a training light index or a position
+        raise RenderRequestError(str(error)) from None
+    try:
+        lights = read_light_path(light_path, default) if light_path is not None else [default]
+        if camera_path is not None:
+            read = read_camera_path(camera_path)
+            cameras, fps, phase = read.cameras, read.fps, "camera path"
+            if resolution:
+                cameras = [camera.resized(*resolution) for camera in cameras]
+        else:
+            size = resolution or job.resolution
+            template = test[0].camera.resized(*size) if size else test[0].camera
+            centre, up = orbit_frame([frame.camera for frame in train])
+            radius = orbit.radius or float(np.mean([np.linalg.norm(f.camera.position - centre) for f in train]))
+            cameras = orbit_cameras(template, centre, up, orbit.elevation, radius, orbit.frames)
+            fps, phase = None, "orbit"
+        return path_frames(cameras, lights, phase), fps
+    except CameraPathError as error:
+        raise RenderRequestError(str(error)) from None
+
+
+def find_frame(test: list, train: list, frame_id: str, scene_path: str):
+    """The frame called ``frame_id``, searched in the ``test`` then the ``train`` split's frames; a
+    `RenderRequestError` naming the close ids and the test split's range otherwise."""
+    for frame in test + train:
+        if frame.frame_id == frame_id:
+            return frame
+    ids = [frame.frame_id for frame in test + train]
+    span = f"{test[0].frame_id} … {test[-1].frame_id}" if len(test) > 1 else ids[0] if ids else "none"
+    raise RenderRequestError(f"{scene_path}: no frame {frame_id!r} in the test or train split"
+                             f"{did_you_mean(frame_id, ids)}; the test frames are {span} ({len(test)}), "
+                             "or leave --start-frame out to start at the first")
+
+
+def checked_component(output: dict, component: str, job: JobFolder) -> None:
+    """A `RenderRequestError` listing what the method renders when ``component`` is not among its outputs."""
+    if component not in output:
+        raise RenderRequestError(f"method '{job.job['method']}' renders no component {component!r}"
+                                 f"{did_you_mean(component, output)}; it renders {', '.join(sorted(output))} "
+                                 "(choose one with --component)")
 
 
 def display_image(tensor, colourspace: str) -> np.ndarray:
@@ -102,9 +175,7 @@ def render_sweep(job: JobFolder, kind: str, out_dir: str | Path, *, count: int |
             with torch.no_grad():
                 for index, frame in enumerate(progress_bar(frames, desc=f"{job.label}: {kind}", disable=not progress)):
                     output = method.render(frame.camera, frame.light)
-                    if component not in output:
-                        raise JobFolderError(f"method '{job.job['method']}' renders no component {component!r}; "
-                                             f"it renders {', '.join(sorted(output))}")
+                    checked_component(output, component, job)
                     image = display_image(output[component], job.job["colourspace"])
                     write_image(frames_dir / f"{index:05d}.png", image)
                     writer.write(colour.quantize_8bit(image))

@@ -27,7 +27,7 @@ from olatbench.methods.base import Views
 from olatbench.methods.baselines.gs3_config import GS3Config
 from olatbench.methods.baselines.gs3_shading import GS3Components, GS3Shader
 from olatbench.methods.baselines.gs3_spec import PRESETS, SPEC
-from olatbench.methods.baselines.triple_splat import triple_splat
+from olatbench.methods.baselines.triple_splat import composite, triple_splat
 from olatbench.methods.gaussian_method import GaussianMethod, ParameterGroup, SplatColour, albedo_splat_colour
 from olatbench.methods.training import (
     camera_centre,
@@ -159,6 +159,24 @@ class GS3(GaussianMethod, spec=SPEC):
         return {"rgb": out["image"].clamp(0.0, 1.0), "diffuse": splat.extras[..., 0:3],
                 "specular": splat.extras[..., 3:6], "shading": splat.shading, "shadow": splat.visibility,
                 "shadow_coarse": splat.extras[..., 6:7], "other": splat.other}
+
+    @torch.no_grad()
+    def colours_under(self, camera: Camera, light: PointLight) -> torch.Tensor:
+        """Each Gaussian's own composite ``shading · visibility + other`` (N, 3) seen from ``camera`` under
+        ``light`` (``shading`` alone before the shadow term starts, as `render`). `render` splats the three
+        separately and composites per pixel, so a render of these colours equals it only where one Gaussian
+        covers a pixel (docs/export.md)."""
+        model, step = self.model, max(self.step - 1, 0)
+        w2c, _ = camera_tensors(camera, self.device)
+        position, intensity = light_tensors(light, self.device)
+        hint = None
+        if self.shadow_on(step):
+            hint = shadow_gather(model.means, model.quats, model.scales, model.opacities, position,
+                                 model.means.mean(0), resolution=self.config.shadow_resolution,
+                                 depth_offset=self.config.shadow_depth_offset).visibility
+        shaded = self.shader(model.means, dict(model.attributes), camera_centre(w2c), position, intensity,
+                             self.specular_on(step), hint)
+        return composite(shaded.shading, shaded.visibility, shaded.other) if self.shadow_on(step) else shaded.shading
 
     # ----------------------------------------------------------------------------------------- checkpoints
     def module_state(self) -> dict[str, Any]:

@@ -30,5 +30,5 @@ SPEC = MethodSpec(
     config="olatbench.methods.baselines.gs3_config:GS3Config",
     presets=PRESETS,
     outputs=("rgb", "diffuse", "specular", "shading", "shadow", "shadow_coarse", "other"),
-    capabilities=frozenset({"relight", "components", "checkpoint"}),
+    capabilities=frozenset({"relight", "components", "checkpoint", "init_points"}),
 )

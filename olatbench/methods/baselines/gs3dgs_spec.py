@@ -30,5 +30,5 @@ SPEC = MethodSpec(
     config="olatbench.methods.baselines.gs3dgs_config:GS3DConfig",
     presets=PRESETS,
     outputs=("rgb",),
-    capabilities=frozenset({"checkpoint"}),
+    capabilities=frozenset({"checkpoint", "init_points"}),
 )

@@ -79,3 +79,37 @@ def eval_sh(degree: int, coefficients: torch.Tensor, dirs: torch.Tensor) -> torc
 def rgb_to_sh_dc(rgb: torch.Tensor) -> torch.Tensor:
     """The DC coefficient whose colour (``C0 · dc + 0.5``) is ``rgb``."""
     return (rgb - 0.5) / C0
+
+
+class SHFit:
+    """Least-squares SH coefficients per Gaussian for colours seen along several directions, one view at a time.
+
+    For each of ``n`` Gaussians, the coefficients ``c`` (K = (degree+1)², 3) minimising
+    Σ_views ‖Y(d_v) c + 0.5 − colour_v‖² (a 3DGS colour is ``eval_sh + 0.5``), from the normal equations
+    Σ Y Yᵀ c = Σ Y (colour − 0.5) accumulated in float64 by `add` and solved by `solve`. Degree 0 gives the mean
+    colour over the views. ``ridge`` (relative to the number of views) is added to the diagonal of the coefficients
+    above degree 0 only, so that directions no view saw get small coefficients instead of arbitrary ones.
+    """
+
+    def __init__(self, n: int, degree: int, ridge: float = 1e-3, device: str | torch.device = "cpu") -> None:
+        self.degree, self.ridge = degree, ridge
+        k = num_coefficients(degree)
+        self.normal = torch.zeros(n, k, k, dtype=torch.float64, device=device)
+        self.target = torch.zeros(n, k, 3, dtype=torch.float64, device=device)
+        self.views = 0
+
+    def add(self, dirs: torch.Tensor, colours: torch.Tensor) -> None:
+        """One view: unit directions (n, 3) from the camera to each Gaussian, and each Gaussian's colour (n, 3)."""
+        basis = sh_basis(self.degree, dirs.to(self.normal))
+        self.normal += basis[:, :, None] * basis[:, None, :]
+        self.target += basis[:, :, None] * (colours.to(self.target) - 0.5)[:, None, :]
+        self.views += 1
+
+    def solve(self) -> torch.Tensor:
+        """The coefficients (n, K, 3) in float32."""
+        if self.views == 0:
+            raise ValueError("an SH fit needs at least one view")
+        k = self.normal.shape[-1]
+        penalty = torch.full((k,), self.ridge * self.views, dtype=torch.float64, device=self.normal.device)
+        penalty[0] = 0.0
+        return torch.linalg.solve(self.normal + torch.diag(penalty), self.target).float()

@@ -175,30 +175,38 @@ class SSDGS(GaussianMethod, spec=SPEC):
         """Project, shade the visible Gaussians (those reaching a pixel, with ``cull_shading``) and rasterize: rgb
         only (training) or every component (evaluation)."""
         model = self.model
-        means, quats, scales, opacities = model.means, model.quats, model.scales, model.opacities
-        projected = project(means, quats, scales, w2c, K, width, height)
-        visible, bins = shaded_subset(projected, opacities, self.config.shading_cull_epsilon(components))
-        pick = visible.pick
+        projected = project(model.means, model.quats, model.scales, w2c, K, width, height)
+        visible, bins = shaded_subset(projected, model.opacities, self.config.shading_cull_epsilon(components))
         terms = self.active_terms(step)
-        coarse, light_weight = None, None
-        camera_position = camera_centre(w2c)
-        if "shadow" in terms:  # the light-view pass sees the model as it is: no gradient flows through it
-            with torch.no_grad():
-                gathered = shadow_gather(means.detach(), quats.detach(), scales.detach(), opacities.detach(),
-                                         light_position.detach(), means.detach().mean(0),
-                                         **self.light_view_options(K, width, height, camera_position, light_position))
-            coarse, light_weight = pick(gathered.visibility), gathered.weight
-        attributes = {name: pick(value) for name, value in model.attributes.items()}
-        shaded: Components = self.shader(pick(means), pick(quats), pick(scales), attributes, camera_position,
-                                         light_position, intensity, terms, coarse)
+        shaded, light_weight = self._shade(w2c, K, width, height, light_position, intensity, terms, visible.pick)
         if components:
             per_gaussian = torch.cat([shaded.colour, shaded.diffuse, shaded.specular, shaded.sss, shaded.shadow,
                                       shaded.shadow_coarse], dim=1)
             background = torch.cat([self.background, self.background.new_zeros(per_gaussian.shape[1] - 3)])
         else:
             per_gaussian, background = shaded.colour, self.background
-        out = rasterize(projected, opacities, visible.scatter(per_gaussian), background, bins=bins)
+        out = rasterize(projected, model.opacities, visible.scatter(per_gaussian), background, bins=bins)
         return {"image": out.image, "projected": projected, "terms": terms, "light_weight": light_weight}
+
+    def _shade(self, w2c: torch.Tensor, K: torch.Tensor, width: int, height: int, light_position: torch.Tensor,
+               intensity: torch.Tensor, terms: frozenset[str], pick) -> tuple[Components, torch.Tensor | None]:
+        """The shading of the Gaussians ``pick`` selects (a function of per-Gaussian tensors (N, …) -> (M, …)) seen
+        by the camera ``w2c``, ``K`` (the light-view pass frames itself by it) under the light; and the light-view
+        weight (None without the shadow term)."""
+        model = self.model
+        means, quats, scales = model.means, model.quats, model.scales
+        coarse, light_weight = None, None
+        camera_position = camera_centre(w2c)
+        if "shadow" in terms:  # the light-view pass sees the model as it is: no gradient flows through it
+            with torch.no_grad():
+                gathered = shadow_gather(means.detach(), quats.detach(), scales.detach(), model.opacities.detach(),
+                                         light_position.detach(), means.detach().mean(0),
+                                         **self.light_view_options(K, width, height, camera_position, light_position))
+            coarse, light_weight = pick(gathered.visibility), gathered.weight
+        attributes = {name: pick(value) for name, value in model.attributes.items()}
+        shaded: Components = self.shader(pick(means), pick(quats), pick(scales), attributes, camera_position,
+                                         light_position, intensity, terms, coarse)
+        return shaded, light_weight
 
     def light_view_options(self, K: torch.Tensor, width: int, height: int, camera_position: torch.Tensor,
                            light_position: torch.Tensor) -> dict[str, Any]:
@@ -276,6 +284,17 @@ class SSDGS(GaussianMethod, spec=SPEC):
             start += channels
         result["rgb"] = result["rgb"].clamp(0.0, 1.0)
         return result
+
+    @torch.no_grad()
+    def colours_under(self, camera: Camera, light: PointLight) -> torch.Tensor:
+        """The colour (N, 3) every Gaussian gives the rasterizer in `render` when ``camera`` sees it under ``light``
+        (no refinement applied: the camera and light as given)."""
+        f32 = dict(dtype=torch.float32, device=self.device)
+        shaded, _ = self._shade(torch.as_tensor(camera.w2c(), **f32), torch.as_tensor(camera.K, **f32), camera.width,
+                                camera.height, torch.as_tensor(light.position, **f32),
+                                torch.as_tensor(light.intensity, **f32), self.active_terms(max(self.step - 1, 0)),
+                                lambda value: value)
+        return shaded.colour
 
     @property
     def refines_test_views(self) -> bool:

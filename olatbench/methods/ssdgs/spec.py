@@ -21,5 +21,5 @@ SPEC = MethodSpec(
     presets=PRESETS,
     ablations=ABLATIONS,
     outputs=("rgb", "diffuse", "specular", "sss", "shadow", "shadow_coarse"),
-    capabilities=frozenset({"relight", "refine_view", "components", "checkpoint"}),
+    capabilities=frozenset({"relight", "refine_view", "components", "checkpoint", "init_points"}),
 )
