@@ -128,7 +128,7 @@ def _run(job: Job, folder: Path, log: JobLog, progress: bool, position: int, sta
     method_class = load_method_class(job)
     method = method_class(method_class.resolve_config(None, **job.config))
     if method.test_pose_fitting is not None:  # the method fits the test views' poses/lights while it trains
-        test_views = load_views(scene.split(job.test_split), job, progress, position)
+        test_views = load_views(scene.split(job.test_split), job, progress, position, frame=train_views.frame)
         method.attach_test_views(test_views)
         log(f"loaded {len(test_views)} test views for test_pose_fitting={method.test_pose_fitting}")
     reused = _adopt_reusable_model(job, folder, log)

@@ -3,7 +3,8 @@
 A job's id is a content hash of everything that decides its result:
 
 * the method name and its fully resolved config (after suite preset, variant preset and overrides),
-* the suite, scene, seed, training colour space, image resolution and the train/test split names,
+* the suite, scene, seed, training colour space, image resolution, the train/test split names and the frame the
+  method works in (when it is not the dataset's own),
 * the scene's data manifest (`data_manifest_hash`: every file's relative path and content hash),
 * the evaluation protocol id and version,
 * the code version (`code_hash`: olatbench's version, the method's source files and the
@@ -69,6 +70,9 @@ class Job:
     save_components: bool = False
     official: dict[str, Any] | None = None  # official code only: where it lives and runs (settings.CodeSettings)
     reuse: bool = True  # start from a finished job of the same experiment under another variant name (bench.reuse)
+    # the frame the method works in (`Suite.frame`): "dataset" (the data's world frame; jobs written before the
+    # field existed) or "fitted" (the canonical frame of the training cameras); in the identity when not "dataset"
+    frame: str = "dataset"
     id: str = field(default="")
 
     @property
@@ -96,7 +100,7 @@ class Job:
             "data_manifest": self.data_manifest,
             "protocol": {"id": self.protocol, "version": self.protocol_version},
             "code": self.code,
-        }
+        } | ({"frame": self.frame} if self.frame != "dataset" else {})
 
     def with_id(self) -> Job:
         """This job with ``id`` computed from `identity`."""

@@ -307,6 +307,7 @@ def make_plan(method: str, suite: str | Suite, out: str | Path, scenes: Sequence
                           code=code, folder=str(job_folder(out, suite.name, method, label, scene, seed)),
                           device=options.device, checkpoint_every=options.checkpoint_every,
                           checkpoint_minutes=options.checkpoint_minutes, keep_checkpoints=options.keep_checkpoints,
-                          save_components=options.save_components, official=official, reuse=options.reuse)
+                          save_components=options.save_components, official=official, reuse=options.reuse,
+                          frame=suite.frame)
                 jobs.append(job.with_id() if manifest is not None else job)
     return jobs

@@ -9,11 +9,12 @@ renders must be returned in the same space.
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
+from olatbench.datasets.similarity import Similarity
 from olatbench.methods.spec import MethodSpec, build_config
 
 if TYPE_CHECKING:
@@ -29,6 +30,11 @@ class Views:
     ``images`` is (N, H, W, 3) float32 in [0, 1] in ``colourspace``, composited on ``background`` (3,); it is
     None when a trained method is restored for rendering and declared it needs no images
     (`Method.restore_needs_images`).
+
+    Cameras and lights are in the dataset's world frame; ``frame`` is the world -> canonical similarity the
+    runner chose for the job (`olatbench.datasets.similarity`: fitted to the training cameras, or the identity for
+    the built-in suites), which a method works in so that nothing it does depends on the world's origin, axes or
+    unit of length (the Gaussian methods do: `GaussianMethod`).
     """
 
     cameras: list[Camera]
@@ -38,9 +44,18 @@ class Views:
     colourspace: str = "srgb"
     background: np.ndarray = field(default_factory=lambda: np.zeros(3, dtype=np.float32))
     scene_name: str = ""
+    frame: Similarity = field(default_factory=Similarity.identity)
 
     def __len__(self) -> int:
         return len(self.cameras)
+
+    def in_frame(self) -> Views:
+        """These views with cameras and lights moved into ``frame`` (`Similarity.camera`, `Similarity.light`); the
+        result's ``frame`` is the identity (it is its own world)."""
+        if self.frame.is_identity:
+            return self
+        return replace(self, cameras=[self.frame.camera(c) for c in self.cameras],
+                       lights=[self.frame.light(lt) for lt in self.lights], frame=Similarity.identity())
 
 
 @dataclass
