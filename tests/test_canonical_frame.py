@@ -197,3 +197,25 @@ def test_sh_rotation_rotates_the_function():
     dirs = torch.nn.functional.normalize(torch.randn(4, 3, generator=generator, dtype=torch.float64), dim=-1)
     moved_dirs = dirs @ torch.as_tensor(MOVE.rotation).T
     torch.testing.assert_close(eval_sh(3, turned, moved_dirs), eval_sh(3, coefficients, dirs))
+
+
+def test_built_in_suites_keep_their_data_frame_and_other_suites_are_fitted(tmp_path):
+    """The frame is decided per suite and recorded in the job; a job of a built-in suite keeps the id it had before
+    the field existed (its identity has no ``frame``), and a job.json written before then reads as "dataset"."""
+    from datasets_trees import write_nrhints_tree
+
+    from olatbench.bench.jobs import Job
+    from olatbench.bench.plan import make_plan
+    from olatbench.datasets.suites import SUITES, data_suites
+
+    assert {suite.frame for suite in SUITES.values()} == {"dataset"}
+    write_nrhints_tree(tmp_path / "Cup", n_train=3, n_test=1, size=(16, 12))
+    (suite,) = data_suites([tmp_path / "Cup"])
+    assert suite.frame == "fitted"
+    (job,) = make_plan("3dgs", suite, tmp_path / "runs", iterations=5, progress=False)
+    assert job.frame == "fitted" and job.identity()["frame"] == "fitted"
+    kept = dataclasses.replace(job, frame="dataset")
+    assert "frame" not in kept.identity() and kept.with_id().id != job.id
+    written = kept.with_id().to_json()
+    del written["frame"]  # a job.json of an earlier version
+    assert Job.from_json(written).frame == "dataset"

@@ -3,9 +3,9 @@
 `load_views` reads the images (for training); `frame_views` gives the same views without them (for restoring a
 trained method whose `Method.restore_needs_images` is false: a sweep or the viewer then reads no training image).
 Both give the cameras resized to ``job.resolution``, the lights, the frame ids in the split's order and the
-official background in the job's colour space, and the job's world -> canonical frame (`job_frame`, fitted to the
-training split), so per-view state a method keeps (e.g. SSD-GS's pose and light
-refinements) is found for the same frames either way.
+official background in the job's colour space, so per-view state a method keeps (e.g. SSD-GS's pose and light
+refinements) is found for the same frames either way, and the job's world -> canonical frame (`job_frame`, fitted
+to the training split; docs/architecture.md, "The canonical frame").
 """
 
 from __future__ import annotations

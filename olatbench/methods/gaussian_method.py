@@ -7,7 +7,9 @@ per per-Gaussian parameter (resized by densification) and the method's global gr
 step (frozen parameters, forward, the 3DGS photometric loss, backward, then update and densification in the order
 `densify_before_update` says), and the checkpoint (its format string and config checked on load). A method supplies
 its initial per-Gaussian attributes, its modules, its global groups, its rate table, its forward pass and its
-rendering.
+rendering. Everything a method does happens in the canonical frame of the training views (`Views.frame`): `setup`
+moves the training views into it and `render` moves the world cameras and lights it is given (docs/architecture.md,
+"The canonical frame").
 
 The order of every call that consumes random numbers is fixed here, so methods moved onto this base train to the
 same numbers as before.
