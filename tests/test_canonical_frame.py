@@ -214,6 +214,9 @@ def test_built_in_suites_keep_their_data_frame_and_other_suites_are_fitted(tmp_p
     assert suite.frame == "fitted"
     (job,) = make_plan("3dgs", suite, tmp_path / "runs", iterations=5, progress=False)
     assert job.frame == "fitted" and job.identity()["frame"] == "fitted"
+    # the authors' code reads the files as they are: its jobs say so
+    (official,) = make_plan("gs3-official", suite, tmp_path / "runs", iterations=5, progress=False, generate=False)
+    assert official.frame == "dataset"
     kept = dataclasses.replace(job, frame="dataset")
     assert "frame" not in kept.identity() and kept.with_id().id != job.id
     written = kept.with_id().to_json()

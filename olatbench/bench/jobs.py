@@ -71,7 +71,8 @@ class Job:
     official: dict[str, Any] | None = None  # official code only: where it lives and runs (settings.CodeSettings)
     reuse: bool = True  # start from a finished job of the same experiment under another variant name (bench.reuse)
     # the frame the method works in (`Suite.frame`): "dataset" (the data's world frame; jobs written before the
-    # field existed) or "fitted" (the canonical frame of the training cameras); in the identity when not "dataset"
+    # field existed, and the official codes, which read the files as they are) or "fitted" (the canonical frame of
+    # the training cameras, `bench.views.job_frame`); in the identity when not "dataset"
     frame: str = "dataset"
     id: str = field(default="")
 

@@ -308,6 +308,6 @@ def make_plan(method: str, suite: str | Suite, out: str | Path, scenes: Sequence
                           device=options.device, checkpoint_every=options.checkpoint_every,
                           checkpoint_minutes=options.checkpoint_minutes, keep_checkpoints=options.keep_checkpoints,
                           save_components=options.save_components, official=official, reuse=options.reuse,
-                          frame=suite.frame)
+                          frame="dataset" if spec.kind == "official" else suite.frame)  # the authors' code: as is
                 jobs.append(job.with_id() if manifest is not None else job)
     return jobs
