@@ -93,11 +93,11 @@ def rotate_sh(coefficients: torch.Tensor, rotation: torch.Tensor) -> torch.Tenso
     degree = math.isqrt(k + 1) - 1
     if num_coefficients(degree) - 1 != k:
         raise ValueError(f"{k} SH coefficients above degree 0 is no whole degree")
-    index = torch.arange(64, dtype=torch.float64) + 0.5  # a Fibonacci sphere
+    index = torch.arange(64, dtype=torch.float64, device=coefficients.device) + 0.5  # a Fibonacci sphere
     z = 1.0 - 2.0 * index / 64
     azimuth = math.pi * (1.0 + 5.0**0.5) * index
     dirs = torch.stack([torch.sqrt(1 - z * z) * torch.cos(azimuth), torch.sqrt(1 - z * z) * torch.sin(azimuth), z], -1)
-    rotation = torch.as_tensor(rotation, dtype=torch.float64)
+    rotation = torch.as_tensor(rotation, dtype=torch.float64, device=coefficients.device)
     basis, rotated = sh_basis(degree, dirs)[:, 1:], sh_basis(degree, dirs @ rotation)[:, 1:]  # Y(u), Y(Rᵀ u)
     out = coefficients.to(torch.float64).clone()
     for band in range(1, degree + 1):
