@@ -1,17 +1,23 @@
 """``olatbench export``: a finished job's Gaussians in the 3DGS PLY layout, read back with a parser written here
-(numpy only) and compared with the checkpoint's tensors."""
+(numpy only) and compared with the checkpoint's tensors (jobs trained in the data's own frame, so the file holds the
+tensors as stored), and in world units for a job trained in a fitted canonical frame."""
 
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
+import test_runner_support as support
 import torch
 from click.testing import CliRunner
+from moved_scenes import ROTATION, SCALE, move_point, move_scene
 from trained_jobs import train_tiny
 
 from olatbench.bench.checkpoints import load_checkpoint
+from olatbench.bench.execute import run_job
+from olatbench.bench.plan import make_plan
 from olatbench.bench.restore import read_job
 from olatbench.bench.store import list_checkpoints
 from olatbench.cli import main
@@ -55,12 +61,13 @@ def check_core(table: np.ndarray, model: dict[str, torch.Tensor]) -> None:
 
 @pytest.fixture(scope="module")
 def ssdgs_job(tmp_path_factory):
-    return train_tiny("ssdgs", tmp_path_factory.mktemp("export_ssdgs"), iterations=8, shadow_resolution=32)
+    return train_tiny("ssdgs", tmp_path_factory.mktemp("export_ssdgs"), iterations=8, frame="dataset",
+                      shadow_resolution=32)
 
 
 @pytest.fixture(scope="module")
 def gs3dgs_job(tmp_path_factory):
-    return train_tiny("3dgs", tmp_path_factory.mktemp("export_3dgs"), iterations=8)
+    return train_tiny("3dgs", tmp_path_factory.mktemp("export_3dgs"), iterations=8, frame="dataset")
 
 
 def test_ssdgs_exports_albedo_as_sh_dc_and_its_other_attributes_as_extras(ssdgs_job, tmp_path):
@@ -114,3 +121,49 @@ def test_export_refuses_an_unfinished_job_naming_the_checkpoint(ssdgs_job, tmp_p
         checkpoint.unlink()
     result = CliRunner().invoke(main, ["export", str(copy), "-o", str(tmp_path / "x.ply")])
     assert result.exit_code == 1 and "no checkpoint" in result.output and not (tmp_path / "x.ply").exists()
+
+
+def quaternion_matrices(quats: np.ndarray) -> np.ndarray:
+    """(N, 3, 3) rotations of (N, 4) wxyz quaternions (normalised here)."""
+    w, x, y, z = (quats / np.linalg.norm(quats, axis=1, keepdims=True)).T
+    return np.stack([np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
+                     np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
+                     np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1)], 1)
+
+
+def test_export_writes_world_units_of_each_dataset(tmp_path):
+    """A tiny scene and a copy moved by scale 10, a rotation and a translation (tests/moved_scenes.py) train to the
+    same canonical model (to float32 rounding); their files hold that model in each dataset's own world units:
+    the copy's centres are the original's moved, log-scales + log 10, rotations R · R_i, and the view-dependent
+    colour turned with them (the SH function at R u is the original's at u)."""
+    from olatbench.methods.baselines.sh import eval_sh
+
+    data = support.write_tiny_data(tmp_path / "data", scenes=("Alpha",))
+    move_scene(data / "Alpha", data / "Moved")
+    jobs = make_plan("3dgs", support.tiny_suite(scenes=("Alpha", "Moved")), tmp_path / "runs", variants=["mini"],
+                     iterations=6, data_root=data, progress=False)
+    tables = []
+    for job in jobs:
+        assert job.frame == "fitted"  # a suite that is not built in
+        job = replace(job, config={**job.config, "num_init_gaussians": 200, "sh_increase_interval": 2}).with_id()
+        assert run_job(job, progress=False).status == "done"
+        out = tmp_path / f"{job.scene}.ply"
+        assert CliRunner().invoke(main, ["export", job.folder, "-o", str(out)]).exit_code == 0
+        tables.append(parse_ply(out)[2])
+    original, copy = tables
+    means = np.stack([original[axis] for axis in "xyz"], axis=1).astype(np.float64)
+    copy_means = np.stack([copy[axis] for axis in "xyz"], axis=1)
+    np.testing.assert_allclose(copy_means, np.stack([move_point(m) for m in means]), rtol=1e-4, atol=1e-3)
+    np.testing.assert_allclose(columns(copy, "scale_", 3), columns(original, "scale_", 3) + np.log(SCALE), atol=1e-3)
+    np.testing.assert_allclose(quaternion_matrices(columns(copy, "rot_", 4).astype(np.float64)),
+                               ROTATION @ quaternion_matrices(columns(original, "rot_", 4).astype(np.float64)),
+                               atol=1e-3)
+    # f_rest_{c·15 + k}: coefficient k + 1 of channel c
+    def sh(table):
+        rest = columns(table, "f_rest_", 45).reshape(-1, 3, 15).transpose(0, 2, 1)
+        return torch.as_tensor(np.concatenate([columns(table, "f_dc_", 3)[:, None], rest], 1), dtype=torch.float64)
+
+    assert np.abs(columns(original, "f_rest_", 45)).max() > 1e-4  # the view-dependent colour trained
+    dirs = torch.nn.functional.normalize(torch.randn(len(original), 3, dtype=torch.float64), dim=-1)
+    torch.testing.assert_close(eval_sh(3, sh(copy), dirs @ torch.as_tensor(ROTATION).T), eval_sh(3, sh(original), dirs),
+                               rtol=1e-3, atol=1e-4)

@@ -193,7 +193,7 @@ def _as_trained_surface(method: Any, views: Any, config: Any) -> None:
     from olatbench.gaussians.surface import place_on_sphere
     from olatbench.methods.initialisation import initial_ball
 
-    centre, radius = initial_ball(views.cameras, getattr(config, "init_radius", None))
+    centre, radius = initial_ball(views.in_frame().cameras, getattr(config, "init_radius", None))  # as the model
     place_on_sphere(method.model, centre.tolist(), SURFACE_RADIUS * radius)
 
 

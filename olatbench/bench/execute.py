@@ -149,13 +149,13 @@ def _run(job: Job, folder: Path, log: JobLog, progress: bool, position: int, sta
     log(f"loaded {len(train_views)} training views in {time.perf_counter() - clock:.1f} s")
     if job.init_points:
         train_views = dataclasses.replace(
-            train_views, points=load_init_points(job.init_points, job.init_points_digest, scene))
+            train_views, points=load_init_points(job.init_points, job.init_points_digest))
         log(f"starting from the {len(train_views.points)} points of {job.init_points}")
 
     method_class = load_method_class(job)
     method = method_class(method_class.resolve_config(None, **job.config))
     if method.test_pose_fitting is not None:  # the method fits the test views' poses/lights while it trains
-        test_views = load_views(scene.split(job.test_split), job, progress, position)
+        test_views = load_views(scene.split(job.test_split), job, progress, position, frame=train_views.frame)
         method.attach_test_views(test_views)
         log(f"loaded {len(test_views)} test views for test_pose_fitting={method.test_pose_fitting}")
     reused = _adopt_reusable_model(job, folder, log)

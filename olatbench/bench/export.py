@@ -3,13 +3,16 @@
 The Gaussians are read from the job's final checkpoint (the folder is checked as `olatbench.bench.restore` checks
 it; no scene or image is read): the core parameters as stored (centres, log-scales, wxyz quaternions, opacity
 logits), the colour as the method says (`GaussianMethod.splat_colour`: SSD-GS and GS³ their diffuse albedo as a
-degree-0 SH colour, 3DGS its SH coefficients), and every other per-Gaussian attribute as extra properties.
+degree-0 SH colour, 3DGS its SH coefficients), and every other per-Gaussian attribute as extra properties. A method
+trained in a canonical frame (`Views.frame`, stored in the checkpoint) has its centres, scales, rotations and
+view-dependent SH moved back into the dataset's world frame and units; the extra attributes are written as stored.
 
 With ``under_light`` the colour is instead **baked** under one light (`baked_colour`): the trained method is
 restored, each Gaussian's colour under that light (`GaussianMethod.colours_under`) is taken from a set of cameras
 (the training cameras, or one named frame's), converted to sRGB, and fitted per Gaussian by least squares with SH
 of degree ``sh_degree`` (`olatbench.methods.baselines.sh.SHFit`; degree 0: the mean over the cameras, the
-view-independent part). The file is a picture of the model under that light, not a relightable model.
+view-independent part) along directions in the canonical frame, moved to the world frame with the rest. The file is
+a picture of the model under that light, not a relightable model.
 """
 
 from __future__ import annotations
@@ -22,6 +25,7 @@ import torch
 
 from olatbench.bench.checkpoints import load_checkpoint
 from olatbench.bench.restore import RestoreError, check_job
+from olatbench.datasets.similarity import Similarity
 from olatbench.gaussians.splat_ply import SplatCloud, write_splat_ply
 from olatbench.methods.gaussian_method import SplatColour
 from olatbench.names import did_you_mean
@@ -68,6 +72,7 @@ def export_ply(job_folder: str | Path, output: str | Path, bake: Bake | None = N
     """Write the Gaussians of the finished job in ``job_folder`` to ``output``, coloured as the method says or,
     with ``bake``, under a light (`baked_colour`); a `RestoreError` naming the file when the folder, its checkpoint
     or its method cannot give them."""
+    from olatbench.methods.baselines.sh import rotate_sh
     from olatbench.methods.gaussian_method import GaussianMethod
 
     folder = Path(job_folder)
@@ -94,9 +99,15 @@ def export_ply(job_folder: str | Path, output: str | Path, bake: Bake | None = N
         raise RestoreError(f"{checkpoint}: the restored model has {len(colour.sh_dc)} Gaussians, the checkpoint "
                            f"{len(model['means'])}")
     extras = {name: _numpy(value) for name, value in attributes.items() if name not in colour.encoded}
-    cloud = SplatCloud(means=_numpy(model["means"]), log_scales=_numpy(model["log_scales"]),
-                       quats=_numpy(model["quats"]), opacity_logits=_numpy(model["opacity_logits"]).reshape(-1),
-                       sh_dc=_numpy(colour.sh_dc), sh_rest=_numpy(colour.sh_rest), extras=extras,
+    stored_frame = payload["method"].get("frame")  # absent before the canonical frame: the dataset's frame
+    to_world = (Similarity.identity() if stored_frame is None else Similarity.from_dict(stored_frame)).inverse()
+    sh_rest = colour.sh_rest if to_world.is_identity or colour.sh_rest.shape[-2] == 0 else \
+        rotate_sh(colour.sh_rest.detach().cpu(), torch.as_tensor(to_world.rotation))
+    cloud = SplatCloud(means=to_world.points(_numpy(model["means"])).astype(np.float32),
+                       log_scales=to_world.log_scales(_numpy(model["log_scales"])).astype(np.float32),
+                       quats=to_world.quaternions(_numpy(model["quats"])).astype(np.float32),
+                       opacity_logits=_numpy(model["opacity_logits"]).reshape(-1),
+                       sh_dc=_numpy(colour.sh_dc), sh_rest=_numpy(sh_rest), extras=extras,
                        comments=(f"olatbench export of job {job.id}: {job.method}/{job.variant}/{job.scene}/seed"
                                  f"{job.seed}, step {payload['step']}", colour.description,
                                  "extra properties: raw per-Gaussian attributes " + (", ".join(extras) or "(none)")))
@@ -105,14 +116,16 @@ def export_ply(job_folder: str | Path, output: str | Path, bake: Bake | None = N
 
 
 def bake_cameras(method, job, bake: Bake) -> list:
-    """The cameras a bake sees the Gaussians from (see `Bake`), at the job's resolution."""
+    """The cameras a bake sees the Gaussians from (see `Bake`), at the job's resolution, in the dataset's world
+    frame."""
     from olatbench.bench.views import view_camera
     from olatbench.datasets import load_scene
 
-    train = method.train_views.views
+    train = method.train_views.views  # in the method's canonical frame
     if bake.view is None:
         count = min(bake.max_views, len(train))
-        return [train.cameras[i] for i in np.linspace(0, len(train) - 1, count).round().astype(int)]
+        to_world = method.frame.inverse()
+        return [to_world.camera(train.cameras[i]) for i in np.linspace(0, len(train) - 1, count).round().astype(int)]
     scene = load_scene(job.scene_path, format=job.scene_format)
     frames = scene.split(job.test_split) + scene.split(job.train_split)  # test first, as render --start-frame
     for frame in frames:
@@ -138,17 +151,19 @@ def baked_colour(job_folder: str | Path, bake: Bake, device: str = "cpu", progre
         raise BakeRequestError(f"{Path(job_folder) / 'job.json'}: method '{job.method}' has no colour under a light "
                            "(it is not relightable, or does not say: GaussianMethod.colours_under); export it "
                            "without --under-light")
-    try:
-        light = parse_light(bake.light, method.train_views.views.lights)
+    to_world = method.frame.inverse()
+    try:  # the light as the user names it: a training light or a position, in the dataset's world frame
+        light = parse_light(bake.light, [to_world.light(lt) for lt in method.train_views.views.lights])
     except ValueError as error:
         raise BakeRequestError(str(error)) from None
     cameras = bake_cameras(method, job, bake)
-    means = method.model.means.detach().double()
+    means = method.model.means.detach().double()  # canonical, as the fit's directions: export_ply moves the SH back
     fit = SHFit(len(means), bake.sh_degree, device=means.device)
     for camera in progress_bar(cameras, desc=f"bake {job.method}/{job.scene}", unit="view", disable=not progress):
-        colours = method.colours_under(camera, light).detach().double().cpu().numpy()
+        seen_from, lit_by = method.canonical_view(camera, light)
+        colours = method.colours_under(seen_from, lit_by).detach().double().cpu().numpy()
         shown = torch.from_numpy(convert_colourspace(colours, job.colourspace, "srgb"))
-        fit.add(torch.nn.functional.normalize(means - torch.as_tensor(camera.position).to(means), dim=-1), shown)
+        fit.add(torch.nn.functional.normalize(means - torch.as_tensor(seen_from.position).to(means), dim=-1), shown)
     coefficients = fit.solve().cpu()
     rest = torch.zeros(len(means), VIEWER_SH_REST, 3)
     rest[:, : num_coefficients(bake.sh_degree) - 1] = coefficients[:, 1:]

@@ -3,8 +3,9 @@ and SSD-GS loaders look for one) or a file given with ``run --init-points``, for
 capability (`olatbench.methods.spec.CAPABILITIES`).
 
 The plan records the file (``Job.init_points``) and its content digest (``Job.init_points_digest``, part of the job
-id); the runner reads it in world units, moves it into the scene's frame (`Scene.points_to_scene_frame`, the one
-place a scene's frame is applied to points) and hands it to the method as ``Views.points``. Only positions are
+id); the runner reads it in the dataset's world units and hands it to the method as ``Views.points``, which
+`Views.in_frame` moves into the method's canonical frame with the cameras and lights (`olatbench.datasets.similarity`,
+the one place a frame is applied). Only positions are
 used: every Gaussian starts on a point, scaled by its nearest neighbours (`GaussianModel.from_points`); the file's
 colours are not (the methods learn their own albedo / SH from the images).
 """
@@ -16,7 +17,6 @@ from pathlib import Path
 import numpy as np
 
 from olatbench.bench.jobs import file_digest
-from olatbench.datasets.records import Scene
 
 #: The file a scene folder may hold to initialise from (the name the official loaders read).
 SCENE_POINTS_FILE = "points3d.ply"
@@ -44,8 +44,8 @@ def points_digest(path: str | Path) -> str:
     return file_digest(Path(path))
 
 
-def load_init_points(path: str | Path, digest: str | None, scene: Scene) -> np.ndarray:
-    """The points (P, 3) float64 of ``path`` in ``scene``'s frame; an `InitPointsError` when the file cannot be
+def load_init_points(path: str | Path, digest: str | None) -> np.ndarray:
+    """The points (P, 3) float64 of ``path`` in the dataset's world frame; an `InitPointsError` when the file cannot be
     read, holds no point, or no longer has the content ``digest`` the job was planned with."""
     from olatbench.gaussians.ply import PlyError, read_ply_points  # the Gaussian package imports torch: plans do not
 
@@ -61,7 +61,7 @@ def load_init_points(path: str | Path, digest: str | None, scene: Scene) -> np.n
         raise InitPointsError(f"cannot read the initial points: {error}") from None
     if len(points) == 0 or not np.all(np.isfinite(points)):
         raise InitPointsError(f"{path}: the point cloud is empty or has non-finite coordinates")
-    return scene.points_to_scene_frame(points)
+    return np.asarray(points, dtype=np.float64).reshape(-1, 3)
 
 
 __all__ = ["SCENE_POINTS_FILE", "InitPointsError", "init_points_file", "load_init_points", "points_digest"]

@@ -3,7 +3,8 @@
 A job's id is a content hash of everything that decides its result:
 
 * the method name and its fully resolved config (after suite preset, variant preset and overrides),
-* the suite, scene, seed, training colour space, image resolution and the train/test split names,
+* the suite, scene, seed, training colour space, image resolution, the train/test split names and the frame the
+  method works in (when it is not the dataset's own),
 * the scene's data manifest (`data_manifest_hash`: every file's relative path and content hash),
 * the point cloud the Gaussians start from, when one is used (``init_points_digest``: its content hash; the
   file's path is not part of the id),
@@ -73,6 +74,10 @@ class Job:
     reuse: bool = True  # start from a finished job of the same experiment under another variant name (bench.reuse)
     init_points: str = ""  # the point PLY the Gaussians start from (bench.init_points), "" for the method's own init
     init_points_digest: str | None = None  # its content digest (`file_digest`), part of the id when set
+    # the frame the method works in (`Suite.frame`): "dataset" (the data's world frame; jobs written before the
+    # field existed, and the official codes, which read the files as they are) or "fitted" (the canonical frame of
+    # the training cameras, `bench.views.job_frame`); in the identity when not "dataset"
+    frame: str = "dataset"
     id: str = field(default="")
 
     @property
@@ -102,7 +107,7 @@ class Job:
             "code": self.code,
             # only when used, so that the ids of jobs without a point cloud stay what they were
             **({"init_points": self.init_points_digest} if self.init_points_digest else {}),
-        }
+        } | ({"frame": self.frame} if self.frame != "dataset" else {})
 
     def with_id(self) -> Job:
         """This job with ``id`` computed from `identity`."""

@@ -326,6 +326,7 @@ def make_plan(method: str, suite: str | Suite, out: str | Path, scenes: Sequence
                           checkpoint_minutes=options.checkpoint_minutes, keep_checkpoints=options.keep_checkpoints,
                           save_components=options.save_components, official=official, reuse=options.reuse,
                           init_points=str(points) if points else "",
-                          init_points_digest=points_digest(points) if points else None)
+                          init_points_digest=points_digest(points) if points else None,
+                          frame="dataset" if spec.kind == "official" else suite.frame)  # the authors' code: as is
                 jobs.append(job.with_id() if manifest is not None else job)
     return jobs

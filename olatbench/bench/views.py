@@ -4,7 +4,8 @@
 trained method whose `Method.restore_needs_images` is false: a sweep or the viewer then reads no training image).
 Both give the cameras resized to ``job.resolution``, the lights, the frame ids in the split's order and the
 official background in the job's colour space, so per-view state a method keeps (e.g. SSD-GS's pose and light
-refinements) is found for the same frames either way.
+refinements) is found for the same frames either way, and the job's world -> canonical frame (`job_frame`, fitted
+to the training split; docs/architecture.md, "The canonical frame").
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ import numpy as np
 from olatbench.bench.jobs import Job
 from olatbench.datasets import colour
 from olatbench.datasets.records import Camera, Frame
+from olatbench.datasets.similarity import Similarity, canonical_frame
 from olatbench.methods.base import Views
 from olatbench.progress import progress_bar
 
@@ -33,9 +35,20 @@ def view_camera(frame: Frame, job: Job) -> Camera:
     return frame.camera.resized(*job.resolution) if job.resolution else frame.camera
 
 
-def frame_views(frames: list[Frame], job: Job) -> Views:
+def job_frame(frames: list[Frame], job: Job) -> Similarity:
+    """The world -> canonical similarity of ``job`` (`Views.frame`): `canonical_frame` of the training ``frames``'
+    cameras when ``job.frame`` is "fitted", else the identity (the dataset's own frame)."""
+    if job.frame == "dataset":
+        return Similarity.identity()
+    if job.frame != "fitted":
+        raise ValueError(f"{job.folder}: unknown frame {job.frame!r} (known: fitted, dataset)")
+    return canonical_frame([frame.camera for frame in frames])
+
+
+def frame_views(frames: list[Frame], job: Job, frame: Similarity | None = None) -> Views:
     """The frames' cameras, lights, frame ids and background in ``job.colourspace``; ``images`` is None
-    (nothing is read from the image files)."""
+    (nothing is read from the image files). ``frame``: the job's world -> canonical similarity, fitted to these
+    frames (the training split) when not given; views of another split must be given the training split's."""
     if not frames:
         raise ValueError(f"{job.scene_path}: split '{job.train_split}' has no frames")
     first = frames[0]
@@ -43,10 +56,12 @@ def frame_views(frames: list[Frame], job: Job) -> Views:
                                             job.colourspace)
     return Views(cameras=[view_camera(frame, job) for frame in frames], lights=[frame.light for frame in frames],
                  images=None, frame_ids=[frame.frame_id for frame in frames],
-                 colourspace=job.colourspace, background=background, scene_name=job.scene)
+                 colourspace=job.colourspace, background=background, scene_name=job.scene,
+                 frame=job_frame(frames, job) if frame is None else frame)
 
 
-def load_views(frames: list[Frame], job: Job, progress: bool = False, position: int = 1) -> Views:
+def load_views(frames: list[Frame], job: Job, progress: bool = False, position: int = 1,
+               frame: Similarity | None = None) -> Views:
     """`frame_views` plus the images (composited on the official background, in the suite's colour space,
     resized to ``job.resolution``), loaded with a few threads into one preallocated array.
 
@@ -58,7 +73,7 @@ def load_views(frames: list[Frame], job: Job, progress: bool = False, position: 
     in float16) live in a memory-mapped file ``<job folder>/.views.npy`` instead of RAM; it is deleted when the
     job ends.
     """
-    views = frame_views(frames, job)
+    views = frame_views(frames, job, frame)
     resolution = tuple(job.resolution) if job.resolution else None
 
     def load(frame: Frame) -> np.ndarray:

@@ -178,13 +178,6 @@ class Scene:
     def splits(self) -> list[Split]:
         return [split for split, frames in self.frames.items() if frames]
 
-    def points_to_scene_frame(self, points: np.ndarray) -> np.ndarray:
-        """World points (P, 3) read from a file of this scene's folder (its ``points3d.ply``, a point cloud given
-        for it) in the frame of this scene's cameras and lights. The readers keep the files' own world frame, so
-        this is the points as read (float64); a reader that moves a scene into another frame at load time moves
-        the points here too, so that they stay in one frame with its cameras."""
-        return np.asarray(points, dtype=np.float64).reshape(-1, 3)
-
     def split(self, name: Split) -> list[Frame]:
         """The frames of one split; a `DatasetError` listing the available splits otherwise."""
         if name not in self.frames:

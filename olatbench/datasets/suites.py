@@ -57,6 +57,10 @@ class Suite:
     scene_paths: dict[str, str] = field(default_factory=dict)  # scene -> its folder (user suites; no data root)
     method_preset: str | None = None  # the method preset every job applies (None: the one named like the suite)
     iterations_given: bool = False  # a user suite's own iterations: they win over that preset's
+    # The frame methods work in (Views.frame): "fitted", the canonical frame fitted to the training cameras
+    # (olatbench.datasets.similarity), or "dataset", the data's own world frame: the built-in suites', whose method
+    # presets hold world-unit values tuned in it (docs/architecture.md, "The canonical frame").
+    frame: str = "fitted"
 
     @property
     def preset(self) -> str:
@@ -110,18 +114,18 @@ SUITES: dict[str, Suite] = {
         name="nrhints", format="nrhints", scenes=_NRHINTS_SCENES,
         aliases=_default_aliases(_NRHINTS_SCENES, {"Cat_on_Decor": "CatSmall", "Cluttered": "FurScene",
                                                    "Cup-Fabric": "CupFabric"}),
-        background=(0.0, 0.0, 0.0), resolution=None, iterations=100_000, protocol="ssdgs"),
+        background=(0.0, 0.0, 0.0), resolution=None, iterations=100_000, protocol="ssdgs", frame="dataset"),
     "gs3": Suite(
         name="gs3", format="gs3", scenes=_GS3_SCENES, aliases=_default_aliases(_GS3_SCENES),
         background=(1.0, 1.0, 1.0), resolution=(512, 512), iterations=100_000,
-        protocol="ssdgs"),
+        protocol="ssdgs", frame="dataset"),
     "sssgs": Suite(
         name="sssgs", format="sssgs", scenes=_SSSGS_SCENES,
         aliases=_default_aliases(_SSSGS_SCENES, {f"{s.lower()}_small": s for s in _SSSGS_SCENES}),
-        background=(0.0, 0.0, 0.0), resolution=(256, 256), iterations=60_000, protocol="ssdgs"),
+        background=(0.0, 0.0, 0.0), resolution=(256, 256), iterations=60_000, protocol="ssdgs", frame="dataset"),
     "mini": Suite(
         name="mini", format="nrhints", scenes=_MINI_SCENES, aliases={}, background=(0.0, 0.0, 0.0),
-        resolution=None, iterations=3000, protocol="olatbench-v1",
+        resolution=None, iterations=3000, protocol="olatbench-v1", frame="dataset",
         generator="olatbench.datasets.synth.mini:ensure_mini_suite",
         generator_root="olatbench.datasets.synth.mini:default_root"),
 }

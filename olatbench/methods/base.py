@@ -9,11 +9,12 @@ renders must be returned in the same space.
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
+from olatbench.datasets.similarity import Similarity
 from olatbench.methods.spec import MethodSpec, build_config
 
 if TYPE_CHECKING:
@@ -31,6 +32,11 @@ class Views:
     (`Method.restore_needs_images`). ``points`` (P, 3) float64 are world points (the scene's frame) for a method
     with the ``init_points`` capability to start its Gaussians at (the scene's ``points3d.ply`` or
     ``run --init-points``), or None.
+
+    Cameras and lights are in the dataset's world frame; ``frame`` is the world -> canonical similarity the
+    runner chose for the job (`olatbench.datasets.similarity`: fitted to the training cameras, or the identity for
+    the built-in suites), which a method works in so that nothing it does depends on the world's origin, axes or
+    unit of length (the Gaussian methods do: `GaussianMethod`).
     """
 
     cameras: list[Camera]
@@ -41,9 +47,19 @@ class Views:
     background: np.ndarray = field(default_factory=lambda: np.zeros(3, dtype=np.float32))
     scene_name: str = ""
     points: np.ndarray | None = None
+    frame: Similarity = field(default_factory=Similarity.identity)
 
     def __len__(self) -> int:
         return len(self.cameras)
+
+    def in_frame(self) -> Views:
+        """These views with cameras, lights and initial points moved into ``frame`` (`Similarity.camera`,
+        `Similarity.light`, `Similarity.points`); the result's ``frame`` is the identity (it is its own world)."""
+        if self.frame.is_identity:
+            return self
+        points = None if self.points is None else self.frame.points(self.points)
+        return replace(self, cameras=[self.frame.camera(c) for c in self.cameras],
+                       lights=[self.frame.light(lt) for lt in self.lights], points=points, frame=Similarity.identity())
 
 
 @dataclass

@@ -7,7 +7,9 @@ per per-Gaussian parameter (resized by densification) and the method's global gr
 step (frozen parameters, forward, the 3DGS photometric loss, backward, then update and densification in the order
 `densify_before_update` says), and the checkpoint (its format string and config checked on load). A method supplies
 its initial per-Gaussian attributes, its modules, its global groups, its rate table, its forward pass and its
-rendering.
+rendering. Everything a method does happens in the canonical frame of the training views (`Views.frame`): `setup`
+moves the training views into it and `render` moves the world cameras and lights it is given (docs/architecture.md,
+"The canonical frame").
 
 The order of every call that consumes random numbers is fixed here, so methods moved onto this base train to the
 same numbers as before.
@@ -23,6 +25,7 @@ from typing import TYPE_CHECKING, Any, ClassVar
 import numpy as np
 import torch
 
+from olatbench.datasets.similarity import Similarity
 from olatbench.gaussians.optim import make_adam
 from olatbench.methods.backends import stage_backends
 from olatbench.methods.base import Method, Views
@@ -105,8 +108,9 @@ class GaussianMethod(Method):
                                   "(GaussianMethod.splat_colour)")
 
     def colours_under(self, camera: Camera, light: PointLight) -> torch.Tensor:
-        """The colour (N, 3) each trained Gaussian contributes to a render from ``camera`` under ``light``, in the
-        job's colour space, for every Gaussian (none culled); for `olatbench export --under-light`. A relightable
+        """The colour (N, 3) each trained Gaussian contributes to a render from ``camera`` under ``light`` (both in
+        the method's canonical frame, `canonical_view`), in the job's colour space, for every Gaussian (none
+        culled); for `olatbench export --under-light`. A relightable
         method on this base says how (default: it cannot)."""
         raise NotImplementedError(f"{self.label} does not say what colour its Gaussians have under a light "
                                   "(GaussianMethod.colours_under)")
@@ -118,6 +122,8 @@ class GaussianMethod(Method):
         self.device = torch.device(device)
         check_precision(self.network_precision, self.device, self.label)
         self.loss_scaler = loss_scaler_for(self.network_precision)
+        self.frame = train.frame  # world -> canonical; the method sees only canonical cameras and lights
+        train = train.in_frame()
         self.prepare(train)
         torch.manual_seed(seed)
         self.train_views = TrainingViews(train, self.device, seed)  # tensors, scene extent, epoch-wise view order
@@ -157,6 +163,24 @@ class GaussianMethod(Method):
     def optimizers(self) -> list[torch.optim.Optimizer]:
         """The per-Gaussian optimiser, then the global one when the method has global groups."""
         return [self.gaussian_optimizer] + ([self.global_optimizer] if self.global_optimizer is not None else [])
+
+    # ------------------------------------------------------------------------------------------- frame
+    def canonical_view(self, camera: Camera, light: PointLight) -> tuple[Camera, PointLight]:
+        """A world camera and light (as the runner, reports and viewer give them) in the method's canonical frame."""
+        return self.frame.camera(camera), self.frame.light(light)
+
+    def world_view(self, camera: Camera, light: PointLight) -> tuple[Camera, PointLight]:
+        """A canonical camera and light back in the dataset's world frame."""
+        inverse = self.frame.inverse()
+        return inverse.camera(camera), inverse.light(light)
+
+    def render(self, camera: Camera, light: PointLight) -> dict[str, torch.Tensor]:
+        """`render_canonical` of the view moved into the canonical frame (`Views.frame`)."""
+        return self.render_canonical(*self.canonical_view(camera, light))
+
+    @abstractmethod
+    def render_canonical(self, camera: Camera, light: PointLight) -> dict[str, torch.Tensor]:
+        """`Method.render` of a camera and light in the canonical frame."""
 
     # ---------------------------------------------------------------------------------------- training
     @abstractmethod
@@ -278,7 +302,7 @@ class GaussianMethod(Method):
 
     def state_dict(self) -> dict[str, Any]:
         state: dict[str, Any] = {"format": self.state_format, "step": self.step, "config": self.config.to_dict(),
-                                 "model": self.model.state_dict(), **self.module_state(),
+                                 "frame": self.frame.to_dict(), "model": self.model.state_dict(), **self.module_state(),
                                  "gaussian_optimizer": self.gaussian_optimizer.state_dict()}
         if self.global_optimizer is not None:
             state["global_optimizer"] = self.global_optimizer.state_dict()
@@ -302,6 +326,10 @@ class GaussianMethod(Method):
     def load_state_dict(self, state: dict[str, Any]) -> None:
         """Restore a `state_dict` (call `setup` with the same views first)."""
         self.check_state(state)
+        frame = Similarity.from_dict(state["frame"]) if "frame" in state else Similarity.identity()
+        if not frame.allclose(self.frame):
+            raise ValueError(f"{self.label} checkpoint was trained in another canonical frame ({frame.to_dict()}) "
+                             f"than these views give ({self.frame.to_dict()}): were the scene's cameras changed?")
         self.model.load_state_dict(state["model"])
         self.load_module_state(state)
         self._build_optimisers()

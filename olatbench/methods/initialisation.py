@@ -7,6 +7,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from olatbench.datasets.records import Camera
+from olatbench.datasets.similarity import axes_centre
 from olatbench.gaussians.model import points_in_ball
 
 
@@ -20,10 +21,8 @@ def initial_ball(cameras: Sequence[Camera], radius: float | None) -> tuple[np.nd
     """
     if radius is not None:
         return np.zeros(3), float(radius)
+    centre = axes_centre(cameras)
     origins = np.stack([c.position for c in cameras])
-    axes = np.stack([c.c2w[:3, 2] / np.linalg.norm(c.c2w[:3, 2]) for c in cameras])
-    projector = np.eye(3)[None] - axes[:, :, None] * axes[:, None, :]  # (N, 3, 3) I - d dᵀ
-    centre = np.linalg.lstsq(projector.sum(0), (projector @ origins[:, :, None]).sum(0)[:, 0], rcond=None)[0]
     return centre, 0.55 * float(np.median(np.linalg.norm(origins - centre, axis=1)))
 
 

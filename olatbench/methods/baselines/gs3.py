@@ -148,7 +148,7 @@ class GS3(GaussianMethod, spec=SPEC):
 
     # ----------------------------------------------------------------------------------------- rendering
     @torch.no_grad()
-    def render(self, camera: Camera, light: PointLight) -> dict[str, torch.Tensor]:
+    def render_canonical(self, camera: Camera, light: PointLight) -> dict[str, torch.Tensor]:
         """``rgb`` (the composite, clamped to [0, 1]) plus screen-space ``diffuse``, ``specular``, ``shading``
         (I_px), ``shadow`` (V_px), ``shadow_coarse`` (splatted hint v̂) and ``other`` (O_px)."""
         w2c, K = camera_tensors(camera, self.device)

@@ -86,7 +86,7 @@ class GaussianSplatting3D(GaussianMethod, spec=SPEC):
 
     # ----------------------------------------------------------------------------------------- rendering
     @torch.no_grad()
-    def render(self, camera: Camera, light: PointLight) -> dict[str, torch.Tensor]:
+    def render_canonical(self, camera: Camera, light: PointLight) -> dict[str, torch.Tensor]:
         """``rgb`` (H, W, 3) in [0, 1]; ``light`` is ignored (3DGS has no notion of it)."""
         w2c, K = camera_tensors(camera, self.device)
         out = self._forward(w2c, K, camera.width, camera.height, self.active_sh_degree(max(self.step - 1, 0)))

@@ -113,3 +113,29 @@ class SHFit:
         penalty = torch.full((k,), self.ridge * self.views, dtype=torch.float64, device=self.normal.device)
         penalty[0] = 0.0
         return torch.linalg.solve(self.normal + torch.diag(penalty), self.target).float()
+
+
+def rotate_sh(coefficients: torch.Tensor, rotation: torch.Tensor) -> torch.Tensor:
+    """The coefficients (…, K, C) of degrees 1 … d (K = (d + 1)² − 1, the DC term excluded as 3DGS stores
+    ``sh_rest``) of the function rotated by ``rotation`` (3, 3): ``f'(R u) = f(u)`` for every unit ``u``.
+
+    Each degree l mixes only its own 2l + 1 coefficients: the matrix is solved, in float64, from the basis at
+    64 fixed directions (more than the 7 unknowns per row of degree 3), ``Y_l(Rᵀ u) = D_l Y_l(u)``, exact to
+    rounding since the span of each degree is closed under rotation; then ``c'_l = D_lᵀ c_l``.
+    """
+    k = coefficients.shape[-2]
+    degree = math.isqrt(k + 1) - 1
+    if num_coefficients(degree) - 1 != k:
+        raise ValueError(f"{k} SH coefficients above degree 0 is no whole degree")
+    index = torch.arange(64, dtype=torch.float64, device=coefficients.device) + 0.5  # a Fibonacci sphere
+    z = 1.0 - 2.0 * index / 64
+    azimuth = math.pi * (1.0 + 5.0**0.5) * index
+    dirs = torch.stack([torch.sqrt(1 - z * z) * torch.cos(azimuth), torch.sqrt(1 - z * z) * torch.sin(azimuth), z], -1)
+    rotation = torch.as_tensor(rotation, dtype=torch.float64, device=coefficients.device)
+    basis, rotated = sh_basis(degree, dirs)[:, 1:], sh_basis(degree, dirs @ rotation)[:, 1:]  # Y(u), Y(Rᵀ u)
+    out = coefficients.to(torch.float64).clone()
+    for band in range(1, degree + 1):
+        rows = slice(band * band - 1, (band + 1) ** 2 - 1)
+        mixing = torch.linalg.lstsq(basis[:, rows], rotated[:, rows]).solution  # D_lᵀ
+        out[..., rows, :] = torch.einsum("ji,...ic->...jc", mixing, coefficients[..., rows, :].to(torch.float64))
+    return out.to(coefficients.dtype)

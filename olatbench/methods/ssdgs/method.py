@@ -97,7 +97,9 @@ class SSDGS(GaussianMethod, spec=SPEC):
         self.shader = Shader(cfg).to(self.device)
         self.pose_refinement = PoseRefinement(len(train), self.device) if cfg.refine_camera else None
         self.light_refinement = LightRefinement(len(train), self.device) if cfg.refine_light else None
-        test = self._test_views if cfg.test_pose_fitting == "interleaved" else None
+        # the test views in the training views' canonical frame (whatever frame the caller attached them with)
+        test = replace(self._test_views, frame=self.frame).in_frame() \
+            if cfg.test_pose_fitting == "interleaved" and self._test_views is not None else None
         self.test_fit = TestViewFitting(test, cfg, self.device, self.train_views.generator.initial_seed()) \
             if test is not None and len(test) > 0 else None
 
@@ -266,7 +268,7 @@ class SSDGS(GaussianMethod, spec=SPEC):
 
     # ----------------------------------------------------------------------------------------- rendering
     @torch.no_grad()
-    def render(self, camera: Camera, light: PointLight) -> dict[str, torch.Tensor]:
+    def render_canonical(self, camera: Camera, light: PointLight) -> dict[str, torch.Tensor]:
         """Every component at the current step; training views (same pose and light) use their refinements, and
         so do test views fitted by ``test_pose_fitting="interleaved"``."""
         f32 = dict(dtype=torch.float32, device=self.device)
@@ -308,12 +310,13 @@ class SSDGS(GaussianMethod, spec=SPEC):
         steps on the training loss at the training refinement's initial rates, every other parameter frozen; the
         iterate with the lowest loss is kept.
         Summary: ``loss_before``/``loss_after`` (of the returned view),
-        ``translation`` and ``light_offset`` (scene units), ``rotation_deg``.
+        ``translation`` and ``light_offset`` (world units), ``rotation_deg``.
         """
         cfg = self.config
         if not cfg.test_time_refinement:
             return None
-        camera, light = self.fitted_view(camera, light)  # from the interleaved fit, if the view has one
+        # in the canonical frame, from the interleaved fit if the view has one
+        camera, light = self.fitted_view(*self.canonical_view(camera, light))
         f32 = dict(dtype=torch.float32, device=self.device)
         w2c, K = torch.as_tensor(camera.w2c(), **f32), torch.as_tensor(camera.K, **f32)
         position, intensity = torch.as_tensor(light.position, **f32), torch.as_tensor(light.intensity, **f32)
@@ -347,9 +350,9 @@ class SSDGS(GaussianMethod, spec=SPEC):
         shift = offset.offsets[0].detach().double().cpu().numpy() if offset is not None else np.zeros(3)
         refined_camera = replace(camera, c2w=np.linalg.inv(delta @ camera.w2c()))
         refined_light = replace(light, position=np.asarray(light.position, dtype=np.float64) + shift)
-        return RefinedView(refined_camera, refined_light, {
+        return RefinedView(*self.world_view(refined_camera, refined_light), {
             "steps": float(cfg.test_time_steps), "loss_before": losses[0], "loss_after": best[0],
-            **_offset_summary(delta, shift)})
+            **_offset_summary(delta, shift, self.frame.scale)})
 
     # ------------------------------------------------------------------------------- test-view fitting
     def attach_test_views(self, test: Views) -> None:
@@ -379,12 +382,12 @@ class SSDGS(GaussianMethod, spec=SPEC):
                 replace(light, position=np.asarray(light.position, dtype=np.float64) + shift))
 
     def fitted_test_views(self) -> dict[str, dict[str, float]] | None:
-        """Per test frame id: the fitted ``translation`` (scene units), ``rotation_deg`` and ``light_offset`` (scene
+        """Per test frame id: the fitted ``translation`` (world units), ``rotation_deg`` and ``light_offset`` (world
         units) of ``test_pose_fitting="interleaved"``; None when the option is off or had no test views."""
         if self.test_fit is None:
             return None
         step = max(self.step - 1, 0)
-        return {frame_id: _offset_summary(*self.test_fit.deltas(i, self.refine_from, step))
+        return {frame_id: _offset_summary(*self.test_fit.deltas(i, self.refine_from, step), self.frame.scale)
                 for i, frame_id in enumerate(self.test_fit.views.views.frame_ids)}
 
     # ----------------------------------------------------------------------------------------- checkpoints
@@ -409,12 +412,12 @@ class SSDGS(GaussianMethod, spec=SPEC):
             self.light_refinement.load_state_dict(state["light_refinement"])
 
 
-def _offset_summary(delta: np.ndarray, shift: np.ndarray) -> dict[str, float]:
-    """How far a camera-space delta (4, 4) and a light shift (3,) move a view: ``translation``, ``rotation_deg``,
-    ``light_offset``."""
+def _offset_summary(delta: np.ndarray, shift: np.ndarray, scale: float) -> dict[str, float]:
+    """How far a canonical camera-space delta (4, 4) and light shift (3,) move a view: ``translation`` and
+    ``light_offset`` in world units (canonical lengths / the frame's ``scale``), ``rotation_deg``."""
     angle = float(np.degrees(np.arccos(np.clip((np.trace(delta[:3, :3]) - 1.0) / 2.0, -1.0, 1.0))))
-    return {"translation": float(np.linalg.norm(delta[:3, 3])), "rotation_deg": angle,
-            "light_offset": float(np.linalg.norm(shift))}
+    return {"translation": float(np.linalg.norm(delta[:3, 3])) / scale, "rotation_deg": angle,
+            "light_offset": float(np.linalg.norm(shift)) / scale}
 
 
 __all__ = ["SSDGS"]

@@ -1,0 +1,188 @@
+"""Similarity transforms of a scene's world frame, and the canonical frame fitted to a scene's cameras.
+
+A `Similarity` maps a point ``x`` to ``scale · R x + t`` (``R`` a proper rotation). It moves every record of a
+scene consistently: camera poses (``K`` and the image size do not change), near/far distances (× scale), light
+positions, and light intensities × scale² so that the inverse-square irradiance ``I / d²`` at every transformed
+point is unchanged; Gaussians (centres, log-scales + log(scale), wxyz quaternions rotated by ``R``).
+
+`canonical_frame` is the one world -> canonical transform olatbench uses (docs/architecture.md, "The canonical
+frame"): it depends on the cameras only and is equivariant, so a scene and any similarity-transformed copy of it
+(same images) have the same canonical cameras and lights to rounding. In the canonical frame:
+
+* the origin is the point nearest, in least squares, to every camera's optical axis (`axes_centre`);
+* the median camera distance to it is `CANONICAL_CAMERA_DISTANCE` (4, the mini suite's rig, whose presets'
+  world-unit values are thus the canonical ones);
+* +z is the cameras' mean up direction (−y of OpenCV axes; the first camera's when the mean is shorter than
+  `MIN_MEAN_UP`, e.g. cameras rolled every way), +x points from the origin towards the first camera, orthogonal
+  to +z (the first camera's right axis when it sits on the z axis), +y = z × x.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+
+from olatbench.datasets.records import Camera, PointLight
+
+#: The median distance from the cameras to the canonical origin, in canonical units.
+CANONICAL_CAMERA_DISTANCE = 4.0
+#: Below this length the cameras' mean up vector (mean of unit vectors) is not trusted: the first camera's is used.
+MIN_MEAN_UP = 0.3
+
+
+@dataclass(frozen=True, eq=False)
+class Similarity:
+    """``x -> scale · rotation @ x + translation``: ``scale`` > 0, ``rotation`` (3, 3) proper, ``translation`` (3,)."""
+
+    scale: float
+    rotation: np.ndarray
+    translation: np.ndarray
+
+    @classmethod
+    def identity(cls) -> Similarity:
+        return cls(1.0, np.eye(3), np.zeros(3))
+
+    @property
+    def is_identity(self) -> bool:
+        return self.scale == 1.0 and np.array_equal(self.rotation, np.eye(3)) and not np.any(self.translation)
+
+    def matrix(self) -> np.ndarray:
+        """The 4×4 homogeneous matrix ``[[scale · R, t], [0, 1]]``."""
+        out = np.eye(4)
+        out[:3, :3] = self.scale * np.asarray(self.rotation, np.float64)
+        out[:3, 3] = self.translation
+        return out
+
+    def inverse(self) -> Similarity:
+        rotation_t = np.asarray(self.rotation, np.float64).T
+        return Similarity(1.0 / self.scale, rotation_t, -(rotation_t @ self.translation) / self.scale)
+
+    def then(self, other: Similarity) -> Similarity:
+        """This transform followed by ``other``."""
+        rotation = np.asarray(other.rotation, np.float64) @ self.rotation
+        return Similarity(self.scale * other.scale, rotation, other.scale * (other.rotation @ self.translation)
+                          + other.translation)
+
+    def points(self, points: np.ndarray) -> np.ndarray:
+        """Points (..., 3) -> (..., 3), float64."""
+        return self.scale * np.asarray(points, np.float64) @ np.asarray(self.rotation, np.float64).T + self.translation
+
+    def camera(self, camera: Camera) -> Camera:
+        """The camera seeing the transformed world as ``camera`` saw the original (same image, same ``K``); the
+        identity returns ``camera`` itself."""
+        if self.is_identity:
+            return camera
+        c2w = np.eye(4)
+        c2w[:3, :3] = np.asarray(self.rotation, np.float64) @ np.asarray(camera.c2w, np.float64)[:3, :3]
+        c2w[:3, 3] = self.points(camera.position)
+        near = None if camera.near is None else camera.near * self.scale
+        far = None if camera.far is None else camera.far * self.scale
+        return replace(camera, c2w=c2w, near=near, far=far)
+
+    def light(self, light: PointLight) -> PointLight:
+        """The light at the transformed position, intensity × scale² (same irradiance at transformed points); the
+        identity returns ``light`` itself."""
+        if self.is_identity:
+            return light
+        return replace(light, position=self.points(light.position),
+                       intensity=np.asarray(light.intensity, np.float64) * self.scale**2)
+
+    def log_scales(self, log_scales: np.ndarray) -> np.ndarray:
+        """Gaussian log-scales (..., 3) after the transform (+ log(scale))."""
+        return np.asarray(log_scales, np.float64) + np.log(self.scale)
+
+    def quaternions(self, quats: np.ndarray) -> np.ndarray:
+        """wxyz quaternions (..., 4) of local-to-world rotations -> those of ``R`` composed after them (not
+        normalised: a quaternion's norm is kept, as the Gaussian core normalises on use)."""
+        return quaternion_product(rotation_quaternion(self.rotation), np.asarray(quats, np.float64))
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain floats, for checkpoints and results files."""
+        return {"scale": float(self.scale), "rotation": np.asarray(self.rotation, np.float64).tolist(),
+                "translation": np.asarray(self.translation, np.float64).tolist()}
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> Similarity:
+        return cls(float(data["scale"]), np.asarray(data["rotation"], np.float64),
+                   np.asarray(data["translation"], np.float64))
+
+    def allclose(self, other: Similarity, rtol: float = 1e-9) -> bool:
+        """Equal to rounding (``rtol`` of the scale; rotation and translation relative to the translation's size)."""
+        size = max(1.0, float(np.linalg.norm(self.translation)))
+        return (abs(self.scale - other.scale) <= rtol * self.scale
+                and np.allclose(self.rotation, other.rotation, rtol=0.0, atol=rtol)
+                and np.allclose(self.translation, other.translation, rtol=0.0, atol=rtol * size))
+
+
+def rotation_quaternion(rotation: np.ndarray) -> np.ndarray:
+    """The unit wxyz quaternion (4,) of a proper rotation matrix (3, 3), w ≥ 0 (Shepperd's method)."""
+    m = np.asarray(rotation, np.float64)
+    trace = np.trace(m)
+    candidates = np.array([trace, m[0, 0], m[1, 1], m[2, 2]])
+    k = int(np.argmax(candidates))
+    if k == 0:
+        r = np.sqrt(1.0 + trace)
+        q = np.array([r, (m[2, 1] - m[1, 2]) / r, (m[0, 2] - m[2, 0]) / r, (m[1, 0] - m[0, 1]) / r]) / 2.0
+    else:
+        i, j, n = k - 1, k % 3, (k + 1) % 3
+        r = np.sqrt(1.0 + m[i, i] - m[j, j] - m[n, n])
+        q = np.empty(4)
+        q[0] = (m[n, j] - m[j, n]) / r
+        q[1 + i] = r
+        q[1 + j] = (m[j, i] + m[i, j]) / r
+        q[1 + n] = (m[n, i] + m[i, n]) / r
+        q /= 2.0
+    return q if q[0] >= 0 else -q
+
+
+def quaternion_product(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Hamilton product ``a ⊗ b`` of wxyz quaternions (broadcast over leading axes): the rotation b, then a."""
+    aw, ax, ay, az = np.moveaxis(np.asarray(a, np.float64), -1, 0)
+    bw, bx, by, bz = np.moveaxis(np.asarray(b, np.float64), -1, 0)
+    return np.stack([aw * bw - ax * bx - ay * by - az * bz, aw * bx + ax * bw + ay * bz - az * by,
+                     aw * by - ax * bz + ay * bw + az * bx, aw * bz + ax * by - ay * bx + az * bw], axis=-1)
+
+
+def axes_centre(cameras: Sequence[Camera]) -> np.ndarray:
+    """The point (3,) nearest, in least squares, to every camera's optical axis.
+
+    When the axes do not pin it down (all parallel, or one camera), the solution nearest the cameras' mean centre
+    along the free directions is taken, so the point still moves with the cameras under any similarity.
+    """
+    origins = np.stack([c.position for c in cameras])
+    axes = np.stack([c.c2w[:3, 2] / np.linalg.norm(c.c2w[:3, 2]) for c in cameras])
+    projector = np.eye(3)[None] - axes[:, :, None] * axes[:, None, :]  # (N, 3, 3) I - d dᵀ
+    system, rhs = projector.sum(0), (projector @ origins[:, :, None]).sum(0)[:, 0]
+    eigenvalues = np.linalg.eigvalsh(system)
+    if eigenvalues[0] > 1e-9 * eigenvalues[-1]:
+        return np.linalg.lstsq(system, rhs, rcond=None)[0]
+    mean = origins.mean(0)  # solve for the offset from the mean, minimum norm: equivariant
+    return mean + np.linalg.lstsq(system, rhs - system @ mean, rcond=1e-9)[0]
+
+
+def canonical_frame(cameras: Sequence[Camera]) -> Similarity:
+    """The world -> canonical similarity of a scene fitted to its (training) ``cameras`` (module docstring)."""
+    if not cameras:
+        raise ValueError("the canonical frame needs at least one camera")
+    centre = axes_centre(cameras)
+    positions = np.stack([c.position for c in cameras])
+    distance = float(np.median(np.linalg.norm(positions - centre, axis=1)))
+    if not distance > 0.0:
+        raise ValueError("the cameras sit at the point their axes meet: no scale can be fitted")
+    ups = np.stack([-c.c2w[:3, 1] / np.linalg.norm(c.c2w[:3, 1]) for c in cameras])
+    up = ups.mean(0)
+    if np.linalg.norm(up) < MIN_MEAN_UP:
+        up = ups[0]
+    z = up / np.linalg.norm(up)
+    towards = positions[0] - centre
+    x = towards - z * (z @ towards)
+    if np.linalg.norm(x) < 1e-6 * distance:  # the first camera on the z axis: its right axis instead
+        right = cameras[0].c2w[:3, 0]
+        x = right - z * (z @ right)
+    x = x / np.linalg.norm(x)
+    rotation = np.stack([x, np.cross(z, x), z])  # rows: the canonical axes in world coordinates
+    scale = CANONICAL_CAMERA_DISTANCE / distance
+    return Similarity(scale, rotation, -scale * (rotation @ centre))
