@@ -282,7 +282,7 @@ def test_a_run_folder_whose_jobs_have_no_results_is_not_a_usage_error(data, tmp_
     assert run_cli(*run_args(data, out, "--scenes", "Alpha", "--variant", "fails")).exit_code == 1
     for path in out.rglob("results.json"):  # a failed job's record gone too: no results.json at all
         path.unlink()
-    assert_one_clear_error(run_cli("report", out), 1, "no results.json below")
+    assert_one_clear_error(run_cli("report", out), 1, "no finished job below", "1 failed", "olatbench status")
 
 
 # ---- the count ------------------------------------------------------------------------------------------------------

@@ -173,6 +173,11 @@ def _collect(runs):
     if frame.empty:
         raise ResultsError(f"no results.json below {', '.join(map(str, runs))}; run "
                            "'olatbench run --method ssdgs --suite mini' first")
+    if not (frame["status"] == "done").any():  # only failed or unfinished jobs: no number to put in a table
+        jobs = frame.drop_duplicates("job_id")["status"].value_counts()
+        states = ", ".join(f"{count} {state}" for state, count in sorted(jobs.items()))
+        raise ResultsError(f"no finished job below {', '.join(map(str, runs))} ({states}); "
+                           f"'olatbench status {' '.join(map(str, runs))}' says why")
     return frame
 
 
