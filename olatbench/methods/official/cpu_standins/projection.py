@@ -64,8 +64,13 @@ def project_gsplat(
     u_c = torch.minimum(lim_x, torch.maximum(-lim_x, x / z_safe))
     v_c = torch.minimum(lim_y, torch.maximum(-lim_y, y / z_safe))
     zeros = torch.zeros_like(z)
-    jac = torch.stack([torch.stack([fx / z_safe, zeros, -fx * u_c / z_safe], dim=-1),
-                       torch.stack([zeros, fy / z_safe, -fy * v_c / z_safe], dim=-1)], dim=-2)  # (N, 2, 3)
+    jac = torch.stack(
+        [
+            torch.stack([fx / z_safe, zeros, -fx * u_c / z_safe], dim=-1),
+            torch.stack([zeros, fy / z_safe, -fy * v_c / z_safe], dim=-1),
+        ],
+        dim=-2,
+    )  # (N, 2, 3)
     cov2d = jac @ (rot @ covariances_3d(quats, scales) @ rot.T) @ jac.transpose(-1, -2)
     a = cov2d[:, 0, 0] + eps2d
     b = cov2d[:, 0, 1]
@@ -83,9 +88,14 @@ def project_gsplat(
     det_safe = torch.where(keep, det, torch.ones_like(det))
     conics = torch.stack([c / det_safe, -b / det_safe, a / det_safe], dim=-1)
     kept = keep[:, None]
-    return Projected(means2d=torch.where(kept, means2d, torch.zeros_like(means2d)),
-                     conics=torch.where(kept, conics, torch.zeros_like(conics)), radii=radii,
-                     depths=torch.where(keep, z, torch.zeros_like(z)), width=int(width), height=int(height))
+    return Projected(
+        means2d=torch.where(kept, means2d, torch.zeros_like(means2d)),
+        conics=torch.where(kept, conics, torch.zeros_like(conics)),
+        radii=radii,
+        depths=torch.where(keep, z, torch.zeros_like(z)),
+        width=int(width),
+        height=int(height),
+    )
 
 
 def gsplat_bins(projected: Projected) -> TileBins:
