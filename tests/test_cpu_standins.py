@@ -276,6 +276,226 @@ def test_rasterization_matches_gsplats_torch_implementation(monkeypatch):
     torch.testing.assert_close(meta["means2d"].grad[0][visible], means2d.grad[0][visible], rtol=1e-6, atol=1e-9)
 
 
+def gsplat_111_projection(means, quats, scales, viewmat, K, width, height, eps2d=0.3, near=0.01, far=100.0):
+    """gsplat v1.1.1's projection, transcribed from its CUDA (not from olatbench): ``fully_fused_projection_fwd.cu``
+    :59 (cull z < near or z > far), :86-102 (``persp_proj``, ``add_blur``, det <= 0 culled, the radius with
+    ``max(0.01, b² - det)``), :112-113 (off-image boxes); ``utils.cuh:152-170`` (``persp_proj``: x/z, y/z clamped
+    to ±1.3·W/(2fx), ±1.3·H/(2fy)). (The installed gsplat 1.5's torch code clamps at the image edges and has
+    per-axis radii; 1.1.1's torch code, ``_torch_impl.py:86-92, 179-185``, has this clamp and floor but culls
+    z == near, unlike its CUDA.) Returns radii (N,) int, means2d (N, 2), conics (N, 3), all float64."""
+    from gsplat_cpu import gsplat_torch
+
+    covars, _ = gsplat_torch._quat_scale_to_covar_preci(quats, scales, compute_preci=False)
+    R, t = viewmat[:3, :3], viewmat[:3, 3]
+    mean_c = means @ R.T + t
+    cov_c = R @ covars @ R.T
+    x, y, z = mean_c.unbind(-1)
+    fx, fy, cx, cy = K[0, 0], K[1, 1], K[0, 2], K[1, 2]
+    lim_x, lim_y = 1.3 * 0.5 * width / fx, 1.3 * 0.5 * height / fy
+    rz = 1.0 / z
+    tx = z * torch.minimum(lim_x, torch.maximum(-lim_x, x * rz))
+    ty = z * torch.minimum(lim_y, torch.maximum(-lim_y, y * rz))
+    zero = torch.zeros_like(z)
+    J = torch.stack([fx * rz, zero, -fx * tx * rz * rz, zero, fy * rz, -fy * ty * rz * rz], -1).reshape(-1, 2, 3)
+    cov2d = J @ cov_c @ J.transpose(-1, -2) + eps2d * torch.eye(2, dtype=means.dtype)
+    a, b, c = cov2d[:, 0, 0], cov2d[:, 0, 1], cov2d[:, 1, 1]
+    det = a * c - b * b
+    conics = torch.stack([c / det, -b / det, a / det], -1)
+    half = 0.5 * (a + c)
+    radius = torch.ceil(3.0 * torch.sqrt(half + torch.sqrt(torch.clamp(half * half - det, min=0.01))))
+    means2d = torch.stack([fx * x * rz + cx, fy * y * rz + cy], -1)
+    mx, my = means2d.unbind(-1)
+    culled = ((z < near) | (z > far) | (det <= 0) | (radius <= 0) | (mx + radius <= 0) | (mx - radius >= width)
+              | (my + radius <= 0) | (my - radius >= height))
+    return torch.where(culled, 0.0, radius).to(torch.int64), means2d, conics
+
+
+def off_centre_camera(width: int, height: int, focal: float = 40.0):
+    """The test camera of `test_rasterize_scenes` with the principal point at (0.3 W, 0.65 H)."""
+    from test_rasterize_scenes import camera
+
+    w2c, K = camera(width, height, focal)
+    K[0, 2], K[1, 2] = 0.3 * width, 0.65 * height
+    return w2c, K
+
+
+def standin(means, quats, scales, opacities, colors, w2c, K, width, height, background=None, near=0.01):
+    from olatbench.methods.official.cpu_standins.rasterization import rasterization
+
+    return rasterization(means, quats, scales, opacities, colors, w2c[None], K[None], width, height,
+                         near_plane=near, far_plane=100.0, eps2d=0.3, sh_degree=None, packed=False,
+                         backgrounds=background)
+
+
+def test_radius_floor_is_gsplats():
+    """gsplat 1.1.1: radius = ceil(3 sqrt(b + sqrt(max(0.01, b² - det)))): nearly isotropic footprints (b² - det
+    below 0.01, e.g. every Gaussian smaller than a pixel) get a radius up to 1 px larger than with a floor at 0."""
+    pytest.importorskip("gsplat")
+    width, height = 48, 40
+    g = torch.Generator().manual_seed(2)
+    n = 400
+    means = torch.cat([(torch.rand(n, 2, generator=g, dtype=torch.float64) - 0.5) * 2.0,
+                       2.5 + torch.rand(n, 1, generator=g, dtype=torch.float64)], 1)
+    scales = (0.005 + 0.03 * torch.rand(n, 1, generator=g, dtype=torch.float64)).expand(-1, 3).clone()
+    quats = torch.randn(n, 4, generator=g, dtype=torch.float64)
+    w2c, K = off_centre_camera(width, height)
+    _, _, meta = standin(means, quats, scales, torch.full((n,), 0.5, dtype=torch.float64),
+                         torch.rand(n, 3, generator=g, dtype=torch.float64), w2c, K, width, height)
+    radii, _means2d, _conics = gsplat_111_projection(means, quats, scales, w2c, K, width, height)
+    assert torch.equal(meta["radii"][0].long(), radii)
+    # The inputs show the difference: with the floor at 0 (3DGS, olatbench's own projection) radii come out smaller.
+    from olatbench.gaussians.projection import project
+
+    native = project(means, quats, scales, w2c, K, width, height, backend="torch").radii
+    assert int((native < radii).sum()) > n // 10
+
+
+def test_jacobian_clamp_is_symmetric_about_the_optical_axis_with_off_centre_intrinsics():
+    """gsplat 1.1.1 clamps x/z to ±1.3·W/(2 fx) whatever cx (olatbench's projection: at the image edges plus
+    0.3 half-widths, the same only for cx = W/2): conics, radii, means2d and their gradients as gsplat's."""
+    pytest.importorskip("gsplat")
+    width, height = 40, 32
+    w2c, K = off_centre_camera(width, height, focal=30.0)
+    g = torch.Generator().manual_seed(5)
+    n = 300
+    depth = 2.0 + torch.rand(n, 1, generator=g, dtype=torch.float64)
+    # x/z and y/z over ±2× the clamp: many Gaussians lie beyond it on both sides, large enough to reach the image.
+    tangent = (torch.rand(n, 2, generator=g, dtype=torch.float64) * 2 - 1) * 2.0 * 1.3 * 0.5 * width / 30.0
+    means = torch.cat([tangent * depth, depth], 1)
+    means = (means - w2c[:3, 3]) @ w2c[:3, :3]  # camera to world
+    scales = 0.1 + 0.5 * torch.rand(n, 3, generator=g, dtype=torch.float64)
+    quats = torch.randn(n, 4, generator=g, dtype=torch.float64)
+    means_in = means.clone().requires_grad_()
+    _, _, meta = standin(means_in, quats, scales, torch.full((n,), 0.5, dtype=torch.float64),
+                         torch.rand(n, 3, generator=g, dtype=torch.float64), w2c, K, width, height)
+    means_ref = means.clone().requires_grad_()
+    radii, means2d, conics = gsplat_111_projection(means_ref, quats, scales, w2c, K, width, height)
+    visible = radii > 0
+    outside = ((means2d[:, 0] - K[0, 2]) / K[0, 0]).abs() > 1.3 * 0.5 * width / K[0, 0]
+    assert int((visible & outside).sum()) > 20  # visible Gaussians whose Jacobian is clamped
+    assert torch.equal(meta["radii"][0].long(), radii)
+    torch.testing.assert_close(meta["conics"][0][visible], conics[visible].detach(), rtol=1e-12, atol=0)
+    torch.testing.assert_close(meta["means2d"][0][visible], means2d[visible].detach(), rtol=1e-12, atol=1e-12)
+    weights = torch.rand(int(visible.sum()), 3, generator=g, dtype=torch.float64)
+    (meta["conics"][0][visible] * weights).sum().backward()
+    (conics[visible] * weights).sum().backward()
+    torch.testing.assert_close(means_in.grad, means_ref.grad, rtol=1e-9, atol=1e-12)
+
+
+def test_a_gaussian_at_the_near_plane_is_kept():
+    """gsplat 1.1.1 culls z < near_plane (fully_fused_projection_fwd.cu:59): z == near_plane is projected."""
+    pytest.importorskip("gsplat")
+    w2c, K = torch.eye(4, dtype=torch.float64), torch.tensor([[20.0, 0, 8], [0, 20.0, 8], [0, 0, 1]],
+                                                            dtype=torch.float64)
+    means = torch.tensor([[0.0, 0.0, 0.5], [0.0, 0.0, 0.4999]], dtype=torch.float64)
+    quats = torch.tensor([[1.0, 0, 0, 0]] * 2, dtype=torch.float64)
+    scales = torch.full((2, 3), 0.01, dtype=torch.float64)
+    _, _, meta = standin(means, quats, scales, torch.full((2,), 0.5, dtype=torch.float64),
+                         torch.ones(2, 3, dtype=torch.float64), w2c, K, 16, 16, near=0.5)
+    radii, _, _ = gsplat_111_projection(means, quats, scales, w2c, K, 16, 16, near=0.5)
+    assert radii.tolist()[1] == 0 and radii.tolist()[0] > 0
+    assert meta["radii"][0].tolist() == radii.tolist()
+
+
+@pytest.mark.parametrize("opacity", [(0.2, 0.85), (0.9, 1.0)], ids=["clamp-inactive", "clamp-active"])
+def test_rasterization_with_off_centre_intrinsics_matches_gsplat(monkeypatch, opacity):
+    """Images, alphas and means2d gradients as gsplat's own torch rasterizer gives them from gsplat 1.1.1's
+    projection, with off-centre intrinsics and nearly opaque Gaussians (where alpha reaches the 0.999 clamp)."""
+    pytest.importorskip("gsplat")
+    from gsplat_cpu import cpu_gsplat, gsplat_torch
+    from test_rasterize_scenes import scene
+
+    cpu_gsplat(monkeypatch)
+    width, height, channels = 45, 37, 4
+    s = scene(200, channels=channels, seed=7, spread=1.6, opacity=opacity)
+    w2c, K = off_centre_camera(width, height)
+    background = torch.rand(1, channels, dtype=torch.float64)
+    means = s["means"].clone().requires_grad_()
+    image, alpha, meta = standin(means, s["quats"], s["scales"], s["opacities"], s["features"], w2c, K, width,
+                                 height, background)
+    meta["means2d"].retain_grad()
+    weights = torch.rand(1, height, width, channels, dtype=torch.float64)
+    (image * weights).sum().backward()
+
+    radii, means2d, conics = gsplat_111_projection(s["means"], s["quats"], s["scales"], w2c, K, width, height)
+    means2d = means2d.detach().requires_grad_()
+    tiles_x, tiles_y = (width + 15) // 16, (height + 15) // 16
+    _, isect_ids, flatten_ids = gsplat_torch._isect_tiles(
+        means2d.detach()[None], radii[None, :, None].expand(-1, -1, 2), meta["depths"], 16, tiles_x, tiles_y)
+    offsets = gsplat_torch._isect_offset_encode(isect_ids, 1, tiles_x, tiles_y)
+    ref_image, ref_alpha = gsplat_torch._rasterize_to_pixels(
+        means2d[None], conics[None].detach(), s["features"][None], s["opacities"][None], width, height, 16, offsets,
+        flatten_ids, backgrounds=background)
+    (ref_image * weights).sum().backward()
+
+    if opacity[0] > 0.85:  # a pixel behind one nearly opaque Gaussian keeps T = 1 - 0.999, not 3DGS's 1 - 0.99
+        assert float(alpha.detach().max()) > 0.995
+    torch.testing.assert_close(image, ref_image, rtol=0, atol=1e-9)
+    torch.testing.assert_close(alpha, ref_alpha, rtol=0, atol=1e-9)
+    visible = radii > 0
+    torch.testing.assert_close(meta["means2d"].grad[0][visible], means2d.grad[visible], rtol=1e-6, atol=1e-9)
+
+
+def test_alpha_is_clamped_at_0999():
+    """gsplat: alpha = min(0.999, o·exp(-sigma)) (rasterize_to_pixels_fwd.cu:134; 3DGS and olatbench's own
+    rasterizer: 0.99): an opaque Gaussian centred on a pixel leaves T = 0.001 there; no gradient passes the clamp
+    (rasterize_to_pixels_bwd.cu:207)."""
+    w2c = torch.eye(4, dtype=torch.float64)
+    K = torch.tensor([[20.0, 0, 8.5], [0, 20.0, 8.5], [0, 0, 1]], dtype=torch.float64)
+    opacity = torch.tensor([1.0], dtype=torch.float64, requires_grad=True)
+    _, alpha, _ = standin(torch.tensor([[0.0, 0.0, 1.0]], dtype=torch.float64),
+                              torch.tensor([[1.0, 0, 0, 0]], dtype=torch.float64),
+                              torch.full((1, 3), 0.05, dtype=torch.float64), opacity,
+                              torch.ones(1, 3, dtype=torch.float64), w2c, K, 16, 16)
+    assert float(alpha[0, 8, 8, 0]) == pytest.approx(0.999, abs=1e-15)
+    alpha[0, 8, 8, 0].backward()
+    assert float(opacity.grad) == 0.0
+
+
+def test_a_pixel_stops_when_its_transmittance_reaches_1e4():
+    """gsplat stops a pixel before the Gaussian whose next transmittance is <= 1e-4 (rasterize_to_pixels_fwd.cu:140;
+    3DGS: < 1e-4): of two Gaussians centred on a pixel, the second taking T to exactly 1e-4, only the first is
+    composited there."""
+    pytest.importorskip("gsplat")
+    from gsplat_cpu import T_STOP
+
+    # Opacities (= alphas at the pixel centre, where power = 0) found by a random search over 1 - a = i·2⁻⁵³: the
+    # float64 product of their (exact) complements is 1e-4 exactly.
+    first, second = 0.9718609821300858, 0.9964462156972821
+    assert (1.0 - first) * (1.0 - second) == T_STOP and second < 0.999
+    w2c = torch.eye(4, dtype=torch.float64)
+    K = torch.tensor([[20.0, 0, 8.5], [0, 20.0, 8.5], [0, 0, 1]], dtype=torch.float64)  # (0, 0, z) -> (8.5, 8.5)
+    means = torch.tensor([[0.0, 0.0, 1.0], [0.0, 0.0, 2.0]], dtype=torch.float64)
+    quats = torch.tensor([[1.0, 0, 0, 0]] * 2, dtype=torch.float64)
+    scales = torch.full((2, 3), 0.02, dtype=torch.float64)
+    colours = torch.tensor([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]], dtype=torch.float64)
+    image, alpha, _ = standin(means, quats, scales, torch.tensor([first, second], dtype=torch.float64), colours,
+                              w2c, K, 16, 16)
+    assert float(image[0, 8, 8, 1]) == 0.0  # the second Gaussian is not composited at pixel (8, 8)
+    assert float(alpha[0, 8, 8, 0]) == first
+    assert float(image[0, 8, 9, 1]) > 0.0  # next to it, where T stays above 1e-4, it is
+
+
+def test_tile_lists_are_gsplats():
+    """gsplat bins a Gaussian to the tiles [floor((m - r)/16), ceil((m + r)/16)) (isect_tiles.cu:55-64): with its
+    mean 3.05 px right of pixel 15's centre and radius 3 it is in tile 0's list, and composited at pixel 15 where
+    its alpha (0.95·exp(-½·3.05²/0.89) = 0.0051) is above 1/255, although pixel 15 lies outside its box m ± r."""
+    variance = 0.89  # isotropic 2D variance with the 0.3 low-pass: radius ceil(3·sqrt(0.89 + 0.1)) = 3
+    f, z = 20.0, 1.0
+    scale = math.sqrt(variance - 0.3) * z / f
+    w2c = torch.eye(4, dtype=torch.float64)
+    K = torch.tensor([[f, 0, 18.55], [0, f, 8.5], [0, 0, 1]], dtype=torch.float64)  # the mean at (18.55, 8.5)
+    means = torch.tensor([[0.0, 0.0, z]], dtype=torch.float64)
+    _, alpha, meta = standin(means, torch.tensor([[1.0, 0, 0, 0]], dtype=torch.float64),
+                             torch.full((1, 3), scale, dtype=torch.float64), torch.tensor([0.95], dtype=torch.float64),
+                             torch.ones(1, 3, dtype=torch.float64), w2c, K, 32, 16)
+    assert meta["radii"].tolist() == [[3]]
+    expected = 0.95 * math.exp(-0.5 * 3.05**2 / variance)
+    assert expected > 1 / 255
+    assert float(alpha[0, 8, 15, 0]) == pytest.approx(expected, rel=1e-9)
+    assert float(alpha[0, 8, 14, 0]) == 0.0  # 4.05 px away: below 1/255
+
+
 def test_rasterization_refuses_what_it_does_not_implement():
     from olatbench.methods.official.cpu_standins.rasterization import rasterization
 

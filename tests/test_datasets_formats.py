@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 import numpy as np
@@ -242,12 +243,54 @@ def test_gs3_near_far_and_fov(tmp_path):
     np.testing.assert_allclose(camera.K, tree.frames["test"][0]["K"])
 
 
-def test_gs3_per_frame_intrinsics_override(tmp_path):
+def test_gs3_per_frame_intrinsics_under_camera_angle_x_give_only_the_principal_point(tmp_path):
+    """GS³'s reader (dataset_readers.py:105-106, 128-133, 168-174): with a top-level camera_angle_x the focal length
+    is the angle's and only cx, cy come from the frame's camera_intrinsics."""
     write_gs3_tree(tmp_path / "s")
     _edit(tmp_path / "s/transforms_train.json", lambda m: m["frames"][2].update(camera_intrinsics=[7, 5, 30, 31]))
     frames = load_scene(tmp_path / "s").split("train")
-    assert (frames[2].camera.cx, frames[2].camera.cy, frames[2].camera.fx, frames[2].camera.fy) == (7, 5, 30, 31)
+    focal = 0.5 * 16 / math.tan(0.5 * 0.69)
+    camera = frames[2].camera
+    assert (camera.cx, camera.cy) == (7, 5)
+    assert camera.fx == pytest.approx(focal, rel=1e-12) and camera.fy == pytest.approx(focal, rel=1e-12)
     assert frames[1].camera.cx == 8.0
+
+
+def test_gs3_per_frame_intrinsics_without_camera_angle_x_are_the_frames(tmp_path):
+    write_gs3_tree(tmp_path / "s")
+
+    def edit(meta):
+        meta.pop("camera_angle_x")
+        meta["camera_intrinsics"] = [8, 6, 20, 20]
+        meta["frames"][-1]["camera_intrinsics"] = [7, 5, 30, 31]
+
+    _edit(tmp_path / "s/transforms_train.json", edit)
+    _edit(tmp_path / "s/transforms_test.json", edit)
+    frames = load_scene(tmp_path / "s").split("train")
+    assert (frames[3].camera.cx, frames[3].camera.cy, frames[3].camera.fx, frames[3].camera.fy) == (7, 5, 30, 31)
+    assert (frames[1].camera.cx, frames[1].camera.fx) == (8, 20)
+
+
+def test_top_level_precedence_follows_each_formats_reader(tmp_path):
+    """Both camera_angle_x and camera_intrinsics at the top: GS³'s reader takes the angle (dataset_readers.py:105),
+    NRHints' parser the intrinsics (data_parser.py:54)."""
+    write_gs3_tree(tmp_path / "g")
+    for name in ("transforms_train.json", "transforms_test.json"):
+        _edit(tmp_path / "g" / name, lambda m: m.update(camera_intrinsics=[7, 5, 30, 31]))
+    assert load_scene(tmp_path / "g").split("train")[0].camera.fx == pytest.approx(0.5 * 16 / math.tan(0.345))
+    write_nrhints_tree(tmp_path / "n")
+    for name in ("transforms_train.json", "transforms_test.json"):
+        _edit(tmp_path / "n" / name, lambda m: m.update(camera_angle_x=0.5))
+    camera = load_scene(tmp_path / "n").split("train")[0].camera
+    assert (camera.cx, camera.fx) == (16 / 2 + 0.75, 1.2 * 16)
+
+
+def test_nrhints_frame_focal_that_contradicts_camera_angle_x_is_refused(tmp_path):
+    write_nrhints_tree(tmp_path / "n", intrinsics=False)
+    _edit(tmp_path / "n/transforms_train.json", lambda m: m["frames"][1].update(camera_intrinsics=[7, 5, 30, 31]))
+    with pytest.raises(DatasetError, match=r"transforms_train.json.*camera_intrinsics.*fx=30, fy=31 differ from the "
+                                           r"focal length .* of the file's top-level camera_angle_x"):
+        load_scene(tmp_path / "n")
 
 
 def test_gs3_refined_poses_are_the_camera_as_the_official_readers_take_them(tmp_path):
@@ -389,3 +432,101 @@ def test_sssgs_reads_both_held_out_split_names(tmp_path):
     from olatbench.datasets.suites import SUITES
 
     assert (SUITES["sssgs"].train_split, SUITES["sssgs"].test_split) == ("train", "test")
+
+
+def scene_save(model: Path, source: Path, split: str, rng: np.random.Generator) -> list[dict]:
+    """``transforms_<split>.json`` in ``model`` as GS³'s / SSD-GS's ``Scene.save`` writes it (scene/__init__.py
+    :162-197 GS³, :164-199 SSD-GS): top-level ``camera_intrinsics`` [cx, cy, fx, fy], per frame ``file_path`` (the
+    image stem), the absolute ``img_path``, ``R_opt`` (the camera-to-world rotation, OpenCV axes) / ``T_opt`` (the
+    world-to-camera translation), the refined ``pl_pos`` and ``camera_intrinsics``; ``json.dump`` without indent.
+    Returns the frames written (refined poses: random rotations and translations)."""
+    meta = json.loads((source / f"transforms_{split}.json").read_text())
+    frames = []
+    for raw in meta["frames"]:
+        q = rng.normal(size=4)
+        q /= np.linalg.norm(q)
+        w, x, y, z = q
+        R = np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                      [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+                      [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+        image = (source / (raw["file_path"] + raw.get("file_ext", ".png"))).resolve()
+        frames.append({"file_path": image.stem, "img_path": str(image), "R_opt": R.tolist(),
+                       "T_opt": rng.normal(size=3).tolist(), "pl_pos": (np.asarray(raw["pl_pos"]) + 0.01).tolist(),
+                       "camera_intrinsics": [9.5, 5.5, 17.0, 17.5]})
+    model.mkdir(parents=True, exist_ok=True)
+    with open(model / f"transforms_{split}.json", "w") as outfile:
+        json.dump({"camera_intrinsics": [9.5, 5.5, 17.0, 17.5], "frames": frames}, outfile)
+    return frames
+
+
+@pytest.mark.parametrize("writer", [write_gs3_tree, write_nrhints_tree])
+def test_scene_save_files_of_a_trained_model_are_read_with_their_refined_poses(tmp_path, writer):
+    """A model folder's transforms files as the official Scene.save writes them: no transform_matrix, no
+    pl_intensity, absolute img_path. Each frame's camera is the refined pose (world-to-camera [[R_optᵀ, T_opt]],
+    dataset_readers.py:135-138), its light the refined pl_pos, its image the absolute path (reported)."""
+    from click.testing import CliRunner
+
+    from olatbench.cli import main
+
+    writer(tmp_path / "data")
+    model = tmp_path / "output" / "point_cloud" / "iteration_30000"
+    rng = np.random.default_rng(3)
+    written = {split: scene_save(model, tmp_path / "data", split, rng) for split in ("train", "test")}
+    scene = load_scene(model)
+    for split, frames in written.items():
+        for frame, raw in zip(scene.split(split), frames, strict=True):
+            w2c = np.eye(4)
+            w2c[:3, :3], w2c[:3, 3] = np.asarray(raw["R_opt"]).T, raw["T_opt"]
+            np.testing.assert_allclose(frame.camera.w2c(), w2c, atol=1e-12)
+            np.testing.assert_allclose(frame.light.position, raw["pl_pos"])
+            assert not frame.light.intensity_known
+            assert (frame.camera.cx, frame.camera.cy, frame.camera.fx, frame.camera.fy) == (9.5, 5.5, 17.0, 17.5)
+            assert frame.image_path == Path(raw["img_path"]) and frame.frame_id == raw["file_path"]
+            assert frame.extras["absolute_img_path"] == raw["img_path"]
+    assert scene.split("train")[0].load().rgb.shape[:2] == (12, 16)
+
+    result = CliRunner().invoke(main, ["datasets", "info", str(model)])
+    assert result.exit_code == 0, result.output
+    out = result.output
+    assert "6 frame(s) posed by their refined R_opt/T_opt" in out
+    assert "6 read from outside the folder (absolute img_path" in out
+
+
+def test_an_absolute_img_path_must_exist(tmp_path):
+    write_nrhints_tree(tmp_path / "data")
+    model = tmp_path / "model"
+    scene_save(model, tmp_path / "data", "train", np.random.default_rng(0))
+    scene_save(model, tmp_path / "data", "test", np.random.default_rng(1))
+    missing = str((tmp_path / "elsewhere" / "gone.png").resolve())
+    _edit(model / "transforms_test.json", lambda m: m["frames"][1].update(img_path=missing))
+    with pytest.raises(DatasetError, match=r"transforms_test.json.*img_path.*absolute image path '.*gone.png' does "
+                                           r"not exist") as error:
+        load_scene(model)
+    assert error.value.key == "img_path"
+
+
+def test_nrhints_background_is_the_one_nrhints_trains_the_scene_on(tmp_path):
+    """NRHints trains synthetic (Blender: camera_angle_x, no camera_intrinsics) scenes on white
+    (scripts/train_synthetic.sh) and real captures (camera_intrinsics) on black (scripts/train_real.sh); a scene
+    olatbench generated (synth.json) keeps the black it was rendered on. `datasets info` says which and why."""
+    from click.testing import CliRunner
+
+    from olatbench.cli import main
+
+    write_nrhints_tree(tmp_path / "synthetic", intrinsics=False)
+    write_nrhints_tree(tmp_path / "real")
+    write_nrhints_tree(tmp_path / "generated", intrinsics=False)
+    (tmp_path / "generated" / "synth.json").write_text("{}")
+    synthetic = load_scene(tmp_path / "synthetic")
+    assert synthetic.background.tolist() == [1.0, 1.0, 1.0]
+    assert all(f.background.tolist() == [1.0, 1.0, 1.0] for f in synthetic)
+    assert synthetic.metadata["background"].startswith("white (NRHints synthetic scene")
+    for name in ("real", "generated"):
+        scene = load_scene(tmp_path / name)
+        assert scene.background.tolist() == [0.0, 0.0, 0.0] and all(f.background.tolist() == [0, 0, 0] for f in scene)
+    assert "train_real.sh" in load_scene(tmp_path / "real").metadata["background"]
+    assert "synth.json" in load_scene(tmp_path / "generated").metadata["background"]
+    result = CliRunner().invoke(main, ["datasets", "info", str(tmp_path / "synthetic")])
+    assert result.exit_code == 0, result.output
+    assert "background [1.0, 1.0, 1.0]" in result.output
+    assert "background=white (NRHints synthetic scene: camera_angle_x, no camera_intrinsics" in result.output

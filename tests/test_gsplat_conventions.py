@@ -9,6 +9,7 @@ conic or transmittance convention in olatbench (or a changed one in a new gsplat
 
 from __future__ import annotations
 
+import functools
 import math
 
 import pytest
@@ -18,6 +19,7 @@ from test_rasterize_scenes import camera, scene
 
 from olatbench.gaussians.backends import cuda as cuda_backend
 from olatbench.gaussians.backends import torch_ref
+from olatbench.gaussians.compositing import GSPLAT
 from olatbench.gaussians.projection import project
 from olatbench.gaussians.tiles import TILE_SIZE, bin_gaussians
 
@@ -40,8 +42,8 @@ def gsplat_on_cpu(monkeypatch):
 
 @pytest.fixture
 def gsplat_clamp(monkeypatch):
-    """olatbench's torch reference with gsplat's alpha clamp (0.999 instead of 3DGS's 0.99)."""
-    monkeypatch.setattr(torch_ref, "ALPHA_MAX", cuda_backend.GSPLAT_ALPHA_MAX)
+    """olatbench's torch reference with gsplat's rules (clamp 0.999 instead of 3DGS's 0.99, stop at T <= 1e-4)."""
+    monkeypatch.setattr(torch_ref, "rasterize_torch", functools.partial(torch_ref.rasterize_torch, rules=GSPLAT))
 
 
 def test_the_documented_gsplat_clamp_is_the_one_in_gsplat():

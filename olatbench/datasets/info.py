@@ -43,6 +43,9 @@ def scene_summary(scene: Scene) -> dict[str, Any]:
         "root": str(scene.root),
         "splits": {split: len(split_frames) for split, split_frames in scene.frames.items()},
         "images": sum(f.image_path is not None for f in frames),
+        # absolute img_path (GS³/SSD-GS Scene.save): images read from outside the folder
+        "images_outside_folder": sum("absolute_img_path" in f.extras for f in frames),
+        "refined_poses": sum("R_opt" in f.extras for f in frames),
         "resolution": dict(sizes),
         "colourspace": sorted({f.colourspace for f in frames}),
         "alpha": sorted({f.alpha_mode for f in frames}),
@@ -76,6 +79,11 @@ def format_summary(summary: dict[str, Any]) -> str:
         f"{'known' if lights['intensity_known'] else 'unknown (1)'}",
         f"  cameras:     distance to origin {span(summary['camera_distance_to_origin'])}",
     ]
+    if summary["refined_poses"]:
+        lines.append(f"  poses:       {summary['refined_poses']} frame(s) posed by their refined R_opt/T_opt")
+    if summary["images_outside_folder"]:
+        lines.append(f"  images:      {summary['images_outside_folder']} read from outside the folder (absolute "
+                     "img_path, as GS³/SSD-GS Scene.save writes them)")
     extra = {k: v for k, v in summary["metadata"].items() if k != "folder"}
     if extra:
         lines.append("  notes:       " + ", ".join(f"{k}={v}" for k, v in extra.items()))

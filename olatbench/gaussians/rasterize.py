@@ -1,8 +1,9 @@
 """Differentiable rasterization of projected Gaussians with any number of feature channels.
 
-Per pixel, front to back (3DGS rules): ``alpha_i = min(0.99, o_i · exp(-½ dᵀ conic_i d))`` with d the offset
-between the Gaussian's 2D mean and the pixel centre; Gaussians with ``alpha_i < 1/255`` are skipped and the
-pixel stops before the Gaussian that would bring its transmittance below 1e-4. Then
+Per pixel, front to back (3DGS rules, `compositing.THREE_DGS`, unless other ``rules`` are given):
+``alpha_i = min(0.99, o_i · exp(-½ dᵀ conic_i d))`` with d the offset between the Gaussian's 2D mean and the pixel
+centre; Gaussians with ``alpha_i < 1/255`` are skipped and the pixel stops before the Gaussian that would bring
+its transmittance below 1e-4. Then
 
     image = Σ_i T_i α_i f_i + T_final · background,   alpha = 1 - T_final,
 
@@ -19,6 +20,7 @@ from dataclasses import dataclass
 import torch
 
 from .backends import resolve_backend
+from .compositing import THREE_DGS, CompositingRules
 from .projection import Projected
 from .tiles import TileBins, bin_gaussians
 
@@ -44,16 +46,18 @@ def composite(
     bins: TileBins,
     backend: str,
     threads: int | None = None,
+    rules: CompositingRules = THREE_DGS,
 ) -> tuple[torch.Tensor, torch.Tensor]:
-    """Run one concrete backend: colour without background (H, W, C) and final transmittance (H, W)."""
+    """Run one concrete backend: colour without background (H, W, C) and final transmittance (H, W). The cuda
+    backend is gsplat's kernel, whose rules are its own (`compositing.GSPLAT`) whatever ``rules`` says."""
     if backend == "torch":
         from .backends.torch_ref import rasterize_torch
 
-        return rasterize_torch(means2d, conics, opacities, features, bins)
+        return rasterize_torch(means2d, conics, opacities, features, bins, rules)
     if backend == "cpu":
         from .backends.cpu import rasterize_cpu
 
-        return rasterize_cpu(means2d, conics, opacities, features, bins, threads=threads)
+        return rasterize_cpu(means2d, conics, opacities, features, bins, threads=threads, rules=rules)
     if backend == "cuda":
         from .backends.cuda import rasterize_cuda
 
@@ -80,11 +84,13 @@ def rasterize(
     return_depth: bool = False,
     threads: int | None = None,
     bins: TileBins | None = None,
+    rules: CompositingRules = THREE_DGS,
 ) -> Rasterized:
     """Composite ``projected`` Gaussians with ``opacities`` (N,) in [0, 1] and ``features`` (N, C) over
     ``background`` (C,). ``backend``: "auto", "torch", "cpu" or "cuda" (see ``olatbench.gaussians.backends``).
     ``threads`` applies to the cpu backend (default ``torch.get_num_threads()``). ``bins`` may be passed to
-    reuse a binning (it must come from ``bin_gaussians`` on these means2d/radii, sorted by depth)."""
+    reuse a binning (it must come from ``bin_gaussians`` on these means2d/radii, sorted by depth). ``rules``: the
+    alpha clamp and stopping rule (`olatbench.gaussians.compositing`; the torch and cpu backends)."""
     n = projected.means2d.shape[0]
     if features.ndim != 2 or features.shape[0] != n:
         raise ValueError(f"features must be (N={n}, C), got {tuple(features.shape)}")
@@ -100,7 +106,7 @@ def rasterize(
     if return_depth:
         feats = torch.cat([feats, projected.depths.to(dtype)[:, None]], dim=1)
     colour, final_t = composite(
-        projected.means2d, projected.conics, opacities.to(dtype), feats, bins, name, threads=threads
+        projected.means2d, projected.conics, opacities.to(dtype), feats, bins, name, threads=threads, rules=rules
     )
     alpha = 1.0 - final_t
     image = colour[..., :channels] + final_t[..., None] * background.to(dtype)

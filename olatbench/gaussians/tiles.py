@@ -93,16 +93,29 @@ def bin_gaussians(
         from .backends.cpu import bin_gaussians_cpu
 
         return bin_gaussians_cpu(means2d, radii, sort_keys, width, height, tile_size)
-    device = means2d.device
+    x0, x1, y0, y1, inside = pixel_ranges(means2d, radii, width, height)
+    tile_ranges = (x0 // tile_size, x1 // tile_size + 1, y0 // tile_size, y1 // tile_size + 1)
+    return bins_of_tile_ranges(tile_ranges, inside, sort_keys, width, height, tile_size)
+
+
+def bins_of_tile_ranges(
+    tile_ranges: tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor],
+    inside: torch.Tensor,
+    sort_keys: torch.Tensor,
+    width: int,
+    height: int,
+    tile_size: int = TILE_SIZE,
+) -> TileBins:
+    """The torch binning of `bin_gaussians` from given per-Gaussian tile ranges ``(tx0, tx1, ty0, ty1)`` (N,) int64
+    each, ``[tx0, tx1) × [ty0, ty1)`` inside the tile grid, for the Gaussians with ``inside`` (N,) bool."""
+    tx0, tx1, ty0, ty1 = tile_ranges
+    device = inside.device
     tiles_x = (width + tile_size - 1) // tile_size
     tiles_y = (height + tile_size - 1) // tile_size
-    x0, x1, y0, y1, inside = pixel_ranges(means2d, radii, width, height)
-    tx0, tx1 = x0 // tile_size, x1 // tile_size + 1
-    ty0, ty1 = y0 // tile_size, y1 // tile_size + 1
     span_x = tx1 - tx0
     counts = torch.where(inside, span_x * (ty1 - ty0), torch.zeros_like(span_x))
     total = int(counts.sum())
-    gauss = torch.repeat_interleave(torch.arange(means2d.shape[0], device=device), counts)
+    gauss = torch.repeat_interleave(torch.arange(inside.shape[0], device=device), counts)
     first = torch.cumsum(counts, 0) - counts
     # One gather of all per-Gaussian quantities the pairs need (cheaper than one gather each).
     per_pair = torch.stack([tx0, ty0, span_x, first, float_order_key(sort_keys)], dim=1)[gauss]
@@ -127,4 +140,4 @@ def bin_gaussians(
     )
 
 
-__all__ = ["TILE_SIZE", "TileBins", "bin_gaussians", "float_order_key", "pixel_ranges"]
+__all__ = ["TILE_SIZE", "TileBins", "bin_gaussians", "bins_of_tile_ranges", "float_order_key", "pixel_ranges"]

@@ -126,6 +126,12 @@ def light_tensors(light: PointLight, device: torch.device) -> tuple[torch.Tensor
     return torch.as_tensor(light.position, **f32), torch.as_tensor(light.intensity, **f32)
 
 
+def shaded_intensity(intensity: torch.Tensor, ignored: bool) -> torch.Tensor:
+    """The light intensity (3,) the shading multiplies by: the recorded one, or 1 where the method's
+    ``light_intensity`` setting ignores it (exactly what a light without a recorded intensity reads as)."""
+    return torch.ones_like(intensity) if ignored else intensity
+
+
 def camera_centre(w2c: torch.Tensor) -> torch.Tensor:
     """World-space camera centre (3,) of a world-to-camera matrix (4,4): ``-Rᵀ t``."""
     return -w2c[:3, :3].T @ w2c[:3, 3]

@@ -4,17 +4,32 @@ One JSON file per split holds ``frames`` with ``file_path`` (no extension; ``fil
 or the format default) or ``img_path`` (relative to the scene folder, extension included; preferred over
 ``file_path`` when a frame has both, as the GS³ loader ``scene/dataset_readers.py`` does; its stem is then the
 frame id), ``transform_matrix`` (camera-to-world, OpenGL/Blender axes), ``pl_pos`` and
-optionally ``pl_intensity``. A frame with refined poses ``R_opt``/``T_opt`` (saved by GS³/SSD-GS training) gets
-its camera from them, as the official readers do (`olatbench.datasets.cameras.c2w_from_refined`); its
-``transform_matrix`` pose stays in ``extras["transform_matrix_c2w"]``, and a written scene's ``transform_matrix``
-is the refined camera, so every reader of it sees one camera. Intrinsics are ``camera_intrinsics`` =
-**[cx, cy, fx, fy]** (top level or per frame) or ``camera_angle_x`` (square pixels, centred principal point).
+optionally ``pl_intensity``. A frame with refined poses ``R_opt``/``T_opt`` gets its camera from them, as the
+official readers do (`olatbench.datasets.cameras.c2w_from_refined`); its ``transform_matrix`` pose, when it has
+one, stays in ``extras["transform_matrix_c2w"]``, and a written scene's ``transform_matrix`` is the refined camera,
+so every reader of it sees one camera.
+
+The files GS³'s and SSD-GS's ``Scene.save`` write next to a trained model (``point_cloud/iteration_N/transforms_
+{train,test}.json``: ``file_path`` the image stem, an absolute ``img_path``, ``R_opt``/``T_opt``, the refined
+``pl_pos`` and per-frame ``camera_intrinsics``, no ``transform_matrix`` and no ``pl_intensity``) read as they are:
+an absolute ``img_path`` is accepted when that file exists (``extras["absolute_img_path"]``, counted by
+``datasets info``); a relative one still may not leave the folder.
+
+Intrinsics are ``camera_intrinsics`` = **[cx, cy, fx, fy]** (top level or per frame) or ``camera_angle_x``
+(square pixels, centred principal point), with each format's official reader's precedence: at the top level the
+NRHints parser (``data/data_parser.py:54-66``) takes ``camera_intrinsics`` first, the GS³/SSD-GS reader
+(``scene/dataset_readers.py:105-113``) ``camera_angle_x`` (`NerfFlavour.angle_first`); a frame's own
+``camera_intrinsics`` replace the top level's (``dataset_readers.py:128-133``; NRHints reads none), except that
+under a top-level ``camera_angle_x`` the GS³/SSD-GS reader keeps that angle's focal length and takes only cx, cy
+from the frame (``:168-174``, ``:187-193``). olatbench follows that for GS³ files; an NRHints file of that shape
+whose frame focal differs from the angle's is refused (the two official readers disagree on it).
 ``transforms_valid.json`` (the GS³ re-pack) is a camera path without images: split ``path``, frames with
 ``image_path=None``.
 """
 
 from __future__ import annotations
 
+import os
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -44,6 +59,9 @@ SPLIT_FILES: dict[str, str] = {
 IMAGE_SPLITS = ("train", "val", "test")
 
 
+Background = tuple[float, float, float]
+
+
 @dataclass(frozen=True)
 class NerfFlavour:
     """What distinguishes NRHints from GS³ files: default extension, colour, alpha and background."""
@@ -52,12 +70,18 @@ class NerfFlavour:
     default_ext: str
     colourspace: colour.ColourSpace
     alpha_mode: colour.AlphaMode
-    background: tuple[float, float, float]
+    background: Background
+    angle_first: bool = False  # top-level camera_angle_x before camera_intrinsics (the GS³/SSD-GS reader)
+    # (root, {split: (file, meta)}) -> (background, why): a per-scene background instead of ``background``
+    background_rule: Callable[[Path, Mapping[str, tuple[Path, dict]]], tuple[Background, str]] | None = None
 
 
 def _intrinsics(source: Mapping[str, Any], width: int, height: int, *, path: Path,
-                frame: str | int | None) -> np.ndarray | None:
-    """K from ``camera_intrinsics`` [cx, cy, fx, fy] or ``camera_angle_x``; None when neither is in ``source``."""
+                frame: str | int | None, angle_first: bool = False) -> np.ndarray | None:
+    """K from ``camera_intrinsics`` [cx, cy, fx, fy] or ``camera_angle_x`` (that one first with ``angle_first``);
+    None when neither is in ``source``."""
+    if angle_first and source.get("camera_angle_x") is not None:
+        return _intrinsics({"camera_angle_x": source["camera_angle_x"]}, width, height, path=path, frame=frame)
     if source.get("camera_intrinsics") is not None:
         cx, cy, fx, fy = c.as_array(source["camera_intrinsics"], (4,), path=path, frame=frame, key="camera_intrinsics")
         if fx <= 0 or fy <= 0:
@@ -98,10 +122,16 @@ def _image_size(root: Path, metas: dict[str, tuple[Path, dict]], flavour: NerfFl
 
 
 def frame_image(root: Path, raw: Mapping[str, Any], default_ext: str, *, path: Path, frame: str | int) -> Path:
-    """A frame's image: ``img_path`` as written (relative to ``root``) when present, else ``file_path`` with
-    ``file_ext`` or ``default_ext``."""
-    if raw.get("img_path") is not None:
-        return c.resolve_inside(root, raw["img_path"], path=path, frame=frame, key="img_path")
+    """A frame's image: ``img_path`` as written (relative to ``root``, or absolute if that file exists, as
+    ``Scene.save`` of GS³/SSD-GS writes it) when present, else ``file_path`` with ``file_ext`` or ``default_ext``."""
+    img_path = raw.get("img_path")
+    if isinstance(img_path, str) and os.path.isabs(img_path):
+        if not Path(img_path).is_file():
+            raise DatasetError(f"absolute image path '{img_path}' does not exist (an absolute img_path is read only "
+                               f"where the file is)", path=path, frame=frame, key="img_path")
+        return Path(img_path)
+    if img_path is not None:
+        return c.resolve_inside(root, img_path, path=path, frame=frame, key="img_path")
     return c.image_file(root, c.require(raw, "file_path", path=path, frame=frame), raw.get("file_ext"), default_ext,
                         path=path, frame=frame)
 
@@ -127,17 +157,23 @@ def read_nerf_scene(root: Path, flavour: NerfFlavour, name: str,
     if not any(split in metas for split in IMAGE_SPLITS):
         raise DatasetError(f"no {', '.join(SPLIT_FILES[s] for s in IMAGE_SPLITS)}", path=root)
     width, height = _image_size(root, metas, flavour)
-    background = np.asarray(flavour.background, dtype=np.float64)
+    background, why = flavour.background, None
+    if flavour.background_rule is not None:
+        background, why = flavour.background_rule(root, metas)
+    background = np.asarray(background, dtype=np.float64)
     frames: dict[str, list[Frame]] = {}
     first_path, first_meta = next(iter(metas.values()))  # train when present: the official parser's "meta"
-    fallback = {"K": _intrinsics(first_meta, width, height, path=first_path, frame=None),
+    first = flavour.angle_first
+    fallback = {"K": _intrinsics(first_meta, width, height, path=first_path, frame=None, angle_first=first),
                 "near": _optional_positive(first_meta, "camera_near", first_path),
                 "far": _optional_positive(first_meta, "camera_far", first_path)}
     for split, (path, meta) in metas.items():
         raw_frames = c.frames_of(meta, path)
         # a split without its own intrinsics / near / far uses the first split's, as the NRHints parser does
-        split_K = _intrinsics(meta, width, height, path=path, frame=None)
+        split_K = _intrinsics(meta, width, height, path=path, frame=None, angle_first=first)
         split_K = fallback["K"] if split_K is None else split_K
+        angle_K = (_intrinsics({"camera_angle_x": meta["camera_angle_x"]}, width, height, path=path, frame=None)
+                   if meta.get("camera_angle_x") is not None else None)
         near = _optional_positive(meta, "camera_near", path) or fallback["near"]
         far = _optional_positive(meta, "camera_far", path) or fallback["far"]
         stems = [_frame_stem(raw, f"{split}_{i:04d}") if split != "path" else f"path_{i:04d}"
@@ -145,26 +181,51 @@ def read_nerf_scene(root: Path, flavour: NerfFlavour, name: str,
         parsed = []
         for index, (raw, frame_id) in enumerate(zip(raw_frames, c.unique_ids(stems), strict=True)):
             try:
-                parsed.append(_read_frame(root, path, split, index, frame_id, raw, split_K, width, height,
-                                          near, far, name, flavour, background))
+                parsed.append(_read_frame(root, path, split, index, frame_id, raw, split_K, angle_K, width,
+                                          height, near, far, name, flavour, background))
             except DatasetError as error:
                 if errors is None:
                     raise
                 errors.append(error)
         frames[split] = parsed
     metadata = {"folder": root.name, "files": {s: p.name for s, (p, _) in metas.items()}}
+    if why is not None:
+        metadata["background"] = why
     return Scene(name=name, format=flavour.format_name, root=root, frames=frames, background=background,
                  metadata=metadata)
 
 
-def _read_frame(root: Path, path: Path, split: str, index: int, frame_id: str, raw: Mapping[str, Any],
-                split_K: np.ndarray | None, width: int, height: int, near: float | None, far: float | None,
-                name: str, flavour: NerfFlavour, background: np.ndarray) -> Frame:
-    where = {"path": path, "frame": frame_id}
-    c2w = c.opencv_c2w(c.require(raw, "transform_matrix", **where), **where)
+def _frame_K(raw: Mapping[str, Any], split_K: np.ndarray | None, angle_K: np.ndarray | None, width: int,
+             height: int, flavour: NerfFlavour, where: dict[str, Any]) -> np.ndarray | None:
+    """A frame's K: its own ``camera_intrinsics``, with the focal length of the file's top-level
+    ``camera_angle_x`` (``angle_K``) where there is one (GS³ reader; refused for NRHints files where it differs);
+    else the split's K."""
     K = _intrinsics(raw, width, height, **where)
     if K is None:
-        K = split_K
+        return split_K
+    if angle_K is None or raw.get("camera_intrinsics") is None:
+        return K
+    if not flavour.angle_first and not np.allclose([K[0, 0], K[1, 1]], angle_K[0, 0], rtol=1e-6):
+        raise DatasetError(
+            f"fx={K[0, 0]:.6g}, fy={K[1, 1]:.6g} differ from the focal length {angle_K[0, 0]:.6g} px of the file's "
+            "top-level camera_angle_x: NRHints' reader uses the angle and ignores per-frame intrinsics, GS³'s and "
+            "SSD-GS's take the angle's focal length and this frame's cx, cy; remove one of the two",
+            key="camera_intrinsics", **where)
+    K = K.copy()
+    K[0, 0] = K[1, 1] = angle_K[0, 0]
+    return K
+
+
+def _read_frame(root: Path, path: Path, split: str, index: int, frame_id: str, raw: Mapping[str, Any],
+                split_K: np.ndarray | None, angle_K: np.ndarray | None, width: int, height: int,
+                near: float | None, far: float | None, name: str, flavour: NerfFlavour,
+                background: np.ndarray) -> Frame:
+    where = {"path": path, "frame": frame_id}
+    refined = raw.get("R_opt") is not None or raw.get("T_opt") is not None
+    # Scene.save of GS³/SSD-GS writes the refined pose only: transform_matrix is needed only without it
+    c2w = (c.opencv_c2w(c.require(raw, "transform_matrix", **where), **where)
+           if not refined or raw.get("transform_matrix") is not None else None)
+    K = _frame_K(raw, split_K, angle_K, width, height, flavour, where)
     if K is None:
         raise DatasetError("no intrinsics: expected 'camera_intrinsics' or 'camera_angle_x'", **where)
     position = c.as_array(c.require(raw, "pl_pos", **where), (3,), key="pl_pos", **where)
@@ -174,7 +235,9 @@ def _read_frame(root: Path, path: Path, split: str, index: int, frame_id: str, r
     if split != "path":
         image_path = frame_image(root, raw, flavour.default_ext, **where)
     extras: dict[str, Any] = {}
-    if raw.get("R_opt") is not None or raw.get("T_opt") is not None:
+    if image_path is not None and os.path.isabs(str(raw.get("img_path", ""))):
+        extras["absolute_img_path"] = str(image_path)
+    if refined:
         # refined pose: the official GS³/SSD-GS readers use it instead of transform_matrix (dataset_readers.py:
         # 135-148), so the camera is the refined one; transform_matrix's pose is kept aside
         extras["R_opt"] = c.as_array(c.require(raw, "R_opt", **where), (3, 3), key="R_opt", **where)
@@ -182,7 +245,8 @@ def _read_frame(root: Path, path: Path, split: str, index: int, frame_id: str, r
         rotation = extras["R_opt"]
         if not np.allclose(rotation @ rotation.T, np.eye(3), atol=1e-4) or np.linalg.det(rotation) <= 0:
             raise DatasetError("R_opt is not a rotation matrix", key="R_opt", **where)
-        extras["transform_matrix_c2w"] = c2w
+        if c2w is not None:
+            extras["transform_matrix_c2w"] = c2w
         c2w = c2w_from_refined(extras["R_opt"], extras["T_opt"])
     if split == "path" and raw.get("file_path") is not None:
         extras["file_path"] = str(raw["file_path"])

@@ -26,7 +26,7 @@ FORMAT_NAME = "gs3"
 # Trained and scored in: the official GS³/SSD-GS code shows its linear EXRs with a pure 2.2 gamma.
 DISPLAY_COLOURSPACE = "gamma22"
 FLAVOUR = NerfFlavour(format_name=FORMAT_NAME, default_ext=".exr", colourspace="linear",
-                      alpha_mode="premultiplied", background=(1.0, 1.0, 1.0))
+                      alpha_mode="premultiplied", background=(1.0, 1.0, 1.0), angle_first=True)
 
 
 def detect(root: Path) -> bool:

@@ -1,8 +1,15 @@
-"""NRHints (Zeng et al. 2023) real OLAT captures, and the GS³ re-pack of them.
+"""NRHints (Zeng et al. 2023) OLAT scenes, real and synthetic, and the GS³ re-pack of the real ones.
 
 Files: ``transforms_{train,val,test}.json`` (+ ``transforms_valid.json``: a camera path without
 images, exposed as split ``path``). Intrinsics ``camera_intrinsics`` = [cx, cy, fx, fy] with a
-``camera_angle_x`` fallback. Images: RGBA PNG, sRGB, straight alpha; official background black.
+``camera_angle_x`` fallback. Images: RGBA PNG, sRGB, straight alpha.
+
+Background, per scene (`scene_background`; ``datasets info`` prints the reason): NRHints trains its real captures
+on black (``scripts/train_real.sh``: ``--config.data.white-background False``) and its synthetic Blender scenes
+on white (``scripts/train_synthetic.sh``: ``True``; ``data/data_parser.py:100-103``). A synthetic scene is one
+whose transforms files give ``camera_angle_x`` and no ``camera_intrinsics`` (the Blender export; every real
+capture has calibrated ``camera_intrinsics``). Scenes made by olatbench's generator (a ``synth.json`` beside the
+files, e.g. the ``mini`` suite) keep black, the empty background they were rendered with.
 """
 
 from __future__ import annotations
@@ -22,8 +29,26 @@ from olatbench.datasets.suites import canonical_scene_name
 
 FORMAT_NAME = "nrhints"
 DISPLAY_COLOURSPACE = "srgb"  # trained and scored in: 8-bit sRGB PNGs, used as stored
+BLACK, WHITE = (0.0, 0.0, 0.0), (1.0, 1.0, 1.0)
+
+
+def scene_background(root: Path, metas: Mapping[str, tuple[Path, dict]]) -> tuple[tuple[float, float, float], str]:
+    """(background, why) of an NRHints scene (module docstring) from its folder and transforms files."""
+    if (Path(root) / "synth.json").is_file():
+        return BLACK, "black (made by olatbench's generator, synth.json: rendered on an empty background)"
+    tops = [meta for _, meta in metas.values() if isinstance(meta, Mapping)]
+    frames = [frame for meta in tops if isinstance(meta.get("frames"), list) for frame in meta["frames"][:1]
+              if isinstance(frame, Mapping)]
+    calibrated = any("camera_intrinsics" in m for m in tops) or any("camera_intrinsics" in f for f in frames)
+    if not calibrated and any("camera_angle_x" in m for m in tops):
+        return WHITE, ("white (NRHints synthetic scene: camera_angle_x, no camera_intrinsics; NRHints trains these "
+                       "on white, scripts/train_synthetic.sh)")
+    return BLACK, ("black (NRHints real capture: camera_intrinsics; NRHints trains these on black, "
+                   "scripts/train_real.sh)")
+
+
 FLAVOUR = NerfFlavour(format_name=FORMAT_NAME, default_ext=".png", colourspace="srgb", alpha_mode="straight",
-                      background=(0.0, 0.0, 0.0))
+                      background=BLACK, background_rule=scene_background)
 
 
 def detect(root: Path) -> bool:

@@ -19,6 +19,7 @@ import torch
 from olatbench._native import NativeLibrary, Signature, per_float
 from olatbench._native.tensors import float_suffix, pointer, thread_count
 
+from ..compositing import THREE_DGS, CompositingRules
 from ..tiles import TILE_SIZE, TileBins
 
 CSRC = Path(__file__).parents[1] / "csrc"
@@ -30,10 +31,13 @@ def _symbols(suffix: str, real: type) -> dict[str, Signature]:
     """The exported functions of ``csrc/rasterize.cpp`` for one float type (its ``OLATBENCH_DEFINE``)."""
     return {
         # means2d, conics, opacities, features, channels, offsets, ids, grid, threads -> colour, final T, counts
-        f"olatbench_forward_{suffix}": Signature(None, (_P, _P, _P, _P, _INT, _P, _P, *_GRID, _INT, _P, _P, _P)),
+        # (then the compositing rules: alpha_max, stop_at_t_min)
+        f"olatbench_forward_{suffix}": Signature(
+            None, (_P, _P, _P, _P, _INT, _P, _P, *_GRID, _INT, ctypes.c_double, _INT, _P, _P, _P)),
         # ... as forward, final T, counts, grad colour, grad T, N -> grads of means2d, conics, opacities, features
         f"olatbench_backward_{suffix}": Signature(
-            None, (_P, _P, _P, _P, _INT, _P, _P, *_GRID, _INT, _P, _P, _P, _P, _I64, _P, _P, _P, _P)),
+            None, (_P, _P, _P, _P, _INT, _P, _P, *_GRID, _INT, ctypes.c_double, _INT, _P, _P, _P, _P, _I64,
+                   _P, _P, _P, _P)),
         # means2d, conics, opacities, offsets, ids, grid, threads, N -> largest blending weight per Gaussian
         f"olatbench_max_weight_{suffix}": Signature(None, (_P, _P, _P, _P, _P, *_GRID, _INT, _I64, _P)),
         # means2d, conics, opacities, keys, depth_offset, density, offsets, ids, grid, radius_px, threads, N
@@ -71,7 +75,7 @@ def _suffix(dtype: torch.dtype) -> str:
 
 class _RasterizeCPU(torch.autograd.Function):
     @staticmethod
-    def forward(ctx, means2d, conics, opacities, features, offsets, ids, bins, threads):
+    def forward(ctx, means2d, conics, opacities, features, offsets, ids, bins, threads, rules):
         lib = LIBRARY.load()
         dtype = means2d.dtype
         suffix = _suffix(dtype)
@@ -83,11 +87,11 @@ class _RasterizeCPU(torch.autograd.Function):
         counts = torch.empty(bins.height, bins.width, dtype=torch.int32)
         lib[f"olatbench_forward_{suffix}"](
             pointer(means2d), pointer(conics), pointer(opacities), pointer(features), channels,
-            pointer(offsets), pointer(ids), *_grid(bins), threads,
+            pointer(offsets), pointer(ids), *_grid(bins), threads, rules.alpha_max, int(rules.stop_at_t_min),
             pointer(colour), pointer(final_t), pointer(counts),
         )  # fmt: skip
         ctx.save_for_backward(means2d, conics, opacities, features, offsets, ids, final_t, counts)
-        ctx.bins, ctx.threads = bins, threads
+        ctx.bins, ctx.threads, ctx.rules = bins, threads, rules
         ctx.mark_non_differentiable(counts)
         return colour, final_t, counts
 
@@ -103,11 +107,11 @@ class _RasterizeCPU(torch.autograd.Function):
         out = [torch.empty_like(t) for t in (means2d, conics, opacities, features)]
         LIBRARY.load()[f"olatbench_backward_{_suffix(dtype)}"](
             pointer(means2d), pointer(conics), pointer(opacities), pointer(features), features.shape[1],
-            pointer(offsets), pointer(ids), *_grid(ctx.bins), ctx.threads,
-            pointer(final_t), pointer(counts), pointer(grad_colour), pointer(grad_t), n,
+            pointer(offsets), pointer(ids), *_grid(ctx.bins), ctx.threads, ctx.rules.alpha_max,
+            int(ctx.rules.stop_at_t_min), pointer(final_t), pointer(counts), pointer(grad_colour), pointer(grad_t), n,
             *(pointer(t) for t in out),
         )  # fmt: skip
-        return (*out, None, None, None, None)
+        return (*out, None, None, None, None, None)
 
 
 def rasterize_cpu(
@@ -117,14 +121,15 @@ def rasterize_cpu(
     features: torch.Tensor,
     bins: TileBins,
     threads: int | None = None,
+    rules: CompositingRules = THREE_DGS,
 ) -> tuple[torch.Tensor, torch.Tensor]:
     """Composite binned Gaussians on the CPU: colour without background (H, W, C) and final transmittance (H, W).
 
-    Same contract as ``torch_ref.rasterize_torch``; inputs must be CPU float32 or float64 (one dtype).
+    Same contract (and ``rules``) as ``torch_ref.rasterize_torch``; inputs must be CPU float32 or float64 (one dtype).
     ``threads`` defaults to ``torch.get_num_threads()``. Raises ``olatbench._native.BuildError`` if the kernel
     cannot be built."""
     colour, final_t, _ = _RasterizeCPU.apply(
-        means2d, conics, opacities, features, bins.offsets, bins.gaussian_ids, bins, thread_count(threads)
+        means2d, conics, opacities, features, bins.offsets, bins.gaussian_ids, bins, thread_count(threads), rules
     )
     return colour, final_t
 

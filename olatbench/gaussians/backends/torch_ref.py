@@ -2,11 +2,12 @@
 
 Tile-based and vectorised: the non-empty tiles are grouped into chunks (longest lists first, so padding stays
 small) and each chunk evaluates every (pixel, Gaussian-of-its-tile) pair at once. Front-to-back compositing
-follows 3DGS exactly: ``alpha = min(0.99, o·exp(power))`` with ``power = -½ dᵀ conic d`` (d = mean - pixel
-centre), pairs with ``power > 0`` or ``alpha < 1/255`` are skipped, and a pixel stops *before* the Gaussian
-that would bring its transmittance below 1e-4. Gradients come from autograd (the true gradient: zero where
-the 0.99 clamp is active). With autograd on, each chunk is wrapped in activation checkpointing so the
-memory held for backward is one chunk's worth, not the whole image's.
+follows the given `CompositingRules` exactly (default 3DGS's: ``alpha = min(0.99, o·exp(power))`` with
+``power = -½ dᵀ conic d`` (d = mean - pixel centre), pairs with ``power > 0`` or ``alpha < 1/255`` are skipped,
+and a pixel stops *before* the Gaussian that would bring its transmittance below 1e-4; gsplat's: 0.999 and at or
+below 1e-4). Gradients come from autograd (the true gradient: zero where the alpha clamp is active). With
+autograd on, each chunk is wrapped in activation checkpointing so the memory held for backward is one chunk's
+worth, not the whole image's.
 """
 
 from __future__ import annotations
@@ -16,11 +17,10 @@ from collections.abc import Iterator
 import torch
 from torch.utils.checkpoint import checkpoint
 
+from ..compositing import ALPHA_MIN, T_MIN, THREE_DGS, CompositingRules
 from ..tiles import TileBins
 
-ALPHA_MAX = 0.99
-ALPHA_MIN = 1.0 / 255.0
-T_MIN = 1e-4
+ALPHA_MAX = THREE_DGS.alpha_max  # the default rules' clamp
 # Elements (pixels × padded list length) evaluated per chunk; bounds peak memory (~10 tensors of this size).
 CHUNK_ELEMENTS = 1 << 22
 
@@ -32,6 +32,7 @@ def _chunk_weights(
     ids: torch.Tensor,
     valid: torch.Tensor,
     pixels: torch.Tensor,
+    rules: CompositingRules = THREE_DGS,
 ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
     """Blending weights of B tiles: ``ids``/``valid`` (B, L) padded lists, ``pixels`` (B, P, 2) pixel centres.
 
@@ -43,13 +44,13 @@ def _chunk_weights(
     dx, dy = d[..., 0], d[..., 1]
     a, b, c = (con[:, None, :, k] for k in range(3))
     power = -0.5 * (a * dx * dx + c * dy * dy) - b * dx * dy
-    alpha = (opacities[ids][:, None, :] * torch.exp(power)).clamp(max=ALPHA_MAX)
+    alpha = (opacities[ids][:, None, :] * torch.exp(power)).clamp(max=rules.alpha_max)
     keep = valid[:, None, :] & (power <= 0) & (alpha >= ALPHA_MIN)
     alpha = torch.where(keep, alpha, torch.zeros_like(alpha))
     one_minus = 1.0 - alpha
     t_after = torch.cumprod(one_minus, dim=-1)
     t_before = torch.cat([torch.ones_like(t_after[..., :1]), t_after[..., :-1]], dim=-1)
-    include = (t_after >= T_MIN).detach()
+    include = (t_after > T_MIN if rules.stop_at_t_min else t_after >= T_MIN).detach()
     weights = torch.where(include, t_before * alpha, torch.zeros_like(alpha))
     return weights, one_minus, include
 
@@ -62,11 +63,12 @@ def _composite_chunk(
     ids: torch.Tensor,
     valid: torch.Tensor,
     pixels: torch.Tensor,
+    rules: CompositingRules = THREE_DGS,
 ) -> tuple[torch.Tensor, torch.Tensor]:
     """Composite B tiles (arguments as `_chunk_weights`, ``features`` (N, C)).
 
     Returns colour without background (B, P, C) and final transmittance (B, P)."""
-    weights, one_minus, include = _chunk_weights(means2d, conics, opacities, ids, valid, pixels)
+    weights, one_minus, include = _chunk_weights(means2d, conics, opacities, ids, valid, pixels, rules)
     colour = torch.einsum("bpl,blc->bpc", weights, features[ids])
     t_final = torch.where(include, one_minus, torch.ones_like(one_minus)).prod(dim=-1)
     return colour, t_final
@@ -120,10 +122,12 @@ def rasterize_torch(
     opacities: torch.Tensor,
     features: torch.Tensor,
     bins: TileBins,
+    rules: CompositingRules = THREE_DGS,
 ) -> tuple[torch.Tensor, torch.Tensor]:
     """Composite binned Gaussians: colour without background (H, W, C) and final transmittance (H, W).
 
-    Inputs: means2d (N, 2) px, conics (N, 3), opacities (N,), features (N, C), all one dtype and device."""
+    Inputs: means2d (N, 2) px, conics (N, 3), opacities (N,), features (N, C), all one dtype and device;
+    ``rules``: the clamp and stop (`olatbench.gaussians.compositing`)."""
     device, dtype = means2d.device, means2d.dtype
     ts, n_tiles, channels = bins.tile_size, bins.num_tiles, features.shape[1]
     counts = (bins.offsets[1:] - bins.offsets[:-1]).cpu()
@@ -140,7 +144,7 @@ def rasterize_torch(
         tie = sum(t.sum() for t in (means2d, conics, opacities, features)) * 0
         colour_tiles, t_tiles = colour_tiles + tie, t_tiles + tie
     for chunk_dev, ids, valid, pixels in _chunk_lists(bins, chunks, device, dtype):
-        args = (means2d, conics, opacities, features, ids, valid, pixels)
+        args = (means2d, conics, opacities, features, ids, valid, pixels, rules)
         if use_checkpoint:
             colour, t_final = checkpoint(_composite_chunk, *args, use_reentrant=False)
         else:

@@ -26,11 +26,22 @@
 
 namespace {
 
-constexpr double kAlphaMax = 0.99;
+constexpr double kAlphaMax = 0.99;  // 3DGS's clamp (the light pass; the camera pass takes its Rules)
 constexpr double kAlphaMin = 1.0 / 255.0;
 constexpr double kTMin = 1e-4;
 // Extra half-width (px) of the per-Gaussian pixel boxes, absorbing rounding in their computation.
 constexpr double kBoxSlack = 1e-2;
+
+// The camera pass's compositing rules: alpha = min(alpha_max, o exp(power)); a pixel stops before the Gaussian
+// whose next transmittance is below kTMin (3DGS: alpha_max 0.99) or at or below it (gsplat: alpha_max 0.999).
+template <typename F>
+struct Rules {
+  F alpha_max;
+  bool stop_at_t_min;
+  static Rules of(double alpha_max, int stop_at_t_min) { return Rules{F(alpha_max), stop_at_t_min != 0}; }
+  static Rules three_dgs() { return Rules{F(kAlphaMax), false}; }
+  bool stops(F t_next) const { return stop_at_t_min ? t_next <= F(kTMin) : t_next < F(kTMin); }
+};
 
 struct Grid {
   int width, height, tile, tiles_x, tiles_y;
@@ -114,7 +125,7 @@ struct TileData {
 // (tile, Gaussian) pair, the largest blending weight T*alpha it composited with (0 where it composited nothing).
 template <typename F>
 void forward_impl(const F* means2d, const F* conics, const F* opac, const F* features, int channels,
-                  const int64_t* offsets, const int64_t* ids, Grid grid, int threads,
+                  const int64_t* offsets, const int64_t* ids, Grid grid, int threads, Rules<F> rules,
                   F* out_colour, F* out_t, int32_t* out_count, F* pair_max = nullptr) {
   const int64_t num_tiles = grid.num_tiles();
   const int area = grid.tile * grid.tile;
@@ -148,10 +159,10 @@ void forward_impl(const F* means2d, const F* conics, const F* opac, const F* fea
             F dx, dy;
             const F pw = td.power(k, lx, ly, dx, dy);
             if (td.negligible(k, pw)) continue;
-            const F alpha = std::min(F(kAlphaMax), td.op[k] * std::exp(pw));
+            const F alpha = std::min(rules.alpha_max, td.op[k] * std::exp(pw));
             if (alpha < F(kAlphaMin)) continue;
             const F t_next = T[p] * (F(1) - alpha);
-            if (t_next < F(kTMin)) { done[p] = 1; --active; continue; }
+            if (rules.stops(t_next)) { done[p] = 1; --active; continue; }
             const F w = alpha * T[p];
             F* a = &acc[size_t(p) * channels];
             for (int c = 0; c < channels; ++c) a[c] += w * f[c];
@@ -184,8 +195,8 @@ void max_weight_impl(const F* means2d, const F* conics, const F* opac, const int
   const size_t pixels = size_t(grid.width) * size_t(grid.height);
   std::vector<F> pair_max(num_pairs), final_t(pixels);
   std::vector<int32_t> counts(pixels);
-  forward_impl<F>(means2d, conics, opac, nullptr, 0, offsets, ids, grid, threads, nullptr, final_t.data(),
-                  counts.data(), pair_max.data());
+  forward_impl<F>(means2d, conics, opac, nullptr, 0, offsets, ids, grid, threads, Rules<F>::three_dgs(), nullptr,
+                  final_t.data(), counts.data(), pair_max.data());
   std::fill(max_weight, max_weight + num_gaussians, F(0));
   for (int64_t m = 0; m < num_pairs; ++m) max_weight[ids[m]] = std::max(max_weight[ids[m]], pair_max[m]);
 }
@@ -197,7 +208,7 @@ constexpr int kPairFixed = 6;
 // transmittance in front of each from the final one (T_k = T_{k+1} / (1 - alpha_k)).
 template <typename F>
 void backward_impl(const F* means2d, const F* conics, const F* opac, const F* features, int channels,
-                   const int64_t* offsets, const int64_t* ids, Grid grid, int threads,
+                   const int64_t* offsets, const int64_t* ids, Grid grid, int threads, Rules<F> rules,
                    const F* final_t, const int32_t* counts, const F* grad_colour, const F* grad_t,
                    int64_t num_gaussians, F* grad_means2d, F* grad_conics, F* grad_opac, F* grad_features) {
   const int64_t num_tiles = grid.num_tiles();
@@ -245,7 +256,7 @@ void backward_impl(const F* means2d, const F* conics, const F* opac, const F* fe
             if (td.negligible(k, pw)) continue;
             const F gauss = std::exp(pw);
             const F raw = td.op[k] * gauss;
-            const F alpha = std::min(F(kAlphaMax), raw);
+            const F alpha = std::min(rules.alpha_max, raw);
             if (alpha < F(kAlphaMin)) continue;
             const F one_minus = F(1) - alpha;
             T[p] = T[p] / one_minus;  // now the transmittance in front of Gaussian k
@@ -261,7 +272,7 @@ void backward_impl(const F* means2d, const F* conics, const F* opac, const F* fe
               bp[c] += w * f[c];
             }
             const F d_alpha = T[p] * g_f - (g_behind + gt[p] * tf[p]) / one_minus;
-            if (raw > F(kAlphaMax)) continue;  // clamped: alpha does not depend on opacity or position
+            if (raw > rules.alpha_max) continue;  // clamped: alpha does not depend on opacity or position
             pg[5] += gauss * d_alpha;
             const F d_power = raw * d_alpha;
             pg[0] += -d_power * (td.ca[k] * dx + td.cb[k] * dy);
@@ -871,17 +882,20 @@ void project_backward_impl(const F* means, const F* quats, const F* scales, cons
   OLATBENCH_EXPORT void olatbench_forward_##SUFFIX(                                                         \
       const F* means2d, const F* conics, const F* opac, const F* features, int channels,                    \
       const int64_t* offsets, const int64_t* ids, int width, int height, int tile, int tiles_x, int tiles_y, \
-      int threads, F* out_colour, F* out_t, int32_t* out_count) {                                           \
+      int threads, double alpha_max, int stop_at_t_min, F* out_colour, F* out_t, int32_t* out_count) {     \
     forward_impl<F>(means2d, conics, opac, features, channels, offsets, ids,                                \
-                    Grid{width, height, tile, tiles_x, tiles_y}, threads, out_colour, out_t, out_count);    \
+                    Grid{width, height, tile, tiles_x, tiles_y}, threads,                                   \
+                    Rules<F>::of(alpha_max, stop_at_t_min), out_colour, out_t, out_count);                  \
   }                                                                                                         \
   OLATBENCH_EXPORT void olatbench_backward_##SUFFIX(                                                        \
       const F* means2d, const F* conics, const F* opac, const F* features, int channels,                    \
       const int64_t* offsets, const int64_t* ids, int width, int height, int tile, int tiles_x, int tiles_y, \
-      int threads, const F* final_t, const int32_t* counts, const F* grad_colour, const F* grad_t,          \
-      int64_t num_gaussians, F* grad_means2d, F* grad_conics, F* grad_opac, F* grad_features) {             \
+      int threads, double alpha_max, int stop_at_t_min, const F* final_t, const int32_t* counts,            \
+      const F* grad_colour, const F* grad_t, int64_t num_gaussians, F* grad_means2d, F* grad_conics,        \
+      F* grad_opac, F* grad_features) {                                                                     \
     backward_impl<F>(means2d, conics, opac, features, channels, offsets, ids,                               \
-                     Grid{width, height, tile, tiles_x, tiles_y}, threads, final_t, counts, grad_colour,    \
+                     Grid{width, height, tile, tiles_x, tiles_y}, threads,                                  \
+                     Rules<F>::of(alpha_max, stop_at_t_min), final_t, counts, grad_colour,                  \
                      grad_t, num_gaussians, grad_means2d, grad_conics, grad_opac, grad_features);           \
   }                                                                                                         \
   OLATBENCH_EXPORT void olatbench_max_weight_##SUFFIX(                                                      \

@@ -33,6 +33,7 @@ from olatbench.methods.training import (
     camera_centre,
     camera_tensors,
     light_tensors,
+    shaded_intensity,
     shaded_subset,
 )
 
@@ -126,6 +127,7 @@ class GS3(GaussianMethod, spec=SPEC):
                                          depth_offset=self.config.shadow_depth_offset)
             hint, light_weight = visible.pick(gathered.visibility), gathered.weight
         attributes = {name: visible.pick(value) for name, value in model.attributes.items()}
+        intensity = shaded_intensity(intensity, self.config.ignores_light_intensity)
         shaded: GS3Components = self.shader(visible.pick(means), attributes, camera_centre(w2c), light_position,
                                             intensity, self.specular_on(step), hint)
 
@@ -169,6 +171,7 @@ class GS3(GaussianMethod, spec=SPEC):
         model, step = self.model, max(self.step - 1, 0)
         w2c, _ = camera_tensors(camera, self.device)
         position, intensity = light_tensors(light, self.device)
+        intensity = shaded_intensity(intensity, self.config.ignores_light_intensity)
         hint = None
         if self.shadow_on(step):
             hint = shadow_gather(model.means, model.quats, model.scales, model.opacities, position,

@@ -9,6 +9,10 @@ from olatbench.methods.gaussian_config import GaussianConfig
 from olatbench.methods.ranges import AT_LEAST_ONE, NON_NEGATIVE, RATE, UNIT, Range
 
 NETWORK_PRECISIONS = ("fp32", "bf16", "fp16")  # methods.shading.precision.PRECISIONS (this module is torch-free)
+# What the shading does with a light's recorded intensity: "recorded" multiplies by it (the point light's radiant
+# intensity, olatbench's convention); "ignored" takes every light at intensity 1, as the authors' SSD-GS and GS³
+# code do (they read pl_intensity and drop it), which is what a file without pl_intensity gives anyway.
+LIGHT_INTENSITY_CONVENTIONS = ("recorded", "ignored")
 
 
 @dataclass
@@ -44,12 +48,23 @@ class ShadingConfig(GaussianConfig):
     # Precision of the per-Gaussian networks' bodies (methods.shading.precision): "fp32" (default), "bf16" (CPUs
     # with AMX or AVX512-BF16, CUDA), "fp16" (CUDA, with loss scaling); the rest of the step stays float32.
     network_precision: str = "fp32"
+    # "recorded" or "ignored" (LIGHT_INTENSITY_CONVENTIONS): "ignored" trains and renders as on a copy of the scene
+    # without any light intensity, for comparisons with the official codes (docs/official.md).
+    light_intensity: str = "recorded"
 
     def __post_init__(self) -> None:
         super().__post_init__()
+        if self.light_intensity not in LIGHT_INTENSITY_CONVENTIONS:
+            raise ValueError(f"{self.label} config: light_intensity must be one of {LIGHT_INTENSITY_CONVENTIONS}, "
+                             f"not {self.light_intensity!r}")
         if self.network_precision not in NETWORK_PRECISIONS:
             raise ValueError(f"{self.label} config: network_precision must be one of {NETWORK_PRECISIONS}, "
                              f"not {self.network_precision!r}")
+
+    @property
+    def ignores_light_intensity(self) -> bool:
+        """Whether every light is shaded at intensity 1 whatever its record says (``light_intensity="ignored"``)."""
+        return self.light_intensity == "ignored"
 
     def shading_cull_epsilon(self, evaluation: bool) -> float | None:
         """The culling threshold of a forward pass (None: no culling): ``cull_epsilon`` for the passes that take

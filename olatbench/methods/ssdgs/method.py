@@ -32,7 +32,7 @@ from olatbench.methods.ssdgs.schedule import Schedule
 from olatbench.methods.ssdgs.shader import Components, Shader
 from olatbench.methods.ssdgs.spec import SPEC
 from olatbench.methods.ssdgs.test_fitting import TestViewFitting, view_key
-from olatbench.methods.training import camera_centre, shaded_subset
+from olatbench.methods.training import camera_centre, shaded_intensity, shaded_subset
 
 if TYPE_CHECKING:
     from olatbench.datasets.records import Camera, PointLight
@@ -206,6 +206,7 @@ class SSDGS(GaussianMethod, spec=SPEC):
                                          **self.light_view_options(K, width, height, camera_position, light_position))
             coarse, light_weight = pick(gathered.visibility), gathered.weight
         attributes = {name: pick(value) for name, value in model.attributes.items()}
+        intensity = shaded_intensity(intensity, self.config.ignores_light_intensity)
         shaded: Components = self.shader(pick(means), pick(quats), pick(scales), attributes, camera_position,
                                          light_position, intensity, terms, coarse)
         return shaded, light_weight

@@ -1,4 +1,4 @@
-"""``gsplat.rasterization`` as gsplat v1.1.1 defines it, on the CPU with olatbench's projection and rasterizer.
+"""``gsplat.rasterization`` as gsplat v1.1.1 defines it, on the CPU: gsplat's projection, olatbench's rasterizer.
 
 The authors' SSD-GS and GS³ call (``gaussian_renderer/__init__.py``)::
 
@@ -17,10 +17,12 @@ Options whose behaviour is not reproduced raise `NotImplementedError` naming the
 meta has other shapes), ``sh_degree`` (colours must be precomputed), ``render_mode`` other than "RGB",
 ``rasterize_mode="antialiased"``, ``absgrad``, ``sparse_grad``, ``distributed``.
 
-Known differences from gsplat's CUDA kernels, both from olatbench's rasterizer following the 3DGS rules: alpha
-is clamped at 0.99 (gsplat: 0.999), and a pixel stops before the Gaussian that would take its transmittance
-below 1e-4 (gsplat: at or below). They matter only where one Gaussian alone is nearly opaque at a pixel
-(o·exp(-σ) > 0.99); tests/test_cpu_standins.py checks everything else against gsplat's own torch code.
+The projection is gsplat 1.1.1's (`projection.project_gsplat`: its symmetric Jacobian clamp, radius floor and
+near-plane rule, not olatbench's 3DGS ones), so are the tile lists (`projection.gsplat_bins`), and the C++
+rasterizer composites them with gsplat's rules (`olatbench.gaussians.compositing.GSPLAT`: alpha clamped at 0.999,
+a pixel stops before the Gaussian that takes its transmittance to 1e-4 or below). tests/test_cpu_standins.py
+checks each against gsplat 1.1.1's formulas and gsplat's own torch code. What remains different is the arithmetic:
+the CUDA kernels' float32 ``__expf`` and fused operations against the C++ kernel's.
 """
 
 from __future__ import annotations
@@ -29,8 +31,11 @@ from typing import Any
 
 import torch
 
-from olatbench.gaussians.projection import Projected, project
+from olatbench.gaussians.compositing import GSPLAT
+from olatbench.gaussians.projection import Projected
 from olatbench.gaussians.rasterize import rasterize
+
+from .projection import gsplat_bins, project_gsplat
 
 TILE_SIZE = 16
 
@@ -87,17 +92,15 @@ def rasterization(
     if backgrounds.shape != (cameras, channels):
         raise ValueError(f"gsplat stand-in: backgrounds must be [C={cameras}, D={channels}], got "
                          f"{tuple(backgrounds.shape)}")
-    projected = [project(means, quats, scales, viewmats[c], Ks[c], int(width), int(height), near=near_plane,
-                         far=far_plane, low_pass=eps2d) for c in range(cameras)]
+    projected = [project_gsplat(means, quats, scales, viewmats[c], Ks[c], int(width), int(height), near_plane,
+                                far_plane, eps2d, radius_clip) for c in range(cameras)]
     means2d = torch.stack([p.means2d for p in projected])  # [C, N, 2]: the tensor the rasterizer reads
     radii = torch.stack([p.radii for p in projected])
-    if radius_clip > 0:
-        radii = torch.where(radii > radius_clip, radii, torch.zeros_like(radii))
     images, alphas = [], []
     for c, p in enumerate(projected):
-        camera = Projected(means2d=means2d[c], conics=p.conics, radii=radii[c], depths=p.depths, width=p.width,
+        camera = Projected(means2d=means2d[c], conics=p.conics, radii=p.radii, depths=p.depths, width=p.width,
                            height=p.height)
-        out = rasterize(camera, opacities, colors[c], backgrounds[c])
+        out = rasterize(camera, opacities, colors[c], backgrounds[c], rules=GSPLAT, bins=gsplat_bins(camera))
         images.append(out.image)
         alphas.append(out.alpha[..., None])
     meta = {"radii": radii.to(torch.int32), "means2d": means2d, "depths": torch.stack([p.depths for p in projected]),
