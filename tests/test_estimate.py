@@ -22,10 +22,11 @@ from olatbench.bench.estimate import (
 from olatbench.bench.execute import run_job
 from olatbench.bench.plan import make_plan
 from olatbench.bench.results import read_results
+from olatbench.methods.gaussian_config import GaussianConfig
 
 
 @dataclasses.dataclass
-class FakeConfig:
+class FakeConfig(GaussianConfig):
     iterations: int = 1000
     reference_iterations: int = 1000
     num_init_gaussians: int = 100
@@ -33,9 +34,6 @@ class FakeConfig:
     densify_from: int = 200
     densify_until: int = 600
     densify_interval: int = 100
-
-    def steps(self, value: int) -> int:
-        return round(value * self.iterations / self.reference_iterations)
 
 
 def test_growth_model_sums_the_steps_by_hand():
@@ -48,10 +46,12 @@ def test_growth_model_sums_the_steps_by_hand():
     assert estimate_seconds(halved, cost) == pytest.approx(100 * 0.6 + 200 * 1.1 + 200 * 1.6)
     no_window = FakeConfig(densify_from=5000, densify_until=6000)
     assert estimate_seconds(no_window, cost) == pytest.approx(1000 * 0.6)
-    late = FakeConfig(densify_from=150)  # the first densification is at the next multiple of 100: step 200
+    # the window holds 10 densifications (GaussianConfig.density_windows): every 40 steps, the first at the next
+    # multiple of 40 after 170: step 200
+    late = FakeConfig(densify_from=170, densify_interval=40)
     assert estimate_seconds(late, cost) == estimate_seconds(FakeConfig(), cost)
-    never = FakeConfig(densify_interval=5000)  # no densification step inside the run: N stays put
-    assert estimate_seconds(never, cost) == pytest.approx(1000 * 0.6)
+    # an interval longer than the window shrinks to fit 10 densifications in it: the model counts the same ramp
+    assert estimate_seconds(FakeConfig(densify_interval=5000), cost) == estimate_seconds(FakeConfig(), cost)
 
 
 def test_format_duration():
