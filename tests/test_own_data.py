@@ -3,6 +3,7 @@ and ``[suites.NAME]`` of olatbench.toml, usable as ``-s NAME`` by run, status, r
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import shutil
 from pathlib import Path
@@ -158,15 +159,24 @@ def test_done_when_own_gs3_scene_at_the_formats_settings(tmp_path, monkeypatch):
     shutil.rmtree("runs")
 
 
-def test_own_suites_apply_the_method_preset_of_their_format(tmp_path, monkeypatch):
+def test_own_suites_derive_the_preset_from_the_scene_and_keep_the_formats_without_a_recipe(tmp_path, monkeypatch):
     write_nrhints_tree(tmp_path / "Cup", n_train=3, n_test=1, size=(16, 12))
-    from olatbench.methods.registry import get_spec
+    from olatbench.methods import registry
 
-    preset = get_spec("3dgs").presets["nrhints"]
+    spec = registry.get_spec("3dgs")
+    mini, nrhints = spec.presets["mini"], spec.presets["nrhints"]
     (job,) = _plan("-m", "3dgs", "--data", tmp_path / "Cup", "-o", tmp_path / "runs")
-    assert {key: job["config"][key] for key in preset} == dict(preset)  # as on the nrhints suite
+    # a 16x12 scene of 3 images is smaller than the mini scenes the recipe was tuned on: the recipe as it is
+    assert {key: job["config"][key] for key in mini} == dict(mini)
+    assert job["config"]["max_gaussians"] != nrhints["max_gaussians"]  # not the paper's 550,000
+    assert set(job["derived"]) >= {"iterations", "max_gaussians", "num_init_gaussians"}
+    assert job["resolution"] == "native"
     _write_toml(tmp_path, '[suites.mine]\nscenes = ["Cup"]\niterations = 7\n')
     monkeypatch.chdir(tmp_path)
     (job,) = _plan("-m", "3dgs", "-s", "mine", "-o", "runs")
-    assert job["iterations"] == 7  # the suite's own count wins over the preset's
-    assert job["config"]["position_lr_max_steps"] == preset["position_lr_max_steps"]
+    assert job["iterations"] == 7 and job["derived"]["iterations"]["why"] == "as asked"  # the suite's own count
+    assert job["config"]["position_lr_max_steps"] == mini["position_lr_max_steps"]
+    # a method that declares no scene recipe keeps its format's preset, as before
+    monkeypatch.setitem(registry._registered, "3dgs", dataclasses.replace(spec, scene_recipe=None))
+    (job,) = _plan("-m", "3dgs", "--data", tmp_path / "Cup", "-o", tmp_path / "runs")
+    assert {key: job["config"][key] for key in nrhints} == dict(nrhints) and job["derived"] == {}

@@ -11,7 +11,8 @@ A job's id is a content hash of everything that decides its result:
   the pinned commit and the command lines).
 
 Settings that do not change the result (device, output folder, checkpoint cadence, executor, where an official
-implementation's checkout and environment live) are kept out of the id, so a job moved to another machine or
+implementation's checkout and environment live, why a derived preset chose its values: the values are in the
+config) are kept out of the id, so a job moved to another machine or
 resumed elsewhere keeps its id.
 """
 
@@ -69,6 +70,7 @@ class Job:
     save_components: bool = False
     official: dict[str, Any] | None = None  # official code only: where it lives and runs (settings.CodeSettings)
     reuse: bool = True  # start from a finished job of the same experiment under another variant name (bench.reuse)
+    derived: dict[str, str] = field(default_factory=dict)  # field -> why, for a preset derived from the scene
     id: str = field(default="")
 
     @property

@@ -93,8 +93,12 @@ def _metric(metrics: dict, key: str) -> str:
                    "python=PATH, conda_env=NAME, container='TEMPLATE'; timeout_minutes=N; device=cpu runs the "
                    "unmodified code on the CPU with olatbench's stand-ins for its CUDA modules (default cuda) "
                    "(repeatable; not part of the job id). See docs/official.md.")
-@click.option("--resolution", type=Resolution(), help="Image size N (N×N) or WxH (default: the suite's, else "
-              "native).")
+@click.option("--resolution", type=Resolution(), help="Image size N (N×N) or WxH to train and score at (default: "
+              "the suite's; your own scenes: their own size). At most the scene's size and with its aspect ratio "
+              "unless --upscale / --stretch; a size other than the suite's names the variant "
+              "(default~resolution=32x32), so it gets its own folder.")
+@click.option("--stretch", is_flag=True, help="Allow a --resolution that changes the scene's aspect ratio.")
+@click.option("--upscale", is_flag=True, help="Allow a --resolution larger than the scene's own images.")
 @click.option("--data-root", type=click.Path(file_okay=False, path_type=Path),
               help="Folder holding the suite's scene folders (default: $OLATBENCH_DATA; mini: its cache).")
 @option("-o", "--output", "out", aliases=("--out",), default=Path("runs"), show_default=True,
@@ -130,7 +134,7 @@ def _metric(metrics: dict, key: str) -> str:
 @quiet_option
 @click.option("--json", "as_json", is_flag=True, help="With --dry-run: print the plan as JSON (one object per job).")
 def run(method, suite, data_paths, protocol_name, scenes, variants, ablation, seeds, iterations, overrides,
-        code_settings, resolution, data_root, out, device, executor, workers, dry_run, calibrate, force, no_reuse,
+        code_settings, resolution, stretch, upscale, data_root, out, device, executor, workers, dry_run, calibrate, force, no_reuse,
         checkpoint_every, save_components, slurm_partition, slurm_time, slurm_gpus, slurm_cpus,
         slurm_array_parallelism, wait, quiet, as_json) -> None:
     """Train and evaluate METHOD on every scene of SUITE (or on your own scene folders, --data); rerunning skips
@@ -146,7 +150,8 @@ def run(method, suite, data_paths, protocol_name, scenes, variants, ablation, se
     \b
     Examples:
       olatbench run --method ssdgs --suite mini
-      olatbench run -m 3dgs --data captures/cup --data captures/mug --iterations 30000   # your own scenes
+      olatbench run -m ssdgs --data captures/cup        # your own scene: presets derived from it (--dry-run shows)
+      olatbench run -m 3dgs --data captures/cup --data captures/mug --iterations 30000 --resolution 256
       olatbench run -m ssdgs -s nrhints --scenes Pixiu,Fish --data-root /data/nrhints
       olatbench run -m ssdgs -s nrhints --scenes Pixiu --ablation components --dry-run
       olatbench run -m ssdgs -s gs3 --scenes Lego --data-root /data/gs3 --dry-run --calibrate   # + time estimate
@@ -186,7 +191,8 @@ def run(method, suite, data_paths, protocol_name, scenes, variants, ablation, se
                                      variants=_split_names(variants), ablation=ablation, seeds=seeds,
                                      iterations=iterations, resolution=resolution,
                                      data_root=data_root, options=options, generate=not dry_run or calibrate,
-                                     progress=progress, overrides=parse_overrides(overrides))]
+                                     progress=progress, overrides=parse_overrides(overrides), stretch=stretch,
+                                     upscale=upscale)]
     except OverridesError as error:  # a usage error (exit 2), naming the field
         raise click.UsageError(str(error)) from None
     except (PlanError, DatasetError, KeyError, FileNotFoundError) as error:  # what was asked cannot be planned
@@ -366,7 +372,9 @@ def plan_json(jobs, states, out: Path, estimates: list[float | None], reuse: lis
     return [{"index": index, "id": job.id or None, "suite": job.suite, "method": job.method, "variant": job.variant,
              "scene": job.scene, "seed": job.seed, "iterations": job.iterations, "state": _state_text(state),
              "step": state.step, "train_seconds_estimate": seconds, "reuse": note,
-             "folder": str(Path(job.folder).relative_to(out)), "config": job.config}
+             "resolution": list(job.resolution) if job.resolution else "native",
+             "folder": str(Path(job.folder).relative_to(out)), "config": job.config,
+             "derived": {name: {"value": job.config.get(name), "why": why} for name, why in job.derived.items()}}
             for index, (job, state, seconds, note) in enumerate(zip(jobs, states, estimates, reuse, strict=True))]
 
 
@@ -380,11 +388,13 @@ def _print_plan(jobs, states, out: Path, estimates: list[float | None], reuse: l
             status = f"partial ({state.step}/{state.iterations})"
         elif note and state.state in ("pending", "absent"):
             status = f"pending ({note})"
+        size = "native" if job.resolution is None else f"{job.resolution[0]}x{job.resolution[1]}"
         rows.append([str(index), job.suite, job.method, job.variant, job.scene, str(job.seed), str(job.iterations),
-                     "?" if seconds is None else format_duration(seconds), job.id or "(no data yet)", status,
+                     size, "?" if seconds is None else format_duration(seconds), job.id or "(no data yet)", status,
                      str(Path(job.folder).relative_to(out))])
-    click.echo(_table(rows, ["#", "suite", "method", "variant", "scene", "seed", "iters", "train (est.)", "id",
-                             "state", "folder"]))
+    click.echo(_table(rows, ["#", "suite", "method", "variant", "scene", "seed", "iters", "size", "train (est.)",
+                             "id", "state", "folder"]))
+    _print_derived(jobs)
     note = "" if all(job.id for job in jobs) else "; ids are computed once the data exists"
     click.echo(f"{len(jobs)} job(s){note}.")
     known = [seconds for seconds in estimates if seconds is not None]
@@ -397,6 +407,20 @@ def _print_plan(jobs, states, out: Path, estimates: list[float | None], reuse: l
         if sum(known) > DAY_SECONDS:
             click.echo(f"WARNING: this plan would take more than a day here ({len(slow)} job(s) alone do); see "
                        f"docs/runner.md 'Paper scale' for what a GPU or more cores change.", err=True)
+
+
+def _print_derived(jobs) -> None:
+    """For each scene of no suite, once: the values its preset derived from it and why (field: value: reason);
+    a variant or --set given on top still wins, as the config column of --json shows."""
+    shown = set()
+    for job in jobs:
+        if not job.derived or (job.method, job.scene, job.variant) in shown:
+            continue
+        shown.add((job.method, job.scene, job.variant))
+        click.echo(f"{job.method} on {job.scene} ({job.variant}): preset derived from the scene "
+                   "(docs/own-data.md):")
+        for name, why in job.derived.items():
+            click.echo(f"  {name} = {json.dumps(job.config.get(name))}: {why}")
 
 
 def _print_summary(jobs, out: Path) -> None:
