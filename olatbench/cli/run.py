@@ -134,8 +134,8 @@ def _metric(metrics: dict, key: str) -> str:
 @quiet_option
 @click.option("--json", "as_json", is_flag=True, help="With --dry-run: print the plan as JSON (one object per job).")
 def run(method, suite, data_paths, protocol_name, scenes, variants, ablation, seeds, iterations, overrides,
-        code_settings, resolution, stretch, upscale, data_root, out, device, executor, workers, dry_run, calibrate, force, no_reuse,
-        checkpoint_every, save_components, slurm_partition, slurm_time, slurm_gpus, slurm_cpus,
+        code_settings, resolution, stretch, upscale, data_root, out, device, executor, workers, dry_run, calibrate,
+        force, no_reuse, checkpoint_every, save_components, slurm_partition, slurm_time, slurm_gpus, slurm_cpus,
         slurm_array_parallelism, wait, quiet, as_json) -> None:
     """Train and evaluate METHOD on every scene of SUITE (or on your own scene folders, --data); rerunning skips
     finished jobs and resumes interrupted ones from their last checkpoint.
@@ -454,7 +454,9 @@ def _print_summary(jobs, out: Path) -> None:
 def status(runs: Path, suite: str | None, as_json: bool) -> None:
     """Show the state of every job below RUNS: done, failed, partial (last checkpoint step), pending, running (in
     another process) or damaged (an unreadable job.json or results.json; the line below the table says how to
-    repair it). Only reads, so a read-only run folder can be inspected.
+    repair it), and the warnings of a run that went wrong while training (its Gaussian count collapsed, or its
+    training PSNR stayed below an image of the background alone; a line below the table each, with the likely
+    cause). Only reads, so a read-only run folder can be inspected.
 
     Exit code: 0 when the states are shown (whatever they are), 1 when RUNS holds no job folder (of the suite
     given with -s), 2 for a usage error (e.g. an unknown suite).
@@ -478,15 +480,19 @@ def status(runs: Path, suite: str | None, as_json: bool) -> None:
     if as_json:
         click.echo(json.dumps([{"job": str(state.folder.relative_to(runs)), "state": state.state,
                                 "id": state.job_id, "step": state.step, "iterations": state.iterations,
-                                "message": state.message} for state in states], indent=2))
+                                "message": state.message, "warnings": list(state.warnings)} for state in states],
+                              indent=2))
         return
     rows = []
     for state in states:
         step = "—" if state.step is None else f"{state.step}/{'?' if state.iterations is None else state.iterations}"
-        rows.append([str(state.folder.relative_to(runs)), state.state, step, state.message[:80]])
+        note = state.message or (f"WARNING: {state.warnings[0].partition(':')[0]}" if state.warnings else "")
+        rows.append([str(state.folder.relative_to(runs)), state.state, step, note[:80]])
     click.echo(_table(rows, ["job", "state", "step", "note"]))
     counts = Counter(state.state for state in states)
     click.echo(", ".join(f"{count} {name}" for name, count in sorted(counts.items())))
     for state in states:
         if state.state == "damaged":  # the whole message: what is damaged and the command that repairs it
             click.echo(f"damaged {state.folder.relative_to(runs)}: {state.message}")
+        for warning in state.warnings:  # a ruined run says so, with the likely cause (olatbench.bench.health)
+            click.echo(f"WARNING {state.folder.relative_to(runs)}: {warning}")

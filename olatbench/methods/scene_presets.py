@@ -5,8 +5,9 @@ mini presets for the mini scenes (64², 100 training views, 3000 CPU steps). A u
 native method declares its small-scene recipe (`MethodSpec.scene_recipe`, the ``mini`` preset) and the runner
 scales it from the mini scenes to the scene: the run length with the number of training images, the Gaussian
 budget and initial count with the pixel count, the light-view pass with the image side; never below the recipe
-(a scene smaller than the mini ones gets the recipe as it is) and never above the paper's length and budget. Iteration-valued fields stay at the
-recipe's reference length and scale with ``iterations`` (with the floors of `GaussianConfig.density_windows`).
+(a scene smaller than the mini ones gets the recipe as it is) and never above the paper's length and budget.
+Iteration-valued fields stay at the recipe's reference length and scale with ``iterations`` (with the floors of
+`GaussianConfig.density_windows`).
 Nothing real-capture-specific is switched on: camera and light refinement and test-pose fitting stay off (ask for
 them with ``--variant nrhints``, the paper's real-capture preset). Every value comes with the reason it was chosen,
 which ``run --dry-run`` and ``methods show --data DIR`` print.
