@@ -125,6 +125,18 @@ def derived_preset(spec: MethodSpec, suite: Suite, facts: SceneFacts | None,
     return derive_preset(spec.scene_recipe, spec.presets[spec.scene_recipe], facts, asked)
 
 
+def derived_for_folder(spec: MethodSpec, folder: str | Path, iterations: int | None = None
+                       ) -> DerivedPreset | None:
+    """The preset ``run -m <spec> --data <folder>`` derives (``methods show --data``); None for a method without a
+    scene recipe. A `DatasetError` for a folder that is not a scene."""
+    from olatbench.datasets.suites import data_suites
+
+    (suite,) = data_suites([folder])
+    count, size = scene_size(folder, suite.format, suite.train_split)
+    overrides = {} if iterations is None else {"iterations": iterations}
+    return derived_preset(spec, suite, SceneFacts(count, *size), overrides)
+
+
 def scene_size(scene_path: str | Path, fmt: str, split: str) -> tuple[int, tuple[int, int]]:
     """The number of images of ``split`` and their size (width, height) from the scene's metadata (no image is
     decoded); a scene whose images differ in size gives the largest."""

@@ -421,6 +421,8 @@ def _print_derived(jobs) -> None:
                    "(docs/own-data.md):")
         for name, why in job.derived.items():
             click.echo(f"  {name} = {json.dumps(job.config.get(name))}: {why}")
+        click.echo(f"  the rest as in the method's scene recipe (olatbench methods show {job.method} --data "
+                   f"{job.scene_path})")
 
 
 def _print_summary(jobs, out: Path) -> None:

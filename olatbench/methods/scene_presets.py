@@ -52,9 +52,10 @@ class DerivedPreset:
     values: Mapping[str, Any]
     reasons: Mapping[str, str]
 
-    def describe(self) -> list[str]:
-        """One line per derived value: ``field = value: reason``."""
-        return [f"{name} = {self.values[name]}: {self.reasons[name]}" for name in self.reasons]
+    @property
+    def kept(self) -> list[str]:
+        """The recipe's fields taken as they are (no reason of their own)."""
+        return [name for name in self.values if name not in self.reasons]
 
 
 def derive_preset(recipe_name: str, recipe: Mapping[str, Any], facts: SceneFacts,
