@@ -46,12 +46,10 @@ def test_growth_model_sums_the_steps_by_hand():
     assert estimate_seconds(halved, cost) == pytest.approx(100 * 0.6 + 200 * 1.1 + 200 * 1.6)
     no_window = FakeConfig(densify_from=5000, densify_until=6000)
     assert estimate_seconds(no_window, cost) == pytest.approx(1000 * 0.6)
-    # the window holds 10 densifications (GaussianConfig.density_windows): every 40 steps, the first at the next
-    # multiple of 40 after 170: step 200
-    late = FakeConfig(densify_from=170, densify_interval=40)
+    late = FakeConfig(densify_from=150)  # the first densification is at the next multiple of 100: step 200
     assert estimate_seconds(late, cost) == estimate_seconds(FakeConfig(), cost)
-    # an interval longer than the window shrinks to fit 10 densifications in it: the model counts the same ramp
-    assert estimate_seconds(FakeConfig(densify_interval=5000), cost) == estimate_seconds(FakeConfig(), cost)
+    never = FakeConfig(densify_interval=5000)  # no densification step inside the run: N stays put
+    assert estimate_seconds(never, cost) == pytest.approx(1000 * 0.6)
 
 
 def test_format_duration():

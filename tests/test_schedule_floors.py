@@ -50,6 +50,9 @@ def test_floor_of_the_interval_and_of_resets_in_closed_form():
     assert windows.interval == (500 - 17) // MIN_DENSIFICATIONS == 48
     assert windows.opacity_reset_interval == 276  # ceil(3 ln 99 / 0.05)
     assert GaussianConfig(opacity_lr=0.0, iterations=50).density_windows().opacity_reset_interval == 51  # never
+    # a run at its reference length keeps the windows it was given, however short (no scaling, no floor)
+    given = GaussianConfig(iterations=60, reference_iterations=60, opacity_reset_interval=10).density_windows()
+    assert given.opacity_reset_interval == 10 and given.interval == 100
 
 
 def test_the_densifier_runs_the_floored_windows():

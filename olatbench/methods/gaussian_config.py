@@ -90,12 +90,16 @@ class GaussianConfig:
 
     def density_windows(self) -> DensityWindows:
         """The densification window and opacity-reset interval scaled to ``iterations`` (`steps`, at least 1
-        each), with two floors that only bind in shortened runs: the window holds at least `MIN_DENSIFICATIONS`
-        densifications (the interval shrinks to fit), and resets come at least `OPACITY_RECOVERY_CLIMBS` times
-        the steps a reset opacity needs to recover at ``opacity_lr`` apart (a run shorter than that resets never)."""
+        each), with two floors that only bind in shortened runs (``iterations < reference_iterations``): the
+        window holds at least `MIN_DENSIFICATIONS` densifications (the interval shrinks to fit), and resets come
+        at least `OPACITY_RECOVERY_CLIMBS` times the steps a reset opacity needs to recover at ``opacity_lr``
+        apart (a run shorter than that resets never)."""
         start = max(1, self.steps(self.densify_from))
         until = max(1, self.steps(self.densify_until))
         interval = self.densify_interval
+        if self.iterations >= self.reference_iterations:  # not shortened: the windows as given
+            return DensityWindows(densify_from=start, densify_until=until, interval=interval,
+                                  opacity_reset_interval=max(1, self.steps(self.opacity_reset_interval)))
         if until - start >= MIN_DENSIFICATIONS:
             interval = min(interval, (until - start) // MIN_DENSIFICATIONS)
         if self.opacity_lr > 0:
