@@ -12,6 +12,7 @@ from ssdgs_scenes import sphere_views
 
 from olatbench.datasets.cameras import intrinsics_from_fov, look_at
 from olatbench.gaussians.projection import project
+from olatbench.methods import registry
 from olatbench.methods.baselines import sh
 from olatbench.methods.baselines.gs3 import GS3
 from olatbench.methods.baselines.gs3dgs import GaussianSplatting3D
@@ -122,7 +123,8 @@ def test_gs3_composite_matches_a_hand_computation(background: float) -> None:
 
 
 # ------------------------------------------------------------------------------------------- 3DGS
-def test_3dgs_lowers_the_loss_ignores_the_light_and_resumes(views) -> None:
+def test_3dgs_lowers_the_loss_ignores_the_light_and_resumes(views, monkeypatch) -> None:
+    monkeypatch.setattr(registry, "_registered", dict(registry._registered))  # the built-in spec back afterwards
     register("3dgs", GaussianSplatting3D)
     assert get_method("3dgs") is GaussianSplatting3D
     method = GaussianSplatting3D(GaussianSplatting3D.resolve_config(
@@ -179,7 +181,8 @@ def test_gs3_gradients_follow_its_schedule(views) -> None:
         assert method.model.attributes["diffuse"].grad.abs().sum() > 0
 
 
-def test_gs3_lowers_the_loss_and_renders_its_components(views) -> None:
+def test_gs3_lowers_the_loss_and_renders_its_components(views, monkeypatch) -> None:
+    monkeypatch.setattr(registry, "_registered", dict(registry._registered))  # the built-in spec back afterwards
     register("gs3", GS3)
     method = make_gs3(views)
     before = mean_l1(method, views)

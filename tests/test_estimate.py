@@ -22,10 +22,11 @@ from olatbench.bench.estimate import (
 from olatbench.bench.execute import run_job
 from olatbench.bench.plan import make_plan
 from olatbench.bench.results import read_results
+from olatbench.methods.gaussian_config import GaussianConfig
 
 
 @dataclasses.dataclass
-class FakeConfig:
+class FakeConfig(GaussianConfig):
     iterations: int = 1000
     reference_iterations: int = 1000
     num_init_gaussians: int = 100
@@ -33,9 +34,6 @@ class FakeConfig:
     densify_from: int = 200
     densify_until: int = 600
     densify_interval: int = 100
-
-    def steps(self, value: int) -> int:
-        return round(value * self.iterations / self.reference_iterations)
 
 
 def test_growth_model_sums_the_steps_by_hand():

@@ -56,7 +56,8 @@ def test_the_initial_centres_are_the_files_points(tmp_path, method):
     instance.setup(views, "cpu", job.seed)
     assert not views.frame.is_identity  # a suite of one's own: the method works in the fitted canonical frame
     centres = instance.model.means.detach().numpy()
-    np.testing.assert_allclose(centres, views.frame.points(points), rtol=0, atol=1e-5)  # the points, moved with the cameras
+    # the points, moved into the frame with the cameras
+    np.testing.assert_allclose(centres, views.frame.points(points), rtol=0, atol=1e-5)
     np.testing.assert_allclose(views.frame.inverse().points(centres), points, rtol=0, atol=1e-5)
     assert job.config["num_init_gaussians"] != len(points)
 

@@ -3,6 +3,7 @@ and ``[suites.NAME]`` of olatbench.toml, usable as ``-s NAME`` by run, status, r
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import shutil
 from pathlib import Path
@@ -135,9 +136,10 @@ def test_own_gs3_scene_runs_at_two_lengths_into_separate_folders_and_rows(tmp_pa
                        "data-gs3/3dgs/default~iterations=8/scene/seed0"]
     report = _invoke("report", runs, "--metrics", "psnr", "--splits", "test")
     assert report.exit_code == 0, report.output
-    # the label rule (reports/experiments.py): the overrides and the resolution that differs from the suite's (512²)
-    assert "| 3dgs (iterations=5, resolution=24x24) |" in report.output
-    assert "| 3dgs (iterations=8, resolution=24x24) |" in report.output
+    # the label rule (reports/experiments.py): the overrides; 24x24 is the scene's own size, where a scene of one's
+    # own trains anyway (#46), so it is the same experiment as not asking and names no resolution
+    assert "| 3dgs (iterations=5) |" in report.output
+    assert "| 3dgs (iterations=8) |" in report.output
     assert "±" not in report.output and "mean over 1 seed" in report.output
     rows = json.loads(_invoke("report", runs, "--json").output)
     assert {row["config"]["iterations"] for row in rows} == {5, 8}
@@ -146,28 +148,37 @@ def test_own_gs3_scene_runs_at_two_lengths_into_separate_folders_and_rows(tmp_pa
 
 @pytest.mark.slow
 def test_done_when_own_gs3_scene_at_the_formats_settings(tmp_path, monkeypatch):
-    """The issue's command as given: `olatbench run -m 3dgs --data DIR --iterations 5` (GS³'s 512² resolution and
-    its protocol), then `olatbench report`."""
+    """The issue's command as given: `olatbench run -m 3dgs --data DIR --iterations 5` (the scene's own 24², GS³'s
+    protocol), then `olatbench report`."""
     _synth_gs3(tmp_path / "DIR")
     monkeypatch.chdir(tmp_path)
     result = _invoke("run", "-m", "3dgs", "--data", "DIR", "--iterations", "5", "-q")
     assert result.exit_code == 0, result.output
     results = read_results(next(Path("runs").rglob("results.json")))
-    assert results["job"]["resolution"] == [512, 512] and results["protocol"]["id"] == SUITES["gs3"].protocol
+    assert results["job"]["resolution"] is None and results["protocol"]["id"] == SUITES["gs3"].protocol  # native
     report = _invoke("report")
     assert report.exit_code == 0 and "data-gs3" in report.output and "| 3dgs |" in report.output, report.output
     shutil.rmtree("runs")
 
 
-def test_own_suites_apply_the_method_preset_of_their_format(tmp_path, monkeypatch):
+def test_own_suites_derive_the_preset_from_the_scene_and_keep_the_formats_without_a_recipe(tmp_path, monkeypatch):
     write_nrhints_tree(tmp_path / "Cup", n_train=3, n_test=1, size=(16, 12))
-    from olatbench.methods.registry import get_spec
+    from olatbench.methods import registry
 
-    preset = get_spec("3dgs").presets["nrhints"]
+    spec = registry.get_spec("3dgs")
+    mini, nrhints = spec.presets["mini"], spec.presets["nrhints"]
     (job,) = _plan("-m", "3dgs", "--data", tmp_path / "Cup", "-o", tmp_path / "runs")
-    assert {key: job["config"][key] for key in preset} == dict(preset)  # as on the nrhints suite
+    # a 16x12 scene of 3 images is smaller than the mini scenes the recipe was tuned on: the recipe as it is
+    assert {key: job["config"][key] for key in mini} == dict(mini)
+    assert job["config"]["max_gaussians"] != nrhints["max_gaussians"]  # not the paper's 550,000
+    assert set(job["derived"]) >= {"iterations", "max_gaussians", "num_init_gaussians"}
+    assert job["resolution"] == "native"
     _write_toml(tmp_path, '[suites.mine]\nscenes = ["Cup"]\niterations = 7\n')
     monkeypatch.chdir(tmp_path)
     (job,) = _plan("-m", "3dgs", "-s", "mine", "-o", "runs")
-    assert job["iterations"] == 7  # the suite's own count wins over the preset's
-    assert job["config"]["position_lr_max_steps"] == preset["position_lr_max_steps"]
+    assert job["iterations"] == 7 and job["derived"]["iterations"]["why"] == "as asked"  # the suite's own count
+    assert job["config"]["position_lr_max_steps"] == mini["position_lr_max_steps"]
+    # a method that declares no scene recipe keeps its format's preset, as before
+    monkeypatch.setitem(registry._registered, "3dgs", dataclasses.replace(spec, scene_recipe=None))
+    (job,) = _plan("-m", "3dgs", "--data", tmp_path / "Cup", "-o", tmp_path / "runs")
+    assert {key: job["config"][key] for key in nrhints} == dict(nrhints) and job["derived"] == {}

@@ -129,11 +129,11 @@ def estimate_seconds(config: Any, cost: StepCost) -> float:
         return steps * cost.seconds(0.0)
     initial, cap = counts
     start = end = steps
-    if hasattr(config, "densify_from") and hasattr(config, "densify_until"):
-        interval = max(1, int(getattr(config, "densify_interval", 1)))
-        window_from = max(1, config.steps(config.densify_from))
-        start = min(steps, -(-window_from // interval) * interval)  # the first densification step
-        end = min(steps, max(start, config.steps(config.densify_until)))
+    if hasattr(config, "density_windows"):
+        windows = config.density_windows()
+        interval = windows.interval
+        start = min(steps, -(-windows.densify_from // interval) * interval)  # the first densification step
+        end = min(steps, max(start, windows.densify_until))
     ramp = end - start
     # before the first densification at the initial count, then a linear ramp to the cap (its mean), then the cap
     return (start * cost.seconds(initial) + ramp * cost.seconds((initial + cap) / 2)
@@ -161,7 +161,8 @@ def calibrate(job: Job, views: Any | None = None, progress: bool = True) -> Step
     for size in sizes:
         config = base
         if counts is not None:
-            config = replace(base, num_init_gaussians=size, densify_interval=never, opacity_reset_interval=never)
+            config = replace(base, num_init_gaussians=size, densify_from=never, densify_interval=never,
+                             opacity_reset_interval=never)
         method = method_class(config)
         method.setup(views, job.device, job.seed)
         if counts is not None:

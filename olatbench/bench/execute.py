@@ -33,6 +33,7 @@ from olatbench.bench.checkpoints import (
     save_checkpoint,
     seed_everything,
 )
+from olatbench.bench.health import RunHealth, background_psnr, record_warnings
 from olatbench.bench.init_points import load_init_points
 from olatbench.bench.jobs import Job
 from olatbench.bench.outcome import (
@@ -225,6 +226,8 @@ def _train(method: Method, views: Views, job: Job, folder: Path, log: JobLog, pr
     set_up()
     setup_seconds = time.perf_counter() - clock
     log(f"device {job.device}; backends: {format_backends(method.backends()) or 'not reported by the method'}")
+    floor = background_psnr(views.images, views.background) if views.images is not None else None
+    health = RunHealth(method.num_gaussians, floor, job.iterations)
     start, train_seconds = 0, setup_seconds
     payload = _resume(method, folder, job, log, set_up)
     if payload is not None:
@@ -244,6 +247,7 @@ def _train(method: Method, views: Views, job: Job, folder: Path, log: JobLog, pr
             train_seconds += time.perf_counter() - clock
             bar.update(1)
             done = step + 1
+            health.observe(done, scalars)
             if done % log_every == 0 or done == iterations:
                 train_log.write({"step": done, "seconds": round(train_seconds, 4), **scalars})
             if time.monotonic() - postfix_time > 0.5:
@@ -255,6 +259,9 @@ def _train(method: Method, views: Views, job: Job, folder: Path, log: JobLog, pr
                 save_checkpoint(folder, done, method.state_dict(), job.id, train_seconds, job.keep_checkpoints)
                 last_save = time.monotonic()
                 log(f"checkpoint at step {done}: " + ", ".join(f"{k} {v:.5g}" for k, v in scalars.items()))
+                for warning in record_warnings(folder, health.check()):
+                    log(f"WARNING: {warning}")
+                    progress_write(f"WARNING {job.label}: {warning}")
     finally:
         bar.close()
         train_log.close()

@@ -14,7 +14,8 @@ A job's id is a content hash of everything that decides its result:
   the pinned commit and the command lines).
 
 Settings that do not change the result (device, output folder, checkpoint cadence, executor, where an official
-implementation's checkout and environment live) are kept out of the id, so a job moved to another machine or
+implementation's checkout and environment live, why a derived preset chose its values: the values are in the
+config) are kept out of the id, so a job moved to another machine or
 resumed elsewhere keeps its id.
 """
 
@@ -78,6 +79,7 @@ class Job:
     # field existed, and the official codes, which read the files as they are) or "fitted" (the canonical frame of
     # the training cameras, `bench.views.job_frame`); in the identity when not "dataset"
     frame: str = "dataset"
+    derived: dict[str, str] = field(default_factory=dict)  # field -> why, for a preset derived from the scene
     id: str = field(default="")
 
     @property

@@ -2,8 +2,10 @@
 
 Config resolution order for one job (later wins): the method config's defaults, the suite's
 ``iterations`` (or the method's own, `MethodSpec.iterations`, when its spec fixes one), the method's preset
-named after the suite (`Suite.preset`: for a user's own suite, the one of its format; when the method has one;
-a user suite's own ``iterations`` then win over it), the variant's preset, then explicit overrides (``--set KEY=VALUE``;
+named after the suite (`Suite.preset`; when the method has one), or for a scene of no suite (``run --data``,
+``[suites.NAME]``) the preset derived from it when the method declares a scene recipe (`derived_preset`; else the
+preset of its format, over which a user suite's own ``iterations`` win), the variant's preset, then explicit
+overrides (``--set KEY=VALUE``;
 ``--iterations N`` is exactly ``--set iterations=N``). The variant ``default`` applies no variant preset; a
 variant ``a+b`` applies the presets ``a`` then ``b``. Overrides are part of the job's variant label
 (``default~iterations=500,test_time_steps=50``), so they get their own folders and report rows.
@@ -26,10 +28,13 @@ from olatbench.datasets.errors import DatasetError
 from olatbench.datasets.suites import Suite, get_suite
 from olatbench.methods.overrides import OverrideError, check_overrides
 from olatbench.methods.registry import config_class, get_spec
+from olatbench.methods.scene_presets import DerivedPreset, SceneFacts, derive_preset
 from olatbench.methods.spec import DEFAULT_VARIANT, MethodSpec, import_reference, preset_overrides
 from olatbench.names import did_you_mean, match_name
 
 DATA_ENV = "OLATBENCH_DATA"
+#: The largest image side ``--resolution`` accepts, even with ``upscale`` (16K: a typo such as 100000 is refused).
+MAX_RESOLUTION_SIDE = 16_384
 
 
 class PlanError(ValueError):
@@ -81,8 +86,10 @@ def expand_variants(spec: MethodSpec, variants: Sequence[str] = (), ablation: st
 
 
 def resolve_config(spec: MethodSpec, suite: Suite, variant: str = DEFAULT_VARIANT,
-                   iterations: int | None = None, overrides: dict[str, Any] | None = None) -> Any:
-    """The method's config for one suite and variant (resolution order in the module docstring)."""
+                   iterations: int | None = None, overrides: dict[str, Any] | None = None,
+                   derived: DerivedPreset | None = None) -> Any:
+    """The method's config for one suite and variant (resolution order in the module docstring); ``derived``, the
+    preset derived from a scene of no suite (`derived_preset`), takes the place of the suite's preset."""
     config_type = config_class(spec)
     field_names = {f.name for f in fields(config_type)}
     overrides = checked_overrides(spec, overrides)
@@ -95,7 +102,9 @@ def resolve_config(spec: MethodSpec, suite: Suite, variant: str = DEFAULT_VARIAN
     if "iterations" in field_names:
         values["iterations"] = suite.iterations if own is None else own
     try:
-        if suite.preset in spec.presets:
+        if derived is not None:
+            values.update(derived.values)
+        elif suite.preset in spec.presets:
             values.update(preset_overrides(spec.name, spec.presets, suite.preset))
             if suite.iterations_given and "iterations" in field_names:
                 values["iterations"] = suite.iterations
@@ -104,6 +113,69 @@ def resolve_config(spec: MethodSpec, suite: Suite, variant: str = DEFAULT_VARIAN
         return config_type(**values)
     except (KeyError, TypeError, ValueError) as error:
         raise PlanError(f"method '{spec.name}', variant '{variant}': {error}") from None
+
+
+def derived_preset(spec: MethodSpec, suite: Suite, facts: SceneFacts | None,
+                   overrides: Mapping[str, Any] | None = None) -> DerivedPreset | None:
+    """The preset derived from a scene of no suite (`olatbench.methods.scene_presets`) for a method that declares
+    a scene recipe; None for a benchmark suite's scene (its preset is the paper's), a method without a recipe, or
+    a scene whose folder is not there to read. The length asked for is ``--iterations`` / ``--set iterations``,
+    else a user suite's own ``iterations``, else derived."""
+    if facts is None or not suite.scene_paths or spec.scene_recipe is None:
+        return None
+    asked = (overrides or {}).get("iterations")
+    if asked is None and suite.iterations_given:
+        asked = suite.iterations
+    return derive_preset(spec.scene_recipe, spec.presets[spec.scene_recipe], facts, asked)
+
+
+def derived_for_folder(spec: MethodSpec, folder: str | Path, iterations: int | None = None
+                       ) -> DerivedPreset | None:
+    """The preset ``run -m <spec> --data <folder>`` derives (``methods show --data``); None for a method without a
+    scene recipe. A `DatasetError` for a folder that is not a scene."""
+    from olatbench.datasets.suites import data_suites
+
+    (suite,) = data_suites([folder])
+    count, size = scene_size(folder, suite.format, suite.train_split)
+    overrides = {} if iterations is None else {"iterations": iterations}
+    return derived_preset(spec, suite, SceneFacts(count, *size), overrides)
+
+
+def scene_size(scene_path: str | Path, fmt: str, split: str) -> tuple[int, tuple[int, int]]:
+    """The number of images of ``split`` and their size (width, height) from the scene's metadata (no image is
+    decoded); a scene whose images differ in size gives the largest."""
+    from olatbench.datasets import load_scene
+
+    frames = load_scene(scene_path, format=fmt).split(split)
+    if not frames:
+        raise PlanError(f"{scene_path}: the scene has no '{split}' images to train on")
+    width = max(frame.camera.width for frame in frames)
+    height = max(frame.camera.height for frame in frames)
+    return len(frames), (width, height)
+
+
+def checked_resolution(requested: tuple[int, int] | None, native: tuple[int, int] | None, scene: str,
+                       stretch: bool = False, upscale: bool = False) -> tuple[int, int] | None:
+    """``--resolution`` checked against the scene's own size ``native`` (None: not known yet, e.g. a dry run
+    before the data exists): a side above `MAX_RESOLUTION_SIDE` is refused; so are, unless asked, a size larger
+    than the scene's (``upscale``) and one that changes its aspect ratio by more than a pixel's rounding
+    (``stretch``). Gives back ``requested``."""
+    if requested is None:
+        return None
+    width, height = requested
+    if max(width, height) > MAX_RESOLUTION_SIDE:
+        raise PlanError(f"--resolution {width}x{height}: sides above {MAX_RESOLUTION_SIDE} px are refused")
+    if native is None:
+        return requested
+    own_width, own_height = native
+    if not upscale and (width > own_width or height > own_height):
+        raise PlanError(f"--resolution {width}x{height} is larger than the images of scene {scene} ({own_width}x"
+                        f"{own_height}): they would be upsampled (add --upscale to do it anyway)")
+    if not stretch and abs(width * own_height - height * own_width) > max(own_width, own_height):
+        raise PlanError(f"--resolution {width}x{height} changes the aspect ratio of scene {scene} ({own_width}x"
+                        f"{own_height}): its images would be squashed; keep the ratio (e.g. {width}x"
+                        f"{max(1, round(width * own_height / own_width))}) or add --stretch to do it anyway")
+    return requested
 
 
 def with_iterations(overrides: Mapping[str, Any] | None, iterations: int | None) -> dict[str, Any]:
@@ -163,12 +235,17 @@ def _finite_float(text: str) -> float:
     return value
 
 
-def variant_label(variant: str, overrides: dict[str, Any] | None) -> str:
-    """The variant's name with its overrides: ``default~shadow_mode=density,test_time_steps=50``."""
-    if not overrides:
+def variant_label(variant: str, overrides: dict[str, Any] | None,
+                  resolution: tuple[int, int] | None = None) -> str:
+    """The variant's name with its overrides and a ``--resolution`` other than the suite's:
+    ``default~resolution=32x32,shadow_mode=density,test_time_steps=50``."""
+    named = dict(overrides or {})
+    if resolution is not None:
+        named["resolution"] = f"{resolution[0]}x{resolution[1]}"
+    if not named:
         return variant
     parts = ",".join(f"{key}={json.dumps(value, separators=(',', ':')).strip(chr(34))}"
-                     for key, value in sorted(overrides.items()))
+                     for key, value in sorted(named.items()))
     return f"{variant}~{parts}".replace("/", "_").replace(" ", "")  # one folder name
 
 
@@ -266,14 +343,17 @@ def make_plan(method: str, suite: str | Suite, out: str | Path, scenes: Sequence
               iterations: int | None = None, resolution: tuple[int, int] | None = None,
               data_root: str | Path | None = None, options: PlanOptions | None = None,
               generate: bool = True, progress: bool = True, overrides: dict[str, Any] | None = None,
-              init_points: str | Path | None = None) -> list[Job]:
+              init_points: str | Path | None = None, stretch: bool = False, upscale: bool = False) -> list[Job]:
     """Expand one method on one suite into jobs (scene-major, then variant, then seed).
 
-    ``resolution`` (width, height) overrides the suite's; ``overrides`` are config values applied to every
-    variant (and named in its label). ``generate=False`` (dry runs) never creates a generator suite's data:
-    when it is missing, jobs have ``data_manifest=None`` and no id. A method with the ``init_points`` capability
-    starts from ``init_points`` (a point PLY; named in the label as ``init_points=<file stem>``) or else from a
-    scene folder's ``points3d.ply`` (`olatbench.bench.init_points`); the file's digest enters the job id.
+    ``resolution`` (width, height) overrides the suite's (checked by `checked_resolution`; ``stretch`` and
+    ``upscale`` allow what it refuses) and, when it differs from the suite's, is named in the variant's label
+    (``default~resolution=32x32``: its own folder beside the suite's size); ``overrides`` are config values applied
+    to every variant (and named in its label). A scene of no suite gets the method's derived preset
+    (`derived_preset`) in place of its format's. ``generate=False`` (dry runs) never creates a generator suite's
+    data: when it is missing, jobs have ``data_manifest=None`` and no id. A method with the ``init_points``
+    capability starts from ``init_points`` (a point PLY; named in the label as ``init_points=<file stem>``) or else
+    from a scene folder's ``points3d.ply`` (`olatbench.bench.init_points`); the file's digest enters the job id.
     """
     options = options or PlanOptions()
     suite = get_suite(suite) if isinstance(suite, str) else suite
@@ -301,8 +381,8 @@ def make_plan(method: str, suite: str | Suite, out: str | Path, scenes: Sequence
     # typed before they name the variant (use_sss=False -> false); --iterations N is --set iterations=N
     overrides = checked_overrides(spec, with_iterations(overrides, iterations))
     code = code_hash(spec.implementation)  # located, not imported: dry runs need no torch
-    configs = {variant: config_to_dict(resolve_config(spec, suite, variant, overrides=overrides))
-               for variant in variant_names}
+    suite_configs = {variant: config_to_dict(resolve_config(spec, suite, variant, overrides=overrides))
+                     for variant in variant_names}
     jobs = []
     for scene in scene_names:
         scene_path = suite.scene_path(root, scene) if root is not None or suite.scene_paths else None
@@ -312,13 +392,24 @@ def make_plan(method: str, suite: str | Suite, out: str | Path, scenes: Sequence
         except InitPointsError as error:
             raise PlanError(str(error)) from None
         named = {"init_points": Path(init_points).stem} if init_points is not None else {}
+        count, native = scene_size(scene_path, suite.format, suite.train_split) if scene_path is not None and (
+            resolution is not None or suite.scene_paths) else (0, None)
+        size = checked_resolution(resolution, native, scene, stretch, upscale) or suite.resolution
+        if size == native and suite.resolution is None:
+            size = None  # the scene's own size, asked for: the same job as not asking
+        facts = SceneFacts(count, *(size or native)) if native and suite.scene_paths else None
+        derived = derived_preset(spec, suite, facts, overrides)
+        configs = suite_configs if derived is None else {
+            variant: config_to_dict(resolve_config(spec, suite, variant, overrides=overrides, derived=derived))
+            for variant in variant_names}
         for variant in variant_names:
             for seed in range(seeds):
-                label = variant_label(variant, {**(overrides or {}), **named})
+                label = variant_label(variant, {**(overrides or {}), **named},
+                                      size if size != suite.resolution else None)
                 job = Job(method=method, method_ref=spec.implementation, suite=suite.name, scene=scene,
                           variant=label, seed=seed, config=configs[variant],
                           scene_path=str(scene_path) if scene_path else "", scene_format=suite.format,
-                          colourspace=suite.colourspace, resolution=resolution or suite.resolution,
+                          colourspace=suite.colourspace, resolution=size,
                           train_split=suite.train_split, test_split=suite.test_split,
                           protocol=protocol.id, protocol_version=int(protocol.version), data_manifest=manifest,
                           code=code, folder=str(job_folder(out, suite.name, method, label, scene, seed)),
@@ -327,6 +418,7 @@ def make_plan(method: str, suite: str | Suite, out: str | Path, scenes: Sequence
                           save_components=options.save_components, official=official, reuse=options.reuse,
                           init_points=str(points) if points else "",
                           init_points_digest=points_digest(points) if points else None,
-                          frame="dataset" if spec.kind == "official" else suite.frame)  # the authors' code: as is
+                          frame="dataset" if spec.kind == "official" else suite.frame,  # the authors' code: as is
+                          derived=dict(derived.reasons) if derived is not None else {})
                 jobs.append(job.with_id() if manifest is not None else job)
     return jobs

@@ -11,7 +11,7 @@ from __future__ import annotations
 import re
 from collections.abc import Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -71,6 +71,7 @@ class JobState:
     step: int | None = None
     iterations: int | None = None
     message: str = ""
+    warnings: tuple[str, ...] = ()  # what the run's health checks found (olatbench.bench.health), first of each kind
 
 
 REPAIR_HINT = ("rerun the 'olatbench run' command that made it: it re-evaluates the job from its final checkpoint "
@@ -166,8 +167,12 @@ def _last_line(path: Path) -> str:
 
 
 def scan_runs(runs_root: str | Path) -> list[JobState]:
-    """The state of every job folder (a folder with job.json) below ``runs_root``."""
-    return [job_state(path.parent) for path in sorted(Path(runs_root).rglob(JOB_FILE))]
+    """The state of every job folder (a folder with job.json) below ``runs_root``, with the warnings its training
+    recorded."""
+    from olatbench.bench.health import read_warnings
+
+    return [replace(state, warnings=tuple(read_warnings(state.folder)))
+            for state in (job_state(path.parent) for path in sorted(Path(runs_root).rglob(JOB_FILE)))]
 
 
 @contextmanager

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+from pathlib import Path
 from typing import Any
 
 import click
@@ -141,10 +142,26 @@ def _show_json(spec) -> dict:
     return data
 
 
+def _derived(spec, folder: Path, iterations: int | None):
+    """The preset ``run --data folder`` derives for ``spec`` (None: the method derives none); a usage error for a
+    folder that is not a scene."""
+    from olatbench.bench.plan import PlanError, derived_for_folder
+    from olatbench.datasets.errors import DatasetError
+
+    try:
+        return derived_for_folder(spec, folder, iterations)
+    except (DatasetError, PlanError) as error:
+        raise click.UsageError(str(error)) from None
+
+
 @methods.command("show")
 @click.argument("name")
+@click.option("--data", "data_path", type=click.Path(exists=True, file_okay=False, path_type=Path),
+              help="A scene folder of your own: also show the preset derived from it (as run --data uses it) and "
+                   "why each value was chosen.")
+@click.option("--iterations", type=click.IntRange(min=1), help="With --data: the run length asked for.")
 @json_option
-def show(name: str, as_json: bool) -> None:
+def show(name: str, data_path: Path | None, iterations: int | None, as_json: bool) -> None:
     """Config fields (type, default), presets (the fields each one changes), ablation grids, outputs and
     capabilities of method NAME; for an official implementation, the repository and commit it is pinned to.
 
@@ -152,12 +169,20 @@ def show(name: str, as_json: bool) -> None:
     Example:
       olatbench methods show ssdgs
       olatbench methods show ssdgs --json    # the same as data (defaults as JSON values)
+      olatbench methods show ssdgs --data captures/cup    # + the preset derived from your scene, and why
     """
     from olatbench.methods.registry import config_class
 
     spec = _spec(name)
+    if iterations is not None and data_path is None:
+        raise click.UsageError("--iterations goes with --data")
+    derived = _derived(spec, data_path, iterations) if data_path is not None else None
     if as_json:
-        click.echo(json.dumps(_show_json(spec), indent=2, default=str))
+        data = _show_json(spec)
+        if data_path is not None:
+            data["derived"] = None if derived is None else {
+                field: {"value": derived.values.get(field), "why": why} for field, why in derived.reasons.items()}
+        click.echo(json.dumps(data, indent=2, default=str))
         return
     click.echo(f"{name} [{_kind(spec)}]: {spec.description.strip()}")
     if spec.iterations is not None:
@@ -196,6 +221,17 @@ def show(name: str, as_json: bool) -> None:
     click.echo("ablation grids:" if spec.ablations else "ablation grids: none")
     for grid, variants in spec.ablations.items():
         click.echo(f"  {grid}: {', '.join(variants)}")
+    if spec.scene_recipe is not None:
+        click.echo(f"scenes of no suite (run --data): the {spec.scene_recipe} preset scaled to the scene "
+                   "(see it with --data DIR; docs/own-data.md)")
+    if data_path is not None:
+        if derived is None:
+            click.echo(f"{data_path}: {name} derives no preset from a scene; it takes its format's preset")
+        else:
+            click.echo(f"preset derived from {data_path} (run -m {name} --data {data_path}):")
+            for field, why in derived.reasons.items():
+                click.echo(f"  {field} = {json.dumps(derived.values.get(field))}: {why}")
+            click.echo(f"  as in the {derived.recipe} preset: {', '.join(derived.kept)}")
     click.echo(f"outputs: {', '.join(spec.outputs)}")
     click.echo(f"capabilities: {', '.join(sorted(spec.capabilities)) or 'none'}")
     if code is not None:

@@ -93,8 +93,12 @@ def _metric(metrics: dict, key: str) -> str:
                    "python=PATH, conda_env=NAME, container='TEMPLATE'; timeout_minutes=N; device=cpu runs the "
                    "unmodified code on the CPU with olatbench's stand-ins for its CUDA modules (default cuda) "
                    "(repeatable; not part of the job id). See docs/official.md.")
-@click.option("--resolution", type=Resolution(), help="Image size N (N×N) or WxH (default: the suite's, else "
-              "native).")
+@click.option("--resolution", type=Resolution(), help="Image size N (N×N) or WxH to train and score at (default: "
+              "the suite's; your own scenes: their own size). At most the scene's size and with its aspect ratio "
+              "unless --upscale / --stretch; a size other than the suite's names the variant "
+              "(default~resolution=32x32), so it gets its own folder.")
+@click.option("--stretch", is_flag=True, help="Allow a --resolution that changes the scene's aspect ratio.")
+@click.option("--upscale", is_flag=True, help="Allow a --resolution larger than the scene's own images.")
 @click.option("--init-points", type=click.Path(exists=True, dir_okay=False, path_type=Path),
               help="Start the Gaussians at the points of this PLY (world units, the scene's frame) instead of the "
                    "method's own initialisation (methods with the init_points capability: ssdgs, gs3, 3dgs). "
@@ -135,9 +139,9 @@ def _metric(metrics: dict, key: str) -> str:
 @quiet_option
 @click.option("--json", "as_json", is_flag=True, help="With --dry-run: print the plan as JSON (one object per job).")
 def run(method, suite, data_paths, protocol_name, scenes, variants, ablation, seeds, iterations, overrides,
-        code_settings, resolution, init_points, data_root, out, device, executor, workers, dry_run, calibrate, force,
-        no_reuse, checkpoint_every, save_components, slurm_partition, slurm_time, slurm_gpus, slurm_cpus,
-        slurm_array_parallelism, wait, quiet, as_json) -> None:
+        code_settings, resolution, stretch, upscale, init_points, data_root, out, device, executor, workers, dry_run,
+        calibrate, force, no_reuse, checkpoint_every, save_components, slurm_partition, slurm_time, slurm_gpus,
+        slurm_cpus, slurm_array_parallelism, wait, quiet, as_json) -> None:
     """Train and evaluate METHOD on every scene of SUITE (or on your own scene folders, --data); rerunning skips
     finished jobs and resumes interrupted ones from their last checkpoint.
 
@@ -151,7 +155,8 @@ def run(method, suite, data_paths, protocol_name, scenes, variants, ablation, se
     \b
     Examples:
       olatbench run --method ssdgs --suite mini
-      olatbench run -m 3dgs --data captures/cup --data captures/mug --iterations 30000   # your own scenes
+      olatbench run -m ssdgs --data captures/cup        # your own scene: presets derived from it (--dry-run shows)
+      olatbench run -m 3dgs --data captures/cup --data captures/mug --iterations 30000 --resolution 256
       olatbench run -m ssdgs -s nrhints --scenes Pixiu,Fish --data-root /data/nrhints
       olatbench run -m ssdgs -s nrhints --scenes Pixiu --ablation components --dry-run
       olatbench run -m ssdgs -s gs3 --scenes Lego --data-root /data/gs3 --dry-run --calibrate   # + time estimate
@@ -199,8 +204,8 @@ def run(method, suite, data_paths, protocol_name, scenes, variants, ablation, se
                                      variants=_split_names(variants), ablation=ablation, seeds=seeds,
                                      iterations=iterations, resolution=resolution,
                                      data_root=data_root, options=options, generate=not dry_run or calibrate,
-                                     progress=progress, overrides=parse_overrides(overrides),
-                                     init_points=init_points)]
+                                     progress=progress, overrides=parse_overrides(overrides), stretch=stretch,
+                                     upscale=upscale, init_points=init_points)]
     except OverridesError as error:  # a usage error (exit 2), naming the field
         raise click.UsageError(str(error)) from None
     except (PlanError, DatasetError, KeyError, FileNotFoundError) as error:  # what was asked cannot be planned
@@ -381,7 +386,9 @@ def plan_json(jobs, states, out: Path, estimates: list[float | None], reuse: lis
     return [{"index": index, "id": job.id or None, "suite": job.suite, "method": job.method, "variant": job.variant,
              "scene": job.scene, "seed": job.seed, "iterations": job.iterations, "state": _state_text(state),
              "step": state.step, "train_seconds_estimate": seconds, "reuse": note,
-             "folder": str(Path(job.folder).relative_to(out)), "config": job.config}
+             "resolution": list(job.resolution) if job.resolution else "native",
+             "folder": str(Path(job.folder).relative_to(out)), "config": job.config,
+             "derived": {name: {"value": job.config.get(name), "why": why} for name, why in job.derived.items()}}
             for index, (job, state, seconds, note) in enumerate(zip(jobs, states, estimates, reuse, strict=True))]
 
 
@@ -395,11 +402,13 @@ def _print_plan(jobs, states, out: Path, estimates: list[float | None], reuse: l
             status = f"partial ({state.step}/{state.iterations})"
         elif note and state.state in ("pending", "absent"):
             status = f"pending ({note})"
+        size = "native" if job.resolution is None else f"{job.resolution[0]}x{job.resolution[1]}"
         rows.append([str(index), job.suite, job.method, job.variant, job.scene, str(job.seed), str(job.iterations),
-                     "?" if seconds is None else format_duration(seconds), job.id or "(no data yet)", status,
+                     size, "?" if seconds is None else format_duration(seconds), job.id or "(no data yet)", status,
                      str(Path(job.folder).relative_to(out))])
-    click.echo(_table(rows, ["#", "suite", "method", "variant", "scene", "seed", "iters", "train (est.)", "id",
-                             "state", "folder"]))
+    click.echo(_table(rows, ["#", "suite", "method", "variant", "scene", "seed", "iters", "size", "train (est.)",
+                             "id", "state", "folder"]))
+    _print_derived(jobs)
     note = "" if all(job.id for job in jobs) else "; ids are computed once the data exists"
     click.echo(f"{len(jobs)} job(s){note}.")
     known = [seconds for seconds in estimates if seconds is not None]
@@ -412,6 +421,22 @@ def _print_plan(jobs, states, out: Path, estimates: list[float | None], reuse: l
         if sum(known) > DAY_SECONDS:
             click.echo(f"WARNING: this plan would take more than a day here ({len(slow)} job(s) alone do); see "
                        f"docs/runner.md 'Paper scale' for what a GPU or more cores change.", err=True)
+
+
+def _print_derived(jobs) -> None:
+    """For each scene of no suite, once: the values its preset derived from it and why (field: value: reason);
+    a variant or --set given on top still wins, as the config column of --json shows."""
+    shown = set()
+    for job in jobs:
+        if not job.derived or (job.method, job.scene, job.variant) in shown:
+            continue
+        shown.add((job.method, job.scene, job.variant))
+        click.echo(f"{job.method} on {job.scene} ({job.variant}): preset derived from the scene "
+                   "(docs/own-data.md):")
+        for name, why in job.derived.items():
+            click.echo(f"  {name} = {json.dumps(job.config.get(name))}: {why}")
+        click.echo(f"  the rest as in the method's scene recipe (olatbench methods show {job.method} --data "
+                   f"{job.scene_path})")
 
 
 def _print_summary(jobs, out: Path) -> None:
@@ -445,7 +470,9 @@ def _print_summary(jobs, out: Path) -> None:
 def status(runs: Path, suite: str | None, as_json: bool) -> None:
     """Show the state of every job below RUNS: done, failed, partial (last checkpoint step), pending, running (in
     another process) or damaged (an unreadable job.json or results.json; the line below the table says how to
-    repair it). Only reads, so a read-only run folder can be inspected.
+    repair it), and the warnings of a run that went wrong while training (its Gaussian count collapsed, or its
+    training PSNR stayed below an image of the background alone; a line below the table each, with the likely
+    cause). Only reads, so a read-only run folder can be inspected.
 
     Exit code: 0 when the states are shown (whatever they are); 2 for a usage error: an unknown suite, or RUNS
     holds no job folder (of the suite given with -s), as when it does not exist.
@@ -469,15 +496,19 @@ def status(runs: Path, suite: str | None, as_json: bool) -> None:
     if as_json:
         click.echo(json.dumps([{"job": str(state.folder.relative_to(runs)), "state": state.state,
                                 "id": state.job_id, "step": state.step, "iterations": state.iterations,
-                                "message": state.message} for state in states], indent=2))
+                                "message": state.message, "warnings": list(state.warnings)} for state in states],
+                              indent=2))
         return
     rows = []
     for state in states:
         step = "—" if state.step is None else f"{state.step}/{'?' if state.iterations is None else state.iterations}"
-        rows.append([str(state.folder.relative_to(runs)), state.state, step, state.message[:80]])
+        note = state.message or (f"WARNING: {state.warnings[0].partition(':')[0]}" if state.warnings else "")
+        rows.append([str(state.folder.relative_to(runs)), state.state, step, note[:80]])
     click.echo(_table(rows, ["job", "state", "step", "note"]))
     counts = Counter(state.state for state in states)
     click.echo(", ".join(f"{count} {name}" for name, count in sorted(counts.items())))
     for state in states:
         if state.state == "damaged":  # the whole message: what is damaged and the command that repairs it
             click.echo(f"damaged {state.folder.relative_to(runs)}: {state.message}")
+        for warning in state.warnings:  # a ruined run says so, with the likely cause (olatbench.bench.health)
+            click.echo(f"WARNING {state.folder.relative_to(runs)}: {warning}")

@@ -8,8 +8,10 @@ A user's own scenes make suites too, whose scenes are folders anywhere (``Suite.
 tables of ``olatbench.toml`` (`user_suites`: ``scenes`` = folder paths relative to the file, and optionally
 ``format``, ``protocol``, ``resolution``, ``iterations``), and the scene folders given to ``run --data``
 (`data_suite`, named ``data-<format>``, a name no built-in or user suite may take, so their run folders never meet
-a suite's). Whatever such a suite does not say is taken from the built-in suite of its format (the format is
-detected when not given), including which method preset its jobs apply (``gs3`` for a GS³-format suite).
+a suite's). Their scenes are trained and scored at their own resolution unless the suite says otherwise; the rest
+of what such a suite does not say is taken from the built-in suite of its format (the format is detected when not
+given), including which method preset its jobs apply (``gs3`` for a GS³-format suite) when the method derives
+none from the scene (`olatbench.methods.scene_presets`).
 """
 
 from __future__ import annotations
@@ -181,12 +183,12 @@ def parse_resolution(value: object, where: str) -> tuple[int, int] | None:
 
 
 def _own_suite(name: str, fmt: str, scene_paths: dict[str, str], **given: object) -> Suite:
-    """A suite of folders of format ``fmt`` with the background, resolution and method presets of the built-in suite
-    of that format, and its protocol and iterations unless ``given`` (None: not given)."""
+    """A suite of folders of format ``fmt`` at their own resolution, with the background and method presets of the
+    built-in suite of that format, and its protocol and iterations unless ``given`` (None: not given)."""
     base = SUITES[fmt]
     settings = {key: value for key, value in given.items() if value is not None}
     return Suite(name=name, format=fmt, scenes=tuple(scene_paths), background=base.background,
-                 resolution=base.resolution, iterations=int(settings.get("iterations", base.iterations)),  # type: ignore[call-overload]
+                 resolution=None, iterations=int(settings.get("iterations", base.iterations)),  # type: ignore[call-overload]
                  protocol=str(settings.get("protocol", base.protocol)), scene_paths=scene_paths, method_preset=fmt,
                  iterations_given="iterations" in settings)
 
@@ -263,7 +265,7 @@ def user_suites(folder: str | Path | None = None) -> dict[str, Suite]:
         if protocol is not None and not isinstance(protocol, str):
             raise DatasetError(f"{where}: protocol must be a protocol name (olatbench metrics list)")
         fmt, scene_paths = _scene_folders([path.parent / item for item in scenes], fmt, f"{where} scenes")
-        resolution = parse_resolution(table["resolution"], where) if "resolution" in table else SUITES[fmt].resolution
+        resolution = parse_resolution(table["resolution"], where) if "resolution" in table else None
         suites[name] = replace(_own_suite(name, fmt, scene_paths, protocol=protocol, iterations=iterations),
                                resolution=resolution)
     return suites

@@ -1,16 +1,39 @@
 """The config fields every Gaussian method shares (torch-free: specs and dry runs resolve configs without torch).
 
 Iteration-valued fields are given at ``reference_iterations`` and scale with ``iterations`` (`steps`);
-``densify_interval`` is a cadence and does not. A method's config subclasses `GaussianConfig`, redeclares the
+``densify_interval`` is a cadence and does not. Density control keeps floors when a run is shortened
+(`GaussianConfig.density_windows`). A method's config subclasses `GaussianConfig`, redeclares the
 shared fields whose default differs for it (a redeclared field keeps its place) and adds its own.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import asdict, dataclass
 from typing import Any, ClassVar
 
 from olatbench.methods.ranges import AT_LEAST_ONE, NON_NEGATIVE, OPEN_UNIT, POSITIVE, RATE, UNIT, Range, check_ranges
+
+#: Densification steps the density-control window holds at least: a shortened run densifies more often rather
+#: than once or never (the 3DGS window holds 145 at 30K steps, the mini presets' 20 at 3000).
+MIN_DENSIFICATIONS = 10
+#: An opacity reset sets every opacity to 0.01 (logit -4.6); Adam moves a logit by about ``opacity_lr`` per step,
+#: so climbing back to 0.5 takes about 4.6 / opacity_lr steps (92 at 3DGS's 0.05). Resets come at least three
+#: such climbs apart, else the Gaussians never recover and pruning removes them (the 200-step run of issue #46
+#: reset every 6 steps and fell from 10,000 Gaussians to 627).
+OPACITY_RECOVERY_CLIMBS = 3
+_RESET_LOGIT_CLIMB = math.log(99.0)  # logit(0.5) - logit(0.01)
+
+
+@dataclass(frozen=True)
+class DensityWindows:
+    """The density-control schedule of one run, in steps: densify every ``interval`` steps in
+    (``densify_from``, ``densify_until``), reset opacities every ``opacity_reset_interval`` steps in that window."""
+
+    densify_from: int
+    densify_until: int
+    interval: int
+    opacity_reset_interval: int
 
 
 @dataclass
@@ -64,6 +87,28 @@ class GaussianConfig:
     def steps(self, value: int) -> int:
         """An iteration count given at ``reference_iterations``, scaled to ``iterations``."""
         return round(value * self.iterations / self.reference_iterations)
+
+    def density_windows(self) -> DensityWindows:
+        """The densification window and opacity-reset interval scaled to ``iterations`` (`steps`, at least 1
+        each), with two floors that only bind in shortened runs (``iterations < reference_iterations``): the
+        window holds at least `MIN_DENSIFICATIONS` densifications (the interval shrinks to fit), and resets come
+        at least `OPACITY_RECOVERY_CLIMBS` times the steps a reset opacity needs to recover at ``opacity_lr``
+        apart (a run shorter than that resets never)."""
+        start = max(1, self.steps(self.densify_from))
+        until = max(1, self.steps(self.densify_until))
+        interval = self.densify_interval
+        if self.iterations >= self.reference_iterations:  # not shortened: the windows as given
+            return DensityWindows(densify_from=start, densify_until=until, interval=interval,
+                                  opacity_reset_interval=max(1, self.steps(self.opacity_reset_interval)))
+        if until - start >= MIN_DENSIFICATIONS:
+            interval = min(interval, (until - start) // MIN_DENSIFICATIONS)
+        if self.opacity_lr > 0:
+            recovery = math.ceil(OPACITY_RECOVERY_CLIMBS * _RESET_LOGIT_CLIMB / self.opacity_lr)
+        else:  # frozen opacities never recover from a reset: none comes within the run
+            recovery = self.iterations + 1
+        reset = max(1, self.steps(self.opacity_reset_interval), recovery)
+        return DensityWindows(densify_from=start, densify_until=until, interval=interval,
+                              opacity_reset_interval=reset)
 
     def to_dict(self) -> dict[str, Any]:
         """Plain JSON-friendly values."""

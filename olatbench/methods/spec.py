@@ -57,7 +57,8 @@ class MethodSpec:
     (``"nrhints"``) is applied to every job on that suite, the others are variants chosen with ``--variant``
     (``"a+b"`` applies ``a`` then ``b``). ``ablations`` maps a grid name (``"components"``) to its variants.
     ``iterations`` replaces the suite's training length with the method's own (None: the suite's); 0 declares a
-    learning-free method: ``setup`` does all the work and no training step runs, whatever the suite says."""
+    learning-free method: ``setup`` does all the work and no training step runs, whatever the suite says.
+    ``scene_recipe`` names the preset a scene of no suite gets scaled to it (`olatbench.methods.scene_presets`)."""
 
     name: str
     description: str
@@ -70,6 +71,8 @@ class MethodSpec:
     capabilities: frozenset[str] = frozenset()
     source: SourcePin | None = None  # official implementations only
     iterations: int | None = None  # training steps the method always takes (None: the suite's; 0: learning-free)
+    # the preset scaled to scenes of no suite (olatbench.methods.scene_presets; None: they get their format's preset)
+    scene_recipe: str | None = None
 
     def __post_init__(self) -> None:
         if self.iterations is not None and (isinstance(self.iterations, bool) or not isinstance(self.iterations, int)
@@ -84,6 +87,8 @@ class MethodSpec:
         if unknown:
             raise ValueError(f"method spec {self.name!r}: unknown capabilities {unknown}; known: "
                              f"{sorted(CAPABILITIES)}")
+        if self.scene_recipe is not None and self.scene_recipe not in self.presets:
+            raise ValueError(f"method spec {self.name!r}: scene_recipe names no preset ({self.scene_recipe!r})")
         if (self.kind == "official") != (self.source is not None):
             raise ValueError(f"method spec {self.name!r}: official methods, and only they, carry a source pin")
         for grid, variants in self.ablations.items():

@@ -185,11 +185,12 @@ def per_gaussian_groups(model: GaussianModel) -> list[dict[str, Any]]:
 
 
 def make_densifier(config: Any, background: np.ndarray, seed: int) -> Densifier:
-    """3DGS density control from the config's windows (scaled to the run, at least 1 step each); opacities
-    are also reset at the start on white backgrounds, as the official scripts do."""
-    steps = config.steps
+    """3DGS density control from the config's windows (scaled to the run with their floors:
+    `GaussianConfig.density_windows`); opacities are also reset at the start on white backgrounds, as the official
+    scripts do."""
+    windows = config.density_windows()
     return Densifier(DensifyConfig(
-        densify_from=max(1, steps(config.densify_from)), densify_until=max(1, steps(config.densify_until)),
-        densify_interval=config.densify_interval, grad_threshold=config.densify_grad_threshold,
-        opacity_reset_interval=max(1, steps(config.opacity_reset_interval)), percent_dense=config.percent_dense,
+        densify_from=windows.densify_from, densify_until=windows.densify_until,
+        densify_interval=windows.interval, grad_threshold=config.densify_grad_threshold,
+        opacity_reset_interval=windows.opacity_reset_interval, percent_dense=config.percent_dense,
         reset_opacity_at_start=bool(np.allclose(background, 1.0)), max_gaussians=config.max_gaussians), seed=seed)

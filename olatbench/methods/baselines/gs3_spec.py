@@ -31,4 +31,5 @@ SPEC = MethodSpec(
     presets=PRESETS,
     outputs=("rgb", "diffuse", "specular", "shading", "shadow", "shadow_coarse", "other"),
     capabilities=frozenset({"relight", "components", "checkpoint", "init_points"}),
+    scene_recipe="mini",
 )

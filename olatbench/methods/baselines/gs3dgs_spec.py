@@ -31,4 +31,5 @@ SPEC = MethodSpec(
     presets=PRESETS,
     outputs=("rgb",),
     capabilities=frozenset({"checkpoint", "init_points"}),
+    scene_recipe="mini",
 )

@@ -22,4 +22,5 @@ SPEC = MethodSpec(
     ablations=ABLATIONS,
     outputs=("rgb", "diffuse", "specular", "sss", "shadow", "shadow_coarse"),
     capabilities=frozenset({"relight", "refine_view", "components", "checkpoint", "init_points"}),
+    scene_recipe="mini",
 )
