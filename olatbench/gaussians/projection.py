@@ -82,6 +82,15 @@ def frustum_clamp_bounds(K: torch.Tensor, width: int, height: int) -> tuple[floa
     return -cx / fx - pad_x, (width - cx) / fx + pad_x, -cy / fy - pad_y, (height - cy) / fy + pad_y
 
 
+def perspective_jacobian(fx: torch.Tensor, fy: torch.Tensor, z: torch.Tensor, u: torch.Tensor,
+                         v: torch.Tensor) -> torch.Tensor:
+    """(N, 2, 3) Jacobian of the pinhole projection ``(fx·x/z, fy·y/z)`` at camera-space depth ``z`` (N,) with
+    ``u = x/z`` and ``v = y/z`` (N,) as given (each caller clamps them by its own frustum rule)."""
+    zeros = torch.zeros_like(z)
+    return torch.stack([torch.stack([fx / z, zeros, -fx * u / z], dim=-1),
+                        torch.stack([zeros, fy / z, -fy * v / z], dim=-1)], dim=-2)
+
+
 def project(
     means: torch.Tensor,
     quats: torch.Tensor,
@@ -138,14 +147,7 @@ def project(
     u_lo, u_hi, v_lo, v_hi = frustum_clamp_bounds(K, width, height)
     u_c = u.clamp(u_lo, u_hi)
     v_c = v.clamp(v_lo, v_hi)
-    zeros = torch.zeros_like(z)
-    jac = torch.stack(
-        [
-            torch.stack([fx / z_safe, zeros, -fx * u_c / z_safe], dim=-1),
-            torch.stack([zeros, fy / z_safe, -fy * v_c / z_safe], dim=-1),
-        ],
-        dim=-2,
-    )  # (N, 2, 3)
+    jac = perspective_jacobian(fx, fy, z_safe, u_c, v_c)
     cov_cam = rot @ covariances_3d(quats, scales) @ rot.T
     cov2d = jac @ cov_cam @ jac.transpose(-1, -2)
     a = cov2d[:, 0, 0] + low_pass
@@ -167,5 +169,5 @@ def project(
     return Projected(means2d=means2d, conics=conics, radii=radii, depths=z, width=int(width), height=int(height))
 
 
-__all__ = ["FRUSTUM_CLAMP", "RADIUS_SIGMAS", "Projected", "covariances_3d", "frustum_clamp_bounds", "project",
-           "quat_to_rotmat"]
+__all__ = ["FRUSTUM_CLAMP", "RADIUS_SIGMAS", "Projected", "covariances_3d", "frustum_clamp_bounds",
+           "perspective_jacobian", "project", "quat_to_rotmat"]

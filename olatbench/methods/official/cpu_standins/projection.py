@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import torch
 
-from olatbench.gaussians.projection import Projected, covariances_3d
+from olatbench.gaussians.projection import Projected, covariances_3d, perspective_jacobian
 from olatbench.gaussians.tiles import TILE_SIZE, TileBins, bins_of_tile_ranges
 
 FRUSTUM_CLAMP = 1.3  # utils.cuh:156-157
@@ -63,14 +63,7 @@ def project_gsplat(
     lim_y = FRUSTUM_CLAMP * 0.5 * height / fy
     u_c = torch.minimum(lim_x, torch.maximum(-lim_x, x / z_safe))
     v_c = torch.minimum(lim_y, torch.maximum(-lim_y, y / z_safe))
-    zeros = torch.zeros_like(z)
-    jac = torch.stack(
-        [
-            torch.stack([fx / z_safe, zeros, -fx * u_c / z_safe], dim=-1),
-            torch.stack([zeros, fy / z_safe, -fy * v_c / z_safe], dim=-1),
-        ],
-        dim=-2,
-    )  # (N, 2, 3)
+    jac = perspective_jacobian(fx, fy, z_safe, u_c, v_c)
     cov2d = jac @ (rot @ covariances_3d(quats, scales) @ rot.T) @ jac.transpose(-1, -2)
     a = cov2d[:, 0, 0] + eps2d
     b = cov2d[:, 0, 1]
