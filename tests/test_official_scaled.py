@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
+from datasets_trees import write_gs3_tree
 from official_standins import write_checkout
 from test_official import plan, suite_of, write_data
 
@@ -21,7 +22,7 @@ from olatbench.methods.official.code import OfficialConfig
 from olatbench.methods.official.process import OfficialRunError
 from olatbench.methods.official.runner import prepare
 from olatbench.methods.official.settings import CodeSettings
-from olatbench.methods.official.specs import GS3_CODE, NRHINTS_CODE, SSDGS_CODE
+from olatbench.methods.official.specs import GS3_CODE, NRHINTS_CODE, RNG_CODE, SSDGS_CODE
 from olatbench.methods.training import initial_model
 
 
@@ -109,6 +110,37 @@ def test_settings_a_code_cannot_use_are_refused_before_anything_runs(tmp_path) -
     assert not (tmp_path / "work").exists()  # refused before the work folder was emptied or written
     with pytest.raises(ValueError, match="init_points"):
         OfficialConfig(init_points=0)
+
+
+@pytest.mark.parametrize(("code", "white"), [(SSDGS_CODE, ["--white_background"]),
+                                             (GS3_CODE, ["--white_background"]),
+                                             (RNG_CODE, ["--white_background"]),
+                                             (NRHINTS_CODE, ["--config.data.white-background", "True"])])
+def test_a_scene_of_ones_own_trains_the_official_code_on_its_declared_background(tmp_path, code, white) -> None:
+    """A white GS³-format scene of one's own gets the code's white-background flag in every train step; the same
+    scene in a benchmark suite keeps the suite's flags (RNG stays black on gs3: the paper's setting), and a black
+    scene of one's own gets none."""
+    write_gs3_tree(tmp_path / "white", n_train=2, n_test=2, size=(8, 8))
+    white_scene = load_scene(tmp_path / "white", format="gs3")
+    black_scene = load_scene(write_data(tmp_path / "data") / "Alpha", format="nrhints")
+    assert list(white_scene.background) == [1, 1, 1] and list(black_scene.background) == [0, 0, 0]
+    settings = CodeSettings(method=code.name, checkout=str(write_checkout(tmp_path / "checkout", code.name)),
+                            python=sys.executable)
+
+    def train_commands(scene, suite: str) -> list[list[str]]:
+        run = prepare(code, settings, scene, tmp_path / "work", suite, "train", "test", None,
+                      OfficialConfig(iterations=40_000))
+        return [record.argv for record in run.commands if record.step in code.train_steps]
+
+    def says_white(argv: list[str]) -> bool:
+        where = [i for i, arg in enumerate(argv) if arg == white[0]]
+        return bool(where) and argv[where[-1]:where[-1] + len(white)] == white
+
+    assert all(says_white(argv) for argv in train_commands(white_scene, "data-gs3"))
+    assert not any(says_white(argv) for argv in train_commands(black_scene, "data-nrhints"))
+    benchmark = train_commands(white_scene, "gs3")
+    assert all(says_white(argv) for argv in benchmark) == (code is not RNG_CODE)
+    assert f"train {' '.join(white)}" in " ".join(code.describe())
 
 
 def test_methods_show_lists_the_scaled_flags_and_the_points_file() -> None:

@@ -26,6 +26,11 @@ Placeholders in ``argv`` and ``renders`` (`str.format` fields), filled per job:
 - an argument that is exactly ``{*suite_args}`` expands to ``suite_args[suite][step]`` (``"*"``: any other
   suite), possibly to nothing: e.g. ``--white_background`` for GS³ data.
 
+A scene of one's own (a ``--data`` folder or a ``[suites.NAME]`` of olatbench.toml: no benchmark suite) is trained
+on the background its files declare, as the native methods do: when that is white, ``white_background_args`` (the
+flags that composite the training images over white; the renders read it from the saved config) are applied to
+the train steps as a scene's flags are. The benchmark suites keep the background their scripts pass.
+
 Where the authors' scripts give one scene other flags than its suite's (GS³ ``real_train.sh``: Fish densifies until
 100K), ``scene_args`` holds them as `SceneArgs`, keyed by the canonical scene name and citing script and lines; a
 scene's flag replaces the value the command already has for it, or is appended.
@@ -158,6 +163,7 @@ class OfficialCode:
     train_steps: tuple[str, ...] = (TRAIN_STEP,)  # the training commands: scaled, timed, given train_args
     milestones: Mapping[str, int] = field(default_factory=dict)  # placeholder -> iterations at the scripts' length
     sources: tuple[tuple[str, str], ...] = ()  # (what, where the pinned commit says so), for `methods show`
+    white_background_args: tuple[str, ...] = ()  # train flags for a white background (scenes of one's own)
 
     def __post_init__(self) -> None:
         if not self.commands and not self.unsupported:
@@ -264,6 +270,9 @@ class OfficialCode:
         if self.milestones:
             lines.append("milestones (scaled with reference_iterations): " + " ".join(
                 f"{{{name}}} = {value}" for name, value in self.milestones.items()))
+        if self.white_background_args:
+            lines.append("a scene of your own with a white background: train "
+                         + " ".join(self.white_background_args))
         if self.point_cloud:
             lines.append(f"init_points: written to {{scene}}/{self.point_cloud}")
         lines.append(f"renders: {self.renders}")

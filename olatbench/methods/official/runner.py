@@ -20,6 +20,7 @@ import numpy as np
 
 from olatbench.atomic import write_json
 from olatbench.datasets.records import Frame, Scene
+from olatbench.datasets.suites import SUITES
 from olatbench.methods.official.code import OfficialCode, OfficialConfig
 from olatbench.methods.official.convert import check_ground_truths, pair_renders, write_for_code
 from olatbench.methods.official.process import CommandRecord, OfficialRunError, run_command
@@ -67,7 +68,8 @@ def prepare(code: OfficialCode, settings: CodeSettings, source: Scene, work: Pat
     extra = {**{step: tuple(config.train_args) for step in code.train_steps}, "render": tuple(config.render_args)}
     commands = [CommandRecord(step, prefix + code.command(step, argv, values, suite, extra.get(step, ()),
                                                           scene=source.name, schedule_factor=factor,
-                                                          preset_args=tuple(config.preset_args)),
+                                                          preset_args=(*config.preset_args,
+                                                                       *background_args(code, source, suite))),
                               str(checkout))
                 for step, argv in code.commands]
     if not mark_finished(work, commands) and work.exists():
@@ -87,6 +89,14 @@ def prepare(code: OfficialCode, settings: CodeSettings, source: Scene, work: Pat
     return OfficialRun(code=code, settings=settings, work=work, scene_dir=scene_dir, model_dir=model_dir,
                        commands=commands, frame_ids=[frame.frame_id for frame in source.split(test_split)],
                        render_order=order, values=values, colourspace=code.colourspace_for(suite), env=env)
+
+
+def background_args(code: OfficialCode, source: Scene, suite: str) -> tuple[str, ...]:
+    """The train flags that put ``source`` on its own background (`OfficialCode.white_background_args`): for a
+    scene of no benchmark suite whose declared background is white; empty otherwise (black is every code's
+    default, and a benchmark suite keeps its scripts' flags)."""
+    white = bool(np.all(np.asarray(source.background, dtype=np.float64) >= 1.0))
+    return code.white_background_args if white and suite not in SUITES else ()
 
 
 STEPS_DIR = "steps"  # below work: <step>.json for each command that finished (module docstring)

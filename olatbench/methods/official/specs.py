@@ -113,6 +113,8 @@ GS3_CODE = OfficialCode(
     env={"TORCH_FORCE_NO_WEIGHTS_ONLY_LOAD": "1"},  # render.py:70 torch.load()s its own checkpoint (numpy scalars)
     schedule_flags=_GS3_SCHEDULE_FLAGS,
     point_cloud=_POINT_CLOUD,
+    # arguments/__init__.py:54; render.py reads it back from the model's cfg_args (get_combined_args, render.py:107)
+    white_background_args=("--white_background",),
 )
 
 # ---- SSD-GS (irisfreesiri/SSD-GS) ------------------------------------------------------------------------------
@@ -150,6 +152,8 @@ SSDGS_CODE = OfficialCode(
     env={"OPENCV_IO_ENABLE_OPENEXR": "1", "TORCH_FORCE_NO_WEIGHTS_ONLY_LOAD": "1"},
     schedule_flags=_SSDGS_SCHEDULE_FLAGS,
     point_cloud=_POINT_CLOUD,
+    # arguments/__init__.py:54; render.py reads it back from the model's cfg_args (get_combined_args, render.py:121)
+    white_background_args=("--white_background",),
 )
 
 # ---- NRHints (iamNCJ/NRHints) ----------------------------------------------------------------------------------
@@ -174,6 +178,8 @@ NRHINTS_CODE = OfficialCode(
         ANY_SUITE: {"train": ("config:nr-hints", "--config.data.white-background", "False")},
     },
     env={"WANDB_MODE": "offline"},  # it logs every run to wandb
+    # what scripts/train_synthetic.sh passes for its white Blender scenes (the suite "gs3" above)
+    white_background_args=("--config.data.white-background", "True"),
     needs_val_split=True,
     single_camera_model=True,  # data/data_parser.py:41-66 (top-level intrinsics, near/far of the first split)
     scene_args=(SceneArgs("nrhints", "Fish", "train", ("--config.model.geometry-warmup-end", "100000"),
@@ -231,6 +237,8 @@ RNG_CODE = OfficialCode(
     single_camera_model=True,  # one camera_intrinsics / camera_angle_x per transforms file (dataset_readers.py:213)
     train_steps=("train", "train_stage2"),
     milestones={"stage1_iterations": 30_000},
+    # arguments/__init__.py:54 (the variant `white`); render.py reads it back from cfg_args (render.py:335)
+    white_background_args=("--white_background",),
     sources=(
         ("train (stage 1, forward shading)", "README.md:26 (python train.py ... --iterations 30000 --color_mlp)"),
         ("train_stage2 (deferred shading)", "README.md:29 (--iterations 100000 --load_pc OUTPUT_PATH/chkpnt30000.pth "
@@ -247,8 +255,9 @@ RNG_CODE = OfficialCode(
         ("--max_reso 512", "halves an image whose height and width both exceed 512 (dataset_readers.py:258-260); "
                            "mini's 80x80 images are kept; renders of halved images would not match the ground "
                            "truth's size and the job fails saying so"),
-        ("background", "black on every suite: ssdgs_iclr2026.tex:535 (RNG kept its original black background on the "
-                       "synthetic data too); variant `white` adds --white_background (arguments/__init__.py:54)"),
+        ("background", "black on every benchmark suite: ssdgs_iclr2026.tex:535 (RNG kept its original black "
+                       "background on the synthetic data too); variant `white` adds --white_background "
+                       "(arguments/__init__.py:54); a scene of your own trains on the background its files declare"),
         ("initial points", "not taken: readNerfSyntheticInfo always draws 100,000 random points in [-1.3, 1.3]^3 "
                            "(dataset_readers.py:314-325, `if True:`) from np.random seeded 0 (utils/general_utils.py"
                            ":133-135), so the job's seed changes nothing"),
