@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import io
 import math
 
@@ -193,6 +194,35 @@ def test_gs3_lowers_the_loss_and_renders_its_components(views, monkeypatch) -> N
     assert set(out) == {"rgb", "diffuse", "specular", "shading", "shadow", "shadow_coarse", "other"}
     torch.testing.assert_close(out["rgb"], (out["shading"] * out["shadow"] + out["other"]).clamp(0, 1))
     torch.testing.assert_close(out["shading"], out["diffuse"] + out["specular"], atol=1e-5, rtol=1e-5)
+
+
+@pytest.mark.parametrize("initial_shading", [0.5, None])
+def test_gs3_starts_below_white_under_bright_recorded_lights(views, initial_shading) -> None:
+    """Lights of intensity 400 at distance 5 (I/d² = 16): with the official start (initial_shading=None) most of
+    the composite is above 1, where the loss's clamp passes no gradient; with the bound it is not."""
+    bright = dataclasses.replace(views, lights=[dataclasses.replace(light, intensity=np.full(3, 400.0))
+                                                for light in views.lights])
+    config = GS3.resolve_config("mini", num_init_gaussians=300, initial_shading=initial_shading)
+    method = GS3(config)
+    method.setup(bright, "cpu", 0)
+    with torch.no_grad():
+        image = method.training_forward(0, config.steps(config.shadow_from))["image"]  # I·V + O
+    covered = image.sum(-1) > 0.05
+    above_white = float((image[covered] > 1.0).float().mean())
+    assert above_white > 0.5 if initial_shading is None else above_white < 0.02
+    assert method.irradiance == pytest.approx(16.0, rel=0.35)  # the ball's centre is near the sphere's
+
+
+def test_gs3_keeps_the_official_start_when_the_intensity_is_ignored(views) -> None:
+    """Under the official codes' convention (every light of intensity 1) the bound does not bind: the official
+    albedo parameter 0.5 and O's factor 1."""
+    bright = dataclasses.replace(views, lights=[dataclasses.replace(light, intensity=np.full(3, 400.0))
+                                                for light in views.lights])
+    method = GS3(GS3.resolve_config("mini", num_init_gaussians=300, light_intensity="ignored"))
+    method.setup(bright, "cpu", 0)
+    assert torch.equal(method.model.attributes["diffuse"], torch.full((300, 3), 0.5))
+    assert method.shader.other_scale == 1.0
+    assert method.irradiance == pytest.approx(1 / 25, rel=0.35)
 
 
 # ---------------------------------------------------------------------------------------------- presets

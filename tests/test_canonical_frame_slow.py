@@ -1,6 +1,7 @@
 """Done-when of #46's frame part: a scene and a similarity-transformed copy of it (scale 10, a rotation, a translation
 of ~60 units: 15 camera distances, 60 object radii; tests/moved_scenes.py) give ssdgs, gs3 and 3dgs the same test
-PSNR within seed noise (3 seeds, short runs), through ``olatbench run --data``."""
+PSNR within seed noise (3 seeds, short runs), through ``olatbench run --data``; every run must have trained (no
+health warning), so that two ruined runs cannot pass by scoring the same."""
 
 from __future__ import annotations
 
@@ -11,6 +12,7 @@ import pytest
 from click.testing import CliRunner
 from moved_scenes import move_scene
 
+from olatbench.bench.health import read_warnings
 from olatbench.bench.results import read_results
 from olatbench.cli import main
 
@@ -45,6 +47,9 @@ def test_a_moved_scene_scores_the_same_within_seed_noise(method, scenes, tmp_pat
     psnr = {}
     for path in runs.rglob("results.json"):
         results = read_results(path)
+        # a run that learned nothing scores the same on both scenes: each must have trained (no warning of a
+        # collapse or of a training PSNR below the background-only image's, olatbench.bench.health)
+        assert read_warnings(path.parent) == [], (method, path.parent)
         psnr.setdefault(results["job"]["scene"], []).append(results["metrics"]["test"]["mean"]["psnr"])
     original, moved = np.array(psnr["scene"]), np.array(psnr["moved"])
     assert len(original) == len(moved) == SEEDS

@@ -11,13 +11,25 @@ the suite's colour space already. One training view per step, ``0.8 L1 + 0.2 (1 
 with a count cap that keeps the Gaussians seen most by the light (GS³'s ``maximum_gs``). With ``cull_shading`` a
 training step shades only the Gaussians whose largest blending weight in the view exceeds ``cull_epsilon``
 (`olatbench.gaussians.contribution`; not in the official code).
+
+Brightness at the start: the official code never multiplies by the light's intensity (it ignores it), so its
+initial albedo (``kd`` 0.5 before the softplus, ``scene/gaussian_model.py:244``) and its other-effects term
+(``2σ(net) / d²``, ``gaussian_renderer/__init__.py:173``) start dark under its unit lights. With the recorded
+intensities olatbench's methods use they start far brighter than white, where the loss's clamp to [0, 1] passes no
+gradient: mini diffuse_shadow's first view had 90 % of its pixels above 1, and a 32² scene of olatbench's
+generator rendered white everywhere once O joined and never trained. ``initial_shading`` bounds both at the scene
+centre under the median training light (`median_irradiance`): the initial albedo (`initial_diffuse_parameter`)
+and the factor of O (`other_effects_scale`); with the intensity ignored, as the official code, neither binds.
 """
 
 from __future__ import annotations
 
+import dataclasses
+import math
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any, ClassVar
 
+import numpy as np
 import torch
 
 from olatbench.gaussians.lr import exponential_lr
@@ -29,6 +41,7 @@ from olatbench.methods.baselines.gs3_shading import GS3Components, GS3Shader
 from olatbench.methods.baselines.gs3_spec import PRESETS, SPEC
 from olatbench.methods.baselines.triple_splat import composite, triple_splat
 from olatbench.methods.gaussian_method import GaussianMethod, ParameterGroup, SplatColour, albedo_splat_colour
+from olatbench.methods.initialisation import initial_ball
 from olatbench.methods.training import (
     camera_centre,
     camera_tensors,
@@ -41,6 +54,36 @@ if TYPE_CHECKING:
     from olatbench.datasets.records import Camera, PointLight
 
 STATE_FORMAT = "olatbench.methods.baselines.gs3/1"
+OFFICIAL_DIFFUSE = 0.5  # the official initial kd before its softplus (scene/gaussian_model.py:244)
+
+
+def median_irradiance(views: Views, config: GS3Config) -> float:
+    """The median over the training ``views`` of the mean over RGB of the light's ``I / d²`` at the initial ball's
+    centre (`initial_ball`; `PointLight.irradiance_scale`), with I = 1 where the method ignores the intensity (as
+    `shaded_intensity`). ``views`` in the frame the method trains in: a similarity that multiplies the
+    intensities by s² leaves it unchanged."""
+    centre, _ = initial_ball(views.cameras, config.init_radius)
+    lights = [dataclasses.replace(light, intensity=np.ones(3)) if config.ignores_light_intensity else light
+              for light in views.lights]
+    return float(np.median([light.irradiance_scale(centre[None, :]).mean() for light in lights]))
+
+
+def initial_diffuse_parameter(irradiance: float, config: GS3Config) -> float:
+    """The initial diffuse parameter (before the softplus) of every Gaussian: `OFFICIAL_DIFFUSE`, or the albedo ρ
+    whose shading ρ/π · ``irradiance`` (`median_irradiance`) equals ``config.initial_shading`` when the official
+    one would exceed it."""
+    if config.initial_shading is None:
+        return OFFICIAL_DIFFUSE
+    albedo = config.initial_shading * math.pi / irradiance
+    return OFFICIAL_DIFFUSE if albedo >= math.log1p(math.exp(OFFICIAL_DIFFUSE)) else math.log(math.expm1(albedo))
+
+
+def other_effects_scale(irradiance: float, config: GS3Config) -> float:
+    """The factor of the other-effects term O = 2σ(net) · factor · I/d²: 1 (official), or less so that its initial
+    middle value (σ = 1/2) under ``irradiance`` (`median_irradiance`) is ``config.initial_shading``."""
+    if config.initial_shading is None:
+        return 1.0
+    return min(1.0, config.initial_shading / irradiance)
 
 
 class GS3(GaussianMethod, spec=SPEC):
@@ -59,17 +102,23 @@ class GS3(GaussianMethod, spec=SPEC):
         """The diffuse albedo as a degree-0 SH colour (`albedo_splat_colour`)."""
         return albedo_splat_colour(attributes["diffuse"], colourspace)
 
+    def prepare(self, train: Views) -> None:
+        self.irradiance = median_irradiance(train, self.config)
+        self.initial_diffuse = initial_diffuse_parameter(self.irradiance, self.config)
+
     def initial_attributes(self, n: int) -> dict[str, torch.Tensor]:
         identity = torch.zeros(n, 4, device="cpu")
         identity[:, 0] = 1.0
-        return {"diffuse": torch.full((n, 3), 0.5, device="cpu"), "specular": torch.full((n, 3), 0.5, device="cpu"),
+        return {"diffuse": torch.full((n, 3), self.initial_diffuse, device="cpu"),
+                "specular": torch.full((n, 3), 0.5, device="cpu"),
                 "asg_weights": torch.zeros(n, self.config.num_asg, device="cpu"), "shading_quat": identity,
                 "material": torch.ones(n, self.config.material_dim, device="cpu")}
 
     def build_modules(self, train: Views) -> None:
         cfg = self.config
         self.shader = GS3Shader(cfg.num_asg, cfg.material_dim, cfg.shadow_hidden, cfg.shadow_layers, cfg.other_hidden,
-                                cfg.other_layers, cfg.num_freqs, cfg.fresnel_f0, cfg.network_precision).to(self.device)
+                                cfg.other_layers, cfg.num_freqs, cfg.fresnel_f0, cfg.network_precision,
+                                other_effects_scale(self.irradiance, cfg)).to(self.device)
 
     def global_groups(self) -> list[ParameterGroup]:
         return [ParameterGroup("asg_lobes", list(self.shader.asg.parameters())),

@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import ClassVar
 
-from olatbench.methods.ranges import AT_LEAST_ONE, NON_NEGATIVE, RATE, Range
+from olatbench.methods.ranges import AT_LEAST_ONE, NON_NEGATIVE, POSITIVE, RATE, Range
 from olatbench.methods.shading.config import ShadingConfig
 
 
@@ -18,7 +18,7 @@ class GS3Config(ShadingConfig):
     ranges: ClassVar[dict[str, Range]] = {
         "shadow_from": NON_NEGATIVE, "mlp_freeze_from": NON_NEGATIVE, "specular_from": NON_NEGATIVE,
         "asg_lobes_from": NON_NEGATIVE, "other_hidden": AT_LEAST_ONE, "other_layers": AT_LEAST_ONE,
-        "num_freqs": NON_NEGATIVE, "mlp_lr": RATE,
+        "num_freqs": NON_NEGATIVE, "mlp_lr": RATE, "initial_shading": POSITIVE,
     }
 
     iterations: int = 100_000
@@ -36,6 +36,9 @@ class GS3Config(ShadingConfig):
     other_layers: int = 3
     num_freqs: int = 4
     shadow_resolution: int | None = 256
+    # The brightest the initial diffuse shading albedo/π · I/d² may be at the initial ball's centre under the median
+    # training light (GS3.prepare); None: the official albedo (softplus(0.5)) however bright the lights.
+    initial_shading: float | None = 0.5
     # Learning rate of the networks.
     mlp_lr: float = 1e-3  # constant: the official decay never applies (its group-name test is always false)
 

@@ -70,9 +70,10 @@ class GS3Shader(nn.Module):
 
     def __init__(self, num_asg: int = 8, material_dim: int = 6, shadow_hidden: int = 32, shadow_layers: int = 3,
                  other_hidden: int = 128, other_layers: int = 3, num_freqs: int = 4, fresnel_f0: float = 0.04,
-                 precision: str = "fp32") -> None:
+                 precision: str = "fp32", other_scale: float = 1.0) -> None:
         super().__init__()
         self.fresnel_f0 = fresnel_f0
+        self.other_scale = other_scale  # O = other_net · other_scale · L/d² (1: official; GS3 sets it per scene)
         self.asg = ASGMixture(num_asg, form="official")
         self.shadow_net = ShadowNetwork(material_dim, shadow_hidden, shadow_layers, num_freqs, precision)
         self.other_net = OtherEffectsNetwork(material_dim, other_hidden, other_layers, num_freqs, precision)
@@ -101,7 +102,7 @@ class GS3Shader(nn.Module):
         material = attributes["material"]
         hint = hint[:, None].to(positions.dtype)
         visibility = self.shadow_net(positions, wi, hint, material)
-        other = self.other_net(wo, positions, material) * incident
+        other = self.other_net(wo, positions, material) * (self.other_scale * incident)
         return GS3Components(diffuse, specular_term, visibility, hint, other)
 
 
