@@ -64,12 +64,17 @@ def test_the_paper_and_mini_suites_resolve_exactly_the_configs_they_did():
               "ssdgs/nrhints": "bf38f10786d5f7fa", "ssdgs/gs3": "7b5eb3ba20257039", "ssdgs/sssgs": "41a38367d0eac679"}
     # fields added since, each at the value that keeps the old behaviour (#45: the recorded light intensity)
     added_since = {"light_intensity": "recorded"}
+    # fields added since that change the old behaviour on purpose: GS³'s bound on its start's brightness under
+    # recorded intensities (docs/baselines.md, "Brightness at the start"; None would keep the old start)
+    changed_since = {"gs3": {"initial_shading": 0.5}}
     now = {}
     for method in NATIVE:
         for suite in ("mini", "nrhints", "gs3", "sssgs"):
             config = config_to_dict(resolve_config(get_spec(method), SUITES[suite]))
             for name, old_behaviour in added_since.items():
                 assert config.pop(name, old_behaviour) == old_behaviour, (method, suite, name)
+            for name, value in changed_since.get(method, {}).items():
+                assert config.pop(name) == value, (method, suite, name)
             now[f"{method}/{suite}"] = hash_json(config)[:16]
     assert now == before
 
