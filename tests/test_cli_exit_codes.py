@@ -62,7 +62,7 @@ CASES = [
     ("render {empty}", 2, "job.json"),
     ("view {empty}", 2, "no job.json"),  # no job below it: a usage error
     ("view {runs} -s nope", 2, "unknown suite 'nope'"),
-    ("export {empty} -o {tmp}/model.ply", 1, "job.json"),  # nothing to export
+    ("export {empty} -o {tmp}/model.ply", 2, "job.json"),  # no job folder: a usage error, as for render
     ("export {empty}", 2, "Missing option '-o'"),
     ("evaluate {job}/renders/test --gt {data}/Alpha --protocol nope", 2, "unknown metric protocol"),
     ("evaluate {job}/renders/test --gt {data}/Alpha --protocol test-fast -o {tmp}/m.json", 0, "wrote"),

@@ -123,6 +123,17 @@ def test_export_refuses_an_unfinished_job_naming_the_checkpoint(ssdgs_job, tmp_p
     assert result.exit_code == 1 and "no checkpoint" in result.output and not (tmp_path / "x.ply").exists()
 
 
+def test_export_of_a_folder_that_is_no_job_is_a_usage_error_as_for_render(tmp_path):
+    """A folder without job.json was the wrong argument: exit 2 naming the file, as `render` does; a job folder
+    that cannot be exported (no checkpoint, above) exits 1."""
+    (tmp_path / "empty").mkdir()
+    for command in (["export", str(tmp_path / "empty"), "-o", str(tmp_path / "x.ply")],
+                    ["render", str(tmp_path / "empty"), "-o", str(tmp_path / "videos")]):
+        result = CliRunner().invoke(main, command)
+        assert result.exit_code == 2 and "job.json: not found" in result.output, (command, result.output)
+    assert not (tmp_path / "x.ply").exists()
+
+
 def quaternion_matrices(quats: np.ndarray) -> np.ndarray:
     """(N, 3, 3) rotations of (N, 4) wxyz quaternions (normalised here)."""
     w, x, y, z = (quats / np.linalg.norm(quats, axis=1, keepdims=True)).T

@@ -186,7 +186,7 @@ def test_a_job_json_that_json_cannot_parse_is_damaged_and_one_error(data, tmp_pa
     (folder / "job.json").write_text(text)
     status = run_cli("status", out)
     assert status.exit_code == 0 and "damaged" in status.output and phrase in status.output, status.output
-    assert_one_clear_error(run_cli("view", folder, "--port", "0"), 1, f"{folder / 'job.json'}: unreadable", phrase)
+    assert_one_clear_error(run_cli("view", folder, "--port", "0"), 1, f"{folder / 'job.json'} is unreadable", phrase)
 
 
 # ---- export to a full or read-only disk -----------------------------------------------------------------------------

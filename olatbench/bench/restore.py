@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING, Any
 from olatbench.bench.checkpoints import load_checkpoint
 from olatbench.bench.jobs import Job
 from olatbench.bench.plan import load_method_class
-from olatbench.bench.store import JOB_FILE, list_checkpoints
+from olatbench.bench.store import JOB_FILE, job_record, list_checkpoints
 from olatbench.bench.views import frame_views, load_views
 from olatbench.datasets.jsontext import parse_json
 
@@ -34,18 +34,22 @@ class RestoreError(ValueError):
     """A job folder from which no trained method can be rebuilt; the message names the file and the fix."""
 
 
+class NotAJobFolderError(RestoreError):
+    """A folder without a ``job.json``: the wrong folder was given (a usage error for the commands that take a
+    job folder)."""
+
+
 def read_job(folder: str | Path) -> Job:
-    """The `Job` of a job folder's ``job.json`` (a `RestoreError` if it is missing or not a job)."""
+    """The `Job` of a job folder's ``job.json`` (read by `olatbench.bench.store.job_record`): a
+    `NotAJobFolderError` when there is none, a `RestoreError` when it is unreadable or not a job."""
     path = Path(folder) / JOB_FILE
     try:
-        data = parse_json(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise RestoreError(f"{path}: not found; is {folder} a job folder "
-                           "(<out>/<suite>/<method>/<variant>/<scene>/seed<k>)?") from None
-    except (OSError, ValueError) as error:  # not UTF-8, malformed, nested too deep, an integer too long
-        raise RestoreError(f"{path}: unreadable ({error})") from None
-    if not isinstance(data, dict):
-        raise RestoreError(f"{path}: not a job (expected a JSON object)")
+        data = job_record(folder)
+    except ValueError as error:  # not UTF-8, malformed, nested too deep, an integer too long, not an object
+        raise RestoreError(str(error)) from None
+    if data is None:
+        raise NotAJobFolderError(f"{path}: not found; is {folder} a job folder "
+                                 "(<out>/<suite>/<method>/<variant>/<scene>/seed<k>)?")
     try:
         return Job.from_json(data)
     except (TypeError, ValueError) as error:

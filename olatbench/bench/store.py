@@ -81,12 +81,12 @@ REPAIR_HINT = ("rerun the 'olatbench run' command that made it: it re-evaluates 
 def read_job_file(folder: str | Path) -> dict[str, Any] | None:
     """The job.json of a folder, or None when there is none (or it is unreadable)."""
     try:
-        return _job_file(folder)
+        return job_record(folder)
     except ValueError:
         return None
 
 
-def _job_file(folder: str | Path) -> dict[str, Any] | None:
+def job_record(folder: str | Path) -> dict[str, Any] | None:
     """The job.json of a folder, None when there is none; a `ValueError` naming the file when it is unreadable
     (truncated, not JSON, not an object)."""
     path = Path(folder) / JOB_FILE
@@ -130,7 +130,7 @@ def job_state(folder: str | Path, expected_id: str | None = None) -> JobState:
     checkpoints = list_checkpoints(folder)
     step = checkpoints[-1][0] if checkpoints else None
     try:
-        job = _job_file(folder)
+        job = job_record(folder)
     except ValueError as error:
         if is_locked(folder):
             return JobState(folder, "running", step=step)

@@ -45,7 +45,7 @@ def export(job: Path, output: Path, under_light: str | None, sh_degree: int, vie
       olatbench export runs/mini/ssdgs/default/translucent/seed0 --under-light 0,0,4 --sh-degree 3 -o lit3.ply
     """
     from olatbench.bench.export import Bake, BakeRequestError, export_ply
-    from olatbench.bench.restore import RestoreError
+    from olatbench.bench.restore import NotAJobFolderError, RestoreError
     from olatbench.devices import resolve_device
 
     if under_light is None and (view is not None or sh_degree != 0):
@@ -57,7 +57,7 @@ def export(job: Path, output: Path, under_light: str | None, sh_degree: int, vie
     try:
         exported = export_ply(job, output, bake, device=resolve_device(device) if bake else "cpu",
                               progress=show_progress(quiet))
-    except BakeRequestError as error:  # a light, frame or method that cannot be baked: says what can
+    except (BakeRequestError, NotAJobFolderError) as error:  # what cannot be baked (says what can); no job folder
         raise click.UsageError(str(error)) from None
     except RestoreError as error:
         raise click.ClickException(str(error)) from None
