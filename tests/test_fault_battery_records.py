@@ -20,12 +20,10 @@ from pathlib import Path
 
 import pytest
 import test_runner_support as support
-from click.testing import CliRunner
-from test_fault_battery_runner import SimulatedFault
+from test_fault_battery_runner import SimulatedFault, assert_one_clear_error, job_folder, run_args, run_cli
 
 from olatbench.bench.results import read_results
 from olatbench.bench.store import job_state
-from olatbench.cli import main
 from olatbench.datasets import suites
 from olatbench.viewer.model import ViewerModel
 
@@ -41,43 +39,6 @@ def data(tmp_path):
 def tiny_suite(monkeypatch):
     """The tiny suite registered as 'tiny' for the CLI."""
     monkeypatch.setitem(suites.SUITES, "tiny", support.tiny_suite())
-
-
-def run_cli(*args: str | Path):
-    return CliRunner().invoke(main, [str(arg) for arg in args])
-
-
-def run_args(data: Path, out: Path, *extra: str | Path) -> list[str | Path]:
-    return [
-        "run",
-        "-m",
-        "trivial",
-        "-s",
-        "tiny",
-        "--data-root",
-        data,
-        "--out",
-        out,
-        "--quiet",
-        "--device",
-        "cpu",
-        *extra,
-    ]
-
-
-def job_folder(out: Path, scene: str = "Alpha") -> Path:
-    return out / "tiny" / "trivial" / "default" / scene / "seed0"
-
-
-def assert_one_clear_error(result, exit_code: int, *phrases: str) -> None:
-    """The documented exit code, no traceback, exactly one ``Error:`` line holding every phrase."""
-    assert result.exit_code == exit_code, result.output
-    assert "Traceback" not in result.output, result.output
-    assert not isinstance(result.exception, Exception) or isinstance(result.exception, SystemExit), result.exception
-    errors = [line for line in result.output.splitlines() if line.startswith("Error:")]
-    assert len(errors) == 1, result.output
-    for phrase in phrases:
-        assert phrase in errors[0], errors[0]
 
 
 # ---- a results.json edited into another shape -----------------------------------------------------------------------
