@@ -28,11 +28,22 @@ def _derive(method: str, facts: SceneFacts, iterations: int | None = None):
 
 @pytest.mark.parametrize("method", NATIVE)
 def test_a_scene_the_size_of_the_mini_ones_or_smaller_gets_the_recipe_as_it_is(method):
-    mini = dict(get_spec(method).presets["mini"])
+    spec = get_spec(method)
+    recipe = dict(spec.presets[spec.scene_recipe])  # mini; SSD-GS: own-data, mini over the official switches
     for facts in (SceneFacts(30, 64, 64), SceneFacts(100, 64, 64), SceneFacts(3, 16, 12)):
         derived = _derive(method, facts)
-        assert dict(derived.values) == mini, facts
+        assert dict(derived.values) == recipe, facts
         assert set(derived.reasons) >= {"iterations", "max_gaussians", "num_init_gaussians"}
+
+
+def test_ssdgs_own_data_recipe_is_the_mini_recipe_over_the_official_switches():
+    """What `--variant mini` gave on a scene of one's own before presets were derived (the format's suite preset
+    under mini): the official code's switches, the mini recipe's values, no refinement."""
+    presets = get_spec("ssdgs").presets
+    recipe, mini = presets["own-data"], presets["mini"]
+    assert all(recipe[name] == value for name, value in mini.items())
+    assert recipe["init_shape"] == "box" and recipe["shadow_mode"] == "density" and recipe["asg_form"] == "official"
+    assert not recipe["refine_camera"] and not recipe["refine_light"] and recipe["test_pose_fitting"] == "none"
 
 
 def test_ssdgs_on_a_small_scene_starts_no_100k_gaussians_and_refines_nothing():
@@ -131,7 +142,7 @@ def test_own_scenes_train_at_their_own_size_and_two_sizes_live_side_by_side(tmp_
     assert result.exit_code == 2 and "--stretch" in result.output
     text = CliRunner().invoke(main, ["run", "-m", "ssdgs", "--data", str(scene), "-o", str(out), "--dry-run"]).output
     assert "16x12" not in text and "native" in text
-    assert "preset derived from the scene" in text and "max_gaussians = 5000: the mini recipe's 5000" in text
+    assert "preset derived from the scene" in text and "max_gaussians = 5000: the own-data recipe's 5000" in text
 
 
 def test_a_suites_resolution_other_than_its_own_names_the_variant(tmp_path):
@@ -150,7 +161,7 @@ def test_methods_show_data_prints_the_derived_values_and_why(tmp_path):
     result = CliRunner().invoke(main, ["methods", "show", "ssdgs", "--data", str(scene)])
     assert result.exit_code == 0, result.output
     assert f"preset derived from {scene}" in result.output
-    assert "num_init_gaussians = 2000: the mini recipe's share of the budget" in result.output
+    assert "num_init_gaussians = 2000: the own-data recipe's share of the budget" in result.output
     assert "refine_camera = false: off" in result.output
     data = json.loads(CliRunner().invoke(main, ["methods", "show", "3dgs", "--data", str(scene), "--iterations",
                                                 "200", "--json"]).output)
