@@ -2,7 +2,8 @@
 
 The paper's presets were tuned for the paper's datasets (512² images, hundreds of views, 100K GPU steps), and the
 mini presets for the mini scenes (64², 100 training views, 3000 CPU steps). A user's own capture is neither, so a
-native method declares its small-scene recipe (`MethodSpec.scene_recipe`, the ``mini`` preset) and the runner
+native method declares its small-scene recipe (`MethodSpec.scene_recipe`: the ``mini`` preset of 3DGS and GS³,
+SSD-GS's ``own-data``, its mini preset over the official code's switches) and the runner
 scales it from the mini scenes to the scene: the run length with the number of training images, the Gaussian
 budget and initial count with the pixel count, the light-view pass with the image side; never below the recipe
 (a scene smaller than the mini ones gets the recipe as it is) and never above the paper's length and budget.
