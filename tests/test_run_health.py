@@ -10,17 +10,28 @@ import numpy as np
 import pytest
 import test_runner_support as support
 from click.testing import CliRunner
+from skimage.metrics import peak_signal_noise_ratio
 
 from olatbench.bench.execute import run_job
 from olatbench.bench.health import RunHealth, background_psnr, read_warnings, record_warnings
 from olatbench.bench.plan import make_plan
 from olatbench.cli import main
+from olatbench.metrics.decibels import psnr_from_mse
 
 
 def test_background_psnr_in_closed_form():
     images = np.full((3, 4, 5, 3), 0.25, dtype=np.float32)
     assert background_psnr(images, np.zeros(3)) == pytest.approx(-10 * np.log10(0.0625))
     assert background_psnr(images, np.full(3, 0.75)) == pytest.approx(-10 * np.log10(0.25))
+
+
+def test_the_log_psnr_matches_skimage_and_stays_finite_on_an_exact_match():
+    rng = np.random.default_rng(0)
+    image, target = rng.random((8, 9, 3)), rng.random((8, 9, 3))
+    mse = float(np.mean((image - target) ** 2))
+    assert psnr_from_mse(mse) == pytest.approx(peak_signal_noise_ratio(target, image, data_range=1.0), rel=1e-12)
+    assert psnr_from_mse(4 * mse, peak=2.0) == pytest.approx(psnr_from_mse(mse), rel=1e-12)
+    assert psnr_from_mse(0.0) == pytest.approx(120.0)  # the floor: a number for the log, not +inf
 
 
 def test_a_collapsing_count_warns_below_ten_percent_of_the_initial_one():

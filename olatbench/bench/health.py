@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from olatbench.atomic import write_text
+from olatbench.metrics.decibels import psnr_from_mse
 
 WARNINGS_FILE = "warnings.txt"
 #: A count below this fraction of the initial one has collapsed.
@@ -37,7 +38,7 @@ def background_psnr(images: np.ndarray, background: np.ndarray) -> float:
     colour = np.asarray(background, dtype=np.float64)
     total = sum(float(np.mean((np.asarray(image, dtype=np.float64) - colour) ** 2)) for image in images)
     mse = total / max(1, len(images))  # images of one size: the mean of the per-image means
-    return float(-10.0 * np.log10(max(mse, 1e-12)))
+    return psnr_from_mse(mse)
 
 
 class RunHealth:

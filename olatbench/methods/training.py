@@ -23,6 +23,7 @@ from olatbench.gaussians.projection import Projected
 from olatbench.gaussians.tiles import TileBins
 from olatbench.methods.base import Views
 from olatbench.methods.initialisation import initial_ball
+from olatbench.metrics.decibels import psnr_from_mse
 from olatbench.metrics.ssim import ssim_loss
 
 if TYPE_CHECKING:
@@ -146,9 +147,7 @@ def photometric_loss(image: torch.Tensor, target: torch.Tensor, lambda_dssim: fl
 
 def psnr_of(image: torch.Tensor, target: torch.Tensor) -> float:
     """PSNR (dB, peak 1) of two images, for training logs."""
-    mse = float(((image.detach() - target) ** 2).mean())
-    return float(-10.0 * np.log10(max(mse, 1e-12)))
-
+    return psnr_from_mse(float(((image.detach() - target) ** 2).mean()))
 
 
 
