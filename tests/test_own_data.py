@@ -97,6 +97,21 @@ def test_user_suite_in_olatbench_toml_is_a_suite_everywhere(tmp_path, monkeypatc
         assert result.exit_code == 2 and "unknown suite 'other'" in result.output, (verb, result.output)
 
 
+def test_a_user_suite_trains_in_the_fitted_frame_unless_it_keeps_the_datas_own(tmp_path, monkeypatch):
+    write_nrhints_tree(tmp_path / "Cup", n_train=3, n_test=1, size=(16, 12))
+    _write_toml(tmp_path, '[suites.mine]\nscenes = ["Cup"]\n[suites.as_is]\nscenes = ["Cup"]\nframe = "dataset"\n')
+    monkeypatch.chdir(tmp_path)
+    assert (user_suites()["mine"].frame, user_suites()["as_is"].frame) == ("fitted", "dataset")
+    (fitted,) = _plan("-m", "trivial", "-s", "mine", "-o", "runs")
+    (as_is,) = _plan("-m", "trivial", "-s", "as_is", "-o", "runs")
+    assert (fitted["frame"], as_is["frame"]) == ("fitted", "dataset")
+    assert fitted["id"] != as_is["id"]  # the frame is part of the job's identity
+    (official,) = _plan("-m", "ssdgs-official", "-s", "mine", "-o", "runs")
+    assert official["frame"] == "dataset"  # the authors' code reads the files as they are
+    shown = _invoke("run", "-m", "ssdgs", "-s", "as_is", "-o", "runs", "--dry-run")
+    assert shown.exit_code == 0 and "frame: the data's own world frame" in shown.output, shown.output
+
+
 def test_malformed_user_suites_name_the_file_table_and_key(tmp_path, monkeypatch):
     write_nrhints_tree(tmp_path / "Cup", n_train=3, n_test=1, size=(16, 12))
     monkeypatch.chdir(tmp_path)
@@ -108,6 +123,7 @@ def test_malformed_user_suites_name_the_file_table_and_key(tmp_path, monkeypatch
         ('[suites.gs3]\nscenes = ["Cup"]\n', "the name is taken"),
         ('[suites.data-x]\nscenes = ["Cup"]\n', "reserved for run --data"),
         ('[suites.mine]\nscenes = ["Nope"]\n', "not a folder"),
+        ('[suites.mine]\nscenes = ["Cup"]\nframe = "world"\n', "frame must be one of fitted, dataset"),
     ]:
         _write_toml(tmp_path, text)
         with pytest.raises(DatasetError, match=r"olatbench\.toml") as caught:

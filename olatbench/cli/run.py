@@ -386,7 +386,7 @@ def plan_json(jobs, states, out: Path, estimates: list[float | None], reuse: lis
     return [{"index": index, "id": job.id or None, "suite": job.suite, "method": job.method, "variant": job.variant,
              "scene": job.scene, "seed": job.seed, "iterations": job.iterations, "state": _state_text(state),
              "step": state.step, "train_seconds_estimate": seconds, "reuse": note,
-             "resolution": list(job.resolution) if job.resolution else "native",
+             "resolution": list(job.resolution) if job.resolution else "native", "frame": job.frame,
              "folder": str(Path(job.folder).relative_to(out)), "config": job.config,
              "derived": {name: {"value": job.config.get(name), "why": why} for name, why in job.derived.items()}}
             for index, (job, state, seconds, note) in enumerate(zip(jobs, states, estimates, reuse, strict=True))]
@@ -423,6 +423,12 @@ def _print_plan(jobs, states, out: Path, estimates: list[float | None], reuse: l
                        f"docs/runner.md 'Paper scale' for what a GPU or more cores change.", err=True)
 
 
+#: What the dry run says of each frame a job may train in (`Suite.frame`).
+FRAME_NOTES = {"fitted": "the canonical frame fitted to the training cameras (a suite in olatbench.toml may set "
+                         "frame = \"dataset\" to keep the data's own)",
+               "dataset": "the data's own world frame"}
+
+
 def _print_derived(jobs) -> None:
     """For each scene of no suite, once: the values its preset derived from it and why (field: value: reason);
     a variant or --set given on top still wins, as the config column of --json shows."""
@@ -435,6 +441,7 @@ def _print_derived(jobs) -> None:
                    "(docs/own-data.md):")
         for name, why in job.derived.items():
             click.echo(f"  {name} = {json.dumps(job.config.get(name))}: {why}")
+        click.echo(f"  frame: {FRAME_NOTES.get(job.frame, job.frame)}")
         click.echo(f"  the rest as in the method's scene recipe (olatbench methods show {job.method} --data "
                    f"{job.scene_path})")
 

@@ -136,7 +136,9 @@ SUITES: dict[str, Suite] = {
 #: The name prefix of the suites made from ``run --data`` folders (``data-gs3``); reserved.
 DATA_SUITE_PREFIX = "data-"
 #: The keys a ``[suites.NAME]`` table of olatbench.toml may hold.
-USER_SUITE_KEYS = ("scenes", "format", "protocol", "resolution", "iterations")
+USER_SUITE_KEYS = ("scenes", "format", "protocol", "resolution", "iterations", "frame")
+#: The frames a suite's methods may work in (`Suite.frame`).
+FRAMES = ("fitted", "dataset")
 
 
 def suite_names() -> list[str]:
@@ -264,10 +266,13 @@ def user_suites(folder: str | Path | None = None) -> dict[str, Suite]:
         protocol = table.get("protocol")
         if protocol is not None and not isinstance(protocol, str):
             raise DatasetError(f"{where}: protocol must be a protocol name (olatbench metrics list)")
+        frame = table.get("frame", "fitted")
+        if frame not in FRAMES:
+            raise DatasetError(f"{where}: frame must be one of {', '.join(FRAMES)}, not {frame!r}")
         fmt, scene_paths = _scene_folders([path.parent / item for item in scenes], fmt, f"{where} scenes")
         resolution = parse_resolution(table["resolution"], where) if "resolution" in table else None
         suites[name] = replace(_own_suite(name, fmt, scene_paths, protocol=protocol, iterations=iterations),
-                               resolution=resolution)
+                               resolution=resolution, frame=frame)
     return suites
 
 
