@@ -73,8 +73,8 @@ SUITE_PRESETS: dict[str, dict[str, Any]] = {
 # recipe over the official code's switches (box init, density shadows with 4 frequencies, the angular ASG, the
 # official dipole factor, density control before the Adam update, light weights near the budget; refinement stays
 # off) - what `--variant mini` gave on a scene of one's own before presets were derived from the scene. Measured on a
-# 64² scene of 30 training views (docs/own-data.md): 12.92 ± 0.28 dB with the mini recipe alone (3 seeds), 14.45 ±
-# 0.60 with these switches (10 seeds); the mini scenes keep the mini preset, measured better without them there.
+# 64² scene of 30 training views (docs/own-data.md): 12.92 ± 0.28 dB with the mini recipe alone (3 seeds), 14.59 ±
+# 0.38 with these switches (10 seeds); the mini scenes keep the mini preset, measured better without them there.
 SUITE_PRESETS["own-data"] = {**OFFICIAL_CODE, **SUITE_PRESETS["mini"]}
 
 ABLATION_PRESETS: dict[str, dict[str, Any]] = {
