@@ -22,6 +22,7 @@ from olatbench.bench.jobs import Job
 from olatbench.datasets import colour
 from olatbench.datasets.records import Camera, Frame
 from olatbench.datasets.similarity import Similarity, canonical_frame
+from olatbench.datasets.suites import FRAMES
 from olatbench.methods.base import Views
 from olatbench.progress import progress_bar
 
@@ -41,7 +42,7 @@ def job_frame(frames: list[Frame], job: Job) -> Similarity:
     if job.frame == "dataset":
         return Similarity.identity()
     if job.frame != "fitted":
-        raise ValueError(f"{job.folder}: unknown frame {job.frame!r} (known: fitted, dataset)")
+        raise ValueError(f"{job.folder}: unknown frame {job.frame!r} (known: {', '.join(FRAMES)})")
     return canonical_frame([frame.camera for frame in frames])
 
 
