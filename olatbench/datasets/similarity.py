@@ -153,6 +153,12 @@ def quaternion_product(a: np.ndarray, b: np.ndarray) -> np.ndarray:
                      aw * by - ax * bz + ay * bw + az * bx, aw * bz + ax * by - ay * bx + az * bw], axis=-1)
 
 
+def unit_axes(cameras: Sequence[Camera], column: int) -> np.ndarray:
+    """(N, 3) unit vectors of one camera axis in world coordinates, per camera: ``column`` 0 right, 1 down, 2 the
+    optical axis (OpenCV axes, the columns of ``c2w``)."""
+    return np.stack([c.c2w[:3, column] / np.linalg.norm(c.c2w[:3, column]) for c in cameras])
+
+
 def axes_centre(cameras: Sequence[Camera]) -> np.ndarray:
     """The point (3,) nearest, in least squares, to every camera's optical axis.
 
@@ -160,7 +166,7 @@ def axes_centre(cameras: Sequence[Camera]) -> np.ndarray:
     along the free directions is taken, so the point still moves with the cameras under any similarity.
     """
     origins = np.stack([c.position for c in cameras])
-    axes = np.stack([c.c2w[:3, 2] / np.linalg.norm(c.c2w[:3, 2]) for c in cameras])
+    axes = unit_axes(cameras, 2)
     projector = np.eye(3)[None] - axes[:, :, None] * axes[:, None, :]  # (N, 3, 3) I - d dᵀ
     system, rhs = projector.sum(0), (projector @ origins[:, :, None]).sum(0)[:, 0]
     eigenvalues = np.linalg.eigvalsh(system)
@@ -174,12 +180,12 @@ def rig_vertical(cameras: Sequence[Camera]) -> np.ndarray | None:
     """The unit vector (3,) orthogonal, in least squares, to every camera's right axis (+x of OpenCV axes), signed
     along the cameras' up: the vertical of a rig whose cameras have no roll. None when the right axes do not pin
     it down (`LEVEL_RIG_RATIO`: rolled cameras, or right axes nearly parallel, as in a forward-facing capture)."""
-    rights = np.stack([c.c2w[:3, 0] / np.linalg.norm(c.c2w[:3, 0]) for c in cameras])
+    rights = unit_axes(cameras, 0)
     values, vectors = np.linalg.eigh(rights.T @ rights)  # ascending
     if not (values[0] < LEVEL_RIG_RATIO * values[1] and values[1] > LEVEL_RIG_RATIO * len(cameras)):
         return None
     vertical = vectors[:, 0]
-    up = -sum(c.c2w[:3, 1] / np.linalg.norm(c.c2w[:3, 1]) for c in cameras)
+    up = -unit_axes(cameras, 1).sum(0)
     return vertical if vertical @ up >= 0.0 else -vertical
 
 
@@ -194,7 +200,7 @@ def canonical_frame(cameras: Sequence[Camera]) -> Similarity:
         raise ValueError("the cameras sit at the point their axes meet: no scale can be fitted")
     up = rig_vertical(cameras)
     if up is None:
-        ups = np.stack([-c.c2w[:3, 1] / np.linalg.norm(c.c2w[:3, 1]) for c in cameras])
+        ups = -unit_axes(cameras, 1)
         up = ups.mean(0)
         if np.linalg.norm(up) < MIN_MEAN_UP:
             up = ups[0]

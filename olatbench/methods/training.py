@@ -150,7 +150,6 @@ def psnr_of(image: torch.Tensor, target: torch.Tensor) -> float:
     return psnr_from_mse(float(((image.detach() - target) ** 2).mean()))
 
 
-
 def initial_count(views: Views, config: Any) -> int:
     """How many Gaussians `initial_model` makes: one per point of ``views.points``, else
     ``config.num_init_gaussians``."""
