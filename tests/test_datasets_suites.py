@@ -17,11 +17,9 @@ CSV_CANDIDATES = [Path(__file__).parents[1] / "olatbench/reports/data/ssdgs_iclr
 def test_suite_settings_follow_the_paper():
     assert suite_names() == ["nrhints", "gs3", "sssgs", "mini"]
     nrhints, gs3, sssgs = get_suite("nrhints"), get_suite("gs3"), get_suite("sssgs")
-    assert (len(nrhints.scenes), nrhints.background, nrhints.resolution, nrhints.iterations) == (7, (0, 0, 0), None,
-                                                                                                 100_000)
-    assert (len(gs3.scenes), gs3.background, gs3.resolution, gs3.iterations) == (6, (1, 1, 1), (512, 512), 100_000)
-    assert (len(sssgs.scenes), sssgs.background, sssgs.resolution, sssgs.iterations) == (5, (0, 0, 0), (256, 256),
-                                                                                         60_000)
+    assert (len(nrhints.scenes), nrhints.resolution, nrhints.iterations) == (7, None, 100_000)
+    assert (len(gs3.scenes), gs3.resolution, gs3.iterations) == (6, (512, 512), 100_000)
+    assert (len(sssgs.scenes), sssgs.resolution, sssgs.iterations) == (5, (256, 256), 60_000)
     assert {s.protocol for s in (nrhints, gs3, sssgs)} == {"ssdgs"}
 
 

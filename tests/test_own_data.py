@@ -8,6 +8,7 @@ import json
 import shutil
 from pathlib import Path
 
+import numpy as np
 import pytest
 import test_runner_support as support  # noqa: F401  (registers the 'trivial' method and the 'test-fast' protocol)
 from click.testing import CliRunner
@@ -198,3 +199,63 @@ def test_own_suites_derive_the_preset_from_the_scene_and_keep_the_formats_withou
     monkeypatch.setitem(registry._registered, "3dgs", dataclasses.replace(spec, scene_recipe=None))
     (job,) = _plan("-m", "3dgs", "--data", tmp_path / "Cup", "-o", tmp_path / "runs")
     assert {key: job["config"][key] for key in nrhints} == dict(nrhints) and job["derived"] == {}
+
+
+def test_a_white_scene_is_trained_and_scored_on_white_whatever_the_protocol(tmp_path):
+    """An NRHints synthetic scene of one's own (``camera_angle_x``, no ``camera_intrinsics``, no synth.json: white,
+    as NRHints trains these) is trained on white and scored against ground truth on white by every path: the
+    runner's results.json (protocol ssdgs, whose ground truth is the official loader's image), `olatbench evaluate`
+    and every protocol's ground truth. Before #58 the official ground truth composited on black: 5.4 dB against
+    11.4 dB on a 48² glossy-plastic scene."""
+    from olatbench.bench.views import load_views
+    from olatbench.datasets import load_scene
+    from olatbench.datasets.images import read_image
+    from olatbench.metrics.protocols import get_protocol, protocol_names
+
+    tree = write_nrhints_tree(tmp_path / "Own", n_train=4, n_test=2, size=(24, 16), intrinsics=False)
+    scene = load_scene(tmp_path / "Own")
+    assert scene.background.tolist() == [1.0, 1.0, 1.0]
+    result = _invoke("run", "-m", "trivial", "--data", tmp_path / "Own", "-o", tmp_path / "runs", "--iterations", "30",
+                     "--quiet", "--device", "cpu")
+    assert result.exit_code == 0, result.output
+    (results_file,) = (tmp_path / "runs").rglob("results.json")
+    results = read_results(results_file)
+    assert results["protocol"]["id"] == "ssdgs"
+    # independent of olatbench's compositing: the loader's arithmetic on the stored pixels, on white and on black
+    for index, frame in enumerate(scene.split("test")):
+        stored = tree.frames["test"][index]["stored"].astype(np.float64)
+        rgb, alpha = stored[..., :3], stored[..., 3:]
+        render = read_image(results_file.parent / "renders" / "test" / f"{frame.frame_id}.png")[..., :3]
+        white, black = (_truncated_psnr(render, rgb * alpha + background * (1 - alpha)) for background in (1.0, 0.0))
+        scored = results["metrics"]["test"]["per_image"][frame.frame_id]["psnr"]
+        assert abs(scored - white) < 1e-3, (scored, white, black)
+        assert abs(white - black) > 1.0  # the scene tells the two backgrounds apart
+    # the training views and every protocol's ground truth composite on the same white
+    job_views = load_views(scene.split("train"), _data_job(tmp_path / "Own"))
+    assert job_views.background.tolist() == [1.0, 1.0, 1.0]
+    for frame in scene.split("train"):
+        expected = frame.load(colourspace="srgb", background="official").rgb
+        for name in protocol_names():
+            truth, _ = get_protocol(name).load_ground_truth(frame, scene.format)
+            assert np.abs(truth - expected).max() <= 1 / 255 + 1e-6, name
+    # `olatbench evaluate` of the runner's renders gives the runner's numbers
+    evaluated = _invoke("evaluate", results_file.parent / "renders" / "test", "--gt", tmp_path / "Own",
+                        "--protocol", "ssdgs", "-o", tmp_path / "evaluated.json")
+    assert evaluated.exit_code == 0, evaluated.output
+    again = json.loads((tmp_path / "evaluated.json").read_text())["metrics"]["test"]["per_image"]
+    for frame_id, scores in results["metrics"]["test"]["per_image"].items():
+        assert abs(again[frame_id]["psnr"] - scores["psnr"]) < 1e-6
+
+
+def _truncated_psnr(render: np.ndarray, composite: np.ndarray) -> float:
+    """PSNR (dB) of ``render`` against ``composite`` truncated to 8 bits, as the GS³ / SSD-GS loader stores it."""
+    truth = np.floor(composite * 255.0 + 1e-9) / 255.0
+    return float(10 * np.log10(1 / np.mean((render.astype(np.float64) - truth) ** 2)))
+
+
+def _data_job(folder: Path):
+    """The job `run -m trivial --data FOLDER` plans (test protocol, 5 steps)."""
+    from olatbench.bench.plan import make_plan
+
+    (suite,) = data_suites([folder])
+    return make_plan("trivial", suite, folder.parent / "plan", iterations=5, progress=False)[0]

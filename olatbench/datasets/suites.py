@@ -48,7 +48,7 @@ class Suite:
     format: str
     scenes: tuple[str, ...]
     aliases: dict[str, str] = field(default_factory=dict)  # folder name -> canonical scene name
-    background: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    # no background: each scene's own (`Frame.background`, set by its format's reader) is the one everything uses
     resolution: tuple[int, int] | None = None  # (width, height) or native
     iterations: int = 100_000
     protocol: str = "ssdgs"
@@ -116,17 +116,16 @@ SUITES: dict[str, Suite] = {
         name="nrhints", format="nrhints", scenes=_NRHINTS_SCENES,
         aliases=_default_aliases(_NRHINTS_SCENES, {"Cat_on_Decor": "CatSmall", "Cluttered": "FurScene",
                                                    "Cup-Fabric": "CupFabric"}),
-        background=(0.0, 0.0, 0.0), resolution=None, iterations=100_000, protocol="ssdgs", frame="dataset"),
+        resolution=None, iterations=100_000, protocol="ssdgs", frame="dataset"),
     "gs3": Suite(
         name="gs3", format="gs3", scenes=_GS3_SCENES, aliases=_default_aliases(_GS3_SCENES),
-        background=(1.0, 1.0, 1.0), resolution=(512, 512), iterations=100_000,
-        protocol="ssdgs", frame="dataset"),
+        resolution=(512, 512), iterations=100_000, protocol="ssdgs", frame="dataset"),
     "sssgs": Suite(
         name="sssgs", format="sssgs", scenes=_SSSGS_SCENES,
         aliases=_default_aliases(_SSSGS_SCENES, {f"{s.lower()}_small": s for s in _SSSGS_SCENES}),
-        background=(0.0, 0.0, 0.0), resolution=(256, 256), iterations=60_000, protocol="ssdgs", frame="dataset"),
+        resolution=(256, 256), iterations=60_000, protocol="ssdgs", frame="dataset"),
     "mini": Suite(
-        name="mini", format="nrhints", scenes=_MINI_SCENES, aliases={}, background=(0.0, 0.0, 0.0),
+        name="mini", format="nrhints", scenes=_MINI_SCENES, aliases={},
         resolution=None, iterations=3000, protocol="olatbench-v1", frame="dataset",
         generator="olatbench.datasets.synth.mini:ensure_mini_suite",
         generator_root="olatbench.datasets.synth.mini:default_root"),
@@ -185,11 +184,11 @@ def parse_resolution(value: object, where: str) -> tuple[int, int] | None:
 
 
 def _own_suite(name: str, fmt: str, scene_paths: dict[str, str], **given: object) -> Suite:
-    """A suite of folders of format ``fmt`` at their own resolution, with the background and method presets of the
+    """A suite of folders of format ``fmt`` at their own resolution and background, with the method presets of the
     built-in suite of that format, and its protocol and iterations unless ``given`` (None: not given)."""
     base = SUITES[fmt]
     settings = {key: value for key, value in given.items() if value is not None}
-    return Suite(name=name, format=fmt, scenes=tuple(scene_paths), background=base.background,
+    return Suite(name=name, format=fmt, scenes=tuple(scene_paths),
                  resolution=None, iterations=int(settings.get("iterations", base.iterations)),  # type: ignore[call-overload]
                  protocol=str(settings.get("protocol", base.protocol)), scene_paths=scene_paths, method_preset=fmt,
                  iterations_given="iterations" in settings)

@@ -309,8 +309,9 @@ register_protocol(Protocol(
     steps=(
         "inputs: float (H, W, 3) images in the space the official method trains in (sRGB for NRHints and "
         "SSS-GS data, gamma-2.2 encoded for GS³ EXRs); the ground truth is the official loader's image "
-        "(olatbench.datasets.official: NRHints PNGs composited on black and TRUNCATED to 8 bit by the "
-        "GS³/SSD-GS loader; GS³ composited on white, gamma 2.2, 8 bit; SSS-GS masked on black)",
+        "(olatbench.datasets.official, on the scene's background: NRHints PNGs composited on black (real "
+        "captures; white for NRHints' synthetic scenes) and TRUNCATED to 8 bit by the GS³/SSD-GS loader; GS³ "
+        "composited on white, gamma 2.2, 8 bit; SSS-GS masked on black)",
         "clip to [0, 1] and quantise to 8 bit: torchvision save_image computes floor(255x + 0.5) (ties up), "
         "olatbench rounds ties to even: identical except at exact .5 ties; no truncation in these scripts",
         "PSNR = 20 log10(1 / sqrt(MSE)) per image, MSE over pixels and channels",
