@@ -25,6 +25,7 @@ from olatbench.bench.init_points import InitPointsError, init_points_file, point
 from olatbench.bench.jobs import Job, code_hash, config_to_dict, data_manifest_hash
 from olatbench.bench.store import job_folder
 from olatbench.datasets.errors import DatasetError
+from olatbench.datasets.sizes import checked_size
 from olatbench.datasets.suites import Suite, get_suite
 from olatbench.methods.overrides import OverrideError, check_overrides
 from olatbench.methods.registry import config_class, get_spec
@@ -33,8 +34,6 @@ from olatbench.methods.spec import DEFAULT_VARIANT, MethodSpec, import_reference
 from olatbench.names import did_you_mean, match_name
 
 DATA_ENV = "OLATBENCH_DATA"
-#: The largest image side ``--resolution`` accepts, even with ``upscale`` (16K: a typo such as 100000 is refused).
-MAX_RESOLUTION_SIDE = 16_384
 
 
 class PlanError(ValueError):
@@ -157,14 +156,16 @@ def scene_size(scene_path: str | Path, fmt: str, split: str) -> tuple[int, tuple
 def checked_resolution(requested: tuple[int, int] | None, native: tuple[int, int] | None, scene: str,
                        stretch: bool = False, upscale: bool = False) -> tuple[int, int] | None:
     """``--resolution`` checked against the scene's own size ``native`` (None: not known yet, e.g. a dry run
-    before the data exists): a side above `MAX_RESOLUTION_SIDE` is refused; so are, unless asked, a size larger
-    than the scene's (``upscale``) and one that changes its aspect ratio by more than a pixel's rounding
-    (``stretch``). Gives back ``requested``."""
+    before the data exists): a side outside `olatbench.datasets.sizes.checked_size`'s bounds is refused, even with
+    ``upscale``; so are, unless asked, a size larger than the scene's (``upscale``) and one that changes its aspect
+    ratio by more than a pixel's rounding (``stretch``). Gives back ``requested``."""
     if requested is None:
         return None
     width, height = requested
-    if max(width, height) > MAX_RESOLUTION_SIDE:
-        raise PlanError(f"--resolution {width}x{height}: sides above {MAX_RESOLUTION_SIDE} px are refused")
+    try:
+        checked_size(width, height)
+    except ValueError as error:
+        raise PlanError(f"--resolution {width}x{height}: {error}") from None
     if native is None:
         return requested
     own_width, own_height = native

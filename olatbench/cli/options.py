@@ -66,7 +66,8 @@ def without_hidden_suggestions(error: click.NoSuchOption) -> click.NoSuchOption:
 
 
 class Resolution(click.ParamType):
-    """An image size as ``N`` (N × N) or ``WxH``; converts to (width, height) of at least ``minimum`` pixels."""
+    """An image size as ``N`` (N × N) or ``WxH``; converts to (width, height) of ``minimum`` to
+    `olatbench.datasets.sizes.MAX_SIDE` pixels a side (`parse_size`)."""
 
     name = "N|WxH"
 
@@ -80,12 +81,9 @@ class Resolution(click.ParamType):
         if isinstance(value, tuple):
             return value
         try:
-            size = parse_size(str(value))
+            return parse_size(str(value), self.minimum)
         except ValueError as error:
             self.fail(str(error), param, ctx)
-        if min(size) < self.minimum:
-            self.fail(f"must be at least {self.minimum} pixel(s) on each side, not {value!r}", param, ctx)
-        return size
 
 
 def tqdm_disabled() -> bool:

@@ -15,6 +15,7 @@ from olatbench.cli.options import (
     show_progress,
     suite_filter_option,
 )
+from olatbench.datasets.sizes import MAX_SIDE
 from olatbench.devices import resolve_device
 from olatbench.viewer.geometry import MAX_RESOLUTION
 
@@ -26,7 +27,7 @@ from olatbench.viewer.geometry import MAX_RESOLUTION
               help="Port of the web viewer (0: any free port).")
 @click.option("--host", default="127.0.0.1", show_default=True, help="Address to listen on (0.0.0.0: every one).")
 @device_option
-@click.option("--max-resolution", type=click.IntRange(min=8), default=MAX_RESOLUTION, show_default=True,
+@click.option("--max-resolution", type=click.IntRange(8, MAX_SIDE), default=MAX_RESOLUTION, show_default=True,
               help="Renders fill the browser window, their longer side capped at this many pixels.")
 @click.option("--drag-scale", type=click.FloatRange(0.05, 1.0), default=0.5, show_default=True,
               help="Resolution factor while the camera or light moves (full resolution once still).")

@@ -21,7 +21,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from olatbench.datasets.errors import DatasetError
-from olatbench.datasets.sizes import parse_size
+from olatbench.datasets.sizes import checked_size, parse_size
 from olatbench.names import did_you_mean, match_name
 
 
@@ -170,17 +170,13 @@ def parse_resolution(value: object, where: str) -> tuple[int, int] | None:
     `DatasetError` naming ``where`` otherwise."""
     if value == "native":
         return None
+    forms = "resolution must be N, WxH (e.g. 256 or 320x240), [W, H] or \"native\""
+    if not isinstance(value, str) and not (isinstance(value, list | tuple) and len(value) == 2):
+        raise DatasetError(f"{where}: {forms}, not {value!r}")
     try:
-        if isinstance(value, str):
-            width, height = parse_size(value)
-        else:
-            width, height = (int(part) for part in value)  # type: ignore[attr-defined]
-    except (TypeError, ValueError):
-        raise DatasetError(f"{where}: resolution must be N, WxH (e.g. 256 or 320x240), [W, H] or \"native\", "
-                           f"not {value!r}") from None
-    if width < 1 or height < 1:
-        raise DatasetError(f"{where}: resolution must be positive, not {value!r}")
-    return width, height
+        return parse_size(value) if isinstance(value, str) else checked_size(*value)
+    except ValueError as error:
+        raise DatasetError(f"{where}: {forms} ({error})") from None
 
 
 def _own_suite(name: str, fmt: str, scene_paths: dict[str, str], **given: object) -> Suite:

@@ -34,6 +34,7 @@ import numpy as np
 
 from olatbench.datasets.cameras import focal_from_fov, intrinsics_matrix, look_at, opengl_to_opencv
 from olatbench.datasets.records import Camera, PointLight
+from olatbench.datasets.sizes import checked_side
 from olatbench.reports.sweeps import SweepFrame
 
 
@@ -55,6 +56,14 @@ def _number(value: Any, where: str, positive: bool = True) -> float:
     if positive and value <= 0:
         raise CameraPathError(f"{where}: must be positive, not {value!r}")
     return float(value)
+
+
+def _side(value: Any, where: str) -> int:
+    """An image side in pixels (`olatbench.datasets.sizes.checked_side`), checked before anything is rendered."""
+    try:
+        return checked_side(value)
+    except ValueError as error:
+        raise CameraPathError(f"{where}: {error}") from None
 
 
 def _vector(value: Any, size: int, where: str) -> np.ndarray:
@@ -88,8 +97,7 @@ def read_camera_path(path: str | Path) -> CameraPath:
                 f"{path}: missing field '{key}' (a nerfstudio camera path has render_width, "
                 "render_height and camera_path)"
             )
-    width = int(_number(data["render_width"], f"{path}: render_width"))
-    height = int(_number(data["render_height"], f"{path}: render_height"))
+    width, height = (_side(data[key], f"{path}: {key}") for key in ("render_width", "render_height"))
     frames = data["camera_path"]
     if not isinstance(frames, list) or not frames:
         raise CameraPathError(f"{path}: camera_path must be a non-empty list of frames")

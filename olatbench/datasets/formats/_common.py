@@ -19,6 +19,7 @@ from olatbench.datasets.cameras import opengl_to_opencv
 from olatbench.datasets.errors import DatasetError
 from olatbench.datasets.files import present, require_file
 from olatbench.datasets.jsontext import parse_json
+from olatbench.datasets.sizes import checked_side
 
 MAX_MAGNITUDE = 1e18  # |coordinate| bound: squared distances of such values stay finite in float32 (3.4e38)
 IMAGE_SUFFIXES = (".png", ".exr", ".jpg", ".jpeg", ".tif", ".tiff", ".hdr", ".npy")
@@ -82,6 +83,14 @@ def as_positive(value: Any, *, path: Path, frame: str | int | None, key: str) ->
     if number <= 0.0:
         raise DatasetError(f"must be > 0, found {number}", path=path, frame=frame, key=key)
     return number
+
+
+def as_side(value: Any, *, path: Path, frame: str | int | None, key: str) -> int:
+    """An image side in pixels (`olatbench.datasets.sizes.checked_side`: whole, 1 to its bound)."""
+    try:
+        return checked_side(value)
+    except ValueError as error:
+        raise DatasetError(str(error), path=path, frame=frame, key=key) from None
 
 
 def as_rgb(value: Any, *, path: Path, frame: str | int | None, key: str) -> np.ndarray:

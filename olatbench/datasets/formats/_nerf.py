@@ -105,8 +105,8 @@ def _image_size(root: Path, metas: dict[str, tuple[Path, dict]], flavour: NerfFl
             continue
         path, meta = metas[split]
         if meta.get("w") is not None and meta.get("h") is not None:
-            return (int(c.as_positive(meta["w"], path=path, frame=None, key="w")),
-                    int(c.as_positive(meta["h"], path=path, frame=None, key="h")))
+            return (c.as_side(meta["w"], path=path, frame=None, key="w"),
+                    c.as_side(meta["h"], path=path, frame=None, key="h"))
     for split in IMAGE_SPLITS:
         if split not in metas:
             continue

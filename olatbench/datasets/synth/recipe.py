@@ -16,6 +16,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
+from olatbench.datasets.sizes import checked_size
+
 MaterialKind = Literal["diffuse", "roughconductor", "roughplastic", "translucent"]
 RGB = tuple[float, float, float]
 
@@ -113,9 +115,11 @@ class Recipe:
 
     def validate(self) -> Recipe:
         """Raise `ValueError` naming the first impossible field; return self."""
-        width, height = self.resolution
+        try:
+            checked_size(*self.resolution, minimum=4)
+        except (TypeError, ValueError) as error:
+            raise ValueError(f"recipe '{self.name}': resolution {error}") from None
         checks = [
-            (width >= 4 and height >= 4, "resolution", f"must be at least 4×4, found {self.resolution}"),
             (self.spp >= 1, "spp", f"must be ≥ 1, found {self.spp}"),
             (self.train >= 1, "train", f"must be ≥ 1, found {self.train}"),
             (self.test >= 0, "test", f"must be ≥ 0, found {self.test}"),
