@@ -50,8 +50,13 @@ def test_device_defaults_to_auto_on_every_verb_that_renders_or_trains(verb):
 def test_auto_resolves_to_what_torch_sees():
     import torch
 
+    from olatbench.devices import DeviceError
+
     assert resolve_device("auto") == ("cuda" if torch.cuda.is_available() else "cpu")
-    assert resolve_device("cpu") == "cpu" and resolve_device("cuda:1") == "cuda:1"
+    assert resolve_device("cpu") == "cpu"
+    beyond = f"cuda:{torch.cuda.device_count() if torch.cuda.is_available() else 0}"  # a device torch lacks here
+    with pytest.raises(DeviceError, match=f"device '{beyond}' is not usable here"):
+        resolve_device(beyond)
 
 
 @pytest.mark.parametrize(("verb", "required", "param"), RESOLUTION_VERBS)

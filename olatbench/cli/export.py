@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 
 from olatbench.atomic import WriteError
-from olatbench.cli.options import device_option, quiet_option, show_progress
+from olatbench.cli.options import device_option, quiet_option, resolved_device, show_progress
 
 
 @click.command("export", context_settings={"help_option_names": ["-h", "--help"]})
@@ -46,7 +46,6 @@ def export(job: Path, output: Path, under_light: str | None, sh_degree: int, vie
     """
     from olatbench.bench.export import Bake, BakeRequestError, export_ply
     from olatbench.bench.restore import NotAJobFolderError, RestoreError
-    from olatbench.devices import resolve_device
 
     if under_light is None and (view is not None or sh_degree != 0):
         raise click.UsageError("--view and --sh-degree go with --under-light")
@@ -54,8 +53,9 @@ def export(job: Path, output: Path, under_light: str | None, sh_degree: int, vie
         raise click.UsageError("--view bakes the colours one camera sees: --sh-degree 0 (a fit over one direction "
                                "has no view dependence to keep)")
     bake = Bake(under_light, sh_degree, view, max_views) if under_light is not None else None
+    device = resolved_device(device) if bake else "cpu"
     try:
-        exported = export_ply(job, output, bake, device=resolve_device(device) if bake else "cpu",
+        exported = export_ply(job, output, bake, device=device,
                               progress=show_progress(quiet))
     except (BakeRequestError, NotAJobFolderError) as error:  # what cannot be baked (says what can); no job folder
         raise click.UsageError(str(error)) from None

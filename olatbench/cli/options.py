@@ -8,8 +8,9 @@
 * ``--json`` on the verbs that list things (`json_option`).
 * ``-s/--suite`` to restrict the verbs that read run folders (``status``, ``report``, ``view``) to one suite:
   built-in, ``[suites.NAME]`` of olatbench.toml or ``data-<format>`` (`suite_filter_option`, `checked_suite`).
-* ``--device`` defaults to ``auto`` on every verb that runs torch (`device_option`),
-  resolved by `olatbench.devices.resolve_device`.
+* ``--device`` defaults to ``auto`` on every verb that runs torch (`device_option`: its spelling checked), resolved
+  by `resolved_device` (`olatbench.devices.resolve_device`) before anything runs: a device this machine lacks is a
+  usage error.
 * ``--resolution`` takes ``N`` (N×N) or ``WxH`` everywhere (`Resolution`).
 * A mistyped option is offered the shown spellings only, never a hidden old one (`without_hidden_suggestions`).
 """
@@ -101,6 +102,20 @@ quiet_option = click.option("--quiet", "-q", is_flag=True,
 json_option = click.option("--json", "as_json", is_flag=True, help="Print JSON instead of text.")
 
 
+def name_list(values: str | tuple[str, ...] | None, option: str) -> list[str] | None:
+    """The comma-separated names of an option given once or several times (``--scenes a,b --scenes c``), spaces
+    around each stripped; None when it was not given; a usage error naming ``option`` when it was given but names
+    nothing (``--scenes ''`` is no scene, never every scene)."""
+    if values is None or values == ():
+        return None
+    given = (values,) if isinstance(values, str) else values
+    names = [name.strip() for value in given for name in value.split(",") if name.strip()]
+    if not names:
+        raise click.BadParameter(f"{' '.join(map(repr, given))} names nothing; leave the option out for all",
+                                 param_hint=f"'{option}'")
+    return names
+
+
 def checked_suite(name: str | None) -> str | None:
     """``name`` when it names a suite (`olatbench.datasets.suites.get_suite`), else a usage error (exit 2) listing
     the known suites."""
@@ -117,5 +132,31 @@ def checked_suite(name: str | None) -> str | None:
 
 suite_filter_option = click.option("--suite", "-s", help="Only jobs of this suite (built-in, a [suites.NAME] of "
                                                           "olatbench.toml, or data-<format> for run --data).")
-device_option = click.option("--device", default="auto", show_default=True,
+class Device(click.ParamType):
+    """A torch device name, its spelling checked without torch (`olatbench.devices.check_device`); whether this
+    machine has it is checked when the verb resolves it (`resolved_device`)."""
+
+    name = "DEVICE"
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> str:
+        from olatbench.devices import DeviceError, check_device
+
+        try:
+            return check_device(str(value))
+        except DeviceError as error:
+            self.fail(str(error), param, ctx)
+
+
+def resolved_device(name: str) -> str:
+    """``--device`` as torch will use it (`olatbench.devices.resolve_device`: auto resolved, the device tried); a
+    usage error naming the option when this machine cannot use it."""
+    from olatbench.devices import DeviceError, resolve_device
+
+    try:
+        return resolve_device(name)
+    except DeviceError as error:
+        raise click.BadParameter(str(error), param_hint="'--device'") from None
+
+
+device_option = click.option("--device", type=Device(), default="auto", show_default=True,
                              help="torch device: auto (cuda when available, else cpu), cpu, cuda, cuda:1, ...")

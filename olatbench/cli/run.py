@@ -19,12 +19,13 @@ from olatbench.cli.options import (
     checked_suite,
     device_option,
     json_option,
+    name_list,
     option,
     quiet_option,
+    resolved_device,
     show_progress,
     suite_filter_option,
 )
-from olatbench.devices import resolve_device
 
 
 def _parse_minutes(value: str) -> int:
@@ -37,10 +38,6 @@ def _parse_minutes(value: str) -> int:
         parts.append(0)
     hours, minutes, seconds = parts[:3]
     return int(days) * 1440 + hours * 60 + minutes + (1 if seconds else 0)
-
-
-def _split_names(values: tuple[str, ...]) -> list[str]:
-    return [name.strip() for value in values for name in value.split(",") if name.strip()]
 
 
 def _format_seconds(seconds: float | None) -> str:
@@ -193,15 +190,17 @@ def run(method, suite, data_paths, protocol_name, scenes, variants, ablation, se
     if unknown:
         raise click.UsageError(f"--code names {', '.join(unknown)}, but this run is of {method}")
     # a dry run leaves "auto" unresolved (the device enters no job id, and resolving it would import torch; a
-    # calibration resolves it in plan_estimates, which stores the name for later dry runs); a run resolves it here,
-    # before any method sees it
-    options = PlanOptions(device=device if dry_run else resolve_device(device),
+    # calibration resolves it in plan_estimates, which stores the name for later dry runs); a run resolves and tries
+    # it here, before any job starts (a device this machine lacks is a usage error), except a named device of Slurm
+    # jobs, which run on other machines
+    remote = executor == "slurm" and device != "auto"
+    options = PlanOptions(device=device if dry_run or remote else resolved_device(device),
                           checkpoint_every=checkpoint_every, save_components=save_components, reuse=not no_reuse,
                           code=code.get(method, {}))
     try:
         jobs = [job for plan_suite in _suites(suite, data_paths, protocol_name, data_root)
-                for job in make_plan(method, plan_suite, out, scenes=_split_names(scenes),
-                                     variants=_split_names(variants), ablation=ablation, seeds=seeds,
+                for job in make_plan(method, plan_suite, out, scenes=name_list(scenes, "--scenes") or (),
+                                     variants=name_list(variants, "--variant") or (), ablation=ablation, seeds=seeds,
                                      iterations=iterations, resolution=resolution,
                                      data_root=data_root, options=options, generate=not dry_run or calibrate,
                                      progress=progress, overrides=parse_overrides(overrides), stretch=stretch,

@@ -12,11 +12,11 @@ from olatbench.cli.options import (
     checked_suite,
     device_option,
     quiet_option,
+    resolved_device,
     show_progress,
     suite_filter_option,
 )
 from olatbench.datasets.sizes import MAX_SIDE
-from olatbench.devices import resolve_device
 from olatbench.viewer.geometry import MAX_RESOLUTION
 
 
@@ -57,7 +57,7 @@ def view(folder, suite, port, host, device, max_resolution, drag_scale, record, 
     # Idle OpenMP threads sleep instead of spinning: on a shared 2-core machine spinning made each render of the
     # native kernels 8x slower with 2 threads (benchmarks/bench_viewer.py, docs/viewer.md). Set before torch loads.
     os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
-    device = resolve_device(device)
+    device = resolved_device(device)
     from olatbench.bench.restore import RestoreError
     from olatbench.bench.store import in_suite
     from olatbench.viewer.jobs import NoJobFolder, job_folders
