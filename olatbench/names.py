@@ -5,6 +5,11 @@
   None when there is none or several (``Lego`` and ``lego`` both known: ambiguous, so no guess).
 * `did_you_mean`: up to three known names close to a mistyped one (difflib's ratio ≥ 0.6, compared ignoring
   case), to follow the name in an error message: ``" (did you mean 'ssdgs'?)"``, or ``""`` when nothing is close.
+* `path_component`: a name that becomes one folder of a run's path (suite, method, variant, scene) is checked once
+  before any folder is made: never empty, ``.`` or ``..``, never holding a path separator or a control character,
+  at most 255 bytes, so it cannot leave the output folder or land where another name's folder belongs.
+* `case_twin`: the known name equal to a new one ignoring case: two such names are one folder on a case-insensitive
+  disk (macOS, Windows), so a second one is refused where names are declared.
 """
 
 from __future__ import annotations
@@ -14,6 +19,7 @@ from collections.abc import Iterable
 
 CLOSE_ENOUGH = 0.6  # difflib's default cutoff: 'ssgds' ~ 'ssdgs' (0.8), 'mini' !~ 'nrhints'
 MAX_SUGGESTIONS = 3
+MAX_COMPONENT_BYTES = 255  # the longest file name of ext4, APFS and NTFS (UTF-8 bytes; NTFS counts UTF-16 units)
 
 
 def match_name(name: str, known: Iterable[str]) -> str | None:
@@ -45,4 +51,29 @@ def did_you_mean(name: str, known: Iterable[str]) -> str:
     return f" (did you mean {listing}?)"
 
 
-__all__ = ["close_names", "did_you_mean", "match_name"]
+def path_component(name: str, what: str) -> str:
+    """``name`` when it can name one folder below an output folder (module docstring); else a `ValueError`
+    naming ``what`` (e.g. ``"suite"``) and the reason."""
+    reason = None
+    if not isinstance(name, str) or not name:
+        reason = "it is empty"
+    elif name in (".", ".."):
+        reason = f"'{name}' is not a folder of its own"
+    elif any(separator in name for separator in "/\\"):
+        reason = "it holds a path separator"
+    elif any(ord(char) < 32 or ord(char) == 127 for char in name):
+        reason = "it holds a control character"
+    elif len(name.encode("utf-8", "surrogateescape")) > MAX_COMPONENT_BYTES:
+        reason = f"it is longer than {MAX_COMPONENT_BYTES} bytes"
+    if reason is not None:
+        raise ValueError(f"{what} name {name!r} cannot name a folder: {reason}")
+    return name
+
+
+def case_twin(name: str, known: Iterable[str]) -> str | None:
+    """The first of ``known`` that differs from ``name`` only by case (the same folder on a case-insensitive disk),
+    else None."""
+    return next((other for other in known if other != name and other.casefold() == name.casefold()), None)
+
+
+__all__ = ["case_twin", "close_names", "did_you_mean", "match_name", "path_component"]

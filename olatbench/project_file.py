@@ -34,6 +34,9 @@ def read_project_file(folder: str | Path | None = None) -> dict[str, Any]:
             raise ProjectFileError(f"{path}: reading it needs Python 3.11 or: pip install tomli") from None
     try:
         return tomllib.loads(path.read_text(encoding="utf-8"))
+    except UnicodeDecodeError as error:
+        raise ProjectFileError(f"{path}: not UTF-8 text (byte 0x{error.object[error.start]:02x} at offset "
+                               f"{error.start}); TOML files are UTF-8") from None
     except (OSError, tomllib.TOMLDecodeError) as error:
         raise ProjectFileError(f"{path}: {error}") from None
 

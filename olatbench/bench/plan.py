@@ -30,7 +30,13 @@ from olatbench.datasets.suites import Suite, get_suite
 from olatbench.methods.overrides import OverrideError, check_overrides
 from olatbench.methods.registry import config_class, get_spec
 from olatbench.methods.scene_presets import DerivedPreset, SceneFacts, derive_preset
-from olatbench.methods.spec import DEFAULT_VARIANT, MethodSpec, import_reference, preset_overrides
+from olatbench.methods.spec import (
+    DEFAULT_VARIANT,
+    MethodSpec,
+    import_reference,
+    preset_overrides,
+    variant_presets,
+)
 from olatbench.names import did_you_mean, match_name
 
 DATA_ENV = "OLATBENCH_DATA"
@@ -73,9 +79,12 @@ def expand_variants(spec: MethodSpec, variants: Sequence[str] = (), ablation: st
                             f"{did_you_mean(ablation, spec.ablations)}; its grids: {grids}. "
                             f"See: olatbench methods show {spec.name}")
         names += spec.ablations[ablation]
-    names = list(dict.fromkeys(names or [DEFAULT_VARIANT]))
-    missing = [part for name in names if name != DEFAULT_VARIANT for part in name.split("+")
-               if part not in spec.presets]
+    try:  # "a + b" is the variant "a+b": one spelling, one folder
+        parts = [variant_presets(name) for name in names]
+    except ValueError as error:
+        raise PlanError(f"--variant: {error}") from None
+    names = list(dict.fromkeys("+".join(part) or DEFAULT_VARIANT for part in parts)) or [DEFAULT_VARIANT]
+    missing = [part for presets in parts for part in presets if part not in spec.presets]
     if missing:
         known = ", ".join(sorted(spec.presets)) or "none"
         hints = "".join(did_you_mean(part, spec.presets) for part in missing)
@@ -372,7 +381,10 @@ def make_plan(method: str, suite: str | Suite, out: str | Path, scenes: Sequence
                         "declare the capability init_points (olatbench methods show METHOD)")
     from olatbench.metrics.protocols import get_protocol
 
-    protocol = get_protocol(suite.protocol)
+    try:
+        protocol = get_protocol(suite.protocol)
+    except ValueError as error:
+        raise PlanError(f"{suite.source or f'suite {suite.name}'}: protocol: {error}") from None
     if options.code and spec.kind != "official":
         raise PlanError(f"--code settings are for official implementations (*-official), not for '{method}'")
     official = official_settings(spec, options.code, required=generate) if spec.kind == "official" else None
@@ -407,13 +419,17 @@ def make_plan(method: str, suite: str | Suite, out: str | Path, scenes: Sequence
             for seed in range(seeds):
                 label = variant_label(variant, {**(overrides or {}), **named},
                                       size if size != suite.resolution else None)
+                try:
+                    folder = job_folder(out, suite.name, method, label, scene, seed)
+                except ValueError as error:
+                    raise PlanError(str(error)) from None
                 job = Job(method=method, method_ref=spec.implementation, suite=suite.name, scene=scene,
                           variant=label, seed=seed, config=configs[variant],
                           scene_path=str(scene_path) if scene_path else "", scene_format=suite.format,
                           colourspace=suite.colourspace, resolution=size,
                           train_split=suite.train_split, test_split=suite.test_split,
                           protocol=protocol.id, protocol_version=int(protocol.version), data_manifest=manifest,
-                          code=code, folder=str(job_folder(out, suite.name, method, label, scene, seed)),
+                          code=code, folder=str(folder),
                           device=options.device, checkpoint_every=options.checkpoint_every,
                           checkpoint_minutes=options.checkpoint_minutes, keep_checkpoints=options.keep_checkpoints,
                           save_components=options.save_components, official=official, reuse=options.reuse,

@@ -17,6 +17,7 @@ from typing import Any
 
 from olatbench.bench.results import ResultsError, read_results
 from olatbench.datasets.jsontext import parse_json
+from olatbench.names import path_component
 
 JOB_FILE = "job.json"
 DONE_FILE = "DONE"
@@ -29,7 +30,11 @@ _CHECKPOINT_NAME = re.compile(r"^step_(\d+)\.pt$")
 
 
 def job_folder(out: str | Path, suite: str, method: str, variant: str, scene: str, seed: int) -> Path:
-    """The folder of one job below the output root."""
+    """The folder of one job below the output root; a `ValueError` when a name cannot be one folder of it
+    (`olatbench.names.path_component`: empty, ``..``, a separator, ...), so no job is written outside ``out`` or
+    where another name's folder belongs."""
+    for what, name in (("suite", suite), ("method", method), ("variant", variant), ("scene", scene)):
+        path_component(name, what)
     return Path(out) / suite / method / variant / scene / f"seed{seed}"
 
 

@@ -11,21 +11,15 @@ from olatbench.cli.options import (
     Resolution,
     checked_suite,
     device_option,
+    name_list,
     quiet_option,
+    resolved_device,
     show_progress,
 )
-from olatbench.devices import resolve_device
 
 LAYOUTS = ("scenes", "overview", "ablation")
 FIGURE_FILE_FORMATS = ("png", "svg", "pdf")  # olatbench.reports.figures.FIGURE_FORMATS (not imported: matplotlib)
 FIGURE_CHOICES = ("embed", *FIGURE_FILE_FORMATS, "none")
-
-
-def _split_list(text: str | None) -> list[str] | None:
-    if text is None:
-        return None
-    items = [item.strip() for item in text.split(",") if item.strip()]
-    return items or None
 
 
 def _emit(text: str, output: str | None) -> None:
@@ -136,17 +130,20 @@ def report(runs, suite, methods, metrics, splits, layouts, average, fmt, as_json
             raise click.UsageError("give a runs folder (or results.json files), or use --published-only; e.g. "
                                    "olatbench report runs/ --suite mini")
         if as_json or fmt == "csv":
-            text = _report_data(runs, suite, _split_list(methods), _split_list(metrics), _split_list(splits),
-                                as_json)
+            text = _report_data(runs, suite, name_list(methods, "--methods"), name_list(metrics, "--metrics"),
+                                name_list(splits, "--splits"), as_json)
         else:
             if figure_format in FIGURE_FILE_FORMATS and (fmt != "html" or output is None):
                 raise click.UsageError(f"--figures {figure_format} writes the figures beside an HTML page: add "
                                        "-o report.html")
-            text = _report_runs(runs, suite, _split_list(methods), _split_list(metrics), _split_list(splits),
-                                layouts or ("scenes",), average, fmt, standalone, palette, rules, published, seeds,
-                                figure_format, _split_list(frame_ids) or [], output, fit)
+            text = _report_runs(runs, suite, name_list(methods, "--methods"), name_list(metrics, "--metrics"),
+                                name_list(splits, "--splits"), layouts or ("scenes",), average, fmt, standalone,
+                                palette, rules, published, seeds, figure_format,
+                                name_list(frame_ids, "--frames") or [], output, fit)
     except ResultsError as error:
         raise click.ClickException(f"{error}\n'olatbench status RUNS' shows which jobs finished.") from None
+    except WriteError as error:  # the figure files (--figures png|svg|pdf) cannot be written: one line
+        raise click.ClickException(f"{error}; choose another -o") from None
     except (ReportError, PublishedError, ValueError, FileNotFoundError) as error:
         raise click.UsageError(f"{error}\n'olatbench status RUNS' shows which jobs finished.") from None
     _emit(text, output)
@@ -190,10 +187,11 @@ def _holds_jobs(path: Path) -> bool:
 
 def _report_data(runs, suite, methods, metrics, splits, as_json: bool) -> str:
     """``--json`` / ``--format csv``: the selected results as records (`olatbench.reports.tidy`)."""
-    from olatbench.reports.runs_tables import select_runs
+    from olatbench.reports.runs_tables import checked_blocks, select_runs
     from olatbench.reports.tidy import tidy_records, to_json, to_tidy_csv
 
     frame = _collect(runs)
+    metrics, splits = checked_blocks(frame, metrics, splits)
     records = tidy_records(select_runs(frame, suite, methods), metrics, splits)
     return to_json(records) if as_json else to_tidy_csv(records)
 
@@ -202,9 +200,10 @@ def _report_runs(runs, suite, methods, metrics, splits, layouts, average, fmt, s
                  published, seeds, figure_format, frame_ids, output, fit=False) -> str:
     from olatbench.reports.output import render_tables
     from olatbench.reports.ranking import rank_table
-    from olatbench.reports.runs_tables import ablation_table, overview_table, scene_table, select_runs
+    from olatbench.reports.runs_tables import ablation_table, checked_blocks, overview_table, scene_table, select_runs
 
     frame = _collect(runs)
+    metrics, splits = checked_blocks(frame, metrics, splits)
 
     # one per-scene / overview table per suite holding the selected methods
     suites = [suite] if suite else sorted(set(select_runs(frame, None, methods)["suite"]))
@@ -291,6 +290,7 @@ def render(run, kind, camera_path, orbit, elevation, radius, light, light_path, 
         raise click.UsageError("--light and --light-path go with --camera-path or --orbit")
     if light is not None and light_path is not None:
         raise click.UsageError("give --light or --light-path, not both")
+    device = resolved_device(device)
     try:
         job = JobFolder.open(run)
     except JobFolderError as error:  # RUN is not a finished job folder
@@ -306,7 +306,7 @@ def render(run, kind, camera_path, orbit, elevation, radius, light, light_path, 
             fps = fps or path_fps
         result = render_sweep(job, name if free else kind or "light-orbit", output or run / "videos", count=count,
                               frame_id=start_frame, component=component, fps=fps or 30.0,
-                              device=resolve_device(device), resolution=resolution, progress=show_progress(quiet),
+                              device=device, resolution=resolution, progress=show_progress(quiet),
                               frames=frames)
     except RenderRequestError as error:  # something asked of the job that it does not have: says what it has
         raise click.UsageError(str(error)) from None

@@ -16,13 +16,14 @@ none from the scene (`olatbench.methods.scene_presets`).
 
 from __future__ import annotations
 
+import json
 import re
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from olatbench.datasets.errors import DatasetError
 from olatbench.datasets.sizes import checked_size, parse_size
-from olatbench.names import did_you_mean, match_name
+from olatbench.names import case_twin, did_you_mean, match_name, path_component
 
 
 def _snake(name: str) -> str:
@@ -63,6 +64,7 @@ class Suite:
     # (olatbench.datasets.similarity), or "dataset", the data's own world frame: the built-in suites', whose method
     # presets hold world-unit values tuned in it (docs/architecture.md, "The canonical frame").
     frame: str = "fitted"
+    source: str = ""  # where a user's suite was declared ("<file> [suites.NAME]"), named by errors in its settings
 
     @property
     def preset(self) -> str:
@@ -152,17 +154,14 @@ def get_suite(name: str) -> Suite:
     if name in SUITES:
         return SUITES[name]
     users = user_suites()
-    if name in users:
-        return users[name]
-    fmt = name.removeprefix(DATA_SUITE_PREFIX)
-    if name.startswith(DATA_SUITE_PREFIX) and fmt in SUITES:
-        return _own_suite(name, fmt, {})
-    names = [*SUITES, *users]
-    matched = match_name(name, names)  # "Mini": case does not matter where only one suite matches
+    data = {f"{DATA_SUITE_PREFIX}{suite.format}": suite.format for suite in SUITES.values()}
+    matched = match_name(name, [*SUITES, *users, *data])  # "Mini": case does not matter where only one matches
+    if matched in data:
+        return _own_suite(matched, data[matched], {})
     if matched is not None:
         return SUITES[matched] if matched in SUITES else users[matched]
-    known = ", ".join(names) + f" (and {DATA_SUITE_PREFIX}<format> for run --data)"
-    raise DatasetError(f"unknown suite '{name}'{did_you_mean(name, names)}; known suites: {known}")
+    known = ", ".join([*SUITES, *users]) + f" (and {DATA_SUITE_PREFIX}<format> for run --data)"
+    raise DatasetError(f"unknown suite '{name}'{did_you_mean(name, [*SUITES, *users, *data])}; known suites: {known}")
 
 
 def parse_resolution(value: object, where: str) -> tuple[int, int] | None:
@@ -205,9 +204,11 @@ def _scene_folders(paths: list[Path], fmt: str | None, where: str) -> tuple[str,
             raise DatasetError(f"{where}: the folder is in {detected} format, not {fmt}", path=path)
         formats.add(detected)
         name = path.resolve().name
-        if name in found:
-            raise DatasetError(f"{where}: two scene folders are named '{name}' ({found[name]} and {path}); "
-                               "rename one, since run folders are named after the scene", path=path)
+        twin = name if name in found else case_twin(name, found)
+        if twin is not None:
+            names = f"'{name}'" if twin == name else f"'{twin}' and '{name}' (one folder ignoring case, as on macOS)"
+            raise DatasetError(f"{where}: two scene folders are named {names} ({found[twin]} and {path}); rename "
+                               "one, since run folders are named after the scene", path=path)
         found[name] = str(path.resolve())
     if len(formats) > 1:
         raise DatasetError(f"{where}: the scenes mix formats ({', '.join(sorted(formats))}); a suite holds one")
@@ -241,9 +242,15 @@ def user_suites(folder: str | Path | None = None) -> dict[str, Suite]:
     path = project_file_path(folder)
     suites = {}
     for name, table in tables.items():
-        where = f"{path} [suites.{name}]"
-        if name in SUITES or name.startswith(DATA_SUITE_PREFIX):
-            raise DatasetError(f"{where}: the name is taken (built-in suites: {', '.join(SUITES)}; "
+        where = f"{path} [suites.{name if re.fullmatch(r'[A-Za-z0-9_-]+', name) else json.dumps(name)}]"
+        try:
+            path_component(name, "suite")
+        except ValueError as error:
+            raise DatasetError(f"{where}: {error}") from None
+        taken = case_twin(name, suites) or match_name(name, SUITES)
+        if taken is not None or name.casefold().startswith(DATA_SUITE_PREFIX):
+            named = f" (as '{taken}', ignoring case: one folder on a case-insensitive disk)" if taken else ""
+            raise DatasetError(f"{where}: the name is taken{named} (built-in suites: {', '.join(SUITES)}; "
                                f"{DATA_SUITE_PREFIX}* is reserved for run --data)")
         unknown = sorted(set(table) - set(USER_SUITE_KEYS))
         if unknown:
@@ -267,7 +274,7 @@ def user_suites(folder: str | Path | None = None) -> dict[str, Suite]:
         fmt, scene_paths = _scene_folders([path.parent / item for item in scenes], fmt, f"{where} scenes")
         resolution = parse_resolution(table["resolution"], where) if "resolution" in table else None
         suites[name] = replace(_own_suite(name, fmt, scene_paths, protocol=protocol, iterations=iterations),
-                               resolution=resolution, frame=frame)
+                               resolution=resolution, frame=frame, source=where)
     return suites
 
 

@@ -92,8 +92,8 @@ class MethodSpec:
         if (self.kind == "official") != (self.source is not None):
             raise ValueError(f"method spec {self.name!r}: official methods, and only they, carry a source pin")
         for grid, variants in self.ablations.items():
-            missing = sorted({part for variant in variants if variant != DEFAULT_VARIANT
-                              for part in variant.split("+") if part not in self.presets})
+            missing = sorted({part for variant in variants for part in variant_presets(variant)
+                              if part not in self.presets})
             if missing:
                 raise ValueError(f"method spec {self.name!r}: ablation grid {grid!r} names unknown presets {missing}")
         object.__setattr__(self, "presets", _frozen({k: _frozen(v) for k, v in self.presets.items()}))
@@ -114,13 +114,29 @@ class MethodSpec:
         return import_reference(self.implementation)
 
 
+def variant_presets(variant: str | None) -> list[str]:
+    """The presets a variant name combines, left to right: ``"a+b"`` -> ``["a", "b"]`` (spaces around each
+    stripped); ``None``, ``""`` and ``"default"`` combine none. A `ValueError` for an empty part (``"a+"``,
+    ``"+a"``, ``"a++b"``), which names no preset. The one parser of variant names."""
+    if not variant or variant == DEFAULT_VARIANT:
+        return []
+    parts = [part.strip() for part in variant.split("+")]
+    if not all(parts):
+        raise ValueError(f"variant {variant!r} has an empty preset name: combine presets as 'a+b' (e.g. "
+                         "'mini+ablation-C')")
+    return parts
+
+
 def preset_overrides(method: str, presets: Mapping[str, Mapping[str, Any]], preset: str | None) -> dict[str, Any]:
     """The config overrides of ``preset``: ``"a+b+c"`` merges the presets ``a``, ``b``, ``c`` left to right
-    (later wins); ``None``, ``""`` and ``"default"`` apply none. A `KeyError` lists ``method``'s presets."""
+    (later wins, `variant_presets`); ``None``, ``""`` and ``"default"`` apply none. A `KeyError` lists ``method``'s
+    presets."""
     values: dict[str, Any] = {}
-    if not preset or preset == DEFAULT_VARIANT:
-        return values
-    for name in (part.strip() for part in preset.split("+")):
+    try:
+        names = variant_presets(preset)
+    except ValueError as error:
+        raise KeyError(f"method '{method}': {error}") from None
+    for name in names:
         if name not in presets:
             raise KeyError(f"method '{method}' has no preset '{name}'; known presets: "
                            f"{', '.join(sorted(presets)) or 'none'} (combine with '+', e.g. 'mini+ablation-C')")

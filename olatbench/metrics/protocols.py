@@ -27,6 +27,7 @@ from olatbench.datasets.errors import DatasetError
 from olatbench.datasets.formats import display_colourspace
 from olatbench.datasets.official import official_ground_truth
 from olatbench.datasets.records import Frame
+from olatbench.names import did_you_mean, match_name
 from olatbench.progress import progress_bar
 
 if TYPE_CHECKING:
@@ -251,12 +252,13 @@ def register_protocol(protocol: Protocol) -> Protocol:
 
 
 def get_protocol(name: str) -> Protocol:
-    """The protocol called ``name``; ``ValueError`` listing the known names otherwise."""
-    try:
-        return _PROTOCOLS[name]
-    except KeyError:
-        raise ValueError(f"unknown metric protocol {name!r}; known: {', '.join(protocol_names())} "
-                         "(see `olatbench metrics list`)") from None
+    """The protocol called ``name`` (ignoring case where only one matches: `olatbench.names.match_name`);
+    ``ValueError`` with a "did you mean" and the known names otherwise."""
+    matched = match_name(name, _PROTOCOLS)
+    if matched is None:
+        raise ValueError(f"unknown metric protocol {name!r}{did_you_mean(name, _PROTOCOLS)}; known: "
+                         f"{', '.join(protocol_names())} (see `olatbench metrics list`)")
+    return _PROTOCOLS[matched]
 
 
 def protocol_names() -> list[str]:

@@ -19,11 +19,12 @@ from __future__ import annotations
 
 import math
 import statistics
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 
 import pandas as pd
 
+from olatbench.names import did_you_mean, match_name
 from olatbench.reports.experiments import experiment_labels
 from olatbench.reports.layouts import (
     CellLookup,
@@ -91,11 +92,14 @@ class Notes:
 
 
 def select_runs(frame: pd.DataFrame, suite: str | None = None, methods: Sequence[str] | None = None) -> pd.DataFrame:
-    """Rows of one suite and of the named methods ("ssdgs" or "ssdgs/variant"); a `ReportError` if none."""
+    """Rows of one suite and of the named methods ("ssdgs" or "ssdgs/variant", `checked_names`: "3DGS" is 3dgs); a
+    `ReportError` if none, or when a name matches no run (with a "did you mean")."""
     selected = frame
     if suite is not None:
         selected = selected[selected["suite"] == suite]
     if methods:
+        keys = frame["method"] + "/" + frame["variant"]
+        methods = checked_names(methods, [*frame["method"], *keys], "--methods", "method")
         keys = selected["method"] + "/" + selected["variant"]
         selected = selected[selected["method"].isin(methods) | keys.isin(methods)]
     if selected.empty:
@@ -103,6 +107,33 @@ def select_runs(frame: pd.DataFrame, suite: str | None = None, methods: Sequence
         raise ReportError(f"no results match suite={suite!r} methods={list(methods or [])}; the runs hold "
                           f"{'suites' if suite else 'methods'} {', '.join(found) or 'none'}")
     return selected
+
+
+def checked_names(requested: Sequence[str], known: Iterable[str], option: str, what: str) -> list[str]:
+    """``requested`` as ``known`` spells them (`olatbench.names.match_name`: ignoring case where only one matches);
+    a `ReportError` naming ``option``, with a "did you mean" and the known names, for one that matches none."""
+    known = sorted({name for name in known if name})
+    matched = []
+    for name in requested:
+        found = match_name(name, known)
+        if found is None:
+            raise ReportError(f"{option}: unknown {what} {name!r}{did_you_mean(name, known)}; known here: "
+                              f"{', '.join(known) or 'none'}")
+        matched.append(found)
+    return matched
+
+
+def checked_blocks(frame: pd.DataFrame, metrics: Sequence[str] | None, splits: Sequence[str] | None
+                   ) -> tuple[list[str] | None, list[str] | None]:
+    """``--metrics`` and ``--splits`` checked (`checked_names`) against what a table can show: the metrics of every
+    protocol and the splits ``train`` and ``test``, with those the runs hold (their per-job facts aside)."""
+    from olatbench.metrics.protocols import get_protocol, protocol_names
+
+    scored = frame[~frame["split"].isin(("-", ""))]
+    known_metrics = [*(metric for name in protocol_names() for metric in get_protocol(name).metrics),
+                     *scored["metric"]]
+    return (checked_names(metrics, known_metrics, "--metrics", "metric") if metrics else None,
+            checked_names(splits, ["train", "test", *scored["split"]], "--splits", "split") if splits else None)
 
 
 def single_suite(frame: pd.DataFrame) -> str:
