@@ -57,7 +57,7 @@ CASES = [
     ("report {runs}", 0, "trivial"),
     ("report {empty}", 2, "no job folder and no results.json"),  # nothing of olatbench's: a usage error
     ("report {runs} --suite nope", 2, "unknown suite 'nope'"),
-    ("report {runs} --methods nope", 2, "no results match"),
+    ("report {runs} --methods nope", 2, "--methods: unknown method 'nope'"),
     ("report {runs} --colours red", 2, "three comma-separated numbers"),
     ("render {empty}", 2, "job.json"),
     ("view {empty}", 2, "no job.json"),  # no job below it: a usage error
