@@ -37,9 +37,9 @@ PERFECT_PSNR = 35.0  # dB: a stand-in render is its ground truth after 8-bit rou
 
 
 def suite_of(name: str, fmt: str = "nrhints", scenes: tuple[str, ...] = ("Alpha",)) -> suites.Suite:
-    """A tiny suite named like a real one (so the spec's suite arguments apply), fast protocol, native size."""
-    return dataclasses.replace(support.tiny_suite(scenes=scenes), name=name, format=fmt,
-                               background=(1.0, 1.0, 1.0) if fmt == "gs3" else (0.0, 0.0, 0.0))
+    """A tiny suite named like a real one (so the spec's suite arguments apply), fast protocol, native size; its
+    background is its scenes' (the format's)."""
+    return dataclasses.replace(support.tiny_suite(scenes=scenes), name=name, format=fmt)
 
 
 def write_data(root: Path, fmt: str = "nrhints", scenes: tuple[str, ...] = ("Alpha",)) -> Path:
