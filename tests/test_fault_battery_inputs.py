@@ -176,6 +176,11 @@ def test_every_name_of_a_job_folder_is_one_folder_below_the_output(tmp_path, kin
         with pytest.raises(ValueError, match=f"{kind} name .* cannot name a folder"):
             job_folder(tmp_path, **{**names, kind: bad}, seed=0)
     assert job_folder(tmp_path, **names, seed=0) == tmp_path / "s" / "m" / "default" / "Cup" / "seed0"
+    if kind == "method":  # a plugin's spec is refused where it is declared
+        from olatbench.methods.spec import MethodSpec
+
+        with pytest.raises(ValueError, match="method name '../x' cannot name a folder"):
+            MethodSpec(name="../x", description="", implementation="m:C", config="m:D")
 
 
 # ---- devices ---------------------------------------------------------------------------------------------------------

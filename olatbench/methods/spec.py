@@ -17,6 +17,8 @@ from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import Any, Literal
 
+from olatbench.names import path_component
+
 #: The variant that applies no preset (``run --variant default``; may appear in an ablation grid).
 DEFAULT_VARIANT = "default"
 
@@ -75,6 +77,7 @@ class MethodSpec:
     scene_recipe: str | None = None
 
     def __post_init__(self) -> None:
+        path_component(self.name, "method")  # it names a folder of each of its jobs
         if self.iterations is not None and (isinstance(self.iterations, bool) or not isinstance(self.iterations, int)
                                             or self.iterations < 0):
             raise ValueError(f"method spec {self.name!r}: iterations must be a whole number >= 0 or None, not "
