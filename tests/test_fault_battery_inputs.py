@@ -179,7 +179,7 @@ def test_every_name_of_a_job_folder_is_one_folder_below_the_output(tmp_path, kin
     if kind == "method":  # a plugin's spec is refused where it is declared
         from olatbench.methods.spec import MethodSpec
 
-        with pytest.raises(ValueError, match="method name '../x' cannot name a folder"):
+        with pytest.raises(ValueError, match=r"method name '\.\./x' cannot name a folder"):
             MethodSpec(name="../x", description="", implementation="m:C", config="m:D")
 
 
