@@ -9,6 +9,7 @@ to rounding, and so the same initial Gaussians, learning rates, density-control 
 from __future__ import annotations
 
 import dataclasses
+import re
 
 import numpy as np
 import pytest
@@ -20,6 +21,7 @@ from olatbench.datasets.cameras import look_at
 from olatbench.datasets.records import Camera, PointLight
 from olatbench.datasets.similarity import (
     CANONICAL_CAMERA_DISTANCE,
+    RigError,
     Similarity,
     canonical_frame,
     quaternion_product,
@@ -121,21 +123,72 @@ def test_canonical_frame_of_a_moved_scene_is_the_original_ones_to_rounding():
     assert not np.allclose(canonical_records(moved(views))[0], canonical_records(views)[0], atol=1.0)
 
 
-def test_canonical_frame_of_degenerate_rigs_still_moves_with_the_scene():
-    """Forward-facing cameras (parallel axes: no point where they meet) and cameras rolled every way (no mean up)."""
+def forward_rig(near: float | None = 2.0, far: float | None = 6.0, toe_in: float = 0.0) -> list[Camera]:
+    """Four cameras in the plane z = 0 looking along +z (OpenCV axes), as a phone capture of a scene ahead;
+    ``toe_in`` turns each towards the x = y = 0 axis by that many radians per unit of offset."""
     K = np.array([[20.0, 0, 8], [0, 20.0, 8], [0, 0, 1]])
-    forward = [Camera(K, np.block([[np.eye(3), np.array([[x], [y], [0.0]])], [np.zeros((1, 3)), 1.0]]), 16, 16)
-               for x, y in ((0, 0), (1, 0), (0, 1), (1, 1.5))]
+    cameras = []
+    for x, y in ((0, 0), (1, 0), (0, 1), (1, 1.5)):
+        turn = rotation([y, -x, 0.0], toe_in * np.hypot(x, y)) if x or y else np.eye(3)
+        c2w = np.block([[turn, np.array([[x], [y], [0.0]])], [np.zeros((1, 3)), 1.0]])
+        cameras.append(Camera(K, c2w, 16, 16, near=near, far=far))
+    return cameras
+
+
+def test_canonical_frame_of_degenerate_rigs_still_moves_with_the_scene():
+    """Forward-facing cameras (parallel axes: no point where they meet; their near/far give the depth) and cameras
+    rolled every way (no mean up)."""
     rng = np.random.default_rng(1)
     rolled = [dataclasses.replace(c, c2w=c.c2w @ np.block([[rotation([0, 0, 1], a), np.zeros((3, 1))],
                                                          [np.zeros((1, 3)), 1.0]]))
               for c, a in zip(sphere_views(9, size=16).cameras, rng.uniform(0, 2 * np.pi, 9), strict=True)]
-    for cameras in (forward, rolled):
+    for cameras in (forward_rig(), rolled):
         views = Views(cameras=cameras, lights=[PointLight(np.zeros(3))] * len(cameras), images=None,
                       frame_ids=[str(i) for i in range(len(cameras))])
-        copy = fitted(moved(views))
-        for original, other in zip(canonical_records(fitted(views)), canonical_records(copy), strict=True):
+        copy = moved(views)
+        copy = dataclasses.replace(copy, cameras=[  # near/far in the moved scene's units, by hand
+            dataclasses.replace(c, near=None if c.near is None else c.near * SCALE,
+                                far=None if c.far is None else c.far * SCALE) for c in copy.cameras])
+        for original, other in zip(canonical_records(fitted(views)), canonical_records(fitted(copy)), strict=True):
             np.testing.assert_allclose(other, original, rtol=1e-10, atol=1e-10)
+
+
+def test_a_forward_facing_rig_is_centred_ahead_of_the_cameras_at_its_depth():
+    """Parallel axes: the origin is the middle of the near/far range ahead of the cameras' mean position, as LLFF
+    fits its bounds; axes turned in by more than `MIN_AXES_SPREAD_DEG` meet at a point, which is taken."""
+    cameras = forward_rig(near=2.0, far=6.0)
+    frame = canonical_frame(cameras)
+    mean = np.mean([c.position for c in cameras], axis=0)
+    np.testing.assert_allclose(frame.points(mean + np.array([0.0, 0.0, 4.0])), np.zeros(3), atol=1e-12)
+    canonical = [frame.camera(camera) for camera in cameras]  # ahead of every camera, 4 units away (median)
+    assert all(-(c.position @ c.c2w[:3, 2]) > 3.0 for c in canonical)
+    np.testing.assert_allclose(np.median([np.linalg.norm(c.position) for c in canonical]), CANONICAL_CAMERA_DISTANCE)
+    converging = forward_rig(near=None, far=None, toe_in=0.25)  # ≈ 9° rms: they meet at a point, no near/far needed
+    centre = canonical_frame(converging).inverse().points(np.zeros(3))
+    assert centre[2] > 1.0 and np.all([(centre - c.position) @ c.c2w[:3, 2] > 0 for c in converging])
+
+
+RIGS_WITHOUT_A_CENTRE = {  # name: (cameras, what the error says)
+    "one camera": (lambda: forward_rig()[:1], "a single training camera"),
+    "one pose": (lambda: [forward_rig()[0]] * 5, "all 5 training cameras have one pose"),
+    "one point (a panorama)": (
+        lambda: [dataclasses.replace(forward_rig()[0], c2w=np.block([[rotation([0, 1, 0], a), np.zeros((3, 1))],
+                                                                     [np.zeros((1, 3)), 1.0]]))
+                 for a in np.linspace(0, 2 * np.pi, 8, endpoint=False)],
+        "sit at one point and only turn about it"),
+    "looking outwards": (
+        lambda: [dataclasses.replace(c, c2w=look_at(c.position, 2.0 * c.position, [0.0, 0.0, 1.0]))
+                 for c in sphere_views(8, size=16).cameras],
+        "meet behind or among them"),
+    "facing one way without near/far": (lambda: forward_rig(near=None, far=None), "camera_near/camera_far"),
+}
+
+
+@pytest.mark.parametrize("rig", list(RIGS_WITHOUT_A_CENTRE))
+def test_rigs_without_a_centre_are_refused_naming_why(rig):
+    make, phrase = RIGS_WITHOUT_A_CENTRE[rig]
+    with pytest.raises(RigError, match=re.escape(phrase)):
+        canonical_frame(make())
 
 
 def test_canonical_up_is_the_vertical_of_a_levelled_rig_and_the_mean_up_otherwise():

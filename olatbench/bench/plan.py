@@ -162,6 +162,23 @@ def scene_size(scene_path: str | Path, fmt: str, split: str) -> tuple[int, tuple
     return len(frames), (width, height)
 
 
+def check_rig(scene_path: str | Path, fmt: str, split: str) -> None:
+    """Refuse, naming the scene and why, a training split whose cameras no canonical frame fits
+    (`olatbench.datasets.similarity.rig_centre`: all at one point, looking outwards, or facing one way without
+    near/far): such a job would train to blank renders. Reads the transforms files only."""
+    from olatbench.datasets import load_scene
+    from olatbench.datasets.similarity import RigError, canonical_frame
+
+    frames = load_scene(scene_path, format=fmt).split(split)
+    if not frames:
+        return  # nothing to train on: said where the images are counted (scene_size) or when the job loads them
+    try:
+        canonical_frame([frame.camera for frame in frames])
+    except RigError as error:
+        raise PlanError(f"{scene_path}: {error}. olatbench trains in a frame fitted to the cameras (docs/own-data.md, "
+                        "\"Rigs olatbench can fit\")") from None
+
+
 def checked_resolution(requested: tuple[int, int] | None, native: tuple[int, int] | None, scene: str,
                        stretch: bool = False, upscale: bool = False) -> tuple[int, int] | None:
     """``--resolution`` checked against the scene's own size ``native`` (None: not known yet, e.g. a dry run
@@ -405,6 +422,8 @@ def make_plan(method: str, suite: str | Suite, out: str | Path, scenes: Sequence
         except InitPointsError as error:
             raise PlanError(str(error)) from None
         named = {"init_points": Path(init_points).stem} if init_points is not None else {}
+        if scene_path is not None and suite.frame == "fitted" and spec.kind != "official":
+            check_rig(scene_path, suite.format, suite.train_split)
         count, native = scene_size(scene_path, suite.format, suite.train_split) if scene_path is not None and (
             resolution is not None or suite.scene_paths) else (0, None)
         size = checked_resolution(resolution, native, scene, stretch, upscale) or suite.resolution

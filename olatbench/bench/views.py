@@ -21,7 +21,7 @@ import numpy as np
 from olatbench.bench.jobs import Job
 from olatbench.datasets import colour
 from olatbench.datasets.records import Camera, Frame
-from olatbench.datasets.similarity import Similarity, canonical_frame
+from olatbench.datasets.similarity import RigError, Similarity, canonical_frame
 from olatbench.datasets.suites import FRAMES
 from olatbench.methods.base import Views
 from olatbench.progress import progress_bar
@@ -43,7 +43,10 @@ def job_frame(frames: list[Frame], job: Job) -> Similarity:
         return Similarity.identity()
     if job.frame != "fitted":
         raise ValueError(f"{job.folder}: unknown frame {job.frame!r} (known: {', '.join(FRAMES)})")
-    return canonical_frame([frame.camera for frame in frames])
+    try:
+        return canonical_frame([frame.camera for frame in frames])
+    except RigError as error:  # the plan refuses such a scene (bench.plan.check_rig); a job made by hand meets it here
+        raise RigError(f"{job.scene_path}: {error}") from None
 
 
 def frame_views(frames: list[Frame], job: Job, frame: Similarity | None = None) -> Views:

@@ -9,7 +9,11 @@ point is unchanged; Gaussians (centres, log-scales + log(scale), wxyz quaternion
 frame"): it depends on the cameras only and is equivariant, so a scene and any similarity-transformed copy of it
 (same images) have the same canonical cameras and lights to rounding. In the canonical frame:
 
-* the origin is the point nearest, in least squares, to every camera's optical axis (`axes_centre`);
+* the origin is the scene's centre (`rig_centre`): for a rig whose optical axes converge in front of the cameras
+  (object-centric: a turntable, a light stage, a hand-held orbit) the point nearest, in least squares, to every
+  axis (`axes_centre`); for a forward-facing rig (axes nearly parallel, as in phone or LLFF captures, where that
+  point is not pinned down) the point at the middle of the cameras' depth range (``camera_near``/``camera_far``)
+  ahead of their mean position along their mean viewing direction, as LLFF fits its bounds;
 * the median camera distance to it is `CANONICAL_CAMERA_DISTANCE` (4, the mini suite's rig, whose presets'
   world-unit values are thus the canonical ones);
 * +z is the vertical of a rig without roll (`rig_vertical`: the direction orthogonal to every camera's right axis,
@@ -18,6 +22,10 @@ frame"): it depends on the cameras only and is equivariant, so a scene and any s
   of OpenCV axes; the first camera's when the mean is shorter than `MIN_MEAN_UP`, e.g. cameras rolled every way);
   +x points from the origin towards the first camera, orthogonal to +z (the first camera's right axis when it sits
   on the z axis), +y = z × x.
+
+Rigs without a centre are refused with a `RigError` saying why (`rig_centre`): cameras all at one point (one pose,
+or turning about one spot: no parallax), axes that meet behind or among the cameras (looking outwards), and a
+forward-facing rig without near/far distances (nothing gives the scene's depth).
 """
 
 from __future__ import annotations
@@ -38,6 +46,18 @@ MIN_MEAN_UP = 0.3
 #: of the middle one: within ≈ 9° of it) and spread in it (middle eigenvalue above this share of the camera count:
 #: over ≈ 45° of azimuth).
 LEVEL_RIG_RATIO = 0.05
+#: `rig_centre` takes the axes' nearest point when the axes spread about their mean by at least this rms angle
+#: (degrees; below it their crossing is lost in a few pixels of pose noise: a forward-facing rig) ...
+MIN_AXES_SPREAD_DEG = 5.0
+#: ... and that point lies ahead of the cameras: the median angle between a camera's axis and its direction to the
+#: point is at most this (degrees; ≈ 0 for a rig looking at its object).
+MAX_CENTRE_ANGLE_DEG = 60.0
+#: Camera positions within this share of their distance from the world origin of each other are one point.
+SAME_POINT_RTOL = 1e-9
+
+
+class RigError(ValueError):
+    """Training cameras no canonical frame can be fitted to; the message says why and what would help."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -189,15 +209,58 @@ def rig_vertical(cameras: Sequence[Camera]) -> np.ndarray | None:
     return vertical if vertical @ up >= 0.0 else -vertical
 
 
+def rig_centre(cameras: Sequence[Camera]) -> np.ndarray:
+    """The centre (3,) of the scene the ``cameras`` look at (module docstring), or a `RigError` naming why the rig
+    has none: all at one point, axes meeting behind or among the cameras, or facing one way without near/far."""
+    count = len(cameras)
+    positions = np.stack([c.position for c in cameras])
+    axes = unit_axes(cameras, 2)
+    spread = float(np.max(np.linalg.norm(positions - positions.mean(0), axis=1)))
+    if spread <= SAME_POINT_RTOL * float(np.max(np.linalg.norm(positions, axis=1))):
+        if count == 1:
+            raise RigError("a single training camera: one view has no parallax, so no 3D scene can be fitted")
+        if np.all(axes @ axes[0] > 1.0 - 1e-9):
+            raise RigError(f"all {count} training cameras have one pose (one position, one viewing direction): "
+                           "there is no parallax to fit a 3D scene to; check the transform_matrix of each frame")
+        raise RigError(f"all {count} training cameras sit at one point and only turn about it (a panorama): "
+                       "without parallax no 3D scene can be fitted")
+    mean_axis = axes.mean(0)
+    system = count * np.eye(3) - axes.T @ axes  # Σ (I - d dᵀ)
+    spread_deg = float(np.degrees(np.arcsin(np.sqrt(max(np.linalg.eigvalsh(system)[0], 0.0) / count))))
+    if spread_deg >= MIN_AXES_SPREAD_DEG:
+        centre = axes_centre(cameras)
+        towards = centre - positions
+        lengths = np.linalg.norm(towards, axis=1)
+        cosines = np.einsum("ij,ij->i", towards, axes) / np.where(lengths > 0, lengths, 1.0)
+        angle = float(np.degrees(np.arccos(np.clip(np.median(cosines), -1.0, 1.0))))
+        if angle <= MAX_CENTRE_ANGLE_DEG:
+            return centre
+        raise RigError(f"the optical axes of the {count} training cameras meet behind or among them (median angle "
+                       f"{angle:.0f}° between a camera's axis and that point, at most {MAX_CENTRE_ANGLE_DEG:g}° "
+                       "fits): the cameras look outwards, and olatbench fits object-centric and forward-facing rigs")
+    if np.linalg.norm(mean_axis) < 0.9:
+        raise RigError(f"the optical axes of the {count} training cameras are parallel but face opposite ways: "
+                       "no centre of the scene can be fitted")
+    nears = [c.near for c in cameras]
+    fars = [c.far for c in cameras]
+    if any(value is None for value in (*nears, *fars)):
+        raise RigError(f"the {count} training cameras face one way (their axes within {spread_deg:.1f}° rms of each "
+                       f"other, under the {MIN_AXES_SPREAD_DEG:g}° that pins down where they meet) and the scene "
+                       "gives no camera_near/camera_far: the distance to the scene cannot be fitted; add "
+                       "camera_near and camera_far (the depth range of the scene, in scene units) to its "
+                       "transforms files")
+    depth = float(np.median((np.asarray(nears, np.float64) + np.asarray(fars, np.float64)) / 2.0))
+    return positions.mean(0) + depth * mean_axis / np.linalg.norm(mean_axis)
+
+
 def canonical_frame(cameras: Sequence[Camera]) -> Similarity:
-    """The world -> canonical similarity of a scene fitted to its (training) ``cameras`` (module docstring)."""
+    """The world -> canonical similarity of a scene fitted to its (training) ``cameras`` (module docstring); a
+    `RigError` for a rig without a centre (`rig_centre`)."""
     if not cameras:
         raise ValueError("the canonical frame needs at least one camera")
-    centre = axes_centre(cameras)
+    centre = rig_centre(cameras)
     positions = np.stack([c.position for c in cameras])
     distance = float(np.median(np.linalg.norm(positions - centre, axis=1)))
-    if not distance > 0.0:
-        raise ValueError("the cameras sit at the point their axes meet: no scale can be fitted")
     up = rig_vertical(cameras)
     if up is None:
         ups = -unit_axes(cameras, 1)

@@ -5,6 +5,10 @@ Reads ``ascii``, ``binary_little_endian`` and ``binary_big_endian`` files. Other
 skipped; in binary files an element with list properties can only be skipped when it comes *after* the
 vertices (its size is not known in advance). Colours stored as integers are scaled to [0, 1] by their type's
 maximum (255 for ``uchar``); float colours are returned as stored.
+
+The counts the header declares are checked before anything is allocated: each at most `MAX_PLY_ELEMENTS`, and the
+elements up to the vertices no larger than the bytes after the header can hold, so a
+damaged or hostile header is one `PlyError` naming the file, never a ``MemoryError``.
 """
 
 from __future__ import annotations
@@ -25,6 +29,9 @@ _PLY_TYPES = {
     "float": "f4", "float32": "f4", "double": "f8", "float64": "f8",
 }  # fmt: skip
 _FORMATS = {"ascii": None, "binary_little_endian": "<", "binary_big_endian": ">"}
+#: The most elements (points, faces, …) one header line may declare: 2³¹ − 1, a 32-bit count, about 100 times the
+#: largest point clouds and Gaussian models in use (10⁶–10⁷ points).
+MAX_PLY_ELEMENTS = 2**31 - 1
 
 
 class PlyError(ValueError):
@@ -77,6 +84,34 @@ def _parse_header(path: Path, handle) -> tuple[str, list[_Element]]:
     return fmt, elements
 
 
+def _min_bytes(element: _Element, order: str | None) -> int:
+    """The fewest bytes ``element.count`` entries can take: binary, the fixed row size (a list property at least
+    its one-byte count); ascii (``order`` None), one character and one separator per value."""
+    if order is None:
+        return element.count * 2 * max(1, len(element.properties))
+    fixed = [code for _, code in element.properties if code != "list"]
+    row = np.dtype([(f"f{i}", order + code) for i, code in enumerate(fixed)]).itemsize if fixed else 0
+    return element.count * (row + (len(element.properties) - len(fixed)))
+
+
+def _check_counts(path: Path, fmt: str, elements: list[_Element], vertex: _Element, available: int) -> None:
+    """Refuse a header whose counts exceed `MAX_PLY_ELEMENTS`, or whose elements up to the vertices cannot fit in
+    the ``available`` bytes after it, naming the file, the element and both numbers."""
+    order = _FORMATS[fmt]
+    needed = 0
+    for element in elements:
+        if element.count > MAX_PLY_ELEMENTS:
+            raise PlyError(f"{path}: the header declares {element.count:,} '{element.name}' elements, more than "
+                           f"the {MAX_PLY_ELEMENTS:,} a PLY file read here may hold (a damaged header?)")
+        needed += _min_bytes(element, order)
+        if needed > available:
+            raise PlyError(f"{path}: the header declares {element.count:,} '{element.name}' elements, which take at "
+                           f"least {needed:,} bytes, but the file holds {available:,} after its header (truncated, "
+                           "or a damaged header)")
+        if element is vertex:
+            return
+
+
 def _colour_scale(code: str) -> float:
     return float(np.iinfo(np.dtype(code)).max) if code[0] in "iu" else 1.0
 
@@ -97,6 +132,7 @@ def read_ply_points(path: str | Path) -> tuple[np.ndarray, np.ndarray | None]:
             raise PlyError(f"{path}: vertex element lacks properties {missing} (has {names})")
         if vertex.has_list:
             raise PlyError(f"{path}: list properties in the vertex element are not supported")
+        _check_counts(path, fmt, elements, vertex, path.stat().st_size - handle.tell())
         order = _FORMATS[fmt]
         if order is None:
             table = _read_ascii(path, handle, elements, vertex)
