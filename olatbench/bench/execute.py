@@ -52,7 +52,17 @@ from olatbench.bench.plan import load_method_class
 from olatbench.bench.provenance import utc_now
 from olatbench.bench.results import read_results, write_results
 from olatbench.bench.reuse import adopt_finished_model, find_reusable
-from olatbench.bench.store import DONE_FILE, ERROR_FILE, JOB_FILE, RESULTS_FILE, TRAIN_LOG_FILE, job_lock, job_state
+from olatbench.bench.store import (
+    DONE_FILE,
+    ERROR_FILE,
+    JOB_FILE,
+    REPAIR_HINT,
+    RESULTS_FILE,
+    TRAIN_LOG_FILE,
+    job_lock,
+    job_state,
+    set_aside_damaged,
+)
 from olatbench.bench.views import VIEWS_FILE, load_views, view_camera
 from olatbench.datasets import colour, load_scene
 from olatbench.datasets.formats._common import safe_file_stem
@@ -74,8 +84,10 @@ def run_job(job: Job, progress: bool = True, position: int = 1) -> JobOutcome:
     read again once the lock is held, since another process may have finished the job after this one planned it:
     a finished job is returned as ``done`` with its recorded metrics and nothing in its folder changes (``--force``
     clears folders before the run, not here), and a folder that now holds another job is left alone and the job
-    fails. A folder that cannot be written (read-only, full disk) fails the job, not the plan: the failure is
-    recorded in the folder where the disk still allows it, and always in the outcome.
+    fails. A damaged job (a finished job whose results.json or job.json was damaged) has those files set aside as
+    ``<name>.damaged`` first, said in log.txt and on stderr, and is rerun. A folder that cannot be written
+    (read-only, full disk) fails the job, not the plan: the failure is recorded in the folder where the disk still
+    allows it, and always in the outcome.
     """
     folder = Path(job.folder)
     try:
@@ -89,10 +101,23 @@ def run_job(job: Job, progress: bool = True, position: int = 1) -> JobOutcome:
                 return JobOutcome(job.id, job.label, str(folder), "failed", recorded=False,
                                   error=f"{folder} {state.message} (written after this run planned it); rerun with "
                                         "--force to replace it, or choose another --output")
+            if state.state == "damaged":
+                _keep_damaged(job, folder, state.message)
             return _run_locked(job, folder, progress, position)
     except OSError as error:  # the folder or its lock file cannot be made: nothing was written
         return JobOutcome(job.id, job.label, str(folder), "failed", recorded=False,
                           error=f"cannot write the job folder {folder}: {error.strerror or error}")
+
+
+def _keep_damaged(job: Job, folder: Path, message: str) -> None:
+    """Set a damaged job's files aside (`set_aside_damaged`) and say so, with what was wrong, in log.txt and on
+    stderr: the rerun then repairs the job without overwriting what a user edited."""
+    kept = set_aside_damaged(folder)
+    if kept:
+        line = (f"{job.label}: {message.removesuffix('; ' + REPAIR_HINT)}; kept as "
+                f"{', '.join(str(path) for path in kept)}; re-evaluating the job")
+        JobLog(folder)(line)
+        progress_write(line)
 
 
 def _finished_outcome(job: Job, folder: Path) -> JobOutcome:

@@ -64,6 +64,7 @@ lacks are absent, which readers treat as ``null``.
 """
 
 import functools
+import math
 import sys
 import types
 import typing
@@ -270,6 +271,8 @@ def _found(value: Any) -> str:
     """A short description of a JSON value that did not fit."""
     kinds = {type(None): "null", bool: "a boolean", int: "an integer", float: "a number", str: "text",
              list: "a list", dict: "an object"}
+    if isinstance(value, float) and not math.isfinite(value):
+        return "NaN" if math.isnan(value) else "Infinity" if value > 0 else "-Infinity"
     shown = repr(value) if isinstance(value, (bool, int, float, str)) and len(repr(value)) <= 40 else ""
     return kinds.get(type(value), type(value).__name__) + (f" {shown}" if shown else "")
 
@@ -306,6 +309,9 @@ def _checker(hint: Any) -> Check:
 
         def leaf(value: Any, where: str) -> str | None:
             fits = isinstance(value, accepted) and (booleans or not isinstance(value, bool))
+            if fits and isinstance(value, float) and not math.isfinite(value):  # JSON's NaN / Infinity extensions
+                return (f"{where}: expected {expected}, found {_found(value)}: olatbench writes null, never a "
+                        "non-finite number")
             return None if fits else mismatch(value, where)
 
         return leaf
@@ -351,8 +357,9 @@ def _checker(hint: Any) -> Check:
 
 def validate_results(data: Any, source: str = "results") -> Results:
     """Check a results dict of the current version against the schema (`Results`, every block and value: objects
-    where objects belong, numbers or null as metric values, the job's fields with their types; keys the schema
-    does not know are allowed); return it unchanged or raise a `ResultsError` naming ``source`` and the key."""
+    where objects belong, finite numbers or null as metric values, the job's fields with their types, and a
+    finished job's means holding `RECORDED_METRICS`; keys the schema does not know are allowed); return it
+    unchanged or raise a `ResultsError` naming ``source`` and the key."""
     if not isinstance(data, dict):
         raise ResultsError(f"{source}: expected a JSON object, found {type(data).__name__}")
     version = data.get("schema_version")
@@ -368,9 +375,27 @@ def validate_results(data: Any, source: str = "results") -> Results:
     if data["kind"] == "run" and not isinstance(data["job"], dict):
         raise ResultsError(f"{source}: job: expected an object (a run's job), found {_found(data['job'])}")
     problem = _checker(Results)(data, "")
+    if problem is None and data["status"] == "done":
+        problem = _missing_metric(data["metrics"])
     if problem is not None:
         raise ResultsError(f"{source}: {problem}")
     return data
+
+
+#: The metrics every finished job's split means hold (`olatbench.metrics.protocols.Protocol.metrics`; null when
+#: not computed, e.g. LPIPS without its weights).
+RECORDED_METRICS = ("psnr", "ssim", "lpips")
+
+
+def _missing_metric(metrics: dict[str, Any]) -> str | None:
+    """The first split mean of a finished job that lacks one of `RECORDED_METRICS` (a table would show its cell as
+    never run), or None."""
+    for split, block in metrics.items():
+        missing = [key for key in RECORDED_METRICS if key not in block["mean"]]
+        if missing:
+            return (f"metrics.{split}.mean: missing {', '.join(missing)} (a finished job records "
+                    f"{', '.join(RECORDED_METRICS)}, null when not computed)")
+    return None
 
 
 def read_results(path: str | Path) -> Results:

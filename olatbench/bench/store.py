@@ -67,7 +67,8 @@ class JobState:
     ``iterations``; for official code: started, not finished, and rerun from the start), ``pending`` (planned,
     nothing trained yet), ``stale`` (the folder holds another job id than the one asked for), ``damaged`` (its
     job.json, or the results.json of a job marked done, cannot be read: ``message`` says which and how to repair
-    it; ``olatbench run`` reruns such a job, re-evaluating its final checkpoint) or ``absent``.
+    it; ``olatbench run`` sets the damaged files aside (`set_aside_damaged`) and reruns the job, re-evaluating its
+    final checkpoint) or ``absent``.
     """
 
     folder: Path
@@ -79,8 +80,8 @@ class JobState:
     warnings: tuple[str, ...] = ()  # what the run's health checks found (olatbench.bench.health), first of each kind
 
 
-REPAIR_HINT = ("rerun the 'olatbench run' command that made it: it re-evaluates the job from its final checkpoint "
-               "(or retrains it if there is none)")
+REPAIR_HINT = ("rerun the 'olatbench run' command that made it: it keeps the damaged file as <name>.damaged and "
+               "re-evaluates the job from its final checkpoint (or retrains it if there is none)")
 
 
 def read_job_file(folder: str | Path) -> dict[str, Any] | None:
@@ -117,6 +118,39 @@ def _results_problem(folder: Path, job_id: str) -> str | None:
     if results["status"] != "done" or recorded != job_id:
         return f"marked done, but {path} records {results['status']} job {recorded}"
     return None
+
+
+DAMAGED_SUFFIX = ".damaged"
+
+
+def set_aside_damaged(folder: str | Path) -> list[Path]:
+    """Before a damaged job (`job_state` ``damaged``) is redone: rename its results.json, and its job.json when that
+    is the unreadable one, to ``<name>.damaged`` (``.damaged-2``, … when taken), so the rerun that repairs the job
+    overwrites nothing a user edited; returns the new paths (reports and `status` read neither name)."""
+    folder = Path(folder)
+    names = [RESULTS_FILE]
+    try:
+        job_record(folder)
+    except ValueError:
+        names.append(JOB_FILE)
+    kept = []
+    for name in names:
+        path = folder / name
+        if not path.is_file():
+            continue
+        target, number = path.with_name(name + DAMAGED_SUFFIX), 1
+        while target.exists():
+            number += 1
+            target = path.with_name(f"{name}{DAMAGED_SUFFIX}-{number}")
+        path.rename(target)
+        kept.append(target)
+    return kept
+
+
+def holds_finished_job(folder: str | Path) -> bool:
+    """Whether ``folder`` holds a job that finished by its own record (job.json, DONE, results.json), whatever
+    job a new plan asks for there."""
+    return job_state(folder).state == "done"
 
 
 def in_suite(folder: str | Path, suite: str | None) -> bool:

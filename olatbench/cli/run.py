@@ -117,6 +117,10 @@ def _metric(metrics: dict, key: str) -> str:
                    "on its own views: seconds to a minute each) and store it, so dry runs print wall-time "
                    "estimates.")
 @click.option("--force", is_flag=True, help="Rerun jobs from scratch, replacing finished, partial or stale folders.")
+@click.option("--keep-finished", is_flag=True,
+              help="Where a folder holds another job than the plan's (its config, data, point cloud or code changed "
+                   "since): keep it as it is when that job finished, and replace it (rerun) only when it did not; "
+                   "--force replaces them all.")
 @click.option("--no-reuse", "no_reuse", is_flag=True,
               help="Train every job even when a finished job of another variant name is the same experiment (same "
                    "resolved config, data, code and seed, e.g. SSD-GS's ablation-D, schedule-I and default); by "
@@ -137,8 +141,8 @@ def _metric(metrics: dict, key: str) -> str:
 @click.option("--json", "as_json", is_flag=True, help="With --dry-run: print the plan as JSON (one object per job).")
 def run(method, suite, data_paths, protocol_name, scenes, variants, ablation, seeds, iterations, overrides,
         code_settings, resolution, stretch, upscale, init_points, data_root, out, device, executor, workers, dry_run,
-        calibrate, force, no_reuse, checkpoint_every, save_components, slurm_partition, slurm_time, slurm_gpus,
-        slurm_cpus, slurm_array_parallelism, wait, quiet, as_json) -> None:
+        calibrate, force, keep_finished, no_reuse, checkpoint_every, save_components, slurm_partition, slurm_time,
+        slurm_gpus, slurm_cpus, slurm_array_parallelism, wait, quiet, as_json) -> None:
     """Train and evaluate METHOD on every scene of SUITE (or on your own scene folders, --data); rerunning skips
     finished jobs and resumes interrupted ones from their last checkpoint.
 
@@ -147,7 +151,9 @@ def run(method, suite, data_paths, protocol_name, scenes, variants, ablation, se
     Exit code: 0 when every job is done; 1 when any failed (the count is printed) or the output folder cannot be
     written; 2 for a usage error (including a --set value out of its field's range); 3 when none failed but some
     are running in another process (rerun once they finish). With --executor slurm --no-wait: 0 once submitted.
-    A finished job whose results.json or job.json is damaged is re-evaluated from its final checkpoint.
+    A finished job whose results.json or job.json is damaged is re-evaluated from its final checkpoint, the damaged
+    file kept as <name>.damaged. Folders holding a job planned with other inputs (stale) stop the run unless
+    --keep-finished (keep the finished ones, rerun the rest) or --force (rerun them all).
 
     \b
     Examples:
@@ -166,7 +172,7 @@ def run(method, suite, data_paths, protocol_name, scenes, variants, ablation, se
     from olatbench.bench.executors import Terminated
     from olatbench.bench.plan import PlanOptions, make_plan, parse_overrides
     from olatbench.bench.reuse import order_for_reuse, reuse_notes
-    from olatbench.bench.store import job_state
+    from olatbench.bench.store import holds_finished_job, job_state
     from olatbench.datasets.errors import DatasetError
     from olatbench.methods.official.settings import SettingsError, parse_code_options
     from olatbench.methods.registry import canonical_method_name
@@ -228,24 +234,32 @@ def run(method, suite, data_paths, protocol_name, scenes, variants, ablation, se
         return
 
     stale = [state for state in states if state.state == "stale"]
-    if stale and not force:
+    if stale and not (force or keep_finished):
         listing = "\n  ".join(f"{s.folder}: {s.message}" for s in stale[:10])
         raise click.UsageError(f"{len(stale)} job folder(s) hold results of a different job (config, data or "
-                                   f"code changed):\n  {listing}\nRerun with --force to replace them, or choose "
-                                   "another --output")
-    to_run, skipped, running = [], [], []
+                                   f"code changed):\n  {listing}\nRerun with --keep-finished to replace only the "
+                                   "unfinished ones (finished jobs stay as they are), with --force to replace them "
+                                   "all, or choose another --output")
+    to_run, skipped, running, kept = [], [], [], []
     for job, state in zip(jobs, states, strict=True):
         if state.state == "done" and not force:
             skipped.append(job)
+            continue
+        if state.state == "stale" and keep_finished and not force and holds_finished_job(job.folder):
+            kept.append(job)
             continue
         if state.state == "running":
             running.append(job)
             continue
         to_run.append(job)
+    replaced = {job.folder for job, state in zip(jobs, states, strict=True) if state.state == "stale"}
+    if kept:
+        click.echo(f"kept {len(kept)} finished job(s) planned with other inputs, as they are (--force retrains "
+                   f"them): {', '.join(job.folder for job in kept[:5])}{' …' if len(kept) > 5 else ''}", err=True)
     try:
         _check_writable(to_run)
         for job in to_run:
-            if force and Path(job.folder).exists():
+            if (force or job.folder in replaced) and Path(job.folder).exists():
                 shutil.rmtree(job.folder)
         _write_pending(to_run)
     except OSError as error:  # a read-only or full output folder: nothing has run
@@ -255,7 +269,7 @@ def run(method, suite, data_paths, protocol_name, scenes, variants, ablation, se
     to_run = order_for_reuse(to_run) if not no_reuse else to_run
     busy = f", {len(running)} running in another process" if running else ""
     damaged = sum(state.state == "damaged" for state in states)
-    repaired = f" ({damaged} damaged: re-evaluated)" if damaged else ""
+    repaired = f" ({damaged} damaged: re-evaluated, the damaged files kept as *.damaged)" if damaged else ""
     click.echo(f"{len(jobs)} job(s): {len(skipped)} already done{busy}, {len(to_run)} to run{repaired} "
                f"({executor}, device {options.device}) -> {out}", err=True)
     if not to_run:
