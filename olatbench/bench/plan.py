@@ -341,7 +341,7 @@ def official_settings(spec: MethodSpec, options: Mapping[str, str], required: bo
     """Where an official method's code lives and runs (`olatbench.methods.official.settings`: ``options``, then
     ``olatbench.toml``, then environment variables), as job data. A code that cannot be fed olatbench's data is a
     `PlanError` giving the reason; so are missing settings when ``required`` (not for dry runs)."""
-    from olatbench.methods.official.settings import SettingsError, env_name, resolve_settings
+    from olatbench.methods.official.settings import SettingsError, env_name, pin_problem, resolve_settings
 
     code = import_reference(spec.implementation)
     if not code.runnable:
@@ -351,8 +351,10 @@ def official_settings(spec: MethodSpec, options: Mapping[str, str], required: bo
         settings = resolve_settings(spec.name, options)
     except SettingsError as error:
         raise PlanError(str(error)) from None
-    problems = settings.problems()
-    if required and problems:
+    problems = settings.problems() if required else []
+    if required and not problems and spec.source is not None:
+        problems = [problem for problem in (pin_problem(str(settings.checkout), spec.source.commit),) if problem]
+    if problems:
         raise PlanError(f"method '{spec.name}' runs the authors' code, and where it lives is not set up: "
                         f"{'; '.join(problems)}. Set them with --code KEY=VALUE, in olatbench.toml "
                         f"([official.{spec.name}]) or as environment variables ({env_name(spec.name, 'checkout')}, "

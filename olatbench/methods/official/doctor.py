@@ -10,7 +10,13 @@ from collections.abc import Mapping
 from pathlib import Path
 
 from olatbench.methods.official.code import OfficialCode
-from olatbench.methods.official.settings import CodeSettings, SettingsError, checkout_commit, resolve_settings
+from olatbench.methods.official.settings import (
+    CodeSettings,
+    SettingsError,
+    checkout_commit,
+    python_version,
+    resolve_settings,
+)
 from olatbench.methods.spec import MethodSpec
 
 Check = tuple[str, bool, str, str]  # name, ok, detail, fix (as olatbench.cli.doctor)
@@ -95,13 +101,15 @@ def check_code(spec: MethodSpec, settings: CodeSettings) -> list[Check]:
     if settings.launcher is None:
         return [*rows, (f"{name}: interpreter", False, problems[-1], "set python, conda_env or container")]
     launcher = f"{settings.launcher}={getattr(settings, settings.launcher)}"
+    work = checkout.resolve()
     try:
-        code, line = _probe(settings, "import sys; print(sys.version.split()[0])")
+        version, answer = python_version(settings.prefix(work), cwd=work, timeout=PROBE_TIMEOUT)
     except SettingsError as error:
         return [*rows, (f"{name}: interpreter", False, str(error), "fix the container template")]
-    runs = code == 0
-    rows.append((f"{name}: interpreter", runs, f"{launcher}: " + (f"Python {line}" if runs else line or
-                                                                    f"exit code {code}"),
+    runs = version is not None
+    rows.append((f"{name}: interpreter", runs, f"{launcher}: " + (f"Python {version}" if runs else
+                                                                    f"not a Python interpreter: asked for its "
+                                                                    f"version, {answer}"),
                  "" if runs else "check the interpreter / environment / container of this method"))
     if runs and settings.device == "cpu":
         rows.append(_cpu_environment_check(name, settings))

@@ -8,7 +8,7 @@ Fields (all optional until a job runs):
   the container, e.g. ``apptainer exec --nv --bind {work} gs3.sif python`` or
   ``docker run --rm --gpus all -v {checkout}:{checkout} -v {work}:{work} -w {checkout} gs3 python``;
   ``{checkout}`` and ``{work}`` (the job's working folder) are filled in);
-- ``timeout_minutes``: the limit of each command (none by default);
+- ``timeout_minutes``: the limit of each command, a positive number of minutes (none by default);
 - ``device``: ``cuda`` (default: the authors' code on its GPU, as written) or ``cpu``: the job runs the unmodified
   code on the CPU with olatbench's stand-ins for its CUDA-only modules put first on its ``PYTHONPATH``
   (`olatbench.methods.official.cpu_standins`; with a ``python`` or ``conda_env`` launcher, not a container).
@@ -18,11 +18,17 @@ may be qualified ``METHOD.KEY``), the ``[official.METHOD]`` table of ``olatbench
 environment variables ``OLATBENCH_<METHOD>_<KEY>`` (``OLATBENCH_GS3_OFFICIAL_CHECKOUT``). Each field comes from
 the highest source that sets it; the three launcher fields count as one, so a ``python`` on the command line
 replaces a ``conda_env`` from the file.
+
+Before a job is planned (`CodeSettings.problems`) the checkout must be a folder and a ``python`` launcher must answer
+as a Python interpreter (`python_version`, which ``olatbench doctor`` asks every launcher); the plan also refuses a git
+checkout at another commit than the method's pin (`pin_problem`).
 """
 
 from __future__ import annotations
 
+import math
 import os
+import re
 import shlex
 import subprocess
 from collections.abc import Mapping
@@ -34,6 +40,9 @@ from olatbench.project_file import PROJECT_FILE, ProjectFileError, project_table
 
 TOML_FILE = PROJECT_FILE
 LAUNCHERS = ("python", "conda_env", "container")
+#: What a launcher is asked to run to show it is a Python interpreter; it answers ``olatbench-python <version>``.
+PYTHON_PROBE = "import sys; print('olatbench-python', sys.version.split()[0])"
+PYTHON_PROBE_TIMEOUT = 60.0  # s: a plain interpreter (a container's is probed by olatbench doctor only)
 FIELDS = ("checkout", *LAUNCHERS, "timeout_minutes", "device")
 DEVICES = ("cuda", "cpu")
 
@@ -75,6 +84,11 @@ class CodeSettings:
         if self.launcher is None:
             found.append("no launcher: set one of python (an interpreter), conda_env (an environment name) or "
                          "container (a command template)")
+        elif self.python:
+            version, answer = python_version([self.python])
+            if version is None:
+                found.append(f"python={self.python} ({self.sources.get('python', 'set')}) is not a Python "
+                             f"interpreter: asked for its version, {answer}")
         if self.device == "cpu" and self.launcher == "container":
             found.append("device=cpu puts olatbench's CPU stand-ins on the job's PYTHONPATH, which a container does "
                          "not see: use a python or conda_env launcher")
@@ -165,10 +179,13 @@ def resolve_settings(method: str, options: Mapping[str, Any] | None = None,
             sources[name] = env_name(method, name) if source.startswith("$") else source
     if "timeout_minutes" in values:
         try:
-            values["timeout_minutes"] = float(values["timeout_minutes"])
+            minutes = float(values["timeout_minutes"])
         except (TypeError, ValueError):
-            raise SettingsError(f"{method}: timeout_minutes must be a number, not {values['timeout_minutes']!r} "
-                                f"({sources['timeout_minutes']})") from None
+            minutes = math.nan
+        if not (math.isfinite(minutes) and minutes > 0):
+            raise SettingsError(f"{method}: timeout_minutes must be a positive number of minutes, not "
+                                f"{values['timeout_minutes']!r} ({sources['timeout_minutes']})")
+        values["timeout_minutes"] = minutes
     if "device" in values:
         values["device"] = str(values["device"]).strip().lower()
         if values["device"] not in DEVICES:
@@ -197,3 +214,34 @@ def checkout_commit(checkout: str | Path) -> tuple[str | None, bool | None]:
     except (OSError, subprocess.TimeoutExpired):
         return None, None
     return lines[1], bool(status.stdout.strip()) if status.returncode == 0 else None
+
+
+def python_version(prefix: list[str], cwd: str | Path | None = None, env: Mapping[str, str] | None = None,
+                   timeout: float = PYTHON_PROBE_TIMEOUT) -> tuple[str | None, str]:
+    """Run `PYTHON_PROBE` through ``prefix`` (an interpreter, or the launcher that ends with one): (its Python
+    version, what it answered) when it is a Python interpreter, else (None, what happened instead, in words)."""
+    try:
+        done = subprocess.run([*prefix, "-c", PYTHON_PROBE], cwd=cwd, capture_output=True, text=True,
+                              timeout=timeout, check=False, env=None if env is None else {**os.environ, **env})
+    except OSError as error:
+        return None, f"it cannot be started ({error.strerror or error})"
+    except subprocess.TimeoutExpired:
+        return None, f"it gave no answer within {timeout:g} s"
+    match = re.search(r"^olatbench-python (\S+)$", done.stdout, re.MULTILINE)
+    if done.returncode == 0 and match:
+        return match.group(1), match.group(0)
+    lines = (done.stdout + done.stderr).strip().splitlines()
+    said = f"answered {lines[-1][:80]!r}" if lines else "answered nothing"
+    return None, f"it {said} and exited with code {done.returncode}"
+
+
+def pin_problem(checkout: str | Path, pinned: str | None) -> str | None:
+    """Why the git ``checkout`` is not the code the method is pinned to (``pinned``: the full commit), or None: at
+    the pin, no commit pinned, or not a git checkout (whose commit is unknown: recorded as such in results.json)."""
+    if not pinned or not re.fullmatch(r"[0-9a-f]{40}", pinned):  # "unverified": no commit to hold it to
+        return None
+    commit, _dirty = checkout_commit(checkout)
+    if commit is None or commit == pinned:
+        return None
+    return (f"checkout {checkout} is at commit {commit[:12]}, not the pinned {pinned[:12]} that olatbench's "
+            f"conversion and commands were written for (git -C {checkout} checkout {pinned})")
