@@ -18,7 +18,7 @@ starting at the azimuth of a template camera whose intrinsics and size they keep
 **Lights**: one light for every frame (`olatbench.datasets.lights.parse_light`: a training frame's light by its
 index in the training split, or a position ``x,y,z`` in world units with the first training light's intensity), or
 a light-path JSON: ``{"lights":
-[{"position": [x, y, z], "intensity": [r, g, b]}, ...]}`` (intensity optional: the first training light's), one
+[{"position": [x, y, z], "intensity": [r, g, b]}, ...]}`` (intensity optional: the first training light's; each channel ≥ 0), one
 light per camera, or one for all.
 """
 
@@ -161,6 +161,9 @@ def read_light_path(path: str | Path, default: PointLight) -> list[PointLight]:
             raise CameraPathError(f"{where}: expected an object with a position")
         position = _vector(light["position"], 3, f"{where}.position")
         intensity = _vector(light["intensity"], 3, f"{where}.intensity") if "intensity" in light else None
+        if intensity is not None and np.any(intensity < 0):  # as the scenes' pl_intensity (datasets: as_rgb)
+            raise CameraPathError(f"{where}.intensity: must be ≥ 0 in every channel (an RGB radiant intensity), "
+                                  f"not {light['intensity']!r}")
         result.append(
             replace(default, position=position)
             if intensity is None

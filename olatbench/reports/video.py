@@ -5,6 +5,10 @@ runner's restore path: no training image is read for methods that need none), th
 ``method.render(camera, light)`` draws each frame. Renders are converted from the job's colour space to sRGB and
 written as 8-bit PNGs (``<sweep>_frames/00000.png`` …) and an MP4 (`olatbench.reports.encode`: H.264 when PyAV
 or imageio-ffmpeg is installed, else OpenCV's ``mp4v`` with a logged warning).
+
+A render owns the frames it wrote: the frame folder keeps their names in `FRAMES_RECORD`, and the next render into
+that folder removes those it does not write again (a 2-frame orbit over a 4-frame one leaves no frames 2–3); files
+it did not write there are never touched.
 """
 
 from __future__ import annotations
@@ -14,9 +18,10 @@ from pathlib import Path
 
 import numpy as np
 
-from olatbench.atomic import atomic_path
+from olatbench.atomic import atomic_path, write_json
 from olatbench.datasets import colour
 from olatbench.datasets.images import write_image
+from olatbench.datasets.jsontext import parse_json
 from olatbench.datasets.lights import parse_light
 from olatbench.names import did_you_mean
 from olatbench.progress import progress_bar
@@ -151,6 +156,27 @@ def display_image(tensor, colourspace: str) -> np.ndarray:
     return np.clip(image, 0.0, 1.0)
 
 
+#: In a frame folder: the names of the frames the last render wrote there (``{"frames": ["00000.png", ...]}``).
+FRAMES_RECORD = ".olatbench-frames.json"
+
+
+def _recorded_frames(frames_dir: Path) -> list[str]:
+    """The frame names the last render recorded in ``frames_dir`` (none when there is no readable record)."""
+    try:
+        names = parse_json((frames_dir / FRAMES_RECORD).read_text(encoding="utf-8")).get("frames")
+    except (OSError, ValueError, AttributeError):
+        return []
+    return [name for name in names if isinstance(name, str) and Path(name).name == name] \
+        if isinstance(names, list) else []
+
+
+def _own_frames(frames_dir: Path, previous: list[str], written: list[str]) -> None:
+    """Remove the frames of the previous render that this one did not write again, and record this one's."""
+    for name in sorted(set(previous) - set(written)):
+        (frames_dir / name).unlink(missing_ok=True)
+    write_json(frames_dir / FRAMES_RECORD, {"frames": written})
+
+
 def render_sweep(job: JobFolder, kind: str, out_dir: str | Path, *, count: int | None = None,
                  frame_id: str | None = None, component: str = "rgb", fps: float = 30.0, device: str = "cpu",
                  resolution: tuple[int, int] | None = None, progress: bool = True, method=None,
@@ -168,6 +194,7 @@ def render_sweep(job: JobFolder, kind: str, out_dir: str | Path, *, count: int |
     video_path = Path(video) if video is not None else out_dir / f"{kind}.mp4"
     frames_dir = video_path.with_name(f"{video_path.stem}_frames")
     frames_dir.mkdir(parents=True, exist_ok=True)
+    previous = _recorded_frames(frames_dir)
     width, height = frames[0].camera.width, frames[0].camera.height
     with atomic_path(video_path) as temporary:
         writer = open_video(temporary, fps, width, height)
@@ -181,4 +208,5 @@ def render_sweep(job: JobFolder, kind: str, out_dir: str | Path, *, count: int |
                     writer.write(colour.quantize_8bit(image))
         finally:
             writer.close()
+    _own_frames(frames_dir, previous, [f"{index:05d}.png" for index in range(len(frames))])
     return SweepOutput(video_path, frames_dir, len(frames), writer.encoder)
