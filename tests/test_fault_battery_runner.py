@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import builtins
 import errno
+import json
 import os
 import shutil
 import signal
@@ -28,6 +29,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
+import numpy as np
 import pytest
 import test_runner_support as support
 import torch
@@ -356,6 +358,7 @@ def test_a_finished_job_with_a_damaged_results_json_is_reported_and_re_evaluated
     original = read_results(folder / "results.json")
     checkpoint = list_checkpoints(folder)[-1][1].read_bytes()
     RESULTS_DAMAGE[damage](folder / "results.json")
+    damaged = (folder / "results.json").read_bytes() if (folder / "results.json").exists() else None
 
     state = job_state(folder)
     assert state.state == "damaged" and "results.json" in state.message and "olatbench run" in state.message
@@ -369,6 +372,10 @@ def test_a_finished_job_with_a_damaged_results_json_is_reported_and_re_evaluated
 
     rerun = run_cli(*run_args(data, out))
     assert rerun.exit_code == 0 and "1 damaged: re-evaluated" in rerun.output, rerun.output
+    if damaged is not None:  # what was there is kept under a name that says so, and the run said where (#58)
+        assert (folder / "results.json.damaged").read_bytes() == damaged
+        assert f"kept as {folder / 'results.json.damaged'}" in rerun.output, rerun.output
+        assert f"kept as {folder / 'results.json.damaged'}" in (folder / "log.txt").read_text()
     repaired = read_results(folder / "results.json")
     assert repaired["metrics"] == original["metrics"]  # the final checkpoint, evaluated again: nothing lost
     assert list_checkpoints(folder)[-1][1].read_bytes() == checkpoint
@@ -383,6 +390,7 @@ def test_a_finished_job_with_a_damaged_job_json_is_not_partial_and_is_re_evaluat
     folder = job_folder(out)
     job_json, original = (folder / "job.json").read_text(), read_results(folder / "results.json")
     JOB_FILE_DAMAGE[damage](folder / "job.json")
+    damaged = (folder / "job.json").read_bytes()
 
     state = job_state(folder)
     assert state.state == "damaged" and "job.json" in state.message and "olatbench run" in state.message
@@ -392,6 +400,7 @@ def test_a_finished_job_with_a_damaged_job_json_is_not_partial_and_is_re_evaluat
 
     rerun = run_cli(*run_args(data, out, "--scenes", "Alpha"))
     assert rerun.exit_code == 0 and "1 damaged: re-evaluated" in rerun.output, rerun.output
+    assert (folder / "job.json.damaged").read_bytes() == damaged and "job.json.damaged" in rerun.output  # kept (#58)
     assert (folder / "job.json").read_text() == job_json
     assert read_results(folder / "results.json")["metrics"] == original["metrics"]
 
@@ -632,6 +641,106 @@ def test_force_still_retrains_a_finished_job(data, tmp_path):
     assert log.read_text().count("job ") == 1 and "resumed" not in log.read_text()  # a new folder, trained again
 
 
+# ---- a scene's inputs changed mid-run: --keep-finished (#58) --------------------------------------------------------
+
+def test_after_a_scene_changed_keep_finished_keeps_finished_jobs_and_reruns_the_rest(data, tmp_path):
+    """Seed 0 finished, seed 1 interrupted; then the scene's points3d.ply changes (it is part of the scene's data):
+    both folders hold jobs of the old inputs. The rerun refuses and names --keep-finished, which keeps the finished
+    job byte for byte and reruns the unfinished one under the new id; --force is still the way to retrain both."""
+    out = tmp_path / "runs"
+    assert run_cli(*run_args(data, out, "--scenes", "Alpha", "--seeds", "2")).exit_code == 0
+    finished, unfinished = job_folder(out, seed=0), job_folder(out, seed=1)
+    for name in ("DONE", "results.json"):  # seed 1 as a run interrupted after its last checkpoint leaves it
+        (unfinished / name).unlink()
+    (data / "Alpha" / "points3d.ply").write_bytes(b"ply\nformat ascii 1.0\nelement vertex 0\nend_header\n")
+    before = snapshot(finished)
+
+    refused = run_cli(*run_args(data, out, "--scenes", "Alpha", "--seeds", "2"))
+    assert refused.exit_code == 2 and "--keep-finished" in refused.output, refused.output
+    assert snapshot(finished) == before
+
+    kept = run_cli(*run_args(data, out, "--scenes", "Alpha", "--seeds", "2", "--keep-finished"))
+    assert kept.exit_code == 0 and "kept 1 finished job(s)" in kept.output and str(finished) in kept.output, \
+        kept.output
+    assert snapshot(finished) == before  # the finished job, untouched
+    (planned,) = [job for job in plan(data, out, scenes=["Alpha"], seeds=2) if job.seed == 1]
+    assert job_state(unfinished, planned.id).state == "done"  # the unfinished one, rerun under the new inputs
+
+
+# ---- rigs the canonical frame cannot fit (#58) ----------------------------------------------------------------------
+
+def _gl_pose(eye, target) -> list[list[float]]:
+    from datasets_trees import gl_look_at
+
+    return gl_look_at(eye, target).tolist()
+
+
+def _ring(index: int, radius: float = 1.0) -> np.ndarray:
+    angle = index * np.pi / 2
+    return radius * np.array([np.cos(angle), np.sin(angle), 0.2])
+
+
+UNFIT_RIGS = {  # name: (the pose of training frame i, OpenGL camera-to-world; what the error says)
+    "one pose": (lambda i: _gl_pose([0.0, -4.0, 1.0], [0.0, 0.0, 0.0]), "all 4 training cameras have one pose"),
+    "one point (a panorama)": (lambda i: _gl_pose([0.0, 0.0, 0.0], _ring(i)), "sit at one point"),
+    "looking outwards": (lambda i: _gl_pose(_ring(i, 4.0), _ring(i, 8.0)), "meet behind or among them"),
+    "facing one way, no near/far": (lambda i: _gl_pose([0.3 * i, -4.0, 0.1 * i], [0.3 * i, 0.0, 0.1 * i]),
+                                    "face one way"),
+}
+
+
+def _set_rig(scene: Path, pose, **meta_keys) -> None:
+    path = scene / "transforms_train.json"
+    meta = json.loads(path.read_text())
+    meta.update(meta_keys)
+    for index, frame in enumerate(meta["frames"]):
+        frame["transform_matrix"] = pose(index)
+    path.write_text(json.dumps(meta))
+
+
+@pytest.mark.parametrize("rig", list(UNFIT_RIGS))
+def test_a_rig_the_canonical_frame_cannot_fit_is_refused_before_training(data, tmp_path, rig):
+    pose, phrase = UNFIT_RIGS[rig]
+    _set_rig(data / "Alpha", pose)
+    out = tmp_path / "runs"
+    result = run_cli(*run_args(data, out, "--scenes", "Alpha"))
+    assert_one_clear_error(result, 2, "Alpha", phrase, "Rigs olatbench can fit")
+    assert not list(out.rglob("job.json"))  # nothing planned, nothing trained
+
+
+def test_a_forward_facing_rig_with_its_depth_range_is_fitted_and_runs(data, tmp_path):
+    _set_rig(data / "Alpha", UNFIT_RIGS["facing one way, no near/far"][0], camera_near=2.0, camera_far=6.0)
+    out = tmp_path / "runs"
+    result = run_cli(*run_args(data, out, "--scenes", "Alpha"))
+    assert result.exit_code == 0, result.output
+    assert job_state(job_folder(out)).state == "done"
+
+
+# ---- a point cloud whose header declares more points than the file holds (#58) --------------------------------------
+
+HUGE_POINT_CLOUDS = {  # name: (file, what the error says)
+    "10^9 points, ascii": (b"ply\nformat ascii 1.0\nelement vertex 1000000000\nproperty float x\nproperty float y\n"
+                           b"property float z\nend_header\n0 0 0\n", "1,000,000,000 'vertex' elements"),
+    "10^14 points, binary": (b"ply\nformat binary_little_endian 1.0\nelement vertex 100000000000000\n"
+                             b"property float x\nproperty float y\nproperty float z\nend_header\n" + bytes(12),
+                             "100,000,000,000,000 'vertex' elements"),
+}
+
+
+@pytest.mark.parametrize("cloud", list(HUGE_POINT_CLOUDS))
+def test_a_point_cloud_declaring_too_many_points_fails_its_job_naming_the_file(data, tmp_path, cloud):
+    content, phrase = HUGE_POINT_CLOUDS[cloud]
+    path = tmp_path / "huge.ply"
+    path.write_bytes(content)
+    out = tmp_path / "runs"
+    result = run_cli("run", "-m", "3dgs", "-s", "tiny", "--scenes", "Alpha", "--data-root", data, "--out", out,
+                     "--quiet", "--device", "cpu", "--iterations", "2", "--init-points", path)
+    assert result.exit_code == 1, result.output
+    assert "Traceback" not in result.output and "MemoryError" not in result.output, result.output
+    (failed,) = [line for line in result.output.splitlines() if line.startswith("FAILED")]
+    assert str(path) in failed and phrase in failed, failed
+
+
 # ---- --jobs 2: a worker killed, the main process terminated (#48 item 2) --------------------------------------------
 
 WORKER_DEATHS = ("SIGKILL", "SIGSEGV", "exit")
@@ -708,9 +817,11 @@ def test_sigterm_to_olatbench_run_jobs_2_stops_its_workers_and_releases_the_lock
 # ---- the count ------------------------------------------------------------------------------------------------------
 
 FAULT_COUNT = (len(READ_ONLY_CASES) + 1 + len(RESULTS_DAMAGE) + len(JOB_FILE_DAMAGE) + 1 + len(CHECKPOINT_DAMAGE)
-               + len(GAUSSIAN_STATE_DAMAGE) + 1 + len(FINISHED_ELSEWHERE) + 1 + len(WORKER_DEATHS) + 1)
+               + len(GAUSSIAN_STATE_DAMAGE) + 1 + len(FINISHED_ELSEWHERE) + 1 + 1 + len(UNFIT_RIGS) + 1
+               + len(HUGE_POINT_CLOUDS) + len(WORKER_DEATHS) + 1)
 # read-only entry points, full disk, results.json, job.json, report, checkpoints, concurrent, finished after the plan,
-# a folder another job took, a worker killed, SIGTERM to the main process
+# a folder another job took, a scene changed mid-run, rigs that cannot be fitted and one that can, point clouds
+# declaring too many points, a worker killed, SIGTERM to the main process
 
 
 def test_the_battery_states_its_fault_count_in_the_docs():

@@ -56,7 +56,6 @@ from olatbench.bench.store import (
     DONE_FILE,
     ERROR_FILE,
     JOB_FILE,
-    REPAIR_HINT,
     RESULTS_FILE,
     TRAIN_LOG_FILE,
     job_lock,
@@ -101,21 +100,18 @@ def run_job(job: Job, progress: bool = True, position: int = 1) -> JobOutcome:
                 return JobOutcome(job.id, job.label, str(folder), "failed", recorded=False,
                                   error=f"{folder} {state.message} (written after this run planned it); rerun with "
                                         "--force to replace it, or choose another --output")
-            if state.state == "damaged":
-                _keep_damaged(job, folder, state.message)
+            _keep_damaged(job, folder)
             return _run_locked(job, folder, progress, position)
     except OSError as error:  # the folder or its lock file cannot be made: nothing was written
         return JobOutcome(job.id, job.label, str(folder), "failed", recorded=False,
                           error=f"cannot write the job folder {folder}: {error.strerror or error}")
 
 
-def _keep_damaged(job: Job, folder: Path, message: str) -> None:
+def _keep_damaged(job: Job, folder: Path) -> None:
     """Set a damaged job's files aside (`set_aside_damaged`) and say so, with what was wrong, in log.txt and on
     stderr: the rerun then repairs the job without overwriting what a user edited."""
-    kept = set_aside_damaged(folder)
-    if kept:
-        line = (f"{job.label}: {message.removesuffix('; ' + REPAIR_HINT)}; kept as "
-                f"{', '.join(str(path) for path in kept)}; re-evaluating the job")
+    for path, problem in set_aside_damaged(folder, job.id):
+        line = f"{job.label}: {problem}; kept as {path}; re-evaluating the job"
         JobLog(folder)(line)
         progress_write(line)
 

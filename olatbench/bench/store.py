@@ -123,27 +123,32 @@ def _results_problem(folder: Path, job_id: str) -> str | None:
 DAMAGED_SUFFIX = ".damaged"
 
 
-def set_aside_damaged(folder: str | Path) -> list[Path]:
-    """Before a damaged job (`job_state` ``damaged``) is redone: rename its results.json, and its job.json when that
-    is the unreadable one, to ``<name>.damaged`` (``.damaged-2``, … when taken), so the rerun that repairs the job
-    overwrites nothing a user edited; returns the new paths (reports and `status` read neither name)."""
+def set_aside_damaged(folder: str | Path, job_id: str) -> list[tuple[Path, str]]:
+    """Before job ``job_id`` runs in ``folder``: rename its job.json when unreadable, and its results.json when DONE
+    marks the job finished but that file does not record it (the files `job_state` calls ``damaged``), to
+    ``<name>.damaged`` (``.damaged-2``, … when taken), so the rerun that repairs the job overwrites nothing a user
+    edited. Returns each new path with what was wrong (reports and `status` read neither name). Reads no lock, so
+    it also works under the job's own."""
     folder = Path(folder)
-    names = [RESULTS_FILE]
+    damaged: list[tuple[str, str]] = []
     try:
         job_record(folder)
-    except ValueError:
-        names.append(JOB_FILE)
+    except ValueError as error:
+        damaged.append((JOB_FILE, str(error)))
+    done = folder / DONE_FILE
+    if done.is_file() and done.read_text(errors="replace").strip() == job_id:
+        problem = _results_problem(folder, job_id)
+        if problem is not None and (folder / RESULTS_FILE).is_file():
+            damaged.append((RESULTS_FILE, problem))
     kept = []
-    for name in names:
+    for name, problem in damaged:
         path = folder / name
-        if not path.is_file():
-            continue
         target, number = path.with_name(name + DAMAGED_SUFFIX), 1
         while target.exists():
             number += 1
             target = path.with_name(f"{name}{DAMAGED_SUFFIX}-{number}")
         path.rename(target)
-        kept.append(target)
+        kept.append((target, problem))
     return kept
 
 
