@@ -75,6 +75,14 @@ RESULTS_SHAPES = {  # name: (damage, the key the message names)
         lambda path: path.write_text('{"schema_version": ' + "2" * 5000 + "}"),
         "an integer with more digits",
     ),
+    "metric value NaN": (  # was reported as "not computed" (#58)
+        _edit(lambda d: d["metrics"]["test"]["mean"].update(psnr=float("nan"))),
+        "metrics.test.mean.psnr: expected a number or null, found NaN",
+    ),
+    "metric missing": (  # was reported as "no run found" (#58)
+        _edit(lambda d: d["metrics"]["test"]["mean"].pop("psnr")),
+        "metrics.test.mean: missing psnr",
+    ),
 }
 
 
@@ -97,9 +105,12 @@ def test_a_results_json_of_another_shape_is_damaged_reported_and_re_evaluated(da
     assert f"skipped (unreadable): {path}" in report.stderr and phrase in report.stderr, report.stderr
     assert "Beta" in report.stdout  # the other job's results still make the table
     assert ViewerModel.open(folder)._recorded == {}  # the viewer shows the job, without the runner's PSNR
+    damaged = path.read_bytes()
     rerun = run_cli(*run_args(data, out))
     assert rerun.exit_code == 0 and "1 damaged: re-evaluated" in rerun.output, rerun.output
     assert read_results(path)["metrics"] == original["metrics"]  # nothing lost
+    assert (folder / "results.json.damaged").read_bytes() == damaged  # the edited file too, and said where (#58)
+    assert f"kept as {folder / 'results.json.damaged'}" in rerun.output and phrase in rerun.output, rerun.output
 
 
 # ---- a job.json switched to another method --------------------------------------------------------------------------
@@ -218,6 +229,79 @@ def test_an_official_job_failing_on_a_full_disk_reports_the_commands_message_fir
     assert not (Path(job.folder) / "error.txt").exists()  # the next run retries the job
 
 
+# ---- official settings that cannot run: named before the plan (#58) --------------------------------------------------
+
+
+def _not_python(tmp_path: Path) -> list[str]:
+    script = tmp_path / "not-python"
+    script.write_text("#!/bin/sh\necho not python\n")
+    script.chmod(0o755)
+    return [f"python={script}"]
+
+
+def _other_commit(tmp_path: Path) -> list[str]:
+    from official_standins import write_checkout
+
+    return [f"checkout={write_checkout(tmp_path / 'clone', 'gs3-official', git=True)}"]
+
+
+OFFICIAL_SETTINGS_FAULTS = {  # name: (--code settings over a good checkout and interpreter, what the error says)
+    "timeout_minutes=-1": (lambda tmp_path: ["timeout_minutes=-1"],
+                           "timeout_minutes must be a positive number of minutes, not '-1' (--code)"),
+    "python that is not Python": (_not_python, "is not a Python interpreter: asked for its version, it answered "
+                                               "'not python'"),
+    "checkout at another commit": (_other_commit, "not the pinned 83c8daa41284"),
+}
+
+
+@pytest.mark.parametrize("fault", list(OFFICIAL_SETTINGS_FAULTS))
+def test_official_settings_that_cannot_run_are_refused_before_the_plan_naming_them(tmp_path, fault):
+    from datasets_trees import write_nrhints_tree
+    from official_standins import write_checkout
+
+    scene = write_nrhints_tree(tmp_path / "Cup", n_train=3, n_test=2, size=(24, 16)).root
+    settings, phrase = OFFICIAL_SETTINGS_FAULTS[fault]
+    code = [f"checkout={write_checkout(tmp_path / 'plain', 'gs3-official')}", f"python={sys.executable}",
+            *settings(tmp_path)]
+    out = tmp_path / "runs"
+    result = run_cli("run", "-m", "gs3-official", "--data", scene, "--out", out, "--quiet",
+                     *[arg for item in code for arg in ("--code", item)])
+    assert_one_clear_error(result, 2, phrase)
+    assert not out.exists()  # nothing planned, nothing started
+    if fault == "python that is not Python":  # the doctor says the same, not "ok ... Python not python"
+        doctor = run_cli("doctor", *[arg for item in code for arg in ("--code", f"gs3-official.{item}")])
+        (row,) = [line for line in doctor.output.splitlines() if "gs3-official: interpreter" in line]
+        assert row.strip().startswith("NO") and "not a Python interpreter" in row, row
+
+
+# ---- a render that leaves another's frames, a light path with a negative intensity (#58) -----------------------------
+
+
+def test_a_second_render_into_a_folder_leaves_only_its_own_frames_and_the_users_files(data, tmp_path):
+    out = tmp_path / "runs"
+    assert run_cli(*run_args(data, out, "--scenes", "Alpha")).exit_code == 0
+    videos = tmp_path / "videos"
+    first = run_cli("render", job_folder(out), "--orbit", "--frames", "4", "-o", videos, "--quiet")
+    assert first.exit_code == 0, first.output
+    frames = videos / "orbit_frames"
+    (frames / "notes.txt").write_text("mine")  # a file of the user's in the frame folder
+    second = run_cli("render", job_folder(out), "--orbit", "--frames", "2", "-o", videos, "--quiet")
+    assert second.exit_code == 0, second.output
+    assert sorted(path.name for path in frames.iterdir() if not path.name.startswith(".")) == [
+        "00000.png", "00001.png", "notes.txt"]
+
+
+def test_a_light_path_with_a_negative_intensity_is_refused_naming_the_field(data, tmp_path):
+    out = tmp_path / "runs"
+    assert run_cli(*run_args(data, out, "--scenes", "Alpha")).exit_code == 0
+    lights = tmp_path / "lights.json"
+    lights.write_text(json.dumps({"lights": [{"position": [0, 0, 4], "intensity": [30, -1, 30]}]}))
+    result = run_cli("render", job_folder(out), "--orbit", "--frames", "2", "--light-path", lights,
+                     "-o", tmp_path / "videos", "--quiet")
+    assert_one_clear_error(result, 2, f"{lights}: lights[0].intensity: must be ≥ 0")
+    assert not (tmp_path / "videos" / "orbit.mp4").exists()
+
+
 # ---- a run folder with no job in it ---------------------------------------------------------------------------------
 
 EMPTY_FOLDER_ENTRIES = {
@@ -254,6 +338,8 @@ FAULT_COUNT = (
     + len(JOB_JSON_PARSE_FAULTS)
     + 2
     + 1
+    + len(OFFICIAL_SETTINGS_FAULTS)
+    + 2
     + len(EMPTY_FOLDER_ENTRIES)
     + 1
 )
