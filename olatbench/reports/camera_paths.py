@@ -18,8 +18,8 @@ starting at the azimuth of a template camera whose intrinsics and size they keep
 **Lights**: one light for every frame (`olatbench.datasets.lights.parse_light`: a training frame's light by its
 index in the training split, or a position ``x,y,z`` in world units with the first training light's intensity), or
 a light-path JSON: ``{"lights":
-[{"position": [x, y, z], "intensity": [r, g, b]}, ...]}`` (intensity optional: the first training light's; each channel ≥ 0), one
-light per camera, or one for all.
+[{"position": [x, y, z], "intensity": [r, g, b]}, ...]}`` (intensity optional: the first training light's; each
+channel ≥ 0), one light per camera, or one for all.
 """
 
 from __future__ import annotations
