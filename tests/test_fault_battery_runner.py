@@ -714,6 +714,13 @@ def test_a_forward_facing_rig_with_its_depth_range_is_fitted_and_runs(data, tmp_
     result = run_cli(*run_args(data, out, "--scenes", "Alpha"))
     assert result.exit_code == 0, result.output
     assert job_state(job_folder(out)).state == "done"
+    from olatbench.bench.views import job_frame
+    from olatbench.datasets import load_scene
+
+    (job,) = plan(data, out, scenes=["Alpha"])
+    cameras = load_scene(job.scene_path, format=job.scene_format).split(job.train_split)
+    centre = np.mean([frame.camera.position for frame in cameras], axis=0) + np.array([0.0, 4.0, 0.0])  # (2+6)/2 ahead
+    np.testing.assert_allclose(job_frame(cameras, job).points(centre), np.zeros(3), atol=1e-9)
 
 
 # ---- a point cloud whose header declares more points than the file holds (#58) --------------------------------------
