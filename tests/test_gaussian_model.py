@@ -142,6 +142,22 @@ def test_ply_writer_roundtrip_and_from_ply(tmp_path):
     assert model.num_gaussians == 20 and "colour" in model.attributes
 
 
+def test_ply_header_counts_are_checked_against_the_files_size_before_reading(tmp_path):
+    """A header declaring more points than the file holds (or than any file may) is one error naming the file, before
+    anything is allocated (#58); a file that holds exactly what it declares reads, ascii without a final newline too."""
+    header = (b"ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\nproperty float z\n"
+              b"end_header\n")
+    (tmp_path / "exact.ply").write_bytes(header + b"1 2 3\n4 5 6")
+    np.testing.assert_array_equal(read_ply_points(tmp_path / "exact.ply")[0], [[1, 2, 3], [4, 5, 6]])
+    (tmp_path / "short.ply").write_bytes(header.replace(b"vertex 2", b"vertex 3") + b"1 2 3\n4 5 6")
+    with pytest.raises(PlyError, match=r"short\.ply: the header declares 3 'vertex' elements, which take at least"):
+        read_ply_points(tmp_path / "short.ply")
+    binary = header.replace(b"ascii", b"binary_little_endian").replace(b"vertex 2", b"vertex 4000000000")
+    (tmp_path / "huge.ply").write_bytes(binary + bytes(24))
+    with pytest.raises(PlyError, match=r"huge\.ply: the header declares 4,000,000,000 'vertex' elements, more than"):
+        read_ply_points(tmp_path / "huge.ply")
+
+
 def test_ply_errors_name_the_file(tmp_path):
     (tmp_path / "a.ply").write_bytes(b"ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nend_header\n1\n")
     with pytest.raises(PlyError, match=r"a\.ply: vertex element lacks properties \['y', 'z'\]"):
