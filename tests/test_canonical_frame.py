@@ -163,6 +163,11 @@ def test_a_forward_facing_rig_is_centred_ahead_of_the_cameras_at_its_depth():
     canonical = [frame.camera(camera) for camera in cameras]  # ahead of every camera, 4 units away (median)
     assert all(-(c.position @ c.c2w[:3, 2]) > 3.0 for c in canonical)
     np.testing.assert_allclose(np.median([np.linalg.norm(c.position) for c in canonical]), CANONICAL_CAMERA_DISTANCE)
+    from olatbench.methods.initialisation import initial_ball
+
+    centre, radius = initial_ball(canonical, None)  # the random Gaussians start there, not at the cameras
+    np.testing.assert_allclose(centre, np.zeros(3), atol=1e-9)
+    assert radius < CANONICAL_CAMERA_DISTANCE
     converging = forward_rig(near=None, far=None, toe_in=0.25)  # ≈ 9° rms: they meet at a point, no near/far needed
     centre = canonical_frame(converging).inverse().points(np.zeros(3))
     assert centre[2] > 1.0 and np.all([(centre - c.position) @ c.c2w[:3, 2] > 0 for c in converging])
