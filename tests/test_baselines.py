@@ -191,7 +191,7 @@ def test_gs3_lowers_the_loss_and_renders_its_components(views, monkeypatch) -> N
         method.train_step(step)
     assert mean_l1(method, views) < 0.8 * before
     out = method.render(views.cameras[0], views.lights[0])
-    assert set(out) == {"rgb", "diffuse", "specular", "shading", "shadow", "shadow_coarse", "other"}
+    assert set(out) == {"rgb", "diffuse", "specular", "shading", "shadow", "shadow_coarse", "other", "alpha"}
     torch.testing.assert_close(out["rgb"], (out["shading"] * out["shadow"] + out["other"]).clamp(0, 1))
     torch.testing.assert_close(out["shading"], out["diffuse"] + out["specular"], atol=1e-5, rtol=1e-5)
 

@@ -55,7 +55,7 @@ def test_methods_list_and_show_import_no_torch():
     shown = _cli_without_torch(["methods", "show", "ssdgs"])
     assert shown["code"] == 0, shown["output"]
     assert "components: ablation-A, ablation-B" in shown["output"] and "num_asg" in shown["output"]
-    assert "outputs: rgb, diffuse, specular, sss, shadow, shadow_coarse" in shown["output"]
+    assert "outputs: rgb, diffuse, specular, sss, shadow, shadow_coarse, alpha" in shown["output"]
     assert not listed["torch"] and not shown["torch"]
 
 

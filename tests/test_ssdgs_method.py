@@ -83,7 +83,7 @@ def test_save_load_gives_identical_renders_and_resumes_exactly(views) -> None:
     assert restored.num_gaussians == method.num_gaussians
     a = method.render(views.cameras[1], views.lights[1])
     b = restored.render(views.cameras[1], views.lights[1])
-    assert set(a) == {"rgb", "diffuse", "specular", "sss", "shadow", "shadow_coarse"}
+    assert set(a) == {"rgb", "diffuse", "specular", "sss", "shadow", "shadow_coarse", "alpha"}
     for key in a:
         torch.testing.assert_close(a[key], b[key], rtol=0, atol=0)
     torch.manual_seed(3)

@@ -253,6 +253,16 @@ def _report_runs(runs, suite, methods, metrics, splits, layouts, average, fmt, s
 @click.option("--light-path", type=click.Path(dir_okay=False, path_type=Path),
               help='With --camera-path/--orbit: a JSON {"lights": [{"position": [x, y, z]}, ...]}, one light per '
                    "frame (or one for all).")
+@click.option("--lights", "lights_file", type=click.Path(dir_okay=False, path_type=Path),
+              help="Render under a lighting file (JSON: point, directional, sphere and rect area lights, environment "
+                   "maps; docs/relighting.md) instead of one point light: with --camera-path or --orbit a video, "
+                   "else a still of --start-frame's camera (<name>.png, sRGB, and <name>.exr, linear).")
+@click.option("--envmap", metavar="NAME|FILE",
+              help="Render under an environment map, as --lights: a built-in one (studio, sky, furnace) or an "
+                   ".exr/.hdr equirectangular file.")
+@click.option("--samples", type=click.IntRange(min=1),
+              help="With --lights/--envmap: lights sampled from each environment map and area light (default: the "
+                   "file's, else 64). The render costs one method render per light.")
 @click.option("--frames", "count", type=click.IntRange(min=1),
               help="Spread this many frames over the sweep or camera path (an orbit: its number of frames, "
                    "default 120).")
@@ -265,8 +275,8 @@ def _report_runs(runs, suite, methods, metrics, splits, layouts, average, fmt, s
 @click.option("-o", "--output", type=click.Path(file_okay=False, path_type=Path),
               help="Folder for <sweep>.mp4 and <sweep>_frames/ (camera-path.mp4, orbit.mp4; default: RUN/videos).")
 @quiet_option
-def render(run, kind, camera_path, orbit, elevation, radius, light, light_path, count, start_frame, component, fps,
-           device, resolution, output, quiet) -> None:
+def render(run, kind, camera_path, orbit, elevation, radius, light, light_path, lights_file, envmap, samples, count,
+           start_frame, component, fps, device, resolution, output, quiet) -> None:
     """Render a relighting sweep, a camera path or an orbit of a finished job to an MP4 and a frame folder.
 
     \b
@@ -275,6 +285,8 @@ def render(run, kind, camera_path, orbit, elevation, radius, light, light_path, 
       olatbench render runs/nrhints/ssdgs/default/Pixiu/seed0 --sweep paper --resolution 256x256
       olatbench render runs/mini/ssdgs/default/translucent/seed0 --camera-path path.json --light 0
       olatbench render runs/mini/ssdgs/default/translucent/seed0 --orbit --elevation 30 --frames 90 --light 1,2,3
+      olatbench render runs/mini/ssdgs/default/translucent/seed0 --orbit --envmap studio --samples 64
+      olatbench render runs/mini/ssdgs/default/translucent/seed0 --lights two_lights.json
     """
     from olatbench.datasets.errors import DatasetError
     from olatbench.reports.jobfolder import JobFolder, JobFolderError
@@ -284,6 +296,12 @@ def render(run, kind, camera_path, orbit, elevation, radius, light, light_path, 
     free = camera_path is not None or orbit
     if camera_path is not None and orbit:
         raise click.UsageError("give --camera-path or --orbit, not both")
+    if lights_file is not None or envmap is not None:
+        _render_lit(run, lights_file, envmap, samples, kind, camera_path, orbit, elevation, radius, light, light_path,
+                    count, start_frame, component, fps, device, resolution, output, quiet)
+        return
+    if samples is not None:
+        raise click.UsageError("--samples goes with --lights or --envmap")
     if free and (kind or start_frame):
         raise click.UsageError("--sweep and --start-frame go without --camera-path and --orbit")
     if not free and (light is not None or light_path is not None):
@@ -316,3 +334,63 @@ def render(run, kind, camera_path, orbit, elevation, radius, light, light_path, 
     codec = "H.264" if result.encoder != "opencv" else "MPEG-4 Part 2 (mp4v; browsers do not play it: install " \
         "'olatbench[video]')"
     click.echo(f"wrote {result.video} ({codec}, {result.encoder}) and {result.frames} frames in {result.frames_dir}")
+
+
+def _render_lit(run, lights_file, envmap, samples, kind, camera_path, orbit, elevation, radius, light, light_path,
+                count, start_frame, component, fps, device, resolution, output, quiet) -> None:
+    """`render` under a lighting (--lights or --envmap): a video along --camera-path/--orbit, else a still."""
+    from olatbench.datasets.errors import DatasetError
+    from olatbench.datasets.lighting import environment_lighting, read_lighting
+    from olatbench.reports.jobfolder import JobFolder, JobFolderError
+    from olatbench.reports.sweeps import subsample
+    from olatbench.reports.video import (
+        Orbit,
+        RenderRequestError,
+        free_path_frames,
+        load_relighter,
+        render_still,
+        render_sweep,
+        sample_lighting,
+    )
+
+    if lights_file is not None and envmap is not None:
+        raise click.UsageError("give --lights or --envmap, not both")
+    if kind or light is not None or light_path is not None:
+        raise click.UsageError("--sweep, --light and --light-path move one point light: they go without --lights "
+                               "and --envmap")
+    if component != "rgb":
+        raise click.UsageError(f"--component {component}: under --lights/--envmap only rgb adds up over lights")
+    try:
+        lighting = read_lighting(lights_file) if lights_file is not None else environment_lighting(envmap, samples)
+    except DatasetError as error:  # one line naming the file and the field
+        raise click.UsageError(str(error)) from None
+    try:
+        job = JobFolder.open(run)
+    except JobFolderError as error:
+        raise click.UsageError(str(error)) from None
+    progress = show_progress(quiet)
+    try:
+        sampled = sample_lighting(job, lighting, samples)
+        relighter = load_relighter(job, resolve_device(device), progress)
+        if camera_path is None and not orbit:
+            if count is not None:
+                raise click.UsageError("--frames goes with --camera-path or --orbit (without them: one still)")
+            still = render_still(job, sampled, output or run / "videos", lighting.name, frame_id=start_frame,
+                                 resolution=resolution, progress=progress, relighter=relighter)
+            click.echo(f"wrote {still.png} and {still.exr} (linear) under {lighting.name}: {len(sampled)} lights")
+            return
+        if start_frame:
+            raise click.UsageError("--start-frame goes without --camera-path and --orbit")
+        frames, path_fps = free_path_frames(
+            job, camera_path=camera_path, resolution=resolution,
+            orbit=Orbit(elevation, radius, count or Orbit.frames) if orbit else None)
+        name = f"{'camera-path' if camera_path is not None else 'orbit'}-{lighting.name}"
+        result = render_sweep(job, name, output or run / "videos", fps=fps or path_fps or 30.0,
+                              progress=progress, method=relighter, frames=subsample(frames, count), lighting=sampled)
+    except RenderRequestError as error:
+        raise click.UsageError(str(error)) from None
+    except (JobFolderError, DatasetError, RuntimeError, OSError, ValueError) as error:
+        raise click.ClickException(f"{error}\nCheck the job with 'olatbench status {run.parent.parent.parent}'.") \
+            from None
+    click.echo(f"wrote {result.video} and {result.frames} frames in {result.frames_dir} under {lighting.name}: "
+               f"{len(sampled)} lights per frame")

@@ -9,12 +9,18 @@ or imageio-ffmpeg is installed, else OpenCV's ``mp4v`` with a logged warning).
 A render owns the frames it wrote: the frame folder keeps their names in `FRAMES_RECORD`, and the next render into
 that folder removes those it does not write again (a 2-frame orbit over a 4-frame one leaves no frames 2–3); files
 it did not write there are never touched.
+
+Under a lighting (`olatbench.datasets.lighting`: several lights, area lights, an environment map) each frame is the
+sum in linear light of the method's renders under the lighting's point and directional lights
+(`olatbench.bench.relight.Relighter`), encoded to sRGB; `render_still` writes one such view as a PNG and a linear
+EXR.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -35,6 +41,10 @@ from olatbench.reports.camera_paths import (
 from olatbench.reports.encode import open_video
 from olatbench.reports.jobfolder import JobFolder, JobFolderError
 from olatbench.reports.sweeps import SweepFrame, orbit_frame, subsample, trajectory
+
+if TYPE_CHECKING:
+    from olatbench.bench.relight import Relighter
+    from olatbench.datasets.lighting import Lighting, SampledLights
 
 
 class RenderRequestError(JobFolderError):
@@ -61,6 +71,18 @@ def load_trained_method(job: JobFolder, device: str = "cpu", progress: bool = Tr
     try:
         return restore(job.folder, device, progress=progress)[0]
     except RestoreError as error:
+        raise JobFolderError(str(error)) from None
+
+
+def load_relighter(job: JobFolder, device: str = "cpu", progress: bool = True) -> Relighter:
+    """The job's trained method as a `olatbench.bench.relight.Relighter` (a `JobFolderError` says why it cannot
+    be)."""
+    from olatbench.bench.relight import RelightError, restore_relighter
+    from olatbench.bench.restore import RestoreError
+
+    try:
+        return restore_relighter(job.folder, device, progress)[0]
+    except (RestoreError, RelightError) as error:
         raise JobFolderError(str(error)) from None
 
 
@@ -180,17 +202,27 @@ def _own_frames(frames_dir: Path, previous: list[str], written: list[str]) -> No
 def render_sweep(job: JobFolder, kind: str, out_dir: str | Path, *, count: int | None = None,
                  frame_id: str | None = None, component: str = "rgb", fps: float = 30.0, device: str = "cpu",
                  resolution: tuple[int, int] | None = None, progress: bool = True, method=None,
-                 frames: list[SweepFrame] | None = None, video: str | Path | None = None) -> SweepOutput:
+                 frames: list[SweepFrame] | None = None, video: str | Path | None = None,
+                 lighting: SampledLights | None = None) -> SweepOutput:
     """Render the sweep into ``out_dir`` (``<kind>.mp4`` and ``<kind>_frames/``); returns where.
 
     ``method`` and ``frames`` may be given to skip loading them from the job (tests, notebooks, the viewer);
-    ``video`` names the MP4 instead (its frames then go to ``<video stem>_frames/`` beside it).
+    ``video`` names the MP4 instead (its frames then go to ``<video stem>_frames/`` beside it). With ``lighting``
+    every frame is its camera under those lights (its own light is not used; ``method`` may be a `Relighter`).
     """
     import torch
 
+    from olatbench.bench.relight import Relighter
+
     out_dir = Path(out_dir)
+    if lighting is not None and component != "rgb":
+        raise RenderRequestError(f"under a lighting only 'rgb' adds up over lights, not {component!r}")
     frames = frames if frames is not None else sweep_frames(job, kind, frame_id, count, resolution)
-    method = method if method is not None else load_trained_method(job, device, progress)
+    if lighting is not None:
+        method = method if isinstance(method, Relighter) else load_relighter(job, device, progress) \
+            if method is None else Relighter.for_views(method, _train_views(job))
+    else:
+        method = method if method is not None else load_trained_method(job, device, progress)
     video_path = Path(video) if video is not None else out_dir / f"{kind}.mp4"
     frames_dir = video_path.with_name(f"{video_path.stem}_frames")
     frames_dir.mkdir(parents=True, exist_ok=True)
@@ -201,12 +233,62 @@ def render_sweep(job: JobFolder, kind: str, out_dir: str | Path, *, count: int |
         try:
             with torch.no_grad():
                 for index, frame in enumerate(progress_bar(frames, desc=f"{job.label}: {kind}", disable=not progress)):
-                    output = method.render(frame.camera, frame.light)
-                    checked_component(output, component, job)
-                    image = display_image(output[component], job.job["colourspace"])
+                    if lighting is not None:
+                        image = method.display(frame.camera, lighting)
+                    else:
+                        output = method.render(frame.camera, frame.light)
+                        checked_component(output, component, job)
+                        image = display_image(output[component], job.job["colourspace"])
                     write_image(frames_dir / f"{index:05d}.png", image)
                     writer.write(colour.quantize_8bit(image))
         finally:
             writer.close()
     _own_frames(frames_dir, previous, [f"{index:05d}.png" for index in range(len(frames))])
     return SweepOutput(video_path, frames_dir, len(frames), writer.encoder)
+
+
+def sample_lighting(job: JobFolder, lighting: Lighting, samples: int | None = None) -> SampledLights:
+    """The point and directional lights of ``lighting`` for the job's scene: maps without an ``up`` are stood on
+    the vertical of the training cameras' rig (`olatbench.bench.relight.LightingReference`), ``samples`` overrides
+    every area light's and map's count; a map that cannot be read is a `RenderRequestError` naming the file."""
+    from olatbench.bench.relight import LightingReference, RelightError
+    from olatbench.datasets.errors import DatasetError
+
+    train = job.load_scene().split(job.job["train_split"])
+    try:
+        up = LightingReference.of([frame.camera for frame in train], [frame.light for frame in train]).up
+        return lighting.sample(up, samples)
+    except (DatasetError, RelightError) as error:
+        raise RenderRequestError(str(error)) from None
+
+
+def _train_views(job: JobFolder):
+    """The job's training views without images, in the world frame (`olatbench.bench.views.frame_views`)."""
+    from olatbench.bench.restore import read_job
+    from olatbench.bench.views import frame_views
+
+    bench_job = read_job(job.folder)
+    return frame_views(job.load_scene().split(bench_job.train_split), bench_job)
+
+
+@dataclass(frozen=True)
+class StillOutput:
+    """Where a still went: the sRGB PNG and the linear EXR (radiance in the scene's light units)."""
+
+    png: Path
+    exr: Path
+
+
+def render_still(job: JobFolder, lighting: SampledLights, out_dir: str | Path, name: str, *,
+                 frame_id: str | None = None, device: str = "cpu", resolution: tuple[int, int] | None = None,
+                 progress: bool = True, relighter: Relighter | None = None) -> StillOutput:
+    """One view under ``lighting``: the camera of test frame ``frame_id`` (default: the first), written as
+    ``<name>.png`` (sRGB, 8-bit) and ``<name>.exr`` (linear, float) in ``out_dir``."""
+    camera = sweep_frames(job, "light-orbit", frame_id, 1, resolution)[0].camera
+    relighter = relighter if relighter is not None else load_relighter(job, device, progress)
+    from olatbench.bench.relight import shown
+
+    linear = relighter.linear(camera, lighting, progress)
+    out_dir = Path(out_dir)
+    return StillOutput(write_image(out_dir / f"{name}.png", shown(linear)),
+                       write_image(out_dir / f"{name}.exr", linear, bit_depth="float"))

@@ -201,7 +201,8 @@ class GS3(GaussianMethod, spec=SPEC):
     @torch.no_grad()
     def render_canonical(self, camera: Camera, light: PointLight) -> dict[str, torch.Tensor]:
         """``rgb`` (the composite, clamped to [0, 1]) plus screen-space ``diffuse``, ``specular``, ``shading``
-        (I_px), ``shadow`` (V_px), ``shadow_coarse`` (splatted hint v̂) and ``other`` (O_px)."""
+        (I_px), ``shadow`` (V_px), ``shadow_coarse`` (splatted hint v̂), ``other`` (O_px) and the coverage
+        ``alpha``."""
         w2c, K = camera_tensors(camera, self.device)
         position, intensity = light_tensors(light, self.device)
         out = self._forward(w2c, K, camera.width, camera.height, position, intensity, max(self.step - 1, 0),
@@ -209,7 +210,7 @@ class GS3(GaussianMethod, spec=SPEC):
         splat = out["splat"]
         return {"rgb": out["image"].clamp(0.0, 1.0), "diffuse": splat.extras[..., 0:3],
                 "specular": splat.extras[..., 3:6], "shading": splat.shading, "shadow": splat.visibility,
-                "shadow_coarse": splat.extras[..., 6:7], "other": splat.other}
+                "shadow_coarse": splat.extras[..., 6:7], "other": splat.other, "alpha": splat.alpha}
 
     @torch.no_grad()
     def colours_under(self, camera: Camera, light: PointLight) -> torch.Tensor:

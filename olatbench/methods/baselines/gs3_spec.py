@@ -29,7 +29,7 @@ SPEC = MethodSpec(
     implementation="olatbench.methods.baselines.gs3:GS3",
     config="olatbench.methods.baselines.gs3_config:GS3Config",
     presets=PRESETS,
-    outputs=("rgb", "diffuse", "specular", "shading", "shadow", "shadow_coarse", "other"),
+    outputs=("rgb", "diffuse", "specular", "shading", "shadow", "shadow_coarse", "other", "alpha"),
     capabilities=frozenset({"relight", "components", "checkpoint", "init_points"}),
     scene_recipe="mini",
 )

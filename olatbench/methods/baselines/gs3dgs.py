@@ -73,7 +73,7 @@ class GaussianSplatting3D(GaussianMethod, spec=SPEC):
         coefficients = torch.cat([model.attributes["sh_dc"], model.attributes["sh_rest"]], dim=1)
         colours = (sh.eval_sh(degree, coefficients, dirs) + 0.5).clamp_min(0.0)
         out = rasterize(projected, model.opacities, colours, self.train_views.background)
-        return {"image": out.image, "projected": projected, "light_weight": None}
+        return {"image": out.image, "alpha": out.alpha, "projected": projected, "light_weight": None}
 
     def training_forward(self, index: int, step: int) -> dict[str, Any]:
         views = self.train_views
@@ -87,10 +87,11 @@ class GaussianSplatting3D(GaussianMethod, spec=SPEC):
     # ----------------------------------------------------------------------------------------- rendering
     @torch.no_grad()
     def render_canonical(self, camera: Camera, light: PointLight) -> dict[str, torch.Tensor]:
-        """``rgb`` (H, W, 3) in [0, 1]; ``light`` is ignored (3DGS has no notion of it)."""
+        """``rgb`` (H, W, 3) in [0, 1] and the coverage ``alpha`` (H, W, 1); ``light`` is ignored (3DGS has no
+        notion of it)."""
         w2c, K = camera_tensors(camera, self.device)
         out = self._forward(w2c, K, camera.width, camera.height, self.active_sh_degree(max(self.step - 1, 0)))
-        return {"rgb": out["image"].clamp(0.0, 1.0)}
+        return {"rgb": out["image"].clamp(0.0, 1.0), "alpha": out["alpha"][..., None]}
 
 
 __all__ = ["PRESETS", "GS3DConfig", "GaussianSplatting3D"]

@@ -29,7 +29,7 @@ SPEC = MethodSpec(
     implementation="olatbench.methods.baselines.gs3dgs:GaussianSplatting3D",
     config="olatbench.methods.baselines.gs3dgs_config:GS3DConfig",
     presets=PRESETS,
-    outputs=("rgb",),
+    outputs=("rgb", "alpha"),
     capabilities=frozenset({"checkpoint", "init_points"}),
     scene_recipe="mini",
 )

@@ -28,13 +28,15 @@ from olatbench.gaussians.tiles import TileBins
 @dataclass
 class TripleSplat:
     """Screen-space channels (H, W, ·): ``shading`` I_px (3), ``visibility`` V_px (1), ``other`` O_px (3), the
-    composite ``image`` (3) and any ``extras`` (C) splatted alongside (zero background)."""
+    composite ``image`` (3), any ``extras`` (C) splatted alongside (zero background), and the coverage ``alpha``
+    (1) = 1 - the final transmittance T."""
 
     shading: torch.Tensor
     visibility: torch.Tensor
     other: torch.Tensor
     image: torch.Tensor
     extras: torch.Tensor | None
+    alpha: torch.Tensor
 
 
 def visibility_background(background: torch.Tensor) -> torch.Tensor:
@@ -57,11 +59,12 @@ def triple_splat(projected: Projected, opacities: torch.Tensor, shading: torch.T
     extra_channels = 0 if extras is None else extras.shape[1]
     full_background = torch.cat([background, visibility_background(background),
                                  background.new_zeros(3 + extra_channels)])
-    image = rasterize(projected, opacities, features, full_background, backend=backend, bins=bins).image
+    splatted = rasterize(projected, opacities, features, full_background, backend=backend, bins=bins)
+    image = splatted.image
     shading_px, visibility_px, other_px = image[..., 0:3], image[..., 3:4], image[..., 4:7]
     return TripleSplat(shading=shading_px, visibility=visibility_px, other=other_px,
                        image=composite(shading_px, visibility_px, other_px),
-                       extras=image[..., 7:] if extras is not None else None)
+                       extras=image[..., 7:] if extras is not None else None, alpha=splatted.alpha[..., None])
 
 
 __all__ = ["TripleSplat", "composite", "triple_splat", "visibility_background"]

@@ -188,7 +188,8 @@ class SSDGS(GaussianMethod, spec=SPEC):
         else:
             per_gaussian, background = shaded.colour, self.background
         out = rasterize(projected, model.opacities, visible.scatter(per_gaussian), background, bins=bins)
-        return {"image": out.image, "projected": projected, "terms": terms, "light_weight": light_weight}
+        return {"image": out.image, "alpha": out.alpha, "projected": projected, "terms": terms,
+                "light_weight": light_weight}
 
     def _shade(self, w2c: torch.Tensor, K: torch.Tensor, width: int, height: int, light_position: torch.Tensor,
                intensity: torch.Tensor, terms: frozenset[str], pick) -> tuple[Components, torch.Tensor | None]:
@@ -286,6 +287,7 @@ class SSDGS(GaussianMethod, spec=SPEC):
             result[name] = image[..., start:start + channels]
             start += channels
         result["rgb"] = result["rgb"].clamp(0.0, 1.0)
+        result["alpha"] = out["alpha"][..., None]
         return result
 
     @torch.no_grad()

@@ -20,7 +20,7 @@ SPEC = MethodSpec(
     config="olatbench.methods.ssdgs.config:SSDGSConfig",
     presets=PRESETS,
     ablations=ABLATIONS,
-    outputs=("rgb", "diffuse", "specular", "sss", "shadow", "shadow_coarse"),
+    outputs=("rgb", "diffuse", "specular", "sss", "shadow", "shadow_coarse", "alpha"),
     capabilities=frozenset({"relight", "refine_view", "components", "checkpoint", "init_points"}),
     scene_recipe="own-data",  # presets.py: the mini recipe over the official code's switches
 )
