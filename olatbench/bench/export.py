@@ -12,7 +12,9 @@ restored, each Gaussian's colour under that light (`GaussianMethod.colours_under
 (the training cameras, or one named frame's), converted to sRGB, and fitted per Gaussian by least squares with SH
 of degree ``sh_degree`` (`olatbench.methods.baselines.sh.SHFit`; degree 0: the mean over the cameras, the
 view-independent part) along directions in the canonical frame, moved to the world frame with the rest. The file is
-a picture of the model under that light, not a relightable model.
+a picture of the model under that light, not a relightable model. Under a lighting (`Bake.lighting`: several
+lights, area lights, an environment map) each Gaussian's colour is the sum in linear light of its colours under the
+lighting's point and directional lights, as `olatbench.bench.relight` sums renders.
 """
 
 from __future__ import annotations
@@ -25,6 +27,7 @@ import torch
 
 from olatbench.bench.checkpoints import load_checkpoint
 from olatbench.bench.restore import RestoreError, check_job
+from olatbench.datasets.lighting import Lighting
 from olatbench.datasets.similarity import Similarity
 from olatbench.gaussians.splat_ply import SplatCloud, write_splat_ply
 from olatbench.methods.gaussian_method import SplatColour
@@ -57,14 +60,17 @@ class BakeRequestError(RestoreError):
 @dataclass(frozen=True)
 class Bake:
     """What `export_ply` bakes into the colours: the light (`olatbench.datasets.lights.parse_light`: a training
-    light index or ``x,y,z``), the SH degree of the fit (0 … 3), and the cameras seen from: ``view`` a frame id of
-    the test split, else of the training split (that camera alone), else up to ``max_views`` training cameras
-    spread evenly over the split's order."""
+    light index or ``x,y,z``; its name when ``lighting`` is given), the SH degree of the fit (0 … 3), and the
+    cameras seen from: ``view`` a frame id of the test split, else of the training split (that camera alone), else
+    up to ``max_views`` training cameras spread evenly over the split's order. ``lighting`` bakes under a lighting
+    instead of one light, its area lights and maps sampled with ``samples`` lights each (None: the lighting's)."""
 
     light: str
     sh_degree: int = 0
     view: str | None = None
     max_views: int = 64
+    lighting: Lighting | None = None
+    samples: int | None = None
 
 
 def export_ply(job_folder: str | Path, output: str | Path, bake: Bake | None = None, device: str = "cpu",
@@ -135,42 +141,74 @@ def bake_cameras(method, job, bake: Bake) -> list:
                        f"{did_you_mean(bake.view, [frame.frame_id for frame in frames])}")
 
 
+def _colours_under(method, camera, probes: list, colourspace: str, single: bool) -> np.ndarray:
+    """The sRGB colour (N, 3) of every Gaussian seen from the world ``camera`` under the probes' lights
+    (`olatbench.bench.relight.Probe`): the sum of their weighted colours in linear light, or with ``single`` the
+    one probe's colour converted as it is."""
+    from olatbench.datasets.colour import convert_colourspace
+
+    total = None
+    for probe in probes:
+        seen_from, lit_by = method.canonical_view(camera, probe.light)
+        colours = method.colours_under(seen_from, lit_by).detach().double().cpu().numpy()
+        if single:
+            return convert_colourspace(colours, colourspace, "srgb")
+        linear = probe.weight * convert_colourspace(colours, colourspace, "linear")
+        total = linear if total is None else total + linear
+    return convert_colourspace(total, "linear", "srgb")
+
+
 def baked_colour(job_folder: str | Path, bake: Bake, device: str = "cpu", progress: bool = False) -> SplatColour:
     """The job's Gaussians' colours under ``bake.light`` as sRGB SH coefficients (degree-3 layout, the
     coefficients above ``bake.sh_degree`` zero), fitted over the bake's cameras (module docstring)."""
+    from olatbench.bench.relight import Probe
     from olatbench.bench.restore import restore
-    from olatbench.datasets.colour import convert_colourspace
     from olatbench.datasets.lights import parse_light
     from olatbench.methods.baselines.sh import MAX_DEGREE, SHFit, num_coefficients
     from olatbench.methods.gaussian_method import VIEWER_SH_REST, GaussianMethod
 
     if not 0 <= bake.sh_degree <= MAX_DEGREE:
         raise BakeRequestError(f"--sh-degree must be 0 … {MAX_DEGREE}, not {bake.sh_degree}")
-    method, job = restore(job_folder, device, progress=progress)
+    relighter = None
+    if bake.lighting is not None:
+        from olatbench.bench.relight import RelightError, restore_relighter
+        from olatbench.datasets.errors import DatasetError
+
+        try:
+            relighter, job = restore_relighter(job_folder, device, progress)
+            lit_probes = relighter.probes(bake.lighting.sample(relighter.reference.up, bake.samples))
+        except (RelightError, DatasetError) as error:
+            raise BakeRequestError(str(error)) from None
+        method = relighter.method
+    else:
+        method, job = restore(job_folder, device, progress=progress)
     if not isinstance(method, GaussianMethod) or type(method).colours_under is GaussianMethod.colours_under:
         raise BakeRequestError(f"{Path(job_folder) / 'job.json'}: method '{job.method}' has no colour under a light "
                            "(it is not relightable, or does not say: GaussianMethod.colours_under); export it "
                            "without --under-light")
     to_world = method.frame.inverse()
-    try:  # the light as the user names it: a training light or a position, in the dataset's world frame
-        light = parse_light(bake.light, [to_world.light(lt) for lt in method.train_views.views.lights])
-    except ValueError as error:
-        raise BakeRequestError(str(error)) from None
+    if relighter is None:
+        try:  # the light as the user names it: a training light or a position, in the dataset's world frame
+            light = parse_light(bake.light, [to_world.light(lt) for lt in method.train_views.views.lights])
+        except ValueError as error:
+            raise BakeRequestError(str(error)) from None
+        lit_probes = [Probe(light, np.ones(3))]  # as it is: no detour through linear light
     cameras = bake_cameras(method, job, bake)
     means = method.model.means.detach().double()  # canonical, as the fit's directions: export_ply moves the SH back
     fit = SHFit(len(means), bake.sh_degree, device=means.device)
     for camera in progress_bar(cameras, desc=f"bake {job.method}/{job.scene}", unit="view", disable=not progress):
-        seen_from, lit_by = method.canonical_view(camera, light)
-        colours = method.colours_under(seen_from, lit_by).detach().double().cpu().numpy()
-        shown = torch.from_numpy(convert_colourspace(colours, job.colourspace, "srgb"))
-        fit.add(torch.nn.functional.normalize(means - torch.as_tensor(seen_from.position).to(means), dim=-1), shown)
+        shown = torch.from_numpy(_colours_under(method, camera, lit_probes, job.colourspace, relighter is None))
+        seen_from = method.frame.camera(camera).position
+        fit.add(torch.nn.functional.normalize(means - torch.as_tensor(seen_from).to(means), dim=-1), shown)
     coefficients = fit.solve().cpu()
     rest = torch.zeros(len(means), VIEWER_SH_REST, 3)
     rest[:, : num_coefficients(bake.sh_degree) - 1] = coefficients[:, 1:]
     seen = f"camera of frame {bake.view}" if bake.view is not None else f"{len(cameras)} training cameras"
-    return SplatColour(coefficients[:, 0], rest, (), f"colour: a bake, not relightable: the colour under light "
-                       f"{bake.light} ({job.colourspace} -> sRGB, not clipped) fitted with degree-{bake.sh_degree} "
-                       f"SH over the {seen}")
+    under = f"lighting {bake.light} ({len(lit_probes)} lights, summed in linear light)" if relighter is not None \
+        else f"light {bake.light}"
+    return SplatColour(coefficients[:, 0], rest, (), f"colour: a bake, not relightable: the colour under {under} "
+                       f"({job.colourspace} -> sRGB, not clipped) fitted with degree-{bake.sh_degree} SH over the "
+                       f"{seen}")
 
 
 __all__ = ["Bake", "BakeRequestError", "Exported", "bake_cameras", "baked_colour", "export_ply"]

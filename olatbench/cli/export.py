@@ -16,8 +16,12 @@ from olatbench.cli.options import device_option, quiet_option, resolved_device, 
               help="The PLY file to write.")
 @click.option("--under-light", metavar="LIGHT",
               help="Bake the colours under this light instead of the albedo: a training light index (the light of "
-                   "that training frame) or a position x,y,z in scene units. A picture of the model under that "
-                   "light, not a relightable model.")
+                   "that training frame), a position x,y,z in scene units, a lighting file (.json, as 'render "
+                   "--lights'; docs/relighting.md) or an environment map (studio, sky, furnace, or an .exr/.hdr "
+                   "file). A picture of the model under that light, not a relightable model.")
+@click.option("--samples", type=click.IntRange(min=1),
+              help="With --under-light a lighting file or map: lights sampled from each environment map and area "
+                   "light (default: the file's, else 64).")
 @click.option("--sh-degree", type=click.IntRange(0, 3), default=0, show_default=True,
               help="With --under-light: the SH degree fitted to the colours seen from the cameras (0: their mean, "
                    "the view-independent part; 1-3 keep some view dependence).")
@@ -28,8 +32,8 @@ from olatbench.cli.options import device_option, quiet_option, resolved_device, 
               help="With --under-light: fit over at most this many training cameras, spread evenly.")
 @device_option
 @quiet_option
-def export(job: Path, output: Path, under_light: str | None, sh_degree: int, view: str | None, max_views: int,
-           device: str, quiet: bool) -> None:
+def export(job: Path, output: Path, under_light: str | None, samples: int | None, sh_degree: int, view: str | None,
+           max_views: int, device: str, quiet: bool) -> None:
     """Write the trained Gaussians of the finished JOB folder as a PLY in the layout of 3D Gaussian Splatting.
 
     Centres, log-scales, wxyz rotations and opacity logits as trained; the colour as degree-0 spherical harmonics
@@ -43,6 +47,7 @@ def export(job: Path, output: Path, under_light: str | None, sh_degree: int, vie
       olatbench export runs/mini/ssdgs/default/translucent/seed0 -o translucent.ply
       olatbench export runs/mini/ssdgs/default/translucent/seed0 --under-light 0 -o lit.ply
       olatbench export runs/mini/ssdgs/default/translucent/seed0 --under-light 0,0,4 --sh-degree 3 -o lit3.ply
+      olatbench export runs/mini/ssdgs/default/translucent/seed0 --under-light studio --samples 32 -o studio.ply
     """
     from olatbench.bench.export import Bake, BakeRequestError, export_ply
     from olatbench.bench.restore import NotAJobFolderError, RestoreError
@@ -52,7 +57,10 @@ def export(job: Path, output: Path, under_light: str | None, sh_degree: int, vie
     if view is not None and sh_degree != 0:
         raise click.UsageError("--view bakes the colours one camera sees: --sh-degree 0 (a fit over one direction "
                                "has no view dependence to keep)")
-    bake = Bake(under_light, sh_degree, view, max_views) if under_light is not None else None
+    lighting = _lighting(under_light) if under_light is not None else None
+    if samples is not None and lighting is None:
+        raise click.UsageError("--samples goes with --under-light a lighting file or an environment map")
+    bake = Bake(under_light, sh_degree, view, max_views, lighting, samples) if under_light is not None else None
     device = resolved_device(device) if bake else "cpu"
     try:
         exported = export_ply(job, output, bake, device=device,
@@ -65,3 +73,20 @@ def export(job: Path, output: Path, under_light: str | None, sh_degree: int, vie
         raise click.ClickException(f"{error}; choose another -o") from None
     extras = f"; extra properties from {', '.join(exported.extras)}" if exported.extras else ""
     click.echo(f"wrote {exported.path}: {exported.gaussians} Gaussians at step {exported.step}{extras}")
+
+
+def _lighting(value: str):
+    """The lighting ``--under-light`` names (a .json lighting file, a built-in map, an .exr/.hdr map), or None for
+    one light (a training light index or x,y,z); a bad lighting file is a usage error naming the file and field."""
+    from olatbench.datasets.errors import DatasetError
+    from olatbench.datasets.lighting import BUILT_IN_MAPS, environment_lighting, read_lighting
+
+    suffix = Path(value).suffix.lower()
+    try:
+        if suffix == ".json":
+            return read_lighting(value)
+        if value in BUILT_IN_MAPS or suffix in (".exr", ".hdr"):
+            return environment_lighting(value)
+    except DatasetError as error:
+        raise click.UsageError(str(error)) from None
+    return None
