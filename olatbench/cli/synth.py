@@ -63,6 +63,10 @@ def _report_reference(root: Path, write: bool) -> None:
 @click.option("--novel-views/--seen-views", "novel_views", default=None,
               help="Test cameras new (novel views) or drawn from the training cameras (default: the recipe's).")
 @click.option("--no-geometry", is_flag=True, help="Skip the diagnostic geometry pass.")
+@click.option("--lights", "lights_file", type=click.Path(dir_okay=False, path_type=Path),
+              help="Instead of the OLAT scene, render the recipe's test cameras under this lighting file (JSON: point, "
+                   "directional, area lights, environment maps; docs/relighting.md) into -o as <frame_id>.exr "
+                   "(linear) and lit.json: ground truth under new illumination.")
 @click.option("--mini", is_flag=True,
               help="Install (or verify) the mini suite, the packaged reference renders, instead of one recipe.")
 @click.option("--render", "render_mini", is_flag=True,
@@ -75,7 +79,8 @@ def _report_reference(root: Path, write: bool) -> None:
 @quiet_option
 def synth(recipe_name: str | None, fmt: str, out_dir: Path | None, res: tuple[int, int] | None, spp: int | None,
           n_train: int | None, n_test: int | None, seed: int | None, novel_views: bool | None, no_geometry: bool,
-          mini: bool, render_mini: bool, write_reference: bool, list_recipes: bool, quiet: bool) -> None:
+          lights_file: Path | None, mini: bool, render_mini: bool, write_reference: bool, list_recipes: bool,
+          quiet: bool) -> None:
     """Render a synthetic OLAT scene with Mitsuba 3 (pip install 'olatbench[synth]'), or install the mini suite.
 
     \b
@@ -84,6 +89,7 @@ def synth(recipe_name: str | None, fmt: str, out_dir: Path | None, res: tuple[in
       olatbench datasets synth --recipe my_recipe.json --format gs3 -o data/synth/mine --resolution 128 --spp 256
       olatbench datasets synth --mini                # the mini suite into ~/.cache/olatbench/mini
       olatbench datasets synth --mini --render       # render it here with Mitsuba and compare
+      olatbench datasets synth --recipe aniso_metal --lights two_lights.json -o data/synth/aniso_metal_two
 
     The mini suite is the packaged reference renders: --mini installs them (every file's sha256 checked), so
     every machine trains on the same bytes. --mini --render renders the suite with this machine's Mitsuba
@@ -103,6 +109,8 @@ def synth(recipe_name: str | None, fmt: str, out_dir: Path | None, res: tuple[in
     try:
         if write_reference and not (mini and render_mini):
             raise click.UsageError("--write-reference needs --mini --render")
+        if mini and lights_file is not None:
+            raise click.UsageError("--lights goes with --recipe, not --mini")
         if mini:
             from olatbench.datasets.synth.mini import ensure_mini_suite
 
@@ -124,6 +132,18 @@ def synth(recipe_name: str | None, fmt: str, out_dir: Path | None, res: tuple[in
                 novel_views=novel_views).validate()
         except (ValueError, FileNotFoundError, KeyError) as error:  # what was asked is not a recipe
             raise click.UsageError(f"{error}. See: olatbench datasets synth --list") from None
+        if lights_file is not None:
+            from olatbench.datasets.lighting import read_lighting
+            from olatbench.datasets.synth.lit import render_lit
+
+            try:
+                lighting = read_lighting(lights_file)
+            except DatasetError as error:  # one line naming the file and the field
+                raise click.UsageError(str(error)) from None
+            render_lit(recipe, lighting, out_dir, progress=show_progress(quiet))
+            click.echo(f"wrote {recipe.test} test views of {recipe.name} under {lighting.name} to {out_dir} "
+                       "(<frame_id>.exr, linear; lit.json)")
+            return
         generate(recipe, out_dir, fmt, progress=show_progress(quiet), geometry=not no_geometry)
     except OutputExistsError as error:
         raise click.UsageError(str(error)) from None

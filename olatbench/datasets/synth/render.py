@@ -77,6 +77,27 @@ def _mitsuba_mesh(mesh: meshes.TriangleMesh, bsdf: dict, medium: dict | None):
     return shape
 
 
+def scene_shapes(recipe: Recipe, mesh: meshes.TriangleMesh) -> tuple[dict[str, Any], Any]:
+    """(the Mitsuba shapes of a recipe: object, and ground disc when it has one; the integrator that renders them,
+    emitters hidden)."""
+    mi = mitsuba()
+    bsdf, medium = _bsdf_and_medium(recipe)
+    shapes: dict[str, Any] = {"object": _mitsuba_mesh(mesh, bsdf, medium)}
+    if recipe.ground:
+        shapes["ground"] = {"type": "disk", "to_world": mi.ScalarTransform4f().scale(recipe.ground_radius),
+                            "bsdf": {"type": "diffuse", "reflectance": _rgb(recipe.ground_albedo)}}
+    integrator = mi.load_dict({"type": "volpath" if medium is not None else "path",
+                               "max_depth": int(recipe.max_depth), "hide_emitters": True})
+    return shapes, integrator
+
+
+def straight_rgba(image: np.ndarray) -> np.ndarray:
+    """A Mitsuba render (H, W, 4: premultiplied RGB, alpha) as float32 linear RGB with straight alpha."""
+    alpha = np.clip(image[..., 3], 0.0, 1.0)
+    rgb = colour.unpremultiply(image[..., :3], alpha)
+    return np.concatenate([rgb, alpha[..., None]], axis=2).astype(np.float32)
+
+
 class SceneRenderer:
     """The Mitsuba scene of one recipe; renders any (camera, light) pair."""
 
@@ -84,13 +105,7 @@ class SceneRenderer:
         mi = mitsuba()
         self.recipe = recipe.validate()
         self.mesh = object_mesh(recipe) if mesh is None else mesh
-        bsdf, medium = _bsdf_and_medium(recipe)
-        shapes: dict[str, Any] = {"object": _mitsuba_mesh(self.mesh, bsdf, medium)}
-        if recipe.ground:
-            shapes["ground"] = {"type": "disk", "to_world": mi.ScalarTransform4f().scale(recipe.ground_radius),
-                                "bsdf": {"type": "diffuse", "reflectance": _rgb(recipe.ground_albedo)}}
-        self._integrator = mi.load_dict({"type": "volpath" if medium is not None else "path",
-                                         "max_depth": int(recipe.max_depth), "hide_emitters": True})
+        shapes, self._integrator = scene_shapes(recipe, self.mesh)
         self._scene = mi.load_dict({"type": "scene", **shapes,
                                     "light": {"type": "point", "position": [0.0, 0.0, 10.0],
                                               "intensity": _rgb(recipe.lights.intensity)}})
@@ -109,11 +124,8 @@ class SceneRenderer:
             *np.asarray(light.intensity, dtype=float))
         params.update()
         sensor = mi.load_dict(sensor_dict(camera, self.recipe.spp))
-        image = np.array(mi.render(self._scene, sensor=sensor, integrator=self._integrator, seed=int(seed),
-                                   spp=self.recipe.spp), dtype=np.float32)
-        alpha = np.clip(image[..., 3], 0.0, 1.0)
-        rgb = colour.unpremultiply(image[..., :3], alpha)
-        return np.concatenate([rgb, alpha[..., None]], axis=2).astype(np.float32)
+        return straight_rgba(np.array(mi.render(self._scene, sensor=sensor, integrator=self._integrator,
+                                                seed=int(seed), spp=self.recipe.spp), dtype=np.float32))
 
     def geometry(self, camera: Camera, seed: int = 0) -> dict[str, np.ndarray]:
         """Diagnostic pass, (H, W) arrays: ``A`` foreground coverage, ``object`` object coverage, ``N.X/Y/Z``
