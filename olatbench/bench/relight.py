@@ -127,7 +127,7 @@ class Relighter:
     @property
     def relightable(self) -> bool:
         """Whether the method's render depends on the light (its ``relight`` capability)."""
-        return "relight" in getattr(self.method, "capabilities", frozenset())
+        return "relight" in self.method.capabilities
 
     def probes(self, lights: SampledLights) -> list[Probe]:
         return probes(lights, self.reference)

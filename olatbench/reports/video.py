@@ -29,6 +29,7 @@ from olatbench.datasets import colour
 from olatbench.datasets.images import write_image
 from olatbench.datasets.jsontext import parse_json
 from olatbench.datasets.lights import parse_light
+from olatbench.datasets.records import Camera, PointLight
 from olatbench.names import did_you_mean
 from olatbench.progress import progress_bar
 from olatbench.reports.camera_paths import (
@@ -86,17 +87,24 @@ def load_relighter(job: JobFolder, device: str = "cpu", progress: bool = True) -
         raise JobFolderError(str(error)) from None
 
 
-def sweep_frames(job: JobFolder, kind: str, frame_id: str | None = None, count: int | None = None,
-                 resolution: tuple[int, int] | None = None) -> list[SweepFrame]:
-    """The sweep's cameras and lights, starting at a test frame (default: the first) of the job's scene."""
+def start_view(job: JobFolder, frame_id: str | None = None, resolution: tuple[int, int] | None = None
+               ) -> tuple[Camera, PointLight, list]:
+    """(the camera, at ``resolution`` or the job's, and the light of test frame ``frame_id`` (default: the first;
+    a training frame's id too), the training split's frames)."""
     scene = job.load_scene()
     frames = scene.split(job.job["test_split"])
     train = scene.split(job.job["train_split"])
     start = frames[0] if frame_id is None else find_frame(frames, train, frame_id, job.job["scene_path"])
     size = resolution or job.resolution
-    camera = start.camera.resized(*size) if size else start.camera
+    return (start.camera.resized(*size) if size else start.camera), start.light, train
+
+
+def sweep_frames(job: JobFolder, kind: str, frame_id: str | None = None, count: int | None = None,
+                 resolution: tuple[int, int] | None = None) -> list[SweepFrame]:
+    """The sweep's cameras and lights, starting at a test frame (default: the first) of the job's scene."""
+    camera, light, train = start_view(job, frame_id, resolution)
     centre, up = orbit_frame([frame.camera for frame in train])
-    return subsample(trajectory(kind, camera, start.light, centre, up), count)
+    return subsample(trajectory(kind, camera, light, centre, up), count)
 
 
 @dataclass(frozen=True)
@@ -284,7 +292,7 @@ def render_still(job: JobFolder, lighting: SampledLights, out_dir: str | Path, n
                  progress: bool = True, relighter: Relighter | None = None) -> StillOutput:
     """One view under ``lighting``: the camera of test frame ``frame_id`` (default: the first), written as
     ``<name>.png`` (sRGB, 8-bit) and ``<name>.exr`` (linear, float) in ``out_dir``."""
-    camera = sweep_frames(job, "light-orbit", frame_id, 1, resolution)[0].camera
+    camera = start_view(job, frame_id, resolution)[0]
     relighter = relighter if relighter is not None else load_relighter(job, device, progress)
     from olatbench.bench.relight import shown
 
