@@ -277,7 +277,8 @@ def _report_runs(runs, suite, methods, metrics, splits, layouts, average, fmt, s
 @quiet_option
 def render(run, kind, camera_path, orbit, elevation, radius, light, light_path, lights_file, envmap, samples, count,
            start_frame, component, fps, device, resolution, output, quiet) -> None:
-    """Render a relighting sweep, a camera path or an orbit of a finished job to an MP4 and a frame folder.
+    """Render a relighting sweep, a camera path or an orbit of a finished job to an MP4 and a frame folder; under
+    a lighting (--lights, --envmap: several lights, area lights, environment maps) also a still.
 
     \b
     Examples:
