@@ -10,14 +10,15 @@ summed, and the sum is what a caller encodes for display. Each light is rendered
   centre along its direction), with its own light-view shadow pass (the method's), and
 * at the **training irradiance**: the intensity that gives at the scene centre the irradiance the training lights
   gave (`LightingReference`), so that every render is in the range the method was trained on (no light clipped by
-  the method's [0, 1] output, none lost below an 8-bit step), and is then scaled in linear light by the light's own
+  the method's [0, 1] output; no dim light darkened further by decoding a value the method scaled in its encoded
+  space), and is then scaled in linear light by the light's own
   irradiance at the centre over the training one. For a method in linear space this is the render under the light
   itself (its output is linear in the intensity); for one in an encoded space it keeps the sum linear in light.
 
 The methods take point lights only. Their shading depends on the light through the direction to it at each
 Gaussian, its irradiance I/d², and a perspective light-view pass framed on the scene; a point light at distance D
-with intensity E·D² has all three within O(r/D) of a directional light's (r the scene radius: 1/4000 at the
-default factor for a scene inside its light rig), so it is the directional light to well below an 8-bit step.
+with intensity E·D² has all three within O(r/D) of a directional light's (r the scene radius: below 10⁻³ at the
+default factor for a scene inside its light rig), so it is the directional light to below an 8-bit step.
 
 The background of the job (``Views.background``, in the job's colour space) is counted once: each render's
 coverage ``alpha`` (an output of every native method) takes ``(1 - alpha) · background`` out before decoding,
