@@ -216,21 +216,19 @@ def render_sweep(job: JobFolder, kind: str, out_dir: str | Path, *, count: int |
 
     ``method`` and ``frames`` may be given to skip loading them from the job (tests, notebooks, the viewer);
     ``video`` names the MP4 instead (its frames then go to ``<video stem>_frames/`` beside it). With ``lighting``
-    every frame is its camera under those lights (its own light is not used; ``method`` may be a `Relighter`).
+    every frame is its camera under those lights (its own light is not used; ``method``, if given, is then a
+    `olatbench.bench.relight.Relighter`).
     """
     import torch
-
-    from olatbench.bench.relight import Relighter
 
     out_dir = Path(out_dir)
     if lighting is not None and component != "rgb":
         raise RenderRequestError(f"under a lighting only 'rgb' adds up over lights, not {component!r}")
     frames = frames if frames is not None else sweep_frames(job, kind, frame_id, count, resolution)
-    if lighting is not None:
-        method = method if isinstance(method, Relighter) else load_relighter(job, device, progress) \
-            if method is None else Relighter.for_views(method, _train_views(job))
-    else:
+    if lighting is None:
         method = method if method is not None else load_trained_method(job, device, progress)
+    elif method is None:
+        method = load_relighter(job, device, progress)
     video_path = Path(video) if video is not None else out_dir / f"{kind}.mp4"
     frames_dir = video_path.with_name(f"{video_path.stem}_frames")
     frames_dir.mkdir(parents=True, exist_ok=True)
@@ -268,15 +266,6 @@ def sample_lighting(job: JobFolder, lighting: Lighting, samples: int | None = No
         return lighting.sample(up, samples)
     except (DatasetError, RelightError) as error:
         raise RenderRequestError(str(error)) from None
-
-
-def _train_views(job: JobFolder):
-    """The job's training views without images, in the world frame (`olatbench.bench.views.frame_views`)."""
-    from olatbench.bench.restore import read_job
-    from olatbench.bench.views import frame_views
-
-    bench_job = read_job(job.folder)
-    return frame_views(job.load_scene().split(bench_job.train_split), bench_job)
 
 
 @dataclass(frozen=True)
