@@ -270,7 +270,7 @@ def sample_lighting(job: JobFolder, lighting: Lighting, samples: int | None = No
 
 @dataclass(frozen=True)
 class StillOutput:
-    """Where a still went: the sRGB PNG and the linear EXR (radiance in the scene's light units)."""
+    """Where a still went: the sRGB PNG and the linear EXR (the job's images' colour decoded to linear light)."""
 
     png: Path
     exr: Path
@@ -281,10 +281,10 @@ def render_still(job: JobFolder, lighting: SampledLights, out_dir: str | Path, n
                  progress: bool = True, relighter: Relighter | None = None) -> StillOutput:
     """One view under ``lighting``: the camera of test frame ``frame_id`` (default: the first), written as
     ``<name>.png`` (sRGB, 8-bit) and ``<name>.exr`` (linear, float) in ``out_dir``."""
-    camera = start_view(job, frame_id, resolution)[0]
-    relighter = relighter if relighter is not None else load_relighter(job, device, progress)
     from olatbench.bench.relight import shown
 
+    camera = start_view(job, frame_id, resolution)[0]
+    relighter = relighter if relighter is not None else load_relighter(job, device, progress)
     linear = relighter.linear(camera, lighting, progress)
     out_dir = Path(out_dir)
     return StillOutput(write_image(out_dir / f"{name}.png", shown(linear)),
