@@ -150,6 +150,9 @@ def test_built_in_maps_and_an_exr_file_load(tmp_path):
     write_image(tmp_path / "room.exr", pixels, bit_depth="float")
     (tmp_path / "room.json").write_text(json.dumps({"lights": [{"type": "envmap", "map": "room.exr"}]}))
     np.testing.assert_array_equal(read_lighting(tmp_path / "room.json").sources[0].radiance(), pixels)
+    write_image(tmp_path / "room.hdr", pixels)  # Radiance RGBE: 8-bit mantissas under a shared exponent (≤ 4 / 128)
+    np.testing.assert_allclose(environment_lighting(str(tmp_path / "room.hdr")).sources[0].radiance(), pixels,
+                               atol=4.0 / 128)
     write_image(tmp_path / "tall.exr", pixels.transpose(1, 0, 2), bit_depth="float")
     with pytest.raises(DatasetError, match="twice as wide as high"):
         environment_lighting(str(tmp_path / "tall.exr")).sample()
