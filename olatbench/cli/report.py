@@ -361,6 +361,7 @@ def _render_lit(run, lights_file, envmap, samples, kind, camera_path, orbit, ele
                                "and --envmap")
     if component != "rgb":
         raise click.UsageError(f"--component {component}: under --lights/--envmap only rgb adds up over lights")
+    device = resolved_device(device)
     try:
         lighting = read_lighting(lights_file) if lights_file is not None else environment_lighting(envmap, samples)
     except DatasetError as error:  # one line naming the file and the field
@@ -372,7 +373,7 @@ def _render_lit(run, lights_file, envmap, samples, kind, camera_path, orbit, ele
     progress = show_progress(quiet)
     try:
         sampled = sample_lighting(job, lighting, samples)
-        relighter = load_relighter(job, resolve_device(device), progress)
+        relighter = load_relighter(job, device, progress)
         if camera_path is None and not orbit:
             if count is not None:
                 raise click.UsageError("--frames goes with --camera-path or --orbit (without them: one still)")
