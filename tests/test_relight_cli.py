@@ -64,6 +64,8 @@ def test_render_envmap_orbit_writes_a_video(ssdgs_job, tmp_path):
     (["--light", "0"], "go without --lights"),
     (["--component", "shadow"], "only rgb adds up"),
     (["--envmap", "sky"], "--lights or --envmap, not both"),
+    (["--frames", "3"], "--frames goes with --camera-path or --orbit"),
+    (["--orbit", "--start-frame", "r_0000"], "--start-frame goes without"),
 ])
 def test_render_lighting_option_conflicts_are_usage_errors(ssdgs_job, tmp_path, extra, message):
     path = lights_file(tmp_path / "one.json", ([0, 0, 5], 1.0))

@@ -361,6 +361,11 @@ def _render_lit(run, lights_file, envmap, samples, kind, camera_path, orbit, ele
                                "and --envmap")
     if component != "rgb":
         raise click.UsageError(f"--component {component}: under --lights/--envmap only rgb adds up over lights")
+    still = camera_path is None and not orbit
+    if still and count is not None:
+        raise click.UsageError("--frames goes with --camera-path or --orbit (without them: one still)")
+    if not still and start_frame:
+        raise click.UsageError("--start-frame goes without --camera-path and --orbit")
     device = resolved_device(device)
     try:
         lighting = read_lighting(lights_file) if lights_file is not None else environment_lighting(envmap, samples)
@@ -374,15 +379,11 @@ def _render_lit(run, lights_file, envmap, samples, kind, camera_path, orbit, ele
     try:
         sampled = sample_lighting(job, lighting, samples)
         relighter = load_relighter(job, device, progress)
-        if camera_path is None and not orbit:
-            if count is not None:
-                raise click.UsageError("--frames goes with --camera-path or --orbit (without them: one still)")
-            still = render_still(job, sampled, output or run / "videos", lighting.name, frame_id=start_frame,
-                                 resolution=resolution, progress=progress, relighter=relighter)
-            click.echo(f"wrote {still.png} and {still.exr} (linear) under {lighting.name}: {len(sampled)} lights")
+        if still:
+            written = render_still(job, sampled, output or run / "videos", lighting.name, frame_id=start_frame,
+                                   resolution=resolution, progress=progress, relighter=relighter)
+            click.echo(f"wrote {written.png} and {written.exr} (linear) under {lighting.name}: {len(sampled)} lights")
             return
-        if start_frame:
-            raise click.UsageError("--start-frame goes without --camera-path and --orbit")
         frames, path_fps = free_path_frames(
             job, camera_path=camera_path, resolution=resolution,
             orbit=Orbit(elevation, radius, count or Orbit.frames) if orbit else None)
