@@ -536,9 +536,9 @@ def test_a_run_that_leaves_a_job_to_another_process_exits_3_and_the_rerun_0(data
     assert "3 when none failed but some" in " ".join(help_text.split())
     with job_lock(job_folder(out)) as acquired:  # another process (here: another open file) runs Alpha
         assert acquired
-        from olatbench.cli.run import _write_pending
+        from olatbench.bench.session import write_pending
 
-        _write_pending(plan(data, out, scenes=["Alpha"]))  # as that process has
+        write_pending(plan(data, out, scenes=["Alpha"]))  # as that process has
         result = run_cli(*run_args(data, out))
         assert result.exit_code == 3, result.output
         assert "Traceback" not in result.output and "1 running in another process" in result.output
@@ -552,12 +552,10 @@ def test_a_run_that_leaves_a_job_to_another_process_exits_3_and_the_rerun_0(data
     assert job_state(job_folder(out)).state == "done"
     # a job that another process locked between the plan and its turn comes back "skipped": the same exit code
     from olatbench.bench.execute import JobOutcome
-    from olatbench.cli.run import _exit_for
+    from olatbench.bench.session import RunSummary
 
-    with pytest.raises(SystemExit) as exited:
-        _exit_for([JobOutcome("id", "Alpha/default/seed0", str(out), "skipped", error="running in another process")],
-                  running=0)
-    assert exited.value.code == 3
+    locked = JobOutcome("id", "Alpha/default/seed0", str(out), "skipped", error="running in another process")
+    assert RunSummary([locked], running=0).exit_code == 3
 
 
 # ---- a job another process finished after this one planned it (#48 item 1) ----------------------------------------

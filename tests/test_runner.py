@@ -262,9 +262,9 @@ def test_status_shows_partial_and_pending_jobs(data, tmp_path, cli_suite):
     ctrl_c = type(jobs[0])(**{**jobs[0].__dict__, "config": {**jobs[0].config, "interrupt_at_step": 6}})
     with pytest.raises(KeyboardInterrupt):
         run_job(ctrl_c, progress=False)
-    from olatbench.cli.run import _write_pending
+    from olatbench.bench.session import write_pending
 
-    _write_pending(jobs[1:])
+    write_pending(jobs[1:])
     result = CliRunner().invoke(main, ["status", str(tmp_path / "runs")])
     assert result.exit_code == 0, result.output
     assert "partial" in result.output and "4/10" in result.output and "pending" in result.output

@@ -2,10 +2,7 @@
 
 from __future__ import annotations
 
-import errno
 import json
-import os
-import shutil
 import sys
 from pathlib import Path
 
@@ -169,10 +166,10 @@ def run(method, suite, data_paths, protocol_name, scenes, variants, ablation, se
       olatbench run -m gs3-official -s gs3 --code checkout=~/src/gs-relight --code conda_env=gs3
       olatbench run -m ssdgs-official -s mini --code checkout=~/SSD-GS --code python=~/venv/bin/python --code device=cpu
     """
-    from olatbench.bench.executors import Terminated
+    from olatbench.bench import session
+    from olatbench.bench.executors import SlurmOptions, Terminated
     from olatbench.bench.plan import PlanOptions, make_plan, parse_overrides
-    from olatbench.bench.reuse import order_for_reuse, reuse_notes
-    from olatbench.bench.store import holds_finished_job, job_state
+    from olatbench.bench.reuse import reuse_notes
     from olatbench.datasets.errors import DatasetError
     from olatbench.methods.official.settings import SettingsError, parse_code_options
     from olatbench.methods.registry import canonical_method_name
@@ -216,7 +213,7 @@ def run(method, suite, data_paths, protocol_name, scenes, variants, ablation, se
     except (PlanError, DatasetError, KeyError, FileNotFoundError) as error:  # what was asked cannot be planned
         raise click.UsageError(str(error.args[0] if isinstance(error, KeyError) else error)) from None
 
-    states = [job_state(job.folder, job.id or None) for job in jobs]
+    states = session.job_states(jobs)
     if dry_run:
         from olatbench.bench.estimate import plan_estimates
 
@@ -233,48 +230,28 @@ def run(method, suite, data_paths, protocol_name, scenes, variants, ablation, se
             _print_plan(jobs, states, out, estimates, reuse)
         return
 
-    stale = [state for state in states if state.state == "stale"]
-    if stale and not (force or keep_finished):
-        listing = "\n  ".join(f"{s.folder}: {s.message}" for s in stale[:10])
-        raise click.UsageError(f"{len(stale)} job folder(s) hold results of a different job (config, data or "
-                                   f"code changed):\n  {listing}\nRerun with --keep-finished to replace only the "
-                                   "unfinished ones (finished jobs stay as they are), with --force to replace them "
-                                   "all, or choose another --output")
-    to_run, skipped, running, kept = [], [], [], []
-    for job, state in zip(jobs, states, strict=True):
-        if state.state == "done" and not force:
-            skipped.append(job)
-            continue
-        if state.state == "stale" and keep_finished and not force and holds_finished_job(job.folder):
-            kept.append(job)
-            continue
-        if state.state == "running":
-            running.append(job)
-            continue
-        to_run.append(job)
-    replaced = {job.folder for job, state in zip(jobs, states, strict=True) if state.state == "stale"}
-    if kept:
+    try:
+        decided = session.triage(jobs, states, force=force, keep_finished=keep_finished)
+    except session.StaleFoldersError as error:
+        raise click.UsageError(str(error)) from None
+    if decided.kept:
+        kept = decided.kept
         click.echo(f"kept {len(kept)} finished job(s) planned with other inputs, as they are (--force retrains "
                    f"them): {', '.join(job.folder for job in kept[:5])}{' …' if len(kept) > 5 else ''}", err=True)
     try:
-        _check_writable(to_run)
-        for job in to_run:
-            if (force or job.folder in replaced) and Path(job.folder).exists():
-                shutil.rmtree(job.folder)
-        _write_pending(to_run)
+        to_run = session.prepare(decided, reuse=not no_reuse)
     except OSError as error:  # a read-only or full output folder: nothing has run
         raise click.ClickException(f"{error if isinstance(error, WriteError) else _os_error_line(error)}; "
                                    f"the output folder {out} must be writable (choose another with --output)"
                                    ) from None
-    to_run = order_for_reuse(to_run) if not no_reuse else to_run
-    busy = f", {len(running)} running in another process" if running else ""
-    damaged = sum(state.state == "damaged" for state in states)
-    repaired = f" ({damaged} damaged: re-evaluated, the damaged files kept as *.damaged)" if damaged else ""
-    click.echo(f"{len(jobs)} job(s): {len(skipped)} already done{busy}, {len(to_run)} to run{repaired} "
+    busy = f", {len(decided.running)} running in another process" if decided.running else ""
+    repaired = (f" ({decided.damaged} damaged: re-evaluated, the damaged files kept as *.damaged)"
+                if decided.damaged else "")
+    click.echo(f"{len(jobs)} job(s): {len(decided.skipped)} already done{busy}, {len(to_run)} to run{repaired} "
                f"({executor}, device {options.device}) -> {out}", err=True)
     if not to_run:
         _print_summary(jobs, out)
-        _exit_for(outcomes=[], running=len(running))
+        _exit_with(session.RunSummary([], len(decided.running)))
 
     def report(outcome) -> None:
         from olatbench.progress import progress_write
@@ -285,66 +262,37 @@ def run(method, suite, data_paths, protocol_name, scenes, variants, ablation, se
         elif outcome.status == "skipped":
             progress_write(f"skipped {outcome.label}: {outcome.error}")
 
+    def submitted(tasks: list) -> None:
+        click.echo(f"submitted {len(tasks)} task(s) as array {tasks[0].job_id.split('_')[0]}; "
+                   f"follow with: olatbench status {out}", err=True)
+
+    slurm = SlurmOptions(partition=slurm_partition, time_minutes=_parse_minutes(slurm_time), gpus=slurm_gpus,
+                         cpus=slurm_cpus, array_parallelism=slurm_array_parallelism)
     try:
-        if executor == "slurm":
-            from olatbench.bench.executors import SlurmOptions, submit_slurm, wait_slurm
-
-            slurm = SlurmOptions(partition=slurm_partition, time_minutes=_parse_minutes(slurm_time), gpus=slurm_gpus,
-                                 cpus=slurm_cpus, array_parallelism=slurm_array_parallelism)
-            submitted = submit_slurm(to_run, out, slurm)
-            click.echo(f"submitted {len(submitted)} task(s) as array {submitted[0].job_id.split('_')[0]}; "
-                       f"follow with: olatbench status {out}", err=True)
-            if not wait:
-                return
-            outcomes = wait_slurm(submitted, to_run, progress, report)
-        elif executor == "local":
-            from olatbench.bench.executors import run_local
-
-            outcomes = run_local(to_run, workers, progress, report)
-        else:
-            from olatbench.bench.executors import run_inline
-
-            outcomes = run_inline(to_run, progress, report)
+        outcomes, _ = session.execute(to_run, out, session.Executor(executor, workers, slurm, wait), progress,
+                                      report, submitted)
     except KeyboardInterrupt as interrupted:  # Ctrl-C, or SIGTERM to the local executor (its workers are stopped)
         click.echo(f"\nInterrupted. Rerun the same command to resume from the last checkpoints "
                    f"(olatbench status {out} shows where each job stands).", err=True)
-        sys.exit(EXIT_TERMINATED if isinstance(interrupted, Terminated) else EXIT_INTERRUPTED)
+        sys.exit(session.EXIT_TERMINATED if isinstance(interrupted, Terminated) else session.EXIT_INTERRUPTED)
+    if executor == "slurm" and not wait:
+        return
     _print_summary(jobs, out)
-    _exit_for(outcomes, len(running))
+    _exit_with(session.RunSummary(outcomes, len(decided.running)))
 
 
-EXIT_DONE, EXIT_FAILED, EXIT_USAGE, EXIT_RUNNING_ELSEWHERE = 0, 1, 2, 3
-EXIT_INTERRUPTED, EXIT_TERMINATED = 130, 143  # 128 + SIGINT, 128 + SIGTERM: the shells' convention
+def _exit_with(summary) -> None:
+    """Exit with `run`'s documented code (`olatbench.bench.session.RunSummary.exit_code`), saying why when it is
+    not 0: the failed jobs' count, or the jobs left to another process."""
+    from olatbench.bench import session
 
-
-def _exit_for(outcomes, running: int) -> None:
-    """Exit with `run`'s documented code (not a count: 2 is click's usage error): 1 when a job failed, else 3 when
-    jobs were left to another process that runs them (planned as running, or locked when their turn came), else 0
-    (every job of the plan is done)."""
-    failed = sum(outcome.status == "failed" for outcome in outcomes)
-    elsewhere = running + sum(outcome.status == "skipped" for outcome in outcomes)
-    if failed:
-        click.echo(f"{failed} job(s) failed; fix the cause (error.txt in each folder) and rerun the same command "
-                   f"to retry them.", err=True)
-        sys.exit(EXIT_FAILED)
-    if elsewhere:
-        click.echo(f"{elsewhere} job(s) are running in another process; rerun the same command once they finish "
-                   "to collect them (olatbench status shows them).", err=True)
-        sys.exit(EXIT_RUNNING_ELSEWHERE)
-    sys.exit(EXIT_DONE)
-
-
-def _check_writable(jobs) -> None:
-    """An `OSError` naming the first job folder (or its nearest existing parent) this process cannot write: a
-    read-only file system or missing permission stops the run before any job starts, in one line."""
-    for job in jobs:
-        path = Path(job.folder)
-        while not path.exists() and path != path.parent:
-            path = path.parent
-        if not os.access(path, os.W_OK):
-            read_only = bool(os.statvfs(path).f_flag & os.ST_RDONLY)
-            code = errno.EROFS if read_only else errno.EACCES
-            raise WriteError(path, OSError(code, os.strerror(code)))
+    if summary.exit_code == session.EXIT_FAILED:
+        click.echo(f"{summary.failed} job(s) failed; fix the cause (error.txt in each folder) and rerun the same "
+                   f"command to retry them.", err=True)
+    elif summary.exit_code == session.EXIT_RUNNING_ELSEWHERE:
+        click.echo(f"{summary.elsewhere} job(s) are running in another process; rerun the same command once they "
+                   "finish to collect them (olatbench status shows them).", err=True)
+    sys.exit(summary.exit_code)
 
 
 def _os_error_line(error: OSError) -> str:
@@ -377,17 +325,6 @@ def _suites(suite: str | None, data_paths: tuple[Path, ...], protocol: str | Non
         except ValueError as error:
             raise click.UsageError(str(error)) from None
     return [dataclasses.replace(found, protocol=protocol or found.protocol) for found in data_suites(data_paths)]
-
-
-def _write_pending(jobs) -> None:
-    """Write job.json into each folder to run, so `olatbench status` lists it before it starts."""
-    from olatbench.atomic import write_json
-    from olatbench.bench.store import JOB_FILE
-
-    for job in jobs:
-        path = Path(job.folder) / JOB_FILE
-        if not path.is_file():
-            write_json(path, job.to_json())
 
 
 def _state_text(state) -> str:
