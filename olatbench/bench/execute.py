@@ -15,7 +15,7 @@ import math
 import os
 import time
 import traceback
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -67,6 +67,7 @@ from olatbench.datasets import colour, load_scene
 from olatbench.datasets.formats._common import safe_file_stem
 from olatbench.datasets.images import write_image
 from olatbench.datasets.records import Frame
+from olatbench.gaussians.host_sync import allowed_host_sync
 from olatbench.methods.backends import format_backends
 from olatbench.methods.base import Method, Views
 from olatbench.metrics.evaluate import sha256_file
@@ -264,18 +265,22 @@ def _train(method: Method, views: Views, job: Job, folder: Path, log: JobLog, pr
         postfix_time = 0.0
         for step in range(start, iterations):
             clock = time.perf_counter()
-            scalars = {key: float(value) for key, value in method.train_step(step).items()}
+            result = method.train_step(step)
             train_seconds += time.perf_counter() - clock
             bar.update(1)
             done = step + 1
-            health.observe(done, scalars)
+            scalars = None  # read from the device only at the logging interval and at checkpoints
             if done % log_every == 0 or done == iterations:
+                scalars = read_scalars(result)
+                health.observe(done, scalars)
                 train_log.write({"step": done, "seconds": round(train_seconds, 4), **scalars})
-            if time.monotonic() - postfix_time > 0.5:
-                bar.set_postfix({k: f"{scalars[k]:.4g}" for k in ("loss", "psnr") if k in scalars}, refresh=False)
-                postfix_time = time.monotonic()
+                if time.monotonic() - postfix_time > 0.5:
+                    bar.set_postfix({k: f"{scalars[k]:.4g}" for k in ("loss", "psnr") if k in scalars},
+                                    refresh=False)
+                    postfix_time = time.monotonic()
             due = done % every == 0 or time.monotonic() - last_save > 60 * job.checkpoint_minutes
             if due or done == iterations:
+                scalars = scalars or read_scalars(result)
                 train_log.flush()
                 save_checkpoint(folder, done, method.state_dict(), job.id, train_seconds, job.keep_checkpoints)
                 last_save = time.monotonic()
@@ -292,6 +297,14 @@ def _train(method: Method, views: Views, job: Job, folder: Path, log: JobLog, pr
     elif start >= iterations:
         log("training already complete; evaluating")
     return train_seconds
+
+
+def read_scalars(result: Mapping[str, Any]) -> dict[str, float]:
+    """A training step's scalars as floats: numbers, 0-d tensors or lazy scalars (`Method.train_step`), read
+    only at the logging interval and at checkpoints, the one host sync a GPU step leaves to the runner
+    (allowance "logging" of `olatbench.gaussians.host_sync`)."""
+    with allowed_host_sync("logging"):
+        return {key: float(value) for key, value in result.items()}
 
 
 def _resume(method: Method, folder: Path, job: Job, log: JobLog, set_up: Callable[[], None]) -> dict[str, Any] | None:

@@ -35,6 +35,7 @@ from typing import Any
 
 import torch
 
+from olatbench.gaussians.host_sync import allowed_host_sync
 from olatbench.gaussians.model import GaussianModel
 from olatbench.gaussians.optim import append_rows, replace_values, select_rows
 from olatbench.gaussians.projection import quat_to_rotmat
@@ -135,7 +136,8 @@ class Densifier:
         """
         n = means2d_grad.shape[0]
         self._ensure(n, means2d_grad.device)
-        scale = torch.tensor([0.5 * width, 0.5 * height], device=means2d_grad.device, dtype=means2d_grad.dtype)
+        scale = torch.tensor([0.5 * width, 0.5 * height], dtype=means2d_grad.dtype).to(means2d_grad.device,
+                                                                                       non_blocking=True)
         norm = (means2d_grad * scale).norm(dim=-1)
         visible = visible.to(torch.bool)
         # Dense masked updates: boolean indexing costs a nonzero() and a gather/scatter per statistic.
@@ -185,12 +187,14 @@ class Densifier:
             self._ensure(model.num_gaussians, model.means.device)
             if iteration > cfg.densify_from and iteration % cfg.densify_interval == 0:
                 size_limit = cfg.max_screen_size if iteration > cfg.opacity_reset_interval else None
-                report.update(self.densify_and_prune(model, optimizer, scene_extent, size_limit))
+                with allowed_host_sync("density-control"):  # the new count is a value the device computes
+                    report.update(self.densify_and_prune(model, optimizer, scene_extent, size_limit))
                 report["densified"] = True
             if iteration % cfg.opacity_reset_interval == 0 or (
                 cfg.reset_opacity_at_start and iteration == cfg.densify_from
             ):
-                self.reset_opacity(model, optimizer)
+                with allowed_host_sync("density-control"):
+                    self.reset_opacity(model, optimizer)
                 report["opacity_reset"] = True
         report["num_gaussians"] = model.num_gaussians
         return report

@@ -73,13 +73,16 @@ def covariances_3d(quats: torch.Tensor, scales: torch.Tensor) -> torch.Tensor:
     return rs @ rs.transpose(-1, -2)
 
 
-def frustum_clamp_bounds(K: torch.Tensor, width: int, height: int) -> tuple[float, float, float, float]:
-    """(u_lo, u_hi, v_lo, v_hi): the range of x/z and y/z the Jacobian is evaluated in — the image edges plus
-    (FRUSTUM_CLAMP - 1) × the half-FoV tangent on each side."""
-    fx, fy, cx, cy = (float(K.detach()[i, j]) for i, j in ((0, 0), (1, 1), (0, 2), (1, 2)))
-    pad_x = (FRUSTUM_CLAMP - 1.0) * 0.5 * width / fx
-    pad_y = (FRUSTUM_CLAMP - 1.0) * 0.5 * height / fy
-    return -cx / fx - pad_x, (width - cx) / fx + pad_x, -cy / fy - pad_y, (height - cy) / fy + pad_y
+def frustum_clamp_bounds(K: torch.Tensor, width: int, height: int) -> torch.Tensor:
+    """(u_lo, u_hi, v_lo, v_hi) as a (4,) float64 tensor on ``K``'s device: the range of x/z and y/z the Jacobian
+    is evaluated in — the image edges plus (FRUSTUM_CLAMP - 1) × the half-FoV tangent on each side. Computed on the
+    device (no host read of ``K``) in float64, with the operations and their order of the float arithmetic it
+    replaces, so the bounds are bitwise those of Python floats."""
+    k = K.detach().double()
+    fx, fy, cx, cy = k[0, 0], k[1, 1], k[0, 2], k[1, 2]
+    pad_x = torch.full_like(fx, (FRUSTUM_CLAMP - 1.0) * 0.5 * width) / fx
+    pad_y = torch.full_like(fy, (FRUSTUM_CLAMP - 1.0) * 0.5 * height) / fy
+    return torch.stack([-cx / fx - pad_x, (width - cx) / fx + pad_x, -cy / fy - pad_y, (height - cy) / fy + pad_y])
 
 
 def perspective_jacobian(fx: torch.Tensor, fy: torch.Tensor, z: torch.Tensor, u: torch.Tensor,
@@ -144,7 +147,7 @@ def project(
     v = y / z_safe
     means2d = torch.stack([fx * u + cx, fy * v + cy], dim=-1)
 
-    u_lo, u_hi, v_lo, v_hi = frustum_clamp_bounds(K, width, height)
+    u_lo, u_hi, v_lo, v_hi = frustum_clamp_bounds(K, width, height).to(dtype).unbind()
     u_c = u.clamp(u_lo, u_hi)
     v_c = v.clamp(v_lo, v_hi)
     jac = perspective_jacobian(fx, fy, z_safe, u_c, v_c)

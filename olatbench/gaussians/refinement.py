@@ -42,8 +42,8 @@ def so3xr3_exp(xi: torch.Tensor) -> torch.Tensor:
     """Rigid transforms (..., 4, 4) from tangents ξ = (t, ω) (..., 6): [[exp(ω^), t], [0, 1]]."""
     rotation = so3_exp(xi[..., 3:])
     top = torch.cat([rotation, xi[..., :3, None]], dim=-1)
-    bottom = torch.zeros((*xi.shape[:-1], 1, 4), dtype=xi.dtype, device=xi.device)
-    bottom[..., 0, 3] = 1.0
+    # [0, 0, 0, 1] made on the device (assigning a Python 1.0 into a CUDA tensor copies it from the host)
+    bottom = torch.eye(4, dtype=xi.dtype, device=xi.device)[3:].expand(*xi.shape[:-1], 1, 4)
     return torch.cat([top, bottom], dim=-2)
 
 

@@ -56,6 +56,7 @@ import torch
 
 from olatbench._native import Unavailable
 from olatbench.datasets.cameras import look_at
+from olatbench.gaussians.host_sync import allowed_host_sync
 from olatbench.gaussians.projection import project
 from olatbench.gaussians.tiles import TileBins, bin_gaussians, float_order_key
 
@@ -86,13 +87,13 @@ class ShadowResult:
 
 
 def camera_matched_focal(
-    camera_fx: float,
+    camera_fx: float | torch.Tensor,
     camera_width: int,
     resolution: int,
     camera_position: torch.Tensor,
     light_position: torch.Tensor,
     target: torch.Tensor,
-) -> float:
+) -> float | torch.Tensor:
     """Light-camera focal length (px) at which the scene around ``target`` appears at the viewing camera's pixel
     scale: the official SSD-GS framing. The camera's ``camera_fx`` (px, for an image ``camera_width`` px
     wide) is rescaled to the light view's ``resolution`` px and multiplied by |light − target| / |camera − target|.
@@ -100,7 +101,16 @@ def camera_matched_focal(
     The official code takes both distances from the world origin, which is the same for a scene centred there (as
     object-centric captures usually are); measured from ``target`` the framing follows the scene wherever it is.
     The field of view is capped at ``MAX_FOV_DEGREES`` like :func:`light_camera`'s fitted one. ``camera_position``,
-    ``light_position``, ``target``: (3,) world points."""
+    ``light_position``, ``target``: (3,) world points. On CPU tensors a float, checked (a camera at the target
+    raises); on a GPU a 0-d float64 tensor on the device, computed there without a host sync and unchecked."""
+    if target.device.type != "cpu":
+        to_camera = (camera_position.detach().double() - target.detach().double()).norm()
+        to_light = (light_position.detach().double() - target.detach().double()).norm()
+        fx = camera_fx.detach().double() if isinstance(camera_fx, torch.Tensor) else \
+            torch.full_like(to_light, camera_fx)
+        focal = fx * resolution / camera_width * to_light / to_camera
+        return focal.clamp_min(0.5 * resolution / math.tan(math.radians(MAX_FOV_DEGREES) / 2))
+    camera_fx = float(camera_fx)
     to_camera = float((camera_position.detach().double().cpu() - target.detach().double().cpu()).norm())
     to_light = float((light_position.detach().double().cpu() - target.detach().double().cpu()).norm())
     if not (to_camera > 0 and math.isfinite(to_camera) and math.isfinite(to_light)):
@@ -113,11 +123,11 @@ def camera_matched_focal(
 def light_camera(
     light_position: torch.Tensor,
     target: torch.Tensor,
-    scene_radius: float = 1.0,
+    scene_radius: float | torch.Tensor = 1.0,
     resolution: int = 256,
     up: tuple[float, float, float] = (0.0, 0.0, 1.0),
     margin: float = 1.05,
-    focal_px: float | None = None,
+    focal_px: float | torch.Tensor | None = None,
 ) -> tuple[torch.Tensor, torch.Tensor, int, int]:
     """Square pinhole camera at the light looking at ``target``: ``(w2c (4, 4), K (3, 3), width, height)``.
 
@@ -125,8 +135,13 @@ def light_camera(
     fits), capped at ``MAX_FOV_DEGREES`` / 2 — also when the light is inside that sphere. ``focal_px`` overrides
     the fitted focal length (e.g. the official choice: the viewing camera's focal length × |light| / |camera|).
     Tensors are float32 on the light's device; K follows the +0.5 pixel-centre convention (principal point at the
-    image centre).
+    image centre). A light on the CPU is framed on the host (numpy, `olatbench.datasets.cameras.look_at`; a light
+    at the target or a non-positive focal length raise); elsewhere by `_light_camera_on_device`, the same
+    formulas in float64 on the device without a host sync (``scene_radius`` and ``focal_px`` may then be tensors
+    there), unchecked.
     """
+    if light_position.device.type != "cpu":
+        return _light_camera_on_device(light_position, target, scene_radius, resolution, up, margin, focal_px)
     eye = light_position.detach().double().cpu().numpy()
     centre = target.detach().double().cpu().numpy()
     distance = float(np.linalg.norm(centre - eye))
@@ -146,6 +161,42 @@ def light_camera(
         device=light_position.device,
     )
     return w2c, K, int(resolution), int(resolution)
+
+
+def _light_camera_on_device(light_position: torch.Tensor, target: torch.Tensor, scene_radius: float | torch.Tensor,
+                            resolution: int, up: tuple[float, float, float], margin: float,
+                            focal_px: float | torch.Tensor | None) -> tuple[torch.Tensor, torch.Tensor, int, int]:
+    """`light_camera` computed on the light's device in float64 (`look_at`'s axes; the up fallback by a
+    ``torch.where``; ``w2c`` as the rigid inverse [Rᵀ, -Rᵀ eye] of the camera-to-world)."""
+    eye, centre = light_position.detach().double(), target.detach().double()
+    distance = (centre - eye).norm()
+    max_half = math.radians(MAX_FOV_DEGREES) / 2
+
+    def on_device(value: float | torch.Tensor) -> torch.Tensor:  # a number is filled in on the device: no copy
+        return value.detach().double() if isinstance(value, torch.Tensor) else torch.full_like(distance, value)
+
+    if focal_px is None:
+        radius = on_device(scene_radius)
+        inside = radius < distance
+        half = torch.where(inside, torch.asin(torch.where(inside, radius / distance, 0.0)) * margin, max_half)
+        focal = (0.5 * resolution) / torch.tan(half.clamp_max(max_half))
+    else:
+        focal = on_device(focal_px)
+    forward = (centre - eye) / distance
+
+    def vector(values: tuple[float, float, float]) -> torch.Tensor:  # made on the device: no copy from the host
+        return torch.stack([torch.full_like(distance, v) for v in values])
+
+    right = torch.linalg.cross(forward, vector(up))
+    fallback = torch.linalg.cross(forward, vector((0.0, 1.0, 0.0) if abs(up[1]) < 0.9 else (1.0, 0.0, 0.0)))
+    right = torch.where(right.norm() < 1e-8, fallback, right)
+    right = right / right.norm()
+    rotation = torch.stack([right, torch.linalg.cross(forward, right), forward], dim=1)  # columns: c2w axes
+    bottom = torch.eye(4, dtype=torch.float64, device=eye.device)[3:]
+    w2c = torch.cat([torch.cat([rotation.T, (-rotation.T @ eye)[:, None]], dim=1), bottom])
+    zero, one, centre_px = torch.zeros_like(focal), torch.ones_like(focal), torch.full_like(focal, resolution / 2.0)
+    K = torch.stack([focal, zero, centre_px, zero, focal, centre_px, zero, zero, one]).reshape(3, 3)
+    return w2c.float(), K.float(), int(resolution), int(resolution)
 
 
 @torch.no_grad()
@@ -181,8 +232,9 @@ def shadow_gather(
     dtype = means.dtype if means.dtype in (torch.float32, torch.float64) else torch.float32
     light = light_position.to(device=means.device, dtype=dtype)
     target = target.to(device=means.device, dtype=dtype)
-    if scene_radius is None:  # only frames the view when no focal length is given
-        scene_radius = float((means - target).norm(dim=1).max()) if n > 0 and focal_px is None else 1.0
+    if scene_radius is None:  # only frames the view when no focal length is given (on a GPU: on the device)
+        radius = (means - target).norm(dim=1).max() if n > 0 and focal_px is None else 1.0
+        scene_radius = float(radius) if means.device.type == "cpu" else radius
     w2c, K, width, height = light_camera(light, target, scene_radius, resolution, focal_px=focal_px)
     chosen = _choose_backend(backend, means.device, dtype, mode)
     zeros = torch.zeros(n, device=means.device, dtype=dtype)
@@ -247,7 +299,8 @@ def _gather_torch(
     num_pairs = ids.numel()
     if num_pairs == 0:
         return tuple(t.to(dtype) for t in sums)
-    pair_tiles = torch.repeat_interleave(torch.arange(bins.num_tiles, device=device), offsets[1:] - offsets[:-1])
+    pair_tiles = torch.repeat_interleave(torch.arange(bins.num_tiles, device=device), offsets[1:] - offsets[:-1],
+                                         output_size=num_pairs)
 
     # List position before which a pair's Gaussian reads its transmittance: itself, or with depth_offset > 0 the
     # first Gaussian of its tile whose key is not below key - depth_offset (sorted pair keys: tile << 32 | key).
@@ -261,16 +314,21 @@ def _gather_torch(
     x0, x1, y0, y1 = _pair_boxes(means2d, conics, opacities, bins, ids, pair_tiles, radius_px)
     entries = (x1 - x0 + 1).clamp_min(0) * (y1 - y0 + 1).clamp_min(0)
     tile_entries = torch.zeros(bins.num_tiles, dtype=torch.int64, device=device).index_add_(0, pair_tiles, entries)
-    cumulative = torch.cumsum(tile_entries, 0)
+    # The chunking is planned on the host from one copy of the per-tile entry counts and list offsets.
+    with allowed_host_sync("light-pass-entries"):
+        layout = torch.cat([torch.cumsum(tile_entries, 0), offsets]).cpu()
+    cumulative, offsets_host = layout[:bins.num_tiles], layout[bins.num_tiles:]
     tile = 0
     while tile < bins.num_tiles:  # chunks of whole tiles (so every pixel's list is complete) within the budget
         reached = int(cumulative[tile - 1]) if tile else 0
-        last = int(torch.searchsorted(cumulative, torch.tensor(reached + _ENTRY_BUDGET, device=device), right=True))
+        last = int(torch.searchsorted(cumulative, torch.tensor(reached + _ENTRY_BUDGET), right=True))
         last = min(max(last, tile + 1), bins.num_tiles)
-        p0, p1 = int(offsets[tile]), int(offsets[last])
-        if p1 > p0 and int(cumulative[last - 1]) > reached:
+        p0, p1 = int(offsets_host[tile]), int(offsets_host[last])
+        total = int(cumulative[last - 1]) - reached
+        if p1 > p0 and total > 0:
             box = (x0[p0:p1], x1[p0:p1], y0[p0:p1], entries[p0:p1])
-            _gather_chunk(means2d, conics, opacities, bins.width, ids, front_end, p0, p1, box, mode, radius_px, sums)
+            _gather_chunk(means2d, conics, opacities, bins.width, ids, front_end, p0, p1, box, total, mode,
+                          radius_px, depth_offset > 0, sums)
         tile = last
     return tuple(t.to(dtype) for t in sums)
 
@@ -304,12 +362,13 @@ def _pair_boxes(means2d, conics, opacities, bins: TileBins, ids, pair_tiles, rad
     return x0, x1, y0, y1
 
 
-def _gather_chunk(means2d, conics, opacities, width, ids, front_end, p0, p1, box, mode, radius_px, sums) -> None:
-    """Accumulate the pairs [p0, p1) (whole tiles) into ``sums`` = [vis_sum, norm, weight] in place."""
+def _gather_chunk(means2d, conics, opacities, width, ids, front_end, p0, p1, box, total, mode, radius_px, offset,
+                  sums) -> None:
+    """Accumulate the pairs [p0, p1) (whole tiles), ``total`` (pair, pixel) entries, into ``sums`` = [vis_sum,
+    norm, weight] in place; ``offset``: whether a depth offset moved ``front_end`` off the pairs themselves."""
     device = means2d.device
     x0, x1, y0, counts = box
-    total = int(counts.sum())
-    pair = torch.repeat_interleave(torch.arange(p0, p1, device=device), counts)
+    pair = torch.repeat_interleave(torch.arange(p0, p1, device=device), counts, output_size=total)
     local = torch.arange(total, device=device) - (torch.cumsum(counts, 0) - counts)[pair - p0]
     box_width = (x1 - x0 + 1)[pair - p0]
     row = torch.div(local, box_width, rounding_mode="floor")
@@ -342,7 +401,7 @@ def _gather_chunk(means2d, conics, opacities, width, ids, front_end, p0, p1, box
     composited = candidate & (cum_incl >= log_t_min)
     weight = torch.where(composited, alpha.double() * torch.exp(cum_excl), torch.zeros_like(cum_excl))
 
-    if torch.equal(front_end[pair], pair):  # no offset: read T just before the entry itself
+    if not offset:  # read T just before the entry itself
         front = cum_excl
     else:  # first entry of the pixel whose list position is ≥ front_end (entries are sorted by it)
         sorted_key = pixel * (p1 - p0) + (pair - p0)

@@ -19,6 +19,8 @@ from dataclasses import dataclass
 
 import torch
 
+from .host_sync import allowed_host_sync
+
 TILE_SIZE = 16
 
 
@@ -114,8 +116,9 @@ def bins_of_tile_ranges(
     tiles_y = (height + tile_size - 1) // tile_size
     span_x = tx1 - tx0
     counts = torch.where(inside, span_x * (ty1 - ty0), torch.zeros_like(span_x))
-    total = int(counts.sum())
-    gauss = torch.repeat_interleave(torch.arange(inside.shape[0], device=device), counts)
+    with allowed_host_sync("tile-intersections"):  # the list's length: the one host read of a pass
+        total = int(counts.sum())
+    gauss = torch.repeat_interleave(torch.arange(inside.shape[0], device=device), counts, output_size=total)
     first = torch.cumsum(counts, 0) - counts
     # One gather of all per-Gaussian quantities the pairs need (cheaper than one gather each).
     per_pair = torch.stack([tx0, ty0, span_x, first, float_order_key(sort_keys)], dim=1)[gauss]
@@ -124,11 +127,12 @@ def bins_of_tile_ranges(
     tile_x = per_pair[:, 0] + local - (tile_y - per_pair[:, 1]) * per_pair[:, 2]
     tile_ids = tile_y * tiles_x + tile_x
     keys = (tile_ids << 32) | per_pair[:, 4]
-    order = torch.sort(keys, stable=True).indices
+    sorted_keys, order = torch.sort(keys, stable=True)
     gaussian_ids = gauss[order]
-    per_tile = torch.bincount(tile_ids, minlength=tiles_x * tiles_y)
-    offsets = torch.zeros(tiles_x * tiles_y + 1, dtype=torch.int64, device=device)
-    offsets[1:] = torch.cumsum(per_tile, 0)
+    # Tile t's list starts at the number of pairs of the tiles before it: a search of the sorted tile ids (a
+    # bincount would size its output from the values, a host sync on a GPU).
+    tiles = torch.arange(tiles_x * tiles_y + 1, device=device)
+    offsets = torch.searchsorted(sorted_keys >> 32, tiles)
     return TileBins(
         offsets=offsets,
         gaussian_ids=gaussian_ids,

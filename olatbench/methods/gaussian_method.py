@@ -37,7 +37,7 @@ from olatbench.methods.training import (
     make_densifier,
     per_gaussian_groups,
     photometric_loss,
-    psnr_of,
+    step_psnr,
 )
 
 if TYPE_CHECKING:
@@ -225,7 +225,7 @@ class GaussianMethod(Method):
             for p in frozen:
                 p.requires_grad_(True)
                 p.grad = None
-        return {"loss": float(loss.detach()), "l1": float(l1.detach()), "psnr": psnr_of(image, target),
+        return {"loss": loss.detach(), "l1": l1.detach(), "psnr": step_psnr(image, target),
                 "projected": out["projected"], "light_weight": out["light_weight"]}
 
     @property

@@ -11,6 +11,7 @@ config's ``steps``).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -32,7 +33,8 @@ if TYPE_CHECKING:
 
 class VisibleSubset:
     """The Gaussians one view shades: projected radius > 0 (and ``keep``, when given), for per-Gaussian work on
-    those only.
+    those only (on the CPU; on a GPU every Gaussian is shaded and the others' rows zeroed by a ``torch.where``, so
+    that the subset's size never has to be read on the host).
 
     ``pick`` selects their rows of an (N, ...) tensor and ``scatter`` puts (K, C) values back into (N, C) rows
     (zeros for the others). When the subset is every Gaussian (common for an object in frame) both are the
@@ -41,18 +43,23 @@ class VisibleSubset:
 
     def __init__(self, radii: torch.Tensor, keep: torch.Tensor | None = None) -> None:
         self.total = int(radii.shape[0])
-        mask = radii > 0 if keep is None else (radii > 0) & keep
-        self.indices = torch.nonzero(mask).squeeze(1)
+        self.mask = radii > 0 if keep is None else (radii > 0) & keep
+        if radii.device.type != "cpu":  # on a GPU every row, masked: the subset's size is a host sync
+            self.indices, self.everything = None, False
+            return
+        self.indices = torch.nonzero(self.mask).squeeze(1)
         self.everything = int(self.indices.numel()) == self.total
 
     def pick(self, values: torch.Tensor) -> torch.Tensor:
-        """(N, ...) -> (K, ...) rows of the subset."""
-        return values if self.everything else values[self.indices]
+        """(N, ...) -> (K, ...) rows of the subset (on a GPU K = N: every row)."""
+        return values if self.everything or self.indices is None else values[self.indices]
 
     def scatter(self, values: torch.Tensor) -> torch.Tensor:
         """(K, C) -> (N, C), zero rows for the Gaussians outside the subset."""
         if self.everything:
             return values
+        if self.indices is None:
+            return torch.where(self.mask[:, None], values, torch.zeros_like(values))
         return values.new_zeros(self.total, values.shape[1]).index_copy(0, self.indices, values)
 
 
@@ -104,7 +111,8 @@ class TrainingViews:
 
     def image(self, index: int) -> torch.Tensor:
         """Training image ``index`` (H, W, 3) on the device."""
-        return torch.from_numpy(np.ascontiguousarray(self.views.images[index])).to(self.device, torch.float32)
+        image = torch.from_numpy(np.ascontiguousarray(self.views.images[index]))
+        return image.to(self.device, torch.float32, non_blocking=True)  # queued, not waited for, on a GPU
 
     def state_dict(self) -> dict[str, Any]:
         return {"generator": self.generator.get_state(), "order": self.order.clone(), "cursor": self.cursor}
@@ -115,16 +123,20 @@ class TrainingViews:
         self.cursor = int(state["cursor"])
 
 
+def host_to_device(values: np.ndarray, device: torch.device) -> torch.Tensor:
+    """``values`` as a float32 tensor on ``device``, uploaded without waiting for the device (``non_blocking``: a GPU
+    queues the copy; the host does not synchronise)."""
+    return torch.as_tensor(values, dtype=torch.float32).to(device, non_blocking=True)
+
+
 def camera_tensors(camera: Camera, device: torch.device) -> tuple[torch.Tensor, torch.Tensor]:
     """``(w2c (4,4), K (3,3))`` of one camera as float32 tensors on ``device``."""
-    f32 = dict(dtype=torch.float32, device=device)
-    return torch.as_tensor(camera.w2c(), **f32), torch.as_tensor(camera.K, **f32)
+    return host_to_device(camera.w2c(), device), host_to_device(camera.K, device)
 
 
 def light_tensors(light: PointLight, device: torch.device) -> tuple[torch.Tensor, torch.Tensor]:
     """``(position (3,), intensity (3,))`` of one point light as float32 tensors on ``device``."""
-    f32 = dict(dtype=torch.float32, device=device)
-    return torch.as_tensor(light.position, **f32), torch.as_tensor(light.intensity, **f32)
+    return host_to_device(light.position, device), host_to_device(light.intensity, device)
 
 
 def shaded_intensity(intensity: torch.Tensor, ignored: bool) -> torch.Tensor:
@@ -147,7 +159,24 @@ def photometric_loss(image: torch.Tensor, target: torch.Tensor, lambda_dssim: fl
 
 def psnr_of(image: torch.Tensor, target: torch.Tensor) -> float:
     """PSNR (dB, peak 1) of two images, for training logs."""
-    return psnr_from_mse(float(((image.detach() - target) ** 2).mean()))
+    return float(step_psnr(image, target))
+
+
+class LazyScalar:
+    """A scalar of `Method.train_step` computed from values on the device and read on the host only when ``float()``
+    asks (the runner, at its logging interval): ``read`` () -> float does the reading."""
+
+    def __init__(self, read: Callable[[], float]) -> None:
+        self.read = read
+
+    def __float__(self) -> float:
+        return float(self.read())
+
+
+def step_psnr(image: torch.Tensor, target: torch.Tensor) -> LazyScalar:
+    """`psnr_of` as a `LazyScalar`: the squared error is averaged on the device now, read when asked."""
+    mse = ((image.detach() - target) ** 2).mean()
+    return LazyScalar(lambda: psnr_from_mse(float(mse)))
 
 
 def initial_count(views: Views, config: Any) -> int:

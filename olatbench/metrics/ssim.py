@@ -43,7 +43,7 @@ def gaussian_taps(size: int = WINDOW_SIZE, sigma: float = SIGMA, dtype: torch.dt
     """Normalised 1D Gaussian (size,) centred on the middle tap: ``exp(-(i - size//2)² / 2σ²)``."""
     offsets = torch.arange(size, dtype=torch.float64, device="cpu") - size // 2  # float64 taps, then moved
     taps = torch.exp(-(offsets**2) / (2 * sigma**2))
-    return (taps / taps.sum()).to(dtype=dtype, device=device)
+    return (taps / taps.sum()).to(dtype=dtype).to(device, non_blocking=True)  # a GPU queues the upload
 
 
 def _blur(stack: torch.Tensor, taps: torch.Tensor, padding: int) -> torch.Tensor:

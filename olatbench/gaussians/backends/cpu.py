@@ -213,9 +213,9 @@ def project_cpu(
     pose = w2c.detach().to(dtype=means.dtype).double().reshape(16)
     K = K.detach().to(dtype=means.dtype)
     intrinsics = K.double()
-    scalars = [*frustum_clamp_bounds(K, width, height), near, far, low_pass, RADIUS_SIGMAS]
+    scalars = [near, far, low_pass, RADIUS_SIGMAS]
     camera = torch.cat([pose, torch.stack([intrinsics[0, 0], intrinsics[1, 1], intrinsics[0, 2], intrinsics[1, 2]]),
-                        torch.tensor(scalars, dtype=torch.float64)])
+                        frustum_clamp_bounds(K, width, height), torch.tensor(scalars, dtype=torch.float64)])
     return _ProjectCPU.apply(means, quats, scales, w2c, camera.contiguous(), int(width), int(height),
                              thread_count(threads))
 

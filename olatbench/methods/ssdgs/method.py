@@ -32,7 +32,13 @@ from olatbench.methods.ssdgs.schedule import Schedule
 from olatbench.methods.ssdgs.shader import Components, Shader
 from olatbench.methods.ssdgs.spec import SPEC
 from olatbench.methods.ssdgs.test_fitting import TestViewFitting, view_key
-from olatbench.methods.training import camera_centre, shaded_intensity, shaded_subset
+from olatbench.methods.training import (
+    camera_centre,
+    camera_tensors,
+    light_tensors,
+    shaded_intensity,
+    shaded_subset,
+)
 
 if TYPE_CHECKING:
     from olatbench.datasets.records import Camera, PointLight
@@ -219,7 +225,7 @@ class SSDGS(GaussianMethod, spec=SPEC):
         resolution = cfg.light_view_size(width, height)
         focal = None
         if cfg.shadow_framing == "camera":
-            focal = camera_matched_focal(float(K[0, 0]), width, resolution, camera_position, light_position,
+            focal = camera_matched_focal(K[0, 0], width, resolution, camera_position, light_position,
                                          self.model.means.detach().mean(0))
         return {"resolution": resolution, "focal_px": focal, "mode": cfg.shadow_mode,
                 "depth_offset": cfg.shadow_depth_offset}
@@ -273,15 +279,13 @@ class SSDGS(GaussianMethod, spec=SPEC):
     def render_canonical(self, camera: Camera, light: PointLight) -> dict[str, torch.Tensor]:
         """Every component at the current step; training views (same pose and light) use their refinements, and
         so do test views fitted by ``test_pose_fitting="interleaved"``."""
-        f32 = dict(dtype=torch.float32, device=self.device)
         key, step = view_key(camera, light), max(self.step - 1, 0)
         index = self._train_keys.get(key)
-        w2c = self._camera(index, torch.as_tensor(camera.w2c(), **f32), step)
-        position = self._light(index, torch.as_tensor(light.position, **f32), step)
+        (w2c, K), (position, intensity) = camera_tensors(camera, self.device), light_tensors(light, self.device)
+        w2c, position = self._camera(index, w2c, step), self._light(index, position, step)
         if index is None and self.test_fit is not None and key in self.test_fit.keys:
             w2c, position = self.test_fit.apply(self.test_fit.keys[key], w2c, position, self.refine_from, step)
-        out = self._forward(w2c, torch.as_tensor(camera.K, **f32), camera.width, camera.height, position,
-                            torch.as_tensor(light.intensity, **f32), step, components=True)
+        out = self._forward(w2c, K, camera.width, camera.height, position, intensity, step, components=True)
         image, result, start = out["image"], {}, 0
         for name, channels in COMPONENT_CHANNELS:
             result[name] = image[..., start:start + channels]

@@ -30,7 +30,7 @@ from torch import nn
 from olatbench.gaussians.optim import make_adam
 from olatbench.gaussians.refinement import LightRefinement, PoseRefinement
 from olatbench.methods.base import Views
-from olatbench.methods.training import TrainingViews
+from olatbench.methods.training import LazyScalar, TrainingViews
 
 if TYPE_CHECKING:
     from olatbench.datasets.records import Camera, PointLight
@@ -93,10 +93,11 @@ class TestViewFitting:
         return delta, shift
 
     def epoch(self, view_loss: ViewLoss, rates: Mapping[str, float], refine_from: Mapping[str, int],
-              step: int) -> float | None:
+              step: int) -> LazyScalar | None:
         """One pass over the test views in a fresh random order, one Adam step of every view's offsets: at the
         training ``rates`` of ``step`` for the offsets whose refinement has started, at rate 0 (moments only) for
-        the others (module docstring); returns the mean loss, or None when nothing is refined."""
+        the others (module docstring); returns the mean loss (a `LazyScalar`: read when the runner logs it), or None
+        when nothing is refined."""
         if self.poses is None and self.lights is None:
             return None
         active = self._active(refine_from, step)
@@ -115,8 +116,8 @@ class TestViewFitting:
                 param.grad = grad
             self.optimizer.step()
             self.optimizer.zero_grad(set_to_none=True)
-            losses.append(float(loss.detach()))
-        return sum(losses) / len(losses)
+            losses.append(loss.detach())
+        return LazyScalar(lambda: sum(float(loss) for loss in losses) / len(losses))  # read when logged
 
     def state_dict(self) -> dict[str, Any]:
         """Offsets, optimiser state and the order generator (tensors and plain values, for checkpoints)."""
