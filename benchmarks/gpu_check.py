@@ -14,7 +14,8 @@ In order, each step's output kept under ``-o DIR``:
    (the CPU side of the comparisons);
 4. installs the packaged ``mini`` suite (no Mitsuba needed) and runs ``tests/test_cuda.py`` (marker ``cuda``;
    ``--quick`` leaves out the slow mini training) with a JUnit report;
-5. counts the host synchronisations of one SSD-GS training step (``torch.cuda.set_sync_debug_mode``);
+5. counts the host synchronisations of one SSD-GS training step (``torch.cuda.set_sync_debug_mode``) against what
+   the fake-CUDA dry run (``olatbench doctor --fake-cuda``) allows such a step; more fails the step;
 6. runs ``benchmarks/bench_scale.py --device cuda --analytic`` at the paper's sizes (``--counts``, default
    100K/300K/550K Gaussians; ``--suites``, default all three; closed-form images of each suite's size and count,
    so no Mitsuba is needed): seconds per step by stage, peak GPU memory, the projected time of each suite's
@@ -174,7 +175,21 @@ def count_step_syncs() -> dict:
         finally:
             torch.cuda.set_sync_debug_mode("default")
     syncs = [str(w.message).splitlines()[0] for w in caught if "synchroniz" in str(w.message)]
-    return {"syncs_per_step": len(syncs), "first": syncs[:5]}
+    return {"syncs_per_step": len(syncs), "first": syncs[:5], **dry_run_expectation()}
+
+
+def dry_run_expectation() -> dict:
+    """What the fake-CUDA dry run (`olatbench.bench.gpu_dryrun`) finds for SSD-GS's ``mini`` preset, the step
+    `count_step_syncs` measures: its violations (none expected) and the syncs it allows in its last step, one that
+    neither densifies nor logs with the shadow term on (one tile-intersection count per rasterization pass, the
+    light pass's entry layout): the number a real step should not exceed."""
+    from olatbench.bench.gpu_dryrun import dry_run
+
+    run = dry_run((("ssdgs mini", "ssdgs", "mini", {"shadow_resolution": 16}),))
+    steps = [f.phase for f in run.findings if f.phase.startswith("ssdgs mini: train_step")]
+    last = steps[-1] if steps else None
+    return {"dry_run_allowed_per_step": sum(f.phase == last for f in run.findings),
+            "dry_run_violations": [f.line() for f in run.violations()] + run.errors}
 
 
 def run_benchmark(out: Path, suites: list[str], counts: list[int], steps: int) -> dict:
@@ -196,7 +211,9 @@ def markdown(summary: dict) -> str:
              f"{tests.get('errors', 0)} errors, {tests.get('skipped', 0)} skipped", ""]
     syncs = summary.get("syncs", {})
     if "syncs_per_step" in syncs:
-        lines += [f"Host synchronisations in one SSD-GS training step: {syncs['syncs_per_step']}", ""]
+        lines += [f"Host synchronisations in one SSD-GS training step: {syncs['syncs_per_step']} (the fake-CUDA dry "
+                  f"run allows {syncs['dry_run_allowed_per_step']}; its violations: "
+                  f"{len(syncs['dry_run_violations'])})", ""]
     cases = summary.get("benchmark", {}).get("cases", [])
     if cases:
         lines += ["| suite | size | images | Gaussians | s/step | raster | light pass | networks | Adam | rest | "
@@ -247,6 +264,9 @@ def main(argv: list[str] | None = None) -> int:
         summary["failed_steps"].append("CUDA tests")
     try:
         summary["syncs"] = count_step_syncs()
+        syncs = summary["syncs"]
+        if syncs["dry_run_violations"] or syncs["syncs_per_step"] > syncs["dry_run_allowed_per_step"]:
+            summary["failed_steps"].append("sync count")  # more than the dry run allows: it missed one
     except Exception as error:  # reported in the summary with the others' results, not lost
         summary["syncs"] = {"error": f"{type(error).__name__}: {error}"}
         summary["failed_steps"].append("sync count")

@@ -52,3 +52,19 @@ def test_junit_counts_and_markdown_summary(tmp_path):
     assert "4 passed, 1 failed, 0 errors, 2 skipped" in text
     assert "| gs3 | 512×512 | 2000 | 550000 | 0.050 |" in text and "1.50 h | 71.3 |" in text
     assert "Failed steps: sync count" in text and "synchronisations" not in text
+
+
+def test_the_sync_count_is_checked_against_the_fake_cuda_dry_run(tmp_path, monkeypatch):
+    """Step 5's bound comes from the dry run of the same SSD-GS preset (no GPU needed): a steady step with the shadow
+    term on may make 3 syncs (the camera pass's and the light pass's tile-intersection counts, the light pass's
+    entry layout), and the dry run finds no violation; the summary line quotes both."""
+    pytest.importorskip("gsplat")
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+    module = load_script()
+    expected = module.dry_run_expectation()
+    assert expected == {"dry_run_allowed_per_step": 3, "dry_run_violations": []}
+    summary = {"environment": {"date": "d", "device": "GPU", "device_memory_gib": 80.0, "driver": "1", "cuda": "13",
+                               "torch": "t", "gsplat": "g", "olatbench": "o", "commit": "c"},
+               "cuda_tests": {"passed": 1, "failed": 0, "errors": 0, "skipped": 0, "marker": "cuda"},
+               "syncs": {"syncs_per_step": 3, "first": [], **expected}, "benchmark": {"cases": []}, "failed_steps": []}
+    assert "training step: 3 (the fake-CUDA dry run allows 3; its violations: 0)" in module.markdown(summary)

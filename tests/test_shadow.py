@@ -13,7 +13,9 @@ from olatbench.gaussians.backends.cpu import shadow_gather_cpu
 from olatbench.gaussians.projection import quat_to_rotmat
 from olatbench.gaussians.shadow import (
     OFFICIAL_KERNEL,
+    _camera_matched_focal_on_device,
     _gather_torch,
+    _light_camera_on_device,
     camera_matched_focal,
     light_camera,
     shadow_gather,
@@ -192,6 +194,34 @@ def test_light_camera_fits_the_sphere_and_handles_parallel_up():
     inside = light_camera(torch.tensor([0.0, 0.0, 0.5]), torch.zeros(3), scene_radius=1.0, resolution=100)[1]
     assert 2 * math.degrees(math.atan(50 / float(K[0, 0]))) < 120.0
     assert 2 * math.degrees(math.atan(50 / float(inside[0, 0]))) == pytest.approx(120.0)
+
+
+@pytest.mark.parametrize("case", ["fitted", "inside", "parallel up", "focal", "tensor radius"])
+def test_the_gpu_framing_computed_on_the_device_equals_the_host_framing(case):
+    """The light camera and the camera-matched focal length a GPU computes on the device (run here on CPU tensors)
+    equal the host's (numpy look-at and inverse, Python floats) to float32 rounding."""
+    light, target = torch.tensor([3.0, -2.0, 1.0]), torch.tensor([0.2, 0.1, -0.1])
+    options = {"scene_radius": 0.8, "resolution": 100}
+    if case == "inside":
+        light, options["scene_radius"] = torch.tensor([0.0, 0.0, 0.5]), 1.0
+    elif case == "parallel up":
+        light, target = torch.tensor([0.0, 0.0, 5.0]), torch.zeros(3)
+    elif case == "focal":
+        options["focal_px"] = 80.0
+    host = light_camera(light, target, **options)
+    if case == "tensor radius":
+        options["scene_radius"] = torch.tensor(0.8)
+    device = _light_camera_on_device(light, target, options.get("scene_radius", 1.0), options["resolution"],
+                                     (0.0, 0.0, 1.0), 1.05, options.get("focal_px"))
+    for got, want in zip(device[:2], host[:2], strict=True):
+        assert got.dtype == want.dtype == torch.float32
+        torch.testing.assert_close(got, want, atol=1e-6, rtol=1e-6)
+    assert device[2:] == host[2:]
+    camera = target + torch.tensor([0.0, -4.0, 1.0])
+    for fx in (300.0, torch.tensor(300.0)):
+        on_device = _camera_matched_focal_on_device(fx, 400, 100, camera, light, target)
+        assert float(on_device) == pytest.approx(camera_matched_focal(300.0, 400, 100, camera, light, target),
+                                                 rel=1e-12)
 
 
 @pytest.mark.skipif(not cpu_backend_status()[0], reason="C++ backend unavailable")

@@ -266,12 +266,13 @@ def _train(method: Method, views: Views, job: Job, folder: Path, log: JobLog, pr
         for step in range(start, iterations):
             clock = time.perf_counter()
             result = method.train_step(step)
-            train_seconds += time.perf_counter() - clock
-            bar.update(1)
             done = step + 1
-            scalars = None  # read from the device only at the logging interval and at checkpoints
+            scalars = None  # read from the device only at the logging interval (timed: it waits for the device)
             if done % log_every == 0 or done == iterations:
                 scalars = read_scalars(result)
+            train_seconds += time.perf_counter() - clock
+            bar.update(1)
+            if scalars is not None:
                 health.observe(done, scalars)
                 train_log.write({"step": done, "seconds": round(train_seconds, 4), **scalars})
                 if time.monotonic() - postfix_time > 0.5:

@@ -42,7 +42,8 @@ def background_psnr(images: np.ndarray, background: np.ndarray) -> float:
 
 
 class RunHealth:
-    """The health of one training run: fed every step's scalars (`observe`), asked for warnings (`check`).
+    """The health of one training run: fed the scalars of every logged step (`observe`), asked for warnings
+    (`check`).
 
     ``initial_gaussians``: the count after set-up (None: the method has no Gaussians); ``floor_psnr``: the
     background-only image's PSNR (`background_psnr`; None: not checked); ``iterations``: the run's length.

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import importlib.util
 import json
 import platform
@@ -197,8 +198,12 @@ def official_code_checks(code: tuple[str, ...] = ()) -> list[Check]:
 @click.option("--code", multiple=True, metavar="METHOD.KEY=VALUE",
               help="Settings of an official implementation to check, over olatbench.toml and the environment "
                    "(e.g. gs3-official.checkout=~/src/gs-relight; see docs/official.md).")
+@click.option("--fake-cuda", is_flag=True,
+              help="Instead: the fake-CUDA dry run of the GPU path (SSD-GS, GS³, 3DGS under fake CUDA tensors, no GPU "
+                   "needed): every host sync and device mix of a training step by file:line; exit 1 when one is not "
+                   "allowed (docs/gpu.md).")
 @json_option
-def doctor(code: tuple[str, ...], as_json: bool) -> None:
+def doctor(code: tuple[str, ...], fake_cuda: bool, as_json: bool) -> None:
     """Show what this machine supports and how to fix what is missing; for each configured official
     implementation: its checkout and commit, its interpreter, the GPU it sees.
 
@@ -207,7 +212,11 @@ def doctor(code: tuple[str, ...], as_json: bool) -> None:
       olatbench doctor
       olatbench doctor --code gs3-official.checkout=~/src/gs-relight --code gs3-official.conda_env=gs3
       olatbench doctor --json
+      olatbench doctor --fake-cuda      # host syncs and device mixes of the GPU path, found on any machine
     """
+    if fake_cuda:
+        _fake_cuda_dry_run(as_json)
+        return
     if as_json:
         checks = [{"name": name, "ok": ok, "detail": detail, "fix": fix or None}
                   for name, ok, detail, fix in run_checks() + official_code_checks(code)]
@@ -219,3 +228,22 @@ def doctor(code: tuple[str, ...], as_json: bool) -> None:
         click.echo(f"  {'ok ' if ok else 'NO '} {name:<32} {detail}")
         if fix:
             click.echo(f"      fix: {fix}")
+
+
+def _fake_cuda_dry_run(as_json: bool) -> None:
+    """Run `olatbench.bench.gpu_dryrun.dry_run`, print its report (or JSON), exit 1 on a violation or an error."""
+    from olatbench._native import BuildError
+    from olatbench.bench.gpu_dryrun import dry_run
+
+    try:
+        run = dry_run()
+    except (BuildError, ImportError) as error:
+        raise click.ClickException(f"the fake-CUDA dry run cannot start: {error}") from None
+    if as_json:
+        click.echo(json.dumps({"log": run.log, "errors": run.errors,
+                               "findings": [dataclasses.asdict(f) for f in run.findings],
+                               "violations": [dataclasses.asdict(f) for f in run.violations()]}, indent=2))
+    else:
+        click.echo(run.report())
+    if run.violations() or run.errors:
+        raise SystemExit(1)

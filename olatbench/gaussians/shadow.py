@@ -104,12 +104,8 @@ def camera_matched_focal(
     ``light_position``, ``target``: (3,) world points. On CPU tensors a float, checked (a camera at the target
     raises); on a GPU a 0-d float64 tensor on the device, computed there without a host sync and unchecked."""
     if target.device.type != "cpu":
-        to_camera = (camera_position.detach().double() - target.detach().double()).norm()
-        to_light = (light_position.detach().double() - target.detach().double()).norm()
-        fx = camera_fx.detach().double() if isinstance(camera_fx, torch.Tensor) else \
-            torch.full_like(to_light, camera_fx)
-        focal = fx * resolution / camera_width * to_light / to_camera
-        return focal.clamp_min(0.5 * resolution / math.tan(math.radians(MAX_FOV_DEGREES) / 2))
+        return _camera_matched_focal_on_device(camera_fx, camera_width, resolution, camera_position, light_position,
+                                               target)
     camera_fx = float(camera_fx)
     to_camera = float((camera_position.detach().double().cpu() - target.detach().double().cpu()).norm())
     to_light = float((light_position.detach().double().cpu() - target.detach().double().cpu()).norm())
@@ -118,6 +114,17 @@ def camera_matched_focal(
     focal = camera_fx * resolution / camera_width * to_light / to_camera
     widest = 0.5 * resolution / math.tan(math.radians(MAX_FOV_DEGREES) / 2)
     return max(focal, widest)
+
+
+def _camera_matched_focal_on_device(camera_fx: float | torch.Tensor, camera_width: int, resolution: int,
+                                    camera_position: torch.Tensor, light_position: torch.Tensor,
+                                    target: torch.Tensor) -> torch.Tensor:
+    """`camera_matched_focal` as a 0-d float64 tensor on ``target``'s device, computed there (no host sync)."""
+    to_camera = (camera_position.detach().double() - target.detach().double()).norm()
+    to_light = (light_position.detach().double() - target.detach().double()).norm()
+    fx = camera_fx.detach().double() if isinstance(camera_fx, torch.Tensor) else torch.full_like(to_light, camera_fx)
+    focal = fx * resolution / camera_width * to_light / to_camera
+    return focal.clamp_min(0.5 * resolution / math.tan(math.radians(MAX_FOV_DEGREES) / 2))
 
 
 def light_camera(

@@ -124,8 +124,10 @@ class Method(ABC):
         """Initialise parameters and optimisers for the training views."""
 
     @abstractmethod
-    def train_step(self, step: int) -> dict[str, float]:
-        """One optimisation step (``step`` counts from 0); returns scalars such as ``loss``."""
+    def train_step(self, step: int) -> dict[str, Any]:
+        """One optimisation step (``step`` counts from 0); returns scalars such as ``loss``: anything ``float()``
+        reads (numbers, 0-d tensors, `olatbench.methods.training.LazyScalar`). The runner reads them only at its
+        logging interval and at checkpoints, so a step on a GPU need not wait for the device to report them."""
 
     @abstractmethod
     def render(self, camera: Camera, light: PointLight) -> dict[str, torch.Tensor]:

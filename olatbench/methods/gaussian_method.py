@@ -241,7 +241,7 @@ class GaussianMethod(Method):
         """Extra scalars of `train_step` (default: none)."""
         return {}
 
-    def train_step(self, step: int) -> dict[str, float]:
+    def train_step(self, step: int) -> dict[str, Any]:
         rates = self.learning_rates(step)
         for optimizer in self.optimizers:
             for group in optimizer.param_groups:

@@ -14,13 +14,14 @@ Pushed above a ``FakeTensorMode``, `Recorder` sees every aten op first and class
 - **device mixes** (``FakeTensorDeviceMismatchError``: a CPU tensor of one or more dimensions in an op on CUDA
   tensors): a finding; the op then runs with the CPU tensors moved to CUDA.
 
-Each finding keeps the olatbench frames of the Python stack (innermost: where) and the allowance block it ran in
-(`olatbench.gaussians.host_sync`). Substituted values are not the real ones, so control flow after one may differ
-from a real run; shapes, dtypes and devices stay consistent.
+Each finding keeps the frames of olatbench and its caller of the Python stack (innermost: where) and the allowance
+block it ran in (`olatbench.gaussians.host_sync`). Substituted values are not the real ones, so control flow after
+one may differ from a real run; shapes, dtypes and devices stay consistent.
 """
 
 from __future__ import annotations
 
+import sysconfig
 import traceback
 from dataclasses import dataclass
 from pathlib import Path
@@ -37,6 +38,7 @@ aten = torch.ops.aten
 PACKAGE = Path(__file__).resolve().parents[2]  # .../olatbench
 OWN = Path(__file__).resolve().parent  # frames of the dry run itself are not "where"
 TORCH = Path(torch.__file__).resolve().parent
+STDLIB = Path(sysconfig.get_paths()["stdlib"]).resolve()
 
 #: More syncs than this in one phase stop it (a loop over device values that substituted values do not end).
 MAX_SYNCS_PER_PHASE = 2000
@@ -46,8 +48,8 @@ SUBSTITUTE = {"cuda_int": 64, "cpu_int": 0, "float": 1.0, "bool": True}
 
 @dataclass(frozen=True)
 class Finding:
-    """``kind``: "sync" or "device mix"; ``what`` happened (the op and its meaning); ``where``: the innermost
-    olatbench frame ("olatbench/x.py:12 in f"); ``stack``: the olatbench frames, outermost first; ``phase``: what
+    """``kind``: "sync" or "device mix"; ``what`` happened (the op and its meaning); ``where``: the innermost frame
+    of olatbench or its caller ("olatbench/x.py:12 in f"); ``stack``: those frames, outermost first; ``phase``: what
     the dry run was doing; ``allowance``: the `host_sync` allowance it counts against (None: none)."""
 
     kind: str
@@ -64,18 +66,17 @@ class Finding:
         return f"{self.phase}: {self.kind}: {self.what} at {self.where}{allowed}"
 
 
-def _frames() -> tuple[tuple[str, ...], str]:
-    """The olatbench frames of the current stack (outermost first, this package's own left out), and where: the
-    innermost of them, else the innermost frame outside torch (a caller's own code)."""
-    frames, caller = [], "(unknown)"
+def _frames() -> tuple[str, ...]:
+    """The frames of the current stack that are code of olatbench or of its caller (outermost first): not torch's,
+    the standard library's or this package's own; olatbench's as ``olatbench/...:line in function``."""
+    frames = []
     for frame in traceback.extract_stack():
         path = Path(frame.filename).resolve()
-        if path.is_relative_to(OWN) or path.is_relative_to(TORCH):
+        if path.is_relative_to(OWN) or path.is_relative_to(TORCH) or path.is_relative_to(STDLIB):
             continue
-        if path.is_relative_to(PACKAGE):
-            frames.append(f"{path.relative_to(PACKAGE.parent).as_posix()}:{frame.lineno} in {frame.name}")
-        caller = f"{frame.filename}:{frame.lineno} in {frame.name}"
-    return tuple(frames), frames[-1] if frames else caller
+        shown = path.relative_to(PACKAGE.parent).as_posix() if path.is_relative_to(PACKAGE) else frame.filename
+        frames.append(f"{shown}:{frame.lineno} in {frame.name}")
+    return tuple(frames)
 
 
 def _tensors(args: Any, kwargs: Any) -> list[torch.Tensor]:
@@ -111,7 +112,8 @@ class Recorder(TorchDispatchMode):
 
     # ------------------------------------------------------------------------------------------ findings
     def record(self, kind: str, what: str) -> None:
-        frames, where = _frames()
+        frames = _frames()
+        where = frames[-1] if frames else "(unknown)"
         use = current_use() if kind == "sync" else None
         over = False
         if use is not None:
@@ -221,8 +223,13 @@ class Recorder(TorchDispatchMode):
     @staticmethod
     def _on_one_device(func, args, kwargs) -> Any:
         device = next(t.device for t in _tensors(args, kwargs) if t.device.type == "cuda")
-        return func(*tree_map(lambda t: t.to(device) if isinstance(t, torch.Tensor) else t, args),
-                    **tree_map(lambda t: t.to(device) if isinstance(t, torch.Tensor) else t, kwargs))
+
+        def moved(t: Any) -> Any:  # a fresh fake tensor on the device (values are not tracked anyway)
+            if not isinstance(t, torch.Tensor) or t.device == device:
+                return t
+            return torch.zeros(t.shape, dtype=t.dtype, device=device).requires_grad_(t.requires_grad)
+
+        return func(*tree_map(moved, args), **tree_map(moved, kwargs))
 
 
 __all__ = ["SUBSTITUTE", "Finding", "Recorder"]

@@ -255,7 +255,7 @@ class SSDGS(GaussianMethod, spec=SPEC):
         elif report["densified"] and cap is not None and self.model.num_gaussians > 0.95 * cap:
             self.near_cap = True
 
-    def train_step(self, step: int) -> dict[str, float]:
+    def train_step(self, step: int) -> dict[str, Any]:
         """One training step; with interleaved test-view fitting, a pass over the test views first whenever a
         training epoch has just ended (the official code's alternation)."""
         fitted = None
