@@ -136,8 +136,8 @@ class Densifier:
         """
         n = means2d_grad.shape[0]
         self._ensure(n, means2d_grad.device)
-        scale = torch.tensor([0.5 * width, 0.5 * height], dtype=means2d_grad.dtype).to(means2d_grad.device,
-                                                                                       non_blocking=True)
+        scale = torch.tensor([0.5 * width, 0.5 * height], dtype=means2d_grad.dtype, device="cpu")
+        scale = scale.to(means2d_grad.device, non_blocking=True)  # queued on a GPU, not waited for
         norm = (means2d_grad * scale).norm(dim=-1)
         visible = visible.to(torch.bool)
         # Dense masked updates: boolean indexing costs a nonzero() and a gather/scatter per statistic.

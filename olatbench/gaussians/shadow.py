@@ -328,7 +328,8 @@ def _gather_torch(
     tile = 0
     while tile < bins.num_tiles:  # chunks of whole tiles (so every pixel's list is complete) within the budget
         reached = int(cumulative[tile - 1]) if tile else 0
-        last = int(torch.searchsorted(cumulative, torch.tensor(reached + _ENTRY_BUDGET), right=True))
+        last = int(torch.searchsorted(cumulative, torch.tensor(reached + _ENTRY_BUDGET, device="cpu"),
+                                        right=True))
         last = min(max(last, tile + 1), bins.num_tiles)
         p0, p1 = int(offsets_host[tile]), int(offsets_host[last])
         total = int(cumulative[last - 1]) - reached

@@ -126,7 +126,7 @@ class TrainingViews:
 def host_to_device(values: np.ndarray, device: torch.device) -> torch.Tensor:
     """``values`` as a float32 tensor on ``device``, uploaded without waiting for the device (``non_blocking``: a GPU
     queues the copy; the host does not synchronise)."""
-    return torch.as_tensor(values, dtype=torch.float32).to(device, non_blocking=True)
+    return torch.as_tensor(values, dtype=torch.float32, device="cpu").to(device, non_blocking=True)
 
 
 def camera_tensors(camera: Camera, device: torch.device) -> tuple[torch.Tensor, torch.Tensor]:

@@ -28,7 +28,11 @@ from pathlib import Path
 from typing import Any
 
 import torch
-from torch._subclasses.fake_tensor import DataDependentOutputException, DynamicOutputShapeException
+from torch._subclasses.fake_tensor import (
+    DataDependentOutputException,
+    DynamicOutputShapeException,
+    FakeTensorDeviceMismatchError,
+)
 from torch.utils._python_dispatch import TorchDispatchMode
 from torch.utils._pytree import tree_flatten, tree_map
 
@@ -148,9 +152,7 @@ class Recorder(TorchDispatchMode):
         except DataDependentOutputException:
             self.record("sync", f"{func}: a value the device computes")
             raise
-        except RuntimeError as error:
-            if type(error).__name__ != "FakeTensorDeviceMismatchError":
-                raise
+        except FakeTensorDeviceMismatchError:
             devices = sorted({str(t.device) for t in _tensors(args, kwargs)})
             self.record("device mix", f"{func} on {', '.join(devices)}")
             return self._quiet_call(self._on_one_device, func, args, kwargs)
