@@ -9,6 +9,7 @@ import pytest
 import torch
 from ssdgs_scenes import sphere_views
 
+from olatbench.bench.execute import read_scalars
 from olatbench.gaussians.shadow import camera_matched_focal
 from olatbench.methods.registry import get_method
 from olatbench.methods.ssdgs import SSDGS
@@ -90,7 +91,7 @@ def test_save_load_gives_identical_renders_and_resumes_exactly(views) -> None:
     next_a = method.train_step(506)
     torch.manual_seed(3)
     next_b = restored.train_step(506)
-    assert next_a == next_b
+    assert read_scalars(next_a) == read_scalars(next_b)  # the step's scalars as the runner reads them
     with pytest.raises(ValueError, match="different config"):
         make(views, num_asg=2).load_state_dict(state)
 
