@@ -140,3 +140,23 @@ def test_the_gsplat_kernel_stand_in_checks_what_the_kernel_checks():
                                                              torch.zeros(7, dtype=torch.int32, device="cuda"))
         assert (renders.shape, alphas.shape, last.shape) == ((1, h, w, 5), (1, h, w, 1), (1, h, w))
         assert renders.device.type == "cuda" and last.dtype == torch.int32
+
+
+@pytest.mark.parametrize("mode, offset", [("uniform", False), ("density", True), ("footprint", False)])
+def test_the_light_pass_gather_of_a_chunk_makes_no_host_sync(mode, offset):
+    """The light pass's per-chunk gather runs in the dry run only where the copied entry layout has entries, which
+    fake values never give: run on fake CUDA inputs directly, it makes no sync and mixes no device."""
+    from olatbench.gaussians.shadow import _gather_chunk
+
+    with fake_cuda() as recorder:
+        n, pairs, total = 50, 80, 900
+
+        def cuda(*shape, dtype=torch.float32):
+            return torch.zeros(*shape, dtype=dtype, device="cuda")
+
+        box = tuple(cuda(pairs, dtype=torch.int64) for _ in range(4))
+        sums = [cuda(n, dtype=torch.float64) for _ in range(3)]
+        _gather_chunk(cuda(n, 2), cuda(n, 3), cuda(n), 64, cuda(pairs, dtype=torch.int64),
+                      cuda(pairs, dtype=torch.int64), 0, pairs, box, total, mode, 2.0, offset, sums)
+        assert all(s.shape == (n,) and s.device.type == "cuda" for s in sums)
+    assert recorder.findings == []
