@@ -11,6 +11,7 @@ from ssdgs_scenes import sphere_views
 
 from olatbench.bench.execute import read_scalars
 from olatbench.gaussians.shadow import camera_matched_focal
+from olatbench.methods.evaluation_protocol import evaluation_protocol
 from olatbench.methods.registry import get_method
 from olatbench.methods.ssdgs import SSDGS
 from olatbench.methods.ssdgs.presets import ABLATION_PRESETS, SCHEDULE_PRESETS
@@ -204,7 +205,7 @@ def test_test_time_refinement_recovers_a_perturbed_pose_and_light_with_the_model
 
 def test_test_time_refinement_is_off_by_default_and_needs_a_refined_quantity(views) -> None:
     method = make(views)
-    assert not method.refines_test_views
+    assert not evaluation_protocol(method).refines
     assert method.refine_view(views.cameras[0], views.lights[0], views.images[0]) is None
     with pytest.raises(ValueError, match="refine_camera"):
         SSDGS.resolve_config(None, test_time_refinement=True)

@@ -218,9 +218,9 @@ def test_test_view_offsets_get_warm_adam_moments_before_their_rate_opens() -> No
     from types import SimpleNamespace
 
     from olatbench.gaussians.refinement import so3xr3_exp
-    from olatbench.methods.ssdgs.test_fitting import TestViewFitting
+    from olatbench.methods.ssdgs.view_fitting import InterleavedFit
 
-    fitting = TestViewFitting(sphere_views(3, size=8, seed=3), SimpleNamespace(refine_camera=True, refine_light=True),
+    fitting = InterleavedFit(sphere_views(3, size=8, seed=3), SimpleNamespace(refine_camera=True, refine_light=True),
                               torch.device("cpu"), 0)
     noise = torch.Generator().manual_seed(0)
     target_w2c = fitting.views.w2cs + 0.05 * torch.randn(fitting.views.w2cs.shape, generator=noise)

@@ -17,7 +17,7 @@ import time
 import traceback
 from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import torch
@@ -66,12 +66,16 @@ from olatbench.bench.views import VIEWS_FILE, load_views, view_camera
 from olatbench.datasets import colour, load_scene
 from olatbench.datasets.formats._common import safe_file_stem
 from olatbench.datasets.images import write_image
-from olatbench.datasets.records import Frame
+from olatbench.datasets.records import Camera, Frame, LoadedImage, PointLight
 from olatbench.gaussians.host_sync import allowed_host_sync
 from olatbench.methods.backends import format_backends
 from olatbench.methods.base import Method, Views
+from olatbench.methods.evaluation_protocol import EvaluationProtocol, evaluation_protocol
 from olatbench.metrics.evaluate import sha256_file
 from olatbench.progress import progress_bar, progress_write
+
+if TYPE_CHECKING:
+    from olatbench.metrics.protocols import Protocol
 
 WARMUP_RENDERS = 1
 
@@ -177,10 +181,11 @@ def _run(job: Job, folder: Path, log: JobLog, progress: bool, position: int, sta
 
     method_class = load_method_class(job)
     method = method_class(method_class.resolve_config(None, **job.config))
-    if method.test_pose_fitting is not None:  # the method fits the test views' poses/lights while it trains
+    protocol = evaluation_protocol(method)
+    if protocol.fitting is not None:  # the protocol fits the test views' poses/lights while the method trains
         test_views = load_views(scene.split(job.test_split), job, progress, position, frame=train_views.frame)
-        method.attach_test_views(test_views)
-        log(f"loaded {len(test_views)} test views for test_pose_fitting={method.test_pose_fitting}")
+        protocol.attach_test_views(test_views)
+        log(f"loaded {len(test_views)} test views for test_pose_fitting={protocol.fitting}")
     reused = _adopt_reusable_model(job, folder, log)
     train_seconds = _train(method, train_views, job, folder, log, progress, position)
 
@@ -192,7 +197,7 @@ def _run(job: Job, folder: Path, log: JobLog, progress: bool, position: int, sta
         exact = train_views.images.dtype == np.float32  # a float16 stack is for training, not for scoring
         gt_images = train_views.images if split == job.train_split and exact else None
         metrics[split], fps, refined = evaluate_split(method, frames, job, folder, split, gt_images, progress,
-                                                      position)
+                                                      position, protocol=protocol)
         files[split] = scored_files(frames, folder, split)
         if split == job.test_split:
             render_fps, refinement = fps, refined
@@ -204,9 +209,9 @@ def _run(job: Job, folder: Path, log: JobLog, progress: bool, position: int, sta
     checkpoints = list_checkpoints(folder)
     results["hashes"]["checkpoint"] = sha256_file(checkpoints[-1][1]) if checkpoints else None
     results["evaluation"]["test_time_refinement"] = refinement
-    if method.test_pose_fitting is not None:
-        results["evaluation"]["test_pose_fitting"] = {"mode": method.test_pose_fitting, "split": job.test_split,
-                                                      "frames": method.fitted_test_views() or {}}
+    if protocol.fitting is not None:
+        results["evaluation"]["test_pose_fitting"] = {"mode": protocol.fitting, "split": job.test_split,
+                                                      "frames": protocol.fitted_views() or {}}
     write_results(folder / RESULTS_FILE, results)
     prune_checkpoints(folder, keep=1)
     write_text(folder / DONE_FILE, job.id + "\n")
@@ -378,68 +383,109 @@ def _to_numpy(image: torch.Tensor) -> np.ndarray:
 
 
 def evaluate_split(method: Method, frames: list[Frame], job: Job, folder: Path, split: str,
-                   gt_images: np.ndarray | None, progress: bool, position: int
+                   gt_images: np.ndarray | None, progress: bool, position: int, *, protocol: EvaluationProtocol
                    ) -> tuple[dict[str, Any], float | None, dict[str, Any] | None]:
     """Render every frame of a split, save ``renders/<split>/<frame_id>.png`` (8-bit sRGB) and score it.
 
     Scores are computed in the suite's evaluation space (``job.colourspace``: sRGB for PNG data,
-    gamma 2.2 for GS³ EXRs, as the official scripts display them), against the protocol's official ground
-    truth when it names one and the images are at native resolution. ``gt_images`` reuses already
-    loaded views. Masked protocols get the ground truth's alpha as mask. Returns the metrics block
-    ``{"mean": ..., "per_image": {frame_id: ...}}``, the render FPS (renders only, after
-    `WARMUP_RENDERS` warm-up renders; CUDA synchronised) and, when the method refines test views
-    (`Method.refines_test_views`, test split only), ``{"split", "seconds", "frames": {frame_id: summary}}``:
+    gamma 2.2 for GS³ EXRs, as the official scripts display them), against the ground truth `_ground_truth`
+    picks. Returns the metrics block ``{"mean": ..., "per_image": {frame_id: ...}}``, the render FPS (renders
+    only, after `WARMUP_RENDERS` warm-up renders; CUDA synchronised) and, when the evaluation protocol refines
+    test views (``protocol.refines``, test split only), ``{"split", "seconds", "frames": {frame_id: summary}}``:
     each view's pose/light is then fitted to its image (training space) before the render that is scored.
     """
     from olatbench.metrics.protocols import get_protocol
 
-    protocol = get_protocol(job.protocol)
-    cuda = torch.device(job.device).type == "cuda"
-    resolution = tuple(job.resolution) if job.resolution else None
-    # protocols that reproduce an official pipeline score against its ground truth (e.g. 8-bit truncated),
-    # which exists at the native resolution only (`olatbench.bench.outcome.ground_truth`)
-    official_gt = protocol.ground_truth == "official" and resolution is None
+    scoring = get_protocol(job.protocol)
+    refinement = _Refinement(split) if split == job.test_split and protocol.refines else None
+    render_seconds, per_image = 0.0, {}
     with torch.no_grad():
-        for frame in frames[:WARMUP_RENDERS]:
-            method.render(view_camera(frame, job), frame.light)
-        render_seconds, per_image = 0.0, {}
-        refine = split == job.test_split and method.refines_test_views
-        refinement: dict[str, Any] | None = {"split": split, "seconds": 0.0, "frames": {}} if refine else None
-        for index, frame in enumerate(progress_bar(frames, desc=f"{job.label}: {split}", position=position, leave=False,
-                                           disable=not progress)):
+        _warm_up(method, frames, job)
+        for index, frame in enumerate(progress_bar(frames, desc=f"{job.label}: {split}", position=position,
+                                                   leave=False, disable=not progress)):
             camera, light, loaded = view_camera(frame, job), frame.light, None
             if refinement is not None:
-                clock = time.perf_counter()
-                loaded = frame.load(colourspace=job.colourspace, background="official", resolution=resolution)
-                refined = method.refine_view(camera, light, loaded.rgb)
-                if refined is not None:
-                    camera, light = refined.camera, refined.light
-                    refinement["frames"][frame.frame_id] = {k: finite(float(v)) for k, v in refined.summary.items()}
-                refinement["seconds"] += time.perf_counter() - clock
-            if cuda:
-                torch.cuda.synchronize(job.device)
-            clock = time.perf_counter()
-            output = method.render(camera, light)
-            if cuda:
-                torch.cuda.synchronize(job.device)
-            render_seconds += time.perf_counter() - clock
+                camera, light, loaded = refinement.refine(protocol, frame, camera, light, job)
+            output, seconds = _timed_render(method, camera, light, job.device)
+            render_seconds += seconds
             pred = np.clip(_to_numpy(output["rgb"]), 0.0, 1.0)
-            if gt_images is not None and not protocol.masked and not official_gt:
-                gt, mask = gt_images[index], None
-            elif loaded is not None and not official_gt:  # the image refine_view was given
-                gt, mask = loaded.rgb, (loaded.alpha if protocol.masked else None)
-            else:
-                gt, mask = ground_truth(job, protocol, frame)
-            per_image[frame.frame_id] = score_image(protocol, pred, gt, mask, str(job.device))
-            save_render(folder, split, frame, pred, job.colourspace)
-            stem = safe_file_stem(frame.frame_id)
-            if job.save_components and split == job.test_split:
-                _save_components(output, folder / "components" / split, stem, job.colourspace)
-    mean = mean_scores(protocol, per_image)
-    if refinement is not None:
-        refinement["seconds"] = round(refinement["seconds"], 3)
+            gt, mask = _ground_truth(job, scoring, frame, index, gt_images, loaded)
+            per_image[frame.frame_id] = score_image(scoring, pred, gt, mask, str(job.device))
+            _save_outputs(folder, split, frame, pred, output, job)
     fps = len(frames) / render_seconds if render_seconds > 0 else None
-    return {"mean": mean, "per_image": per_image}, fps, refinement
+    return ({"mean": mean_scores(scoring, per_image), "per_image": per_image}, fps,
+            refinement.record() if refinement is not None else None)
+
+
+def _warm_up(method: Method, frames: list[Frame], job: Job) -> None:
+    """Render the first `WARMUP_RENDERS` frames untimed (kernel compilation, caches, allocator)."""
+    for frame in frames[:WARMUP_RENDERS]:
+        method.render(view_camera(frame, job), frame.light)
+
+
+def _timed_render(method: Method, camera: Camera, light: PointLight, device: str
+                  ) -> tuple[dict[str, torch.Tensor], float]:
+    """The method's render of one view and its wall-clock seconds (CUDA synchronised before and after)."""
+    cuda = torch.device(device).type == "cuda"
+    if cuda:
+        torch.cuda.synchronize(device)
+    clock = time.perf_counter()
+    output = method.render(camera, light)
+    if cuda:
+        torch.cuda.synchronize(device)
+    return output, time.perf_counter() - clock
+
+
+class _Refinement:
+    """Test-time refinement of one split's views by the evaluation protocol: each view's image is loaded (training
+    space, official background), the protocol fits the view to it, and the summaries and seconds are kept."""
+
+    def __init__(self, split: str) -> None:
+        self.split, self.seconds, self.frames = split, 0.0, {}
+
+    def refine(self, protocol: EvaluationProtocol, frame: Frame, camera: Camera, light: PointLight, job: Job
+               ) -> tuple[Camera, PointLight, LoadedImage]:
+        """The camera and light to render ``frame`` with, and the image the protocol was given."""
+        clock = time.perf_counter()
+        resolution = tuple(job.resolution) if job.resolution else None
+        loaded = frame.load(colourspace=job.colourspace, background="official", resolution=resolution)
+        refined = protocol.refine(camera, light, loaded.rgb)
+        if refined is not None:
+            camera, light = refined.camera, refined.light
+            self.frames[frame.frame_id] = {k: finite(float(v)) for k, v in refined.summary.items()}
+        self.seconds += time.perf_counter() - clock
+        return camera, light, loaded
+
+    def record(self) -> dict[str, Any]:
+        """``evaluation.test_time_refinement`` of results.json."""
+        return {"split": self.split, "seconds": round(self.seconds, 3), "frames": self.frames}
+
+
+def _ground_truth(job: Job, scoring: Protocol, frame: Frame, index: int, gt_images: np.ndarray | None,
+                  loaded: LoadedImage | None) -> tuple[np.ndarray, np.ndarray | None]:
+    """The ground truth (H, W, 3) and mask (H, W) or None a render of ``frame`` is scored against.
+
+    Protocols that reproduce an official pipeline score against its ground truth (e.g. 8-bit truncated), which
+    exists at the native resolution only (`olatbench.bench.outcome.ground_truth`). Otherwise ``gt_images`` (the
+    already loaded training views, row ``index``) when the protocol is unmasked, else the image test-time
+    refinement was given (``loaded``), else the frame loaded afresh. Masked protocols get the ground truth's
+    alpha as mask.
+    """
+    resolution = tuple(job.resolution) if job.resolution else None
+    official_gt = scoring.ground_truth == "official" and resolution is None
+    if gt_images is not None and not scoring.masked and not official_gt:
+        return gt_images[index], None
+    if loaded is not None and not official_gt:  # the image refine was given
+        return loaded.rgb, (loaded.alpha if scoring.masked else None)
+    return ground_truth(job, scoring, frame)
+
+
+def _save_outputs(folder: Path, split: str, frame: Frame, pred: np.ndarray, output: dict[str, torch.Tensor],
+                  job: Job) -> None:
+    """Save the scored render and, when the job asks (test split only), the method's components."""
+    save_render(folder, split, frame, pred, job.colourspace)
+    if job.save_components and split == job.test_split:
+        _save_components(output, folder / "components" / split, safe_file_stem(frame.frame_id), job.colourspace)
 
 
 def _save_components(output: dict[str, torch.Tensor], directory: Path, stem: str, colourspace: str) -> None:

@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, Any, ClassVar
 import numpy as np
 
 from olatbench.datasets.similarity import Similarity
-from olatbench.methods.spec import MethodSpec, build_config
+from olatbench.methods.spec import DEFAULT_EVALUATION, MethodSpec, build_config
 
 if TYPE_CHECKING:
     import torch
@@ -62,16 +62,6 @@ class Views:
                        lights=[self.frame.light(lt) for lt in self.lights], points=points, frame=Similarity.identity())
 
 
-@dataclass
-class RefinedView:
-    """An evaluation view after test-time refinement: the ``camera`` and ``light`` to render with, and a
-    ``summary`` of plain floats for the results file (e.g. loss before/after, how far the pose moved)."""
-
-    camera: Camera
-    light: PointLight
-    summary: dict[str, float]
-
-
 class Method(ABC):
     """A trainable method. Subclasses set ``name``, ``config_class`` and ``presets``.
 
@@ -98,17 +88,21 @@ class Method(ABC):
     #: What the method can do (`olatbench.methods.spec.CAPABILITIES`), for methods registered as a class; built-in
     #: methods declare them in their `MethodSpec`.
     capabilities: ClassVar[frozenset[str]] = frozenset()
+    #: The method's evaluation protocol (``"module:Class"``, `olatbench.methods.evaluation_protocol`): how its test
+    #: views are posed before they are scored; built-in methods name theirs in their `MethodSpec`.
+    evaluation: ClassVar[str] = DEFAULT_EVALUATION
 
     def __init_subclass__(cls, spec: MethodSpec | None = None, **kwargs: Any) -> None:
-        """``class SSDGS(GaussianMethod, spec=SPEC)`` takes ``name``, ``presets``, ``description``, ``ablations``
-        and ``capabilities`` from the method's spec, so they are written once (and a class registered by name
-        keeps them)."""
+        """``class SSDGS(GaussianMethod, spec=SPEC)`` takes ``name``, ``presets``, ``description``, ``ablations``,
+        ``capabilities`` and ``evaluation`` from the method's spec, so they are written once (and a class registered
+        by name keeps them)."""
         super().__init_subclass__(**kwargs)
         if spec is not None:
             cls.name, cls.presets, cls.description = spec.name, dict(spec.presets), spec.description
             cls.ablations = dict(spec.ablations)
             cls.training_iterations = spec.iterations
             cls.capabilities = frozenset(spec.capabilities)
+            cls.evaluation = spec.evaluation
 
     def __init__(self, config: Any) -> None:
         self.config = config
@@ -132,35 +126,6 @@ class Method(ABC):
     @abstractmethod
     def render(self, camera: Camera, light: PointLight) -> dict[str, torch.Tensor]:
         """Render one view: ``rgb`` (H, W, 3) plus named components (``diffuse``, ``shadow``, ...)."""
-
-    @property
-    def refines_test_views(self) -> bool:
-        """Whether `refine_view` should be called on each test view before it is rendered for scoring."""
-        return False
-
-    def refine_view(self, camera: Camera, light: PointLight, image: np.ndarray) -> RefinedView | None:
-        """Test-time refinement of an evaluation view's pose and/or light against its image.
-
-        ``image`` (H, W, 3) float32 is the ground truth in the training space and background. The model
-        stays frozen. Returns ``None`` when the method does not refine (the default); the runner then
-        renders the view as given, and records which views were refined and how far.
-        """
-        return None
-
-    @property
-    def test_pose_fitting(self) -> str | None:
-        """The name of the evaluation mode in which the method fits the test views' poses/lights during training
-        (e.g. ``"interleaved"``), or None (the default). The runner then gives it the test views with
-        `attach_test_views` before `setup` and records `fitted_test_views` in results.json."""
-        return None
-
-    def attach_test_views(self, test: Views) -> None:
-        """Receive the test views (images included) for `test_pose_fitting`; called before `setup`."""
-        raise NotImplementedError(f"{type(self).__name__} does not fit test views")
-
-    def fitted_test_views(self) -> dict[str, dict[str, float]] | None:
-        """Per test frame id, plain floats saying how far its pose/light were fitted (None: no fitting)."""
-        return None
 
     @abstractmethod
     def state_dict(self) -> dict[str, Any]:

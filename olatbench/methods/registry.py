@@ -16,7 +16,7 @@ from collections.abc import Sequence
 from importlib.metadata import entry_points
 from typing import TYPE_CHECKING
 
-from olatbench.methods.spec import MethodSpec, import_reference
+from olatbench.methods.spec import DEFAULT_EVALUATION, MethodSpec, import_reference
 from olatbench.names import did_you_mean, match_name
 
 if TYPE_CHECKING:
@@ -37,13 +37,15 @@ _registered_classes: dict[str, type[Method]] = {}
 
 
 def spec_from_class(name: str, method_class: type[Method], kind: str = "plugin") -> MethodSpec:
-    """A spec describing an old-style method class (its presets, ablation grids, description and capabilities)."""
+    """A spec describing an old-style method class (its presets, ablation grids, description, capabilities and
+    evaluation protocol)."""
     config_class = method_class.config_class
     return MethodSpec(name=name, description=(method_class.description or "").strip(),
                       implementation=_reference(method_class), config=_reference(config_class), kind=kind,  # type: ignore[arg-type]
                       presets=dict(method_class.presets), ablations=dict(getattr(method_class, "ablations", {})),
                       iterations=getattr(method_class, "training_iterations", None),
-                      capabilities=frozenset(getattr(method_class, "capabilities", frozenset())))
+                      capabilities=frozenset(getattr(method_class, "capabilities", frozenset())),
+                      evaluation=getattr(method_class, "evaluation", DEFAULT_EVALUATION))
 
 
 def register(name: str | MethodSpec, method_class: type[Method] | None = None) -> None:

@@ -22,13 +22,17 @@ from olatbench.names import path_component
 #: The variant that applies no preset (``run --variant default``; may appear in an ablation grid).
 DEFAULT_VARIANT = "default"
 
+#: The evaluation protocol of a spec that names none: the test views scored as given
+#: (`olatbench.methods.evaluation_protocol`).
+DEFAULT_EVALUATION = "olatbench.methods.evaluation_protocol:EvaluationProtocol"
+
 MethodKind = Literal["native", "official", "plugin"]
 SourceStatus = Literal["verified", "unverified", "no public code"]
 
 #: Capabilities a spec may declare (the runner and tools check these, never method names).
 CAPABILITIES = frozenset({
     "relight",  # renders under a new point light
-    "refine_view",  # implements Method.refine_view (test-time pose/light refinement)
+    "refine_view",  # its evaluation protocol refines test views' poses/lights at test time
     "components",  # renders named components beside rgb (see MethodSpec.outputs)
     "checkpoint",  # state_dict / load_state_dict: resumable in-process training
     "init_points",  # starts its Gaussians at Views.points (a scene's points3d.ply, run --init-points)
@@ -60,7 +64,9 @@ class MethodSpec:
     (``"a+b"`` applies ``a`` then ``b``). ``ablations`` maps a grid name (``"components"``) to its variants.
     ``iterations`` replaces the suite's training length with the method's own (None: the suite's); 0 declares a
     learning-free method: ``setup`` does all the work and no training step runs, whatever the suite says.
-    ``scene_recipe`` names the preset a scene of no suite gets scaled to it (`olatbench.methods.scene_presets`)."""
+    ``scene_recipe`` names the preset a scene of no suite gets scaled to it (`olatbench.methods.scene_presets`).
+    ``evaluation`` (``"module:Class"``) is the method's evaluation protocol: how its test views are posed before
+    they are scored (`olatbench.methods.evaluation_protocol`; the default scores them as given)."""
 
     name: str
     description: str
@@ -75,6 +81,7 @@ class MethodSpec:
     iterations: int | None = None  # training steps the method always takes (None: the suite's; 0: learning-free)
     # the preset scaled to scenes of no suite (olatbench.methods.scene_presets; None: they get their format's preset)
     scene_recipe: str | None = None
+    evaluation: str = DEFAULT_EVALUATION
 
     def __post_init__(self) -> None:
         path_component(self.name, "method")  # it names a folder of each of its jobs
@@ -82,7 +89,7 @@ class MethodSpec:
                                             or self.iterations < 0):
             raise ValueError(f"method spec {self.name!r}: iterations must be a whole number >= 0 or None, not "
                              f"{self.iterations!r}")
-        for reference in (self.implementation, self.config):
+        for reference in (self.implementation, self.config, self.evaluation):
             module, sep, attribute = reference.partition(":")
             if not (module and sep and attribute):
                 raise ValueError(f"method spec {self.name!r}: {reference!r} is not of the form 'module:Class'")

@@ -25,13 +25,14 @@ from olatbench.gaussians.projection import project
 from olatbench.gaussians.rasterize import rasterize
 from olatbench.gaussians.refinement import LightRefinement, PoseRefinement
 from olatbench.gaussians.shadow import camera_matched_focal, shadow_gather
-from olatbench.methods.base import RefinedView, Views
+from olatbench.methods.base import Views
+from olatbench.methods.evaluation_protocol import RefinedView
 from olatbench.methods.gaussian_method import GaussianMethod, ParameterGroup, SplatColour, albedo_splat_colour
 from olatbench.methods.ssdgs.config import SSDGSConfig
 from olatbench.methods.ssdgs.schedule import Schedule
 from olatbench.methods.ssdgs.shader import Components, Shader
 from olatbench.methods.ssdgs.spec import SPEC
-from olatbench.methods.ssdgs.test_fitting import TestViewFitting, view_key
+from olatbench.methods.ssdgs.view_fitting import InterleavedFit, view_key
 from olatbench.methods.training import (
     camera_centre,
     camera_tensors,
@@ -106,7 +107,7 @@ class SSDGS(GaussianMethod, spec=SPEC):
         # the test views in the training views' canonical frame (whatever frame the caller attached them with)
         test = replace(self._test_views, frame=self.frame).in_frame() \
             if cfg.test_pose_fitting == "interleaved" and self._test_views is not None else None
-        self.test_fit = TestViewFitting(test, cfg, self.device, self.train_views.generator.initial_seed()) \
+        self.test_fit = InterleavedFit(test, cfg, self.device, self.train_views.generator.initial_seed()) \
             if test is not None and len(test) > 0 else None
 
     def global_groups(self) -> list[ParameterGroup]:
@@ -305,10 +306,6 @@ class SSDGS(GaussianMethod, spec=SPEC):
                                 lambda value: value)
         return shaded.colour
 
-    @property
-    def refines_test_views(self) -> bool:
-        return bool(self.config.test_time_refinement)
-
     def refine_view(self, camera: Camera, light: PointLight, image: np.ndarray) -> RefinedView | None:
         """Test-time refinement (``test_time_refinement``): fit this view's pose and/or light to ``image``.
 
@@ -363,7 +360,8 @@ class SSDGS(GaussianMethod, spec=SPEC):
 
     # ------------------------------------------------------------------------------- test-view fitting
     def attach_test_views(self, test: Views) -> None:
-        """Give the test views to ``test_pose_fitting="interleaved"`` (call before `setup`; the runner does).
+        """Give the test views to ``test_pose_fitting="interleaved"`` (call before `setup`; the runner does, through
+        `olatbench.methods.ssdgs.evaluation.SSDGSTestViews`).
         Without them (or with the option off) training has no test passes."""
         self._test_views = test
 
@@ -374,10 +372,6 @@ class SSDGS(GaussianMethod, spec=SPEC):
         out = self._forward(w2c, views.Ks[index], camera.width, camera.height, position,
                             views.light_intensities[index], step, components=False)
         return self.loss(out["image"], views.image(index))[1]
-
-    @property
-    def test_pose_fitting(self) -> str | None:
-        return "interleaved" if self.config.test_pose_fitting == "interleaved" else None
 
     def fitted_view(self, camera: Camera, light: PointLight) -> tuple[Camera, PointLight]:
         """The camera and light a test view is scored with: its interleaved fit, else as given."""

@@ -23,4 +23,5 @@ SPEC = MethodSpec(
     outputs=("rgb", "diffuse", "specular", "sss", "shadow", "shadow_coarse", "alpha"),
     capabilities=frozenset({"relight", "refine_view", "components", "checkpoint", "init_points"}),
     scene_recipe="own-data",  # presets.py: the mini recipe over the official code's switches
+    evaluation="olatbench.methods.ssdgs.evaluation:SSDGSTestViews",  # as given, fitted during training, or refined
 )

@@ -3,9 +3,9 @@
 The official training loop alternates epochs: after every pass over the training views comes one pass over the
 *test* views (in a random order, the iteration counter standing still) in which only those views' camera-pose and
 light-position offsets are updated — the model's parameters get no update and densification sees nothing — and
-the scored test images are rendered with the fitted offsets. `TestViewFitting` holds those offsets and runs one
+the scored test images are rendered with the fitted offsets. `InterleavedFit` holds those offsets and runs one
 such pass; SSD-GS calls it when a training epoch has just ended and applies the offsets when it renders a test
-view.
+view. SSD-GS's evaluation protocol (`olatbench.methods.ssdgs.evaluation`) is what the runner sees of it.
 
 Each test view owns its own zero-initialised SO3×R3 pose delta and light offset (`PoseRefinement` /
 `LightRefinement` of one view), all in one Adam (eps 1e-15): as in the official code, where every camera holds its
@@ -44,7 +44,7 @@ def view_key(camera: Camera, light: PointLight) -> bytes:
     return np.asarray(camera.c2w, dtype=np.float64).tobytes() + np.asarray(light.position, dtype=np.float64).tobytes()
 
 
-class TestViewFitting:
+class InterleavedFit:
     """Per-test-view pose and light offsets, their optimiser and the random order of the test passes.
 
     ``views``: the test views as tensors (`TrainingViews`); ``keys``: view key (pose and light bytes, as SSD-GS
@@ -135,4 +135,4 @@ class TestViewFitting:
         self.generator.set_state(state["generator"])
 
 
-__all__ = ["TestViewFitting", "ViewLoss", "view_key"]
+__all__ = ["InterleavedFit", "ViewLoss", "view_key"]
