@@ -80,6 +80,11 @@ class Job:
     # the training cameras, `bench.views.job_frame`); in the identity when not "dataset"
     frame: str = "dataset"
     derived: dict[str, str] = field(default_factory=dict)  # field -> why, for a preset derived from the scene
+    # {"grid", "reference"}: the method's ablation grid the variant belongs to and the variant it is compared with
+    # (`MethodSpec.ablation_of`); None outside grids and in job.json files written before the field (the reports
+    # then ask the method's spec, `olatbench.bench.ablation.job_ablation`). Not in the identity: it names, it
+    # does not decide, the result
+    ablation: dict[str, str] | None = None
     id: str = field(default="")
 
     @property

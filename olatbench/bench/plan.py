@@ -457,6 +457,7 @@ def make_plan(method: str, suite: str | Suite, out: str | Path, scenes: Sequence
                           init_points=str(points) if points else "",
                           init_points_digest=points_digest(points) if points else None,
                           frame="dataset" if spec.kind == "official" else suite.frame,  # the authors' code: as is
-                          derived=dict(derived.reasons) if derived is not None else {})
+                          derived=dict(derived.reasons) if derived is not None else {},
+                          ablation=spec.ablation_of(variant, ablation))
                 jobs.append(job.with_id() if manifest is not None else job)
     return jobs

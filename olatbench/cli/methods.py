@@ -220,7 +220,8 @@ def show(name: str, data_path: Path | None, iterations: int | None, as_json: boo
         click.echo(f"  {preset}: {changes}")
     click.echo("ablation grids:" if spec.ablations else "ablation grids: none")
     for grid, variants in spec.ablations.items():
-        click.echo(f"  {grid}: {', '.join(variants)}")
+        reference = f" (compared with {variants.reference})" if variants.reference else ""
+        click.echo(f"  {grid}: {', '.join(variants)}{reference}")
     if spec.scene_recipe is not None:
         click.echo(f"scenes of no suite (run --data): the {spec.scene_recipe} preset scaled to the scene "
                    "(see it with --data DIR; docs/own-data.md)")

@@ -9,6 +9,7 @@ renders must be returned in the same space.
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any, ClassVar
 
@@ -74,9 +75,10 @@ class Method(ABC):
     config_class: ClassVar[type]
     presets: ClassVar[dict[str, dict[str, Any]]] = {}
     description: ClassVar[str] = ""
-    #: Named grids of presets (``run --ablation NAME``), for methods registered as a class (plugins, tests);
-    #: built-in methods declare theirs in their `MethodSpec`.
-    ablations: ClassVar[dict[str, tuple[str, ...]]] = {}
+    #: Named grids of presets (``run --ablation NAME``: a sequence of variants, or an `AblationGrid` naming its
+    #: reference variant), for methods registered as a class (plugins, tests); built-in methods declare theirs in
+    #: their `MethodSpec`.
+    ablations: ClassVar[dict[str, Sequence[str]]] = {}
     #: Whether `setup` needs the training images when the method is restored from its final checkpoint to
     #: render (`olatbench.bench.restore`). False: `setup` then gets ``Views.images = None`` (cameras, lights and
     #: frame ids are always given, in training order, so per-view state stays addressable by frame id), and a

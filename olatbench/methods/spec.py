@@ -12,7 +12,7 @@ with a `SourcePin` saying which repository and commit the spec was written again
 from __future__ import annotations
 
 import importlib
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import Any, Literal
@@ -53,6 +53,35 @@ class SourcePin:
     verified: str = ""
 
 
+@dataclass(frozen=True)
+class AblationGrid(Sequence[str]):
+    """One ablation grid (``run --ablation NAME``): its ``variants`` (preset names, ``"a+b"`` combinations or
+    ``"default"``) and its ``reference``, the variant every other one is compared with (the full model; one of the
+    variants). The reports read the reference from each job's job.json (``Job.ablation``), never from a name.
+    A grid given as a plain sequence (a class registered without a spec) has no reference."""
+
+    variants: tuple[str, ...]
+    reference: str | None = None
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "variants", tuple(self.variants))
+        if self.reference is not None and self.reference not in self.variants:
+            raise ValueError(f"ablation grid {self.variants}: its reference {self.reference!r} is not one of them")
+
+    def __getitem__(self, index):  # type: ignore[override]
+        return self.variants[index]
+
+    def __len__(self) -> int:
+        return len(self.variants)
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self.variants)
+
+
+def _grid(variants: AblationGrid | Sequence[str]) -> AblationGrid:
+    return variants if isinstance(variants, AblationGrid) else AblationGrid(tuple(variants))
+
+
 def _frozen(mapping: Mapping[str, Any] | None) -> Mapping[str, Any]:
     return MappingProxyType(dict(mapping or {}))
 
@@ -61,7 +90,8 @@ def _frozen(mapping: Mapping[str, Any] | None) -> Mapping[str, Any]:
 class MethodSpec:
     """One method as data. ``presets`` maps a preset name to config overrides: a preset named like a suite
     (``"nrhints"``) is applied to every job on that suite, the others are variants chosen with ``--variant``
-    (``"a+b"`` applies ``a`` then ``b``). ``ablations`` maps a grid name (``"components"``) to its variants.
+    (``"a+b"`` applies ``a`` then ``b``). ``ablations`` maps a grid name (``"components"``) to its variants and
+    reference variant (`AblationGrid`).
     ``iterations`` replaces the suite's training length with the method's own (None: the suite's); 0 declares a
     learning-free method: ``setup`` does all the work and no training step runs, whatever the suite says.
     ``scene_recipe`` names the preset a scene of no suite gets scaled to it (`olatbench.methods.scene_presets`).
@@ -74,7 +104,7 @@ class MethodSpec:
     config: str  # "module:Class" of the config dataclass (torch-free module)
     kind: MethodKind = "native"
     presets: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
-    ablations: Mapping[str, tuple[str, ...]] = field(default_factory=dict)
+    ablations: Mapping[str, AblationGrid] = field(default_factory=dict)  # plain sequences are read as grids
     outputs: tuple[str, ...] = ("rgb",)
     capabilities: frozenset[str] = frozenset()
     source: SourcePin | None = None  # official implementations only
@@ -107,8 +137,24 @@ class MethodSpec:
             if missing:
                 raise ValueError(f"method spec {self.name!r}: ablation grid {grid!r} names unknown presets {missing}")
         object.__setattr__(self, "presets", _frozen({k: _frozen(v) for k, v in self.presets.items()}))
-        object.__setattr__(self, "ablations", _frozen({k: tuple(v) for k, v in self.ablations.items()}))
+        object.__setattr__(self, "ablations", _frozen({k: _grid(v) for k, v in self.ablations.items()}))
         object.__setattr__(self, "capabilities", frozenset(self.capabilities))
+
+    def ablation_of(self, variant: str, grid: str | None = None) -> dict[str, str] | None:
+        """``{"grid", "reference"}`` of the ablation grid a job of ``variant`` belongs to, for its job.json: the grid
+        ``grid`` (``run --ablation``) when it lists the variant, else the first grid that lists it; None when none
+        does, when that grid names no reference, and for ``default`` unless ``grid`` lists it (a plain run is no
+        ablation). ``variant`` may carry a label's ``~overrides`` suffix (`olatbench.bench.plan.variant_label`)."""
+        name = variant.split("~")[0]
+        if grid is not None and name in self.ablations.get(grid, ()):
+            chosen: str | None = grid
+        elif name == DEFAULT_VARIANT:
+            return None
+        else:
+            chosen = next((g for g, grid_variants in self.ablations.items() if name in grid_variants), None)
+        if chosen is None or self.ablations[chosen].reference is None:
+            return None
+        return {"grid": chosen, "reference": self.ablations[chosen].reference}
 
     def resolve_config(self, preset: str | None = None, **overrides: Any) -> Any:
         """The config dataclass with the presets named in ``preset`` (``"a+b"``, left to right), then

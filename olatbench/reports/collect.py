@@ -20,7 +20,10 @@ What makes a job the experiment it is, apart from its seed and scene (`experimen
 resolved method config as canonical JSON: iterations and every override are in it), ``resolution`` (``WxH``,
 ``native``, or "" in files written before results.json recorded it), ``code`` (the code hash), ``official_commit``
 (the authors' commit an official method ran, else ""), with method, variant, suite and protocol; ``experiment``
-is a short hash of them all, and ``data`` the scene's data-manifest hash. Reports aggregate over seeds only jobs
+is a short hash of them all, and ``data`` the scene's data-manifest hash. ``ablation_grid`` and
+``ablation_reference``: the method's ablation grid the job belongs to and the variant it is compared with, as its
+job.json records them (`olatbench.bench.ablation.job_ablation`, which asks the method's spec for job.json files
+written before the record existed), "" outside every grid. Reports aggregate over seeds only jobs
 that share ``experiment`` and ``data`` (`olatbench.reports.runs_tables`).
 """
 
@@ -36,12 +39,13 @@ from typing import Any
 
 import pandas as pd
 
+from olatbench.bench.ablation import job_ablation
 from olatbench.bench.results import ResultsError, read_results
 from olatbench.bench.store import JOB_FILE, RESULTS_FILE, JobState, find_results, job_state, read_job_file
 
 COLUMNS = ("method", "variant", "suite", "scene", "seed", "split", "metric", "value", "status", "protocol",
            "device", "job_id", "error", "path", "test_poses", "config", "resolution", "code", "official_commit",
-           "data", "experiment")
+           "data", "experiment", "ablation_grid", "ablation_reference")
 JOB_FACTS = (("fps", ("timing", "render_fps")), ("train_time", ("timing", "train_seconds")),
              ("num_gaussians", ("model", "num_gaussians")))
 
@@ -78,17 +82,20 @@ def _nested(data: dict[str, Any], keys: tuple[str, ...]) -> Any:
     return data
 
 
-def result_rows(data: dict[str, Any], path: Path) -> list[dict[str, Any]]:
-    """The long-form rows of one validated results dict (none for an ``evaluate`` file: it names no job)."""
+def result_rows(data: dict[str, Any], path: Path, job_file: dict[str, Any] | None = None) -> list[dict[str, Any]]:
+    """The long-form rows of one validated results dict (none for an ``evaluate`` file: it names no job);
+    ``job_file`` is the job.json beside it (None: none)."""
     if data["kind"] != "run":
         return []
     job = data["job"]
+    ablation = job_ablation(job_file, job["method"], job["variant"]) or {}
     protocol = data.get("protocol") or {}
     base = {"method": job["method"], "variant": job["variant"], "suite": job["suite"], "scene": job["scene"],
             "seed": int(job["seed"]), "status": data["status"],
             "protocol": f"{protocol.get('id', '?')} v{protocol.get('version', '?')}",
             "device": _nested(data, ("resources", "device")) or "", "job_id": job["id"], "path": str(path),
-            **experiment_fields(data)}
+            **experiment_fields(data), "ablation_grid": ablation.get("grid", ""),
+            "ablation_reference": ablation.get("reference", "")}
     if data["status"] != "done":  # failed, or unfinished (`unfinished_rows`)
         error = data.get("error") or {}
         text = ": ".join(part for part in (error.get("type", "error"), error.get("message", "")) if part)
@@ -172,7 +179,7 @@ def unfinished_rows(runs: str | Path | Iterable[str | Path]) -> list[dict[str, A
                     "hashes": {"code": job.get("code"), "data_manifest": job.get("data_manifest")},
                     "resources": {"device": job.get("device")},
                     "error": {"type": "", "message": _progress(state)}}
-            rows += result_rows(data, path)
+            rows += result_rows(data, path, job)
     return rows
 
 
@@ -195,7 +202,7 @@ def collect(runs: str | Path | Iterable[str | Path], unreadable: list[str] | Non
             else:
                 unreadable.append(message)
             continue
-        rows += result_rows(data, path)
+        rows += result_rows(data, path, read_job_file(path.parent))
     rows += unfinished_rows(runs)
     frame = pd.DataFrame(rows, columns=list(COLUMNS))
     frame["seed"] = frame["seed"].astype("int64")

@@ -2,9 +2,10 @@
 
 * `scene_table`: methods × scenes × {Train, Test}, one block per metric, optional Average column.
 * `overview_table`: per-split averages over scenes (mean ± std), render FPS, training time, device.
-* `ablation_table`: SSD-GS compositions A–F and schedules H–K (variants ``ablation-A`` …,
-  ``schedule-H`` …) as rows; one scene gives the paper's Table 2 layout, several scenes the
-  appendix layout with an Average column.
+* `ablation_table`: the runs of a method's ablation grids as rows, one rule between grids, each compared with its
+  grid's reference variant (both as each job.json records them: the ``ablation_grid`` / ``ablation_reference``
+  columns of `olatbench.reports.collect`); for SSD-GS, compositions A–F and schedules H–K. One scene gives the
+  paper's Table 2 layout, several scenes the appendix layout with an Average column.
 
 Missing or failed runs never silently change a number: a cell without a finished run prints "—"
 with a footnote mark, a mean over fewer seeds than expected is marked, and an average over scenes
@@ -17,6 +18,7 @@ never ranked.
 
 from __future__ import annotations
 
+import itertools
 import math
 import statistics
 from collections.abc import Iterable, Mapping, Sequence
@@ -40,9 +42,6 @@ from olatbench.reports.published import lookup, normalise_name, paper_method
 #: pooled sample standard deviations over seeds (a two-sided 5 % t-test with 3 + 3 seeds needs
 #: t(0.975, 4) · √(2/3) ≈ 2.3; 2 is the usual rule of thumb and errs towards calling an effect real).
 SIGNIFICANCE_FACTOR = 2.0
-#: The full model each ablation set is compared with.
-ABLATION_REFERENCES = {"composition": "ablation-D", "schedule": "schedule-I"}
-
 NOTE_TEXTS = {
     "a": "the run failed (see the failures listed below and the job's error.txt)",
     "b": "no run found for this cell",
@@ -51,9 +50,9 @@ NOTE_TEXTS = {
     "r": "the run has not finished (running, interrupted or only planned; see the jobs listed below)",
     "d": "average not computed: at least one scene has no value",
     "e": "the run did not compute this metric (null in results.json, e.g. LPIPS weights missing)",
-    "s": (f"differs from the full model (D; I for schedules) by more than {SIGNIFICANCE_FACTOR:g}× the pooled "
+    "s": (f"differs from its grid's reference (the full model) by more than {SIGNIFICANCE_FACTOR:g}× the pooled "
           "sample std over seeds: the effect exceeds seed noise"),
-    "n": (f"differs from the full model (D; I for schedules) by at most {SIGNIFICANCE_FACTOR:g}× the pooled "
+    "n": (f"differs from its grid's reference (the full model) by at most {SIGNIFICANCE_FACTOR:g}× the pooled "
           "sample std over seeds: within seed noise"),
     "f": "scored with the test views' poses and lights fitted to the test images during training "
          "(test_pose_fitting=interleaved, the official code's real-data protocol); not comparable with raw poses",
@@ -62,7 +61,6 @@ NOTE_TEXTS = {
 }
 #: Footnote of each way of posing scored views (the ``test_poses`` column of `collect`).
 POSE_NOTES = {"fitted": "f", "refined": "g"}
-ABLATION_PREFIXES = ("ablation-", "schedule-")
 
 
 class ReportError(ValueError):
@@ -459,14 +457,15 @@ def significance_mark(values: Sequence[float], reference: Sequence[float]) -> st
 
 
 def _mark_significance(cells: dict, run_cells: RunCells, rows: Sequence[str], sets: Mapping[str, str],
-                       columns: Sequence[Sequence[str]], splits: Sequence[str], metrics: Sequence[str]) -> None:
-    """Append "s"/"n" to each ablation cell against its set's full model (no mark without seed spread).
+                       reference_variants: Mapping[str, str], columns: Sequence[Sequence[str]],
+                       splits: Sequence[str], metrics: Sequence[str]) -> None:
+    """Append "s"/"n" to each ablation cell against its grid's reference (no mark without seed spread).
 
-    ``columns`` maps each printed column (a scene or "Average") to the scenes it averages, so an
-    Average cell is tested on the per-seed averages over scenes.
+    ``sets`` maps each row to its grid, ``reference_variants`` each grid to its reference variant. ``columns`` maps
+    each printed column (a scene or "Average") to the scenes it averages, so an Average cell is tested on the
+    per-seed averages over scenes.
     """
-    references = {row_set: row for row in rows for row_set, variant in ABLATION_REFERENCES.items()
-                  if run_cells.source[row][1] == variant}
+    references = {sets[row]: row for row in rows if run_cells.source[row][1] == reference_variants.get(sets[row])}
     for row in rows:
         reference = references.get(sets[row])
         if reference is None or reference == row:
@@ -485,27 +484,32 @@ def _mark_significance(cells: dict, run_cells: RunCells, rows: Sequence[str], se
 def ablation_table(frame: pd.DataFrame, *, suite: str | None = None, method: str = "ssdgs",
                    metrics: Sequence[str] = ("psnr", "ssim", "lpips"), splits: Sequence[str] = ("train", "test"),
                    seeds: str = "mean", published: bool = False) -> Table:
-    """Compositions A–F and schedules H–K as rows: Table 2 for one scene, the appendix layout for several.
+    """The runs of ``method``'s ablation grids as rows (SSD-GS: compositions A–F, schedules H–K): Table 2 for one
+    scene, the appendix layout for several. Grids come in alphabetical order, a rule before each but the first,
+    variants sorted within a grid.
 
     Cells are mean ± sample std over seeds (an Average: the std of the per-seed averages over scenes);
     with two or more seeds on both sides each cell is marked "s" or "n" by `significance_mark` against
-    its set's full model (`ABLATION_REFERENCES`).
+    its grid's reference variant. Grid and reference are what each job.json records (`collect`).
     """
-    selected = frame[(frame["method"] == method) & frame["variant"].str.startswith(ABLATION_PREFIXES)]
+    selected = frame[(frame["method"] == method) & (frame["ablation_grid"] != "")]
     if suite is not None:
         selected = selected[selected["suite"] == suite]
     if selected.empty:
-        raise ReportError(f"no ablation runs of '{method}' (variants ablation-A…F, schedule-H…K) found; run "
-                          f"e.g. olatbench run --method {method} --variant ablation-A --suite nrhints")
-    selected = selected.assign(_order=selected["variant"].map(lambda v: (v.startswith("schedule-"), v)))
-    selected = selected.sort_values("_order", kind="stable").drop(columns="_order")
+        raise ReportError(f"no ablation runs of '{method}' found (no job of an ablation grid); run one with "
+                          f"olatbench run --method {method} --ablation GRID --suite SUITE (olatbench methods show "
+                          f"{method} lists its grids)")
+    selected = selected.sort_values(["ablation_grid", "variant"], kind="stable")
     run_cells = RunCells(selected, seeds, paper_variants=True)
     rows = list(run_cells.rows)
-    sets = {row: ("schedule" if run_cells.source[row][1].startswith("schedule-") else "composition") for row in rows}
+    grid_of = dict(zip(zip(selected["method"], selected["variant"], strict=True), selected["ablation_grid"],
+                       strict=True))
+    sets = {row: grid_of[run_cells.source[row]] for row in rows}
+    reference_variants = dict(zip(selected["ablation_grid"], selected["ablation_reference"], strict=True))
     scenes = list(dict.fromkeys(selected["scene"]))
     suites = sorted(set(selected["suite"]))
     protocol = _protocol_line(run_cells, ", ".join(suites), seeds, seed_std=True)
-    first_schedule = [row for row in rows if sets[row] == "schedule"][:1]
+    grid_starts = [row for previous, row in itertools.pairwise(rows) if sets[row] != sets[previous]]
     cells = {}
     for row in rows:
         for scene in scenes:
@@ -523,14 +527,14 @@ def ablation_table(frame: pd.DataFrame, *, suite: str | None = None, method: str
                         average = replace(average, std=statistics.stdev(per_seed))
                     cells[(row, "Average", split, metric)] = average
         columns.append(("Average", scenes))
-    _mark_significance(cells, run_cells, rows, sets, columns, splits, metrics)
+    _mark_significance(cells, run_cells, rows, sets, reference_variants, columns, splits, metrics)
     if len(scenes) == 1:
         scene = scenes[0]
         if published:
             rows = _add_published(cells, rows, run_cells, suites[0], [(scene, sp) for sp in splits], metrics, sets)
         table = metric_columns_layout(CellLookup(cells), rows, scene, splits, metrics, name="tab:ablation",
                                       caption=f"Ablation study on {scene}.", protocol=protocol, rank_sets=sets,
-                                      rule_before=[rows.index(r) for r in first_schedule])
+                                      rule_before=[rows.index(r) for r in grid_starts])
     else:
         if published:
             scene_suites = dict(zip(selected["scene"], selected["suite"], strict=True))
@@ -538,6 +542,6 @@ def ablation_table(frame: pd.DataFrame, *, suite: str | None = None, method: str
                                   [(scene, sp) for scene in [*scenes, "Average"] for sp in splits], metrics, sets)
         table = split_rows_layout(CellLookup(cells), rows, [*scenes, "Average"], splits, metrics,
                                   name="tab:ablation-scenes", caption="Ablation study over scenes.",
-                                  protocol=protocol, rank_sets=sets, rule_before_rows=first_schedule)
+                                  protocol=protocol, rank_sets=sets, rule_before_rows=grid_starts)
     table.footnotes += run_cells.notes.lines()
     return table

@@ -2,14 +2,15 @@
 
 from __future__ import annotations
 
-from olatbench.methods.spec import DEFAULT_VARIANT, MethodSpec
+from olatbench.methods.spec import DEFAULT_VARIANT, AblationGrid, MethodSpec
 from olatbench.methods.ssdgs.presets import PRESETS
 
-#: The paper's grids (``olatbench run --ablation NAME``): Composition A-F, Schedule H-K, and shadow on SSS.
-ABLATIONS: dict[str, tuple[str, ...]] = {
-    "components": tuple(f"ablation-{letter}" for letter in "ABCDEF"),
-    "schedule": tuple(f"schedule-{letter}" for letter in "HIJK"),
-    "shadow-on-sss": (DEFAULT_VARIANT, "shadow-on-sss"),
+#: The paper's grids (``olatbench run --ablation NAME``): Composition A-F against the full model D, Schedule H-K
+#: against the progressive physical schedule I (the default), and shadow on SSS against the default.
+ABLATIONS: dict[str, AblationGrid] = {
+    "components": AblationGrid(tuple(f"ablation-{letter}" for letter in "ABCDEF"), reference="ablation-D"),
+    "schedule": AblationGrid(tuple(f"schedule-{letter}" for letter in "HIJK"), reference="schedule-I"),
+    "shadow-on-sss": AblationGrid((DEFAULT_VARIANT, "shadow-on-sss"), reference=DEFAULT_VARIANT),
 }
 
 SPEC = MethodSpec(
