@@ -7,12 +7,10 @@ import pytest
 from datasets_trees import write_gs3_tree, write_nrhints_tree, write_sssgs_tree
 
 from olatbench.datasets import DatasetError, load_scene
-from olatbench.datasets.official import (
-    gs3_ground_truth,
-    nrhints_ground_truth,
-    official_ground_truth,
-    sssgs_ground_truth,
-)
+from olatbench.datasets.formats.gs3 import loader_image as gs3_ground_truth
+from olatbench.datasets.formats.nrhints import official_ground_truth as nrhints_ground_truth
+from olatbench.datasets.formats.sssgs import official_ground_truth as sssgs_ground_truth
+from olatbench.datasets.official import official_ground_truth
 
 
 def test_nrhints_ground_truth_is_the_truncated_black_composite(tmp_path):

@@ -9,8 +9,9 @@ tables of ``olatbench.toml`` (`user_suites`: ``scenes`` = folder paths relative 
 ``format``, ``protocol``, ``resolution``, ``iterations``), and the scene folders given to ``run --data``
 (`data_suite`, named ``data-<format>``, a name no built-in or user suite may take, so their run folders never meet
 a suite's). Their scenes are trained and scored at their own resolution unless the suite says otherwise; the rest
-of what such a suite does not say is taken from the built-in suite of its format (the format is detected when not
-given), including which method preset its jobs apply (``gs3`` for a GS³-format suite) when the method derives
+of what such a suite does not say is taken from its format's suite settings (the format module's
+``SUITE_DEFAULTS``, which also make the paper's suite of the format; the format is detected when not given),
+including which method preset its jobs apply (``gs3`` for a GS³-format suite) when the method derives
 none from the scene (`olatbench.methods.scene_presets`).
 """
 
@@ -22,23 +23,10 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from olatbench.datasets.errors import DatasetError
+from olatbench.datasets.formats import FORMATS, detect_format, display_colourspace, format_module
+from olatbench.datasets.formats._suite import canonical_name
 from olatbench.datasets.sizes import checked_size, parse_size
 from olatbench.names import case_twin, did_you_mean, match_name, path_component
-
-
-def _snake(name: str) -> str:
-    """``AnisoMetal`` -> ``aniso_metal``."""
-    return re.sub(r"(?<=[a-z0-9])(?=[A-Z])", "_", name).lower()
-
-
-def _default_aliases(scenes: tuple[str, ...], extra: dict[str, str] | None = None) -> dict[str, str]:
-    """Lower-case and snake_case spellings of each canonical name, plus ``extra``."""
-    aliases = {}
-    for scene in scenes:
-        for spelling in {scene.lower(), _snake(scene)} - {scene}:
-            aliases[spelling] = scene
-    aliases.update(extra or {})
-    return aliases
 
 
 @dataclass(frozen=True)
@@ -74,15 +62,11 @@ class Suite:
     @property
     def colourspace(self) -> str:
         """The space methods are trained and scored in: the format's (`formats.display_colourspace`)."""
-        from olatbench.datasets.formats import display_colourspace
-
         return display_colourspace(self.format)
 
     def canonical(self, folder: str) -> str | None:
         """The canonical scene name of a folder name, or None when it is not in this suite."""
-        if folder in self.scenes:
-            return folder
-        return self.aliases.get(folder) or self.aliases.get(folder.lower())
+        return canonical_name(folder, self.scenes, self.aliases)
 
     def scene_path(self, data_root: str | Path | None, scene: str) -> Path:
         """The folder of ``scene`` below ``data_root``: by canonical name or any alias (a suite with
@@ -108,24 +92,18 @@ class Suite:
                            path=data_root)
 
 
-_NRHINTS_SCENES = ("Cat", "CatSmall", "CupFabric", "Fish", "FurScene", "Pikachu", "Pixiu")
-_GS3_SCENES = ("Translucent", "AnisoMetal", "Drums", "FurBall", "Hotdog", "Lego")
-_SSSGS_SCENES = ("Bunny", "Candle", "Dragon", "Soap", "Statue")
+def _paper_suite(fmt: str) -> Suite:
+    """The paper's suite of format ``fmt``, as the format's ``SUITE_DEFAULTS`` say, in the data's own frame."""
+    defaults = format_module(fmt).SUITE_DEFAULTS
+    return Suite(name=fmt, format=fmt, scenes=defaults.scenes, aliases=dict(defaults.aliases),
+                 resolution=defaults.resolution, iterations=defaults.iterations, protocol=defaults.protocol,
+                 frame="dataset")
+
+
 _MINI_SCENES = ("diffuse_shadow", "aniso_metal", "translucent")
 
 SUITES: dict[str, Suite] = {
-    "nrhints": Suite(
-        name="nrhints", format="nrhints", scenes=_NRHINTS_SCENES,
-        aliases=_default_aliases(_NRHINTS_SCENES, {"Cat_on_Decor": "CatSmall", "Cluttered": "FurScene",
-                                                   "Cup-Fabric": "CupFabric"}),
-        resolution=None, iterations=100_000, protocol="ssdgs", frame="dataset"),
-    "gs3": Suite(
-        name="gs3", format="gs3", scenes=_GS3_SCENES, aliases=_default_aliases(_GS3_SCENES),
-        resolution=(512, 512), iterations=100_000, protocol="ssdgs", frame="dataset"),
-    "sssgs": Suite(
-        name="sssgs", format="sssgs", scenes=_SSSGS_SCENES,
-        aliases=_default_aliases(_SSSGS_SCENES, {f"{s.lower()}_small": s for s in _SSSGS_SCENES}),
-        resolution=(256, 256), iterations=60_000, protocol="ssdgs", frame="dataset"),
+    **{fmt: _paper_suite(fmt) for fmt in ("nrhints", "gs3", "sssgs")},
     "mini": Suite(
         name="mini", format="nrhints", scenes=_MINI_SCENES, aliases={},
         resolution=None, iterations=3000, protocol="olatbench-v1", frame="dataset",
@@ -154,7 +132,7 @@ def get_suite(name: str) -> Suite:
     if name in SUITES:
         return SUITES[name]
     users = user_suites()
-    data = {f"{DATA_SUITE_PREFIX}{suite.format}": suite.format for suite in SUITES.values()}
+    data = {f"{DATA_SUITE_PREFIX}{fmt}": fmt for fmt in FORMATS}
     matched = match_name(name, [*SUITES, *users, *data])  # "Mini": case does not matter where only one matches
     if matched in data:
         return _own_suite(matched, data[matched], {})
@@ -179,9 +157,9 @@ def parse_resolution(value: object, where: str) -> tuple[int, int] | None:
 
 
 def _own_suite(name: str, fmt: str, scene_paths: dict[str, str], **given: object) -> Suite:
-    """A suite of folders of format ``fmt`` at their own resolution and background, with the method presets of the
-    built-in suite of that format, and its protocol and iterations unless ``given`` (None: not given)."""
-    base = SUITES[fmt]
+    """A suite of folders of format ``fmt`` at their own resolution and background, with the format's method presets,
+    protocol and iterations (its ``SUITE_DEFAULTS``) unless ``given`` (None: not given)."""
+    base = format_module(fmt).SUITE_DEFAULTS
     settings = {key: value for key, value in given.items() if value is not None}
     return Suite(name=name, format=fmt, scenes=tuple(scene_paths),
                  resolution=None, iterations=int(settings.get("iterations", base.iterations)),  # type: ignore[call-overload]
@@ -191,8 +169,6 @@ def _own_suite(name: str, fmt: str, scene_paths: dict[str, str], **given: object
 
 def _scene_folders(paths: list[Path], fmt: str | None, where: str) -> tuple[str, dict[str, str]]:
     """The format of ``paths`` (detected unless ``fmt``) and {scene name (the folder's name): absolute folder}."""
-    from olatbench.datasets.formats import detect_format
-
     found: dict[str, str] = {}
     formats = set()
     for path in paths:
@@ -219,8 +195,6 @@ def data_suites(paths: list[str | Path]) -> list[Suite]:
     """The suites of ``run --data`` folders: one ``data-<format>`` suite per detected format, in the order the
     folders were given."""
     by_format: dict[str, list[Path]] = {}
-    from olatbench.datasets.formats import detect_format
-
     for path in map(Path, paths):
         by_format.setdefault(detect_format(path), []).append(path)
     suites = []
@@ -259,8 +233,8 @@ def user_suites(folder: str | Path | None = None) -> dict[str, Suite]:
         if not isinstance(scenes, list) or not scenes or not all(isinstance(item, str) for item in scenes):
             raise DatasetError(f"{where}: scenes must be a non-empty list of scene folders (relative to the file)")
         fmt = table.get("format")
-        if fmt is not None and fmt not in SUITES:
-            raise DatasetError(f"{where}: format must be one of nrhints, gs3, sssgs, not {fmt!r}")
+        if fmt is not None and fmt not in FORMATS:
+            raise DatasetError(f"{where}: format must be one of {', '.join(FORMATS)}, not {fmt!r}")
         iterations = table.get("iterations")
         if iterations is not None and (not isinstance(iterations, int) or isinstance(iterations, bool)
                                        or iterations < 0):

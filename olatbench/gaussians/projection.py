@@ -26,11 +26,9 @@ import torch
 
 from olatbench._native import Unavailable
 
-# 3DGS clamps x/z and y/z of the camera-space mean to 1.3 × the half-FoV tangent before building the Jacobian,
-# so that Gaussians far outside the frustum do not get huge screen-space footprints.
-FRUSTUM_CLAMP = 1.3
-# Gaussians are cut off at 3 standard deviations along their major axis.
-RADIUS_SIGMAS = 3.0
+from .backends import resolve_kernel_backend
+from .backends.cpu import project_cpu
+from .screen import FRUSTUM_CLAMP, RADIUS_SIGMAS, frustum_clamp_bounds
 
 
 @dataclass
@@ -73,18 +71,6 @@ def covariances_3d(quats: torch.Tensor, scales: torch.Tensor) -> torch.Tensor:
     return rs @ rs.transpose(-1, -2)
 
 
-def frustum_clamp_bounds(K: torch.Tensor, width: int, height: int) -> torch.Tensor:
-    """(u_lo, u_hi, v_lo, v_hi) as a (4,) float64 tensor on ``K``'s device: the range of x/z and y/z the Jacobian
-    is evaluated in — the image edges plus (FRUSTUM_CLAMP - 1) × the half-FoV tangent on each side. Computed on the
-    device (no host read of ``K``) in float64, with the operations and their order of the float arithmetic it
-    replaces, so the bounds are bitwise those of Python floats."""
-    k = K.detach().double()
-    fx, fy, cx, cy = k[0, 0], k[1, 1], k[0, 2], k[1, 2]
-    pad_x = torch.full_like(fx, (FRUSTUM_CLAMP - 1.0) * 0.5 * width) / fx
-    pad_y = torch.full_like(fy, (FRUSTUM_CLAMP - 1.0) * 0.5 * height) / fy
-    return torch.stack([-cx / fx - pad_x, (width - cx) / fx + pad_x, -cy / fy - pad_y, (height - cy) / fy + pad_y])
-
-
 def perspective_jacobian(fx: torch.Tensor, fy: torch.Tensor, z: torch.Tensor, u: torch.Tensor,
                          v: torch.Tensor) -> torch.Tensor:
     """(N, 2, 3) Jacobian of the pinhole projection ``(fx·x/z, fy·y/z)`` at camera-space depth ``z`` (N,) with
@@ -116,8 +102,6 @@ def project(
     depth is outside [near, far], its 2D covariance is not positive definite, or its box mean ± radius misses
     the image. ``backend``: "torch", "cpu" (the C++ kernel) or "auto" (see the module docstring).
     """
-    from .backends import resolve_kernel_backend
-
     def cpu_inputs() -> Unavailable | None:
         if K.requires_grad:
             return Unavailable("it gives K no gradient, and K requires grad")
@@ -126,8 +110,6 @@ def project(
         return None
 
     if resolve_kernel_backend(backend, means.device, means.dtype, "projection", cpu_inputs) == "cpu":
-        from .backends.cpu import project_cpu
-
         means2d, conics, radii, depths = project_cpu(means, quats, scales, w2c, K, width, height, near, far,
                                                      low_pass)
         return Projected(means2d=means2d, conics=conics, radii=radii, depths=depths, width=int(width),

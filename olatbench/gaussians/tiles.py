@@ -15,39 +15,12 @@ A Gaussian with 2D mean m and radius r covers the pixels whose centres (x + 0.5)
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import torch
 
+from .backends import resolve_kernel_backend
+from .backends.cpu import bin_gaussians_cpu
 from .host_sync import allowed_host_sync
-
-TILE_SIZE = 16
-
-
-@dataclass
-class TileBins:
-    """Per-tile, depth-sorted Gaussian lists.
-
-    ``offsets`` (tiles_y·tiles_x + 1,) int64 and ``gaussian_ids`` (M,) int64: tile ``t = ty·tiles_x + tx``
-    holds ``gaussian_ids[offsets[t]:offsets[t+1]]``, nearest first. Tiles are ``tile_size`` px squares from the
-    top-left corner; the last row/column may extend beyond the image.
-    """
-
-    offsets: torch.Tensor
-    gaussian_ids: torch.Tensor
-    tile_size: int
-    tiles_x: int
-    tiles_y: int
-    width: int
-    height: int
-
-    @property
-    def num_tiles(self) -> int:
-        return self.tiles_x * self.tiles_y
-
-    @property
-    def num_pairs(self) -> int:
-        return int(self.gaussian_ids.numel())
+from .screen import TILE_SIZE, TileBins
 
 
 def pixel_ranges(
@@ -89,11 +62,7 @@ def bin_gaussians(
 
     ``backend``: "torch", "cpu" (the C++ kernel; CPU float32/float64 means) or "auto" (the rasterizer's
     choice for these tensors, see :func:`olatbench.gaussians.backends.resolve_backend`; torch unless "cpu")."""
-    from .backends import resolve_kernel_backend
-
     if resolve_kernel_backend(backend, means2d.device, means2d.dtype, "binning") == "cpu":
-        from .backends.cpu import bin_gaussians_cpu
-
         return bin_gaussians_cpu(means2d, radii, sort_keys, width, height, tile_size)
     x0, x1, y0, y1, inside = pixel_ranges(means2d, radii, width, height)
     tile_ranges = (x0 // tile_size, x1 // tile_size + 1, y0 // tile_size, y1 // tile_size + 1)

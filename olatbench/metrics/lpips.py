@@ -11,7 +11,6 @@ variable ``OLATBENCH_LPIPS_BACKEND`` overrides ``auto``).
 
 from __future__ import annotations
 
-import functools
 import os
 from collections.abc import Callable
 from pathlib import Path
@@ -21,23 +20,16 @@ import torch
 
 from olatbench.metrics._inputs import ArrayLike, check_same_shape, check_unit_range, mask_to_n1hw, to_nchw, to_output
 from olatbench.metrics.lpips_net import LPIPSNet
-from olatbench.metrics.weights import load_lpips_net
+from olatbench.metrics.lpips_networks import get_network
+from olatbench.metrics.lpips_onnx import get_onnx_network, onnx_usable
 
 BACKENDS: tuple[str, ...] = ("auto", "torch", "onnxruntime")
 MIN_SIZE = {"alex": 31, "vgg": 16}  # smaller inputs leave an empty feature map in the backbone
 Runner = Callable[[torch.Tensor, torch.Tensor], torch.Tensor]
 
 
-@functools.lru_cache(maxsize=8)
-def get_network(net: str = "alex", path: str | None = None, device: str = "cpu") -> LPIPSNet:
-    """The torch LPIPSNet with real weights for ``net`` on ``device`` (cached); ``WeightsError`` if not installed."""
-    return load_lpips_net(net, path).to(device).to(memory_format=torch.channels_last)
-
-
 def clear_caches() -> None:
     """Forget loaded networks (torch and onnxruntime), e.g. after installing weights or in tests."""
-    from olatbench.metrics.lpips_onnx import get_onnx_network
-
     get_network.cache_clear()
     get_onnx_network.cache_clear()
 
@@ -49,8 +41,6 @@ def resolve_backend(backend: str = "auto", device: str = "cpu", net: str = "alex
     if backend not in BACKENDS:
         raise ValueError(f"unknown LPIPS backend {backend!r}; expected one of {BACKENDS}")
     if backend == "auto":
-        from olatbench.metrics.lpips_onnx import onnx_usable
-
         return "onnxruntime" if str(device) == "cpu" and onnx_usable(net, path) else "torch"
     return backend
 
@@ -58,8 +48,6 @@ def resolve_backend(backend: str = "auto", device: str = "cpu", net: str = "alex
 def get_runner(net: str = "alex", path: str | None = None, device: str = "cpu", backend: str = "auto") -> Runner:
     """A callable ``(x, y) -> (B,)`` on [-1, 1] NCHW images with real weights (``WeightsError`` if missing)."""
     if resolve_backend(backend, device, net, path) == "onnxruntime":
-        from olatbench.metrics.lpips_onnx import get_onnx_network
-
         return get_onnx_network(net, path)
     return get_network(net, path, device)
 

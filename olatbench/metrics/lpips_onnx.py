@@ -19,6 +19,7 @@ import torch
 
 from olatbench.atomic import write_bytes
 from olatbench.metrics.lpips_net import LPIPSNet
+from olatbench.metrics.lpips_networks import get_network
 from olatbench.metrics.weights import cache_dir
 
 OPSET = 17
@@ -87,8 +88,6 @@ class OnnxLPIPS:
 @functools.lru_cache(maxsize=4)
 def get_onnx_network(net: str = "alex", path: str | None = None) -> OnnxLPIPS:
     """The onnxruntime LPIPS for ``net`` with real weights (export cached on disk and in memory)."""
-    from olatbench.metrics.lpips import get_network
-
     return OnnxLPIPS(get_network(net, path, "cpu"))
 
 
@@ -98,6 +97,4 @@ def onnx_usable(net: str = "alex", path: str | None = None) -> bool:
         return False
     if exporter_available():
         return True
-    from olatbench.metrics.lpips import get_network
-
     return onnx_path(get_network(net, path, "cpu")).is_file()

@@ -1,6 +1,8 @@
 """Format readers and writers, one module per format, and auto-detection.
 
-Each format module satisfies `FormatModule` (checked by tests/test_datasets_formats.py).
+Each format module satisfies `FormatModule` (checked by tests/test_datasets_formats.py): it reads and writes its
+scenes, names its display colour space, its suite settings (``SUITE_DEFAULTS``) and its official ground truth, so
+a new format is one module and its line in `FORMATS`.
 """
 
 from __future__ import annotations
@@ -13,6 +15,7 @@ import numpy as np
 
 from olatbench.datasets.errors import DatasetError
 from olatbench.datasets.formats import gs3, nrhints, sssgs
+from olatbench.datasets.formats._suite import SuiteDefaults
 
 if TYPE_CHECKING:
     from olatbench.datasets.records import Frame, Scene
@@ -23,6 +26,7 @@ class FormatModule(Protocol):
 
     FORMAT_NAME: str  # the name suites and ``--format`` use
     DISPLAY_COLOURSPACE: str  # the space the format's official code trains and scores in
+    SUITE_DEFAULTS: SuiteDefaults  # the paper's scenes and aliases, resolution, iterations, protocol
 
     def detect(self, root: Path) -> bool:
         """Whether ``root`` holds a scene of this format."""
@@ -36,7 +40,12 @@ class FormatModule(Protocol):
         """Write ``scene`` in this format (``pixels(frame)`` gives each image) and return ``out_dir``."""
         ...
 
+    def official_ground_truth(self, frame: Frame) -> np.ndarray:
+        """The image (H, W, 3) float32 the format's official loader feeds its method (`olatbench.datasets.official`)."""
+        ...
 
+
+#: The formats, in the order `detect_format` tries them (the most specific first).
 FORMATS: dict[str, FormatModule] = {module.FORMAT_NAME: cast(FormatModule, module) for module in (sssgs, gs3, nrhints)}
 
 

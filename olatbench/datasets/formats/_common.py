@@ -18,7 +18,9 @@ import numpy as np
 from olatbench.datasets.cameras import opengl_to_opencv
 from olatbench.datasets.errors import DatasetError
 from olatbench.datasets.files import present, require_file
+from olatbench.datasets.images import read_image
 from olatbench.datasets.jsontext import parse_json
+from olatbench.datasets.records import Frame
 from olatbench.datasets.sizes import checked_side
 
 MAX_MAGNITUDE = 1e18  # |coordinate| bound: squared distances of such values stay finite in float32 (3.4e38)
@@ -184,3 +186,16 @@ def first_frame(root: Path, names: tuple[str, ...]) -> tuple[Path, dict[str, Any
             if frames:
                 return path, meta, frames[0]
     return None
+
+
+def stored_pixels(frame: Frame) -> tuple[np.ndarray, np.ndarray]:
+    """The file's colour (as stored, premultiplied if the format is) and alpha (1 when absent)."""
+    if frame.image_path is None:
+        raise DatasetError("this frame has no image (a camera path)", frame=frame.frame_id)
+    pixels = read_image(frame.image_path)
+    if pixels.shape[:2] != (frame.camera.height, frame.camera.width):
+        raise DatasetError(f"image is {pixels.shape[1]}×{pixels.shape[0]} but the camera says "
+                           f"{frame.camera.width}×{frame.camera.height}", path=frame.image_path, frame=frame.frame_id)
+    rgb = np.repeat(pixels, 3, axis=2) if pixels.shape[2] == 1 else pixels[..., :3]
+    alpha = pixels[..., 3] if pixels.shape[2] == 4 else np.ones(pixels.shape[:2], dtype=np.float32)
+    return rgb, alpha

@@ -24,11 +24,17 @@ from olatbench.datasets import colour
 from olatbench.datasets.errors import DatasetError
 from olatbench.datasets.formats import _common as c
 from olatbench.datasets.formats._nerf import SPLIT_FILES, NerfFlavour, read_nerf_scene, write_nerf_scene
+from olatbench.datasets.formats._suite import SuiteDefaults, default_aliases
 from olatbench.datasets.records import Frame, Scene
-from olatbench.datasets.suites import canonical_scene_name
 
 FORMAT_NAME = "nrhints"
 DISPLAY_COLOURSPACE = "srgb"  # trained and scored in: 8-bit sRGB PNGs, used as stored
+_SCENES = ("Cat", "CatSmall", "CupFabric", "Fish", "FurScene", "Pikachu", "Pixiu")
+#: The paper's NRHints suite (512² or 1024² scenes: each at its own size).
+SUITE_DEFAULTS = SuiteDefaults(
+    scenes=_SCENES, aliases=default_aliases(_SCENES, {"Cat_on_Decor": "CatSmall", "Cluttered": "FurScene",
+                                                      "Cup-Fabric": "CupFabric"}),
+    resolution=None, iterations=100_000, protocol="ssdgs")
 BLACK, WHITE = (0.0, 0.0, 0.0), (1.0, 1.0, 1.0)
 
 
@@ -79,7 +85,7 @@ def _is_exr(root: Path, frame: Mapping[str, Any]) -> bool:
 def read_scene(root: Path, errors: list[DatasetError] | None = None) -> Scene:
     """Read an NRHints scene folder (aliases such as ``Cat_on_Decor`` become the paper's ``CatSmall``)."""
     root = Path(root)
-    return read_nerf_scene(root, FLAVOUR, canonical_scene_name(root.name, FORMAT_NAME), errors)
+    return read_nerf_scene(root, FLAVOUR, SUITE_DEFAULTS.canonical(root.name) or root.name, errors)
 
 
 def _encode(rgba_linear: np.ndarray) -> np.ndarray:
@@ -91,3 +97,10 @@ def _encode(rgba_linear: np.ndarray) -> np.ndarray:
 def write_scene(scene: Scene, out_dir: Path, pixels: Callable[[Frame], np.ndarray]) -> Path:
     """Write NRHints files: 8-bit sRGB straight RGBA PNGs and ``transforms_<split>.json``."""
     return write_nerf_scene(scene, out_dir, FLAVOUR, _encode, pixels, "uint8")
+
+
+def official_ground_truth(frame: Frame) -> np.ndarray:
+    """sRGB PNG composited on the frame's background, truncated to 8 bits (GS³ / SSD-GS loader)."""
+    rgb, alpha = c.stored_pixels(frame)
+    composited = colour.composite(rgb, alpha, frame.background, "straight")
+    return colour.dequantize_8bit(colour.quantize_8bit(composited, "truncate"))

@@ -22,16 +22,22 @@ from typing import Any
 import numpy as np
 
 from olatbench.atomic import write_json
+from olatbench.datasets import colour
 from olatbench.datasets.cameras import focal_from_fov, intrinsics_matrix, opencv_to_opengl
 from olatbench.datasets.errors import DatasetError
 from olatbench.datasets.files import present, require_file
 from olatbench.datasets.formats import _common as c
+from olatbench.datasets.formats._suite import SuiteDefaults, default_aliases
 from olatbench.datasets.formats.nrhints import _encode
 from olatbench.datasets.records import Camera, Frame, PointLight, Scene
-from olatbench.datasets.suites import canonical_scene_name
 
 FORMAT_NAME = "sssgs"
 DISPLAY_COLOURSPACE = "srgb"  # trained and scored in: 8-bit sRGB PNGs, used as stored
+_SCENES = ("Bunny", "Candle", "Dragon", "Soap", "Statue")
+#: The paper's SSS-GS suite (the public 256² down-scaled release).
+SUITE_DEFAULTS = SuiteDefaults(
+    scenes=_SCENES, aliases=default_aliases(_SCENES, {f"{s.lower()}_small": s for s in _SCENES}),
+    resolution=(256, 256), iterations=60_000, protocol="ssdgs")
 SPLIT_FILES = {"train": "transforms_train.json", "val": "transforms_val.json", "eval": "transforms_eval.json",
                "test": "transforms_test.json"}
 EXCLUDE_FILE = "exclude_list.txt"
@@ -105,7 +111,7 @@ def _records(root: Path, path: Path, raw: Mapping[str, Any], index: int, camera:
 def read_scene(root: Path, errors: list[DatasetError] | None = None) -> Scene:
     """Read an SSS-GS scene folder, one record per (camera, light)."""
     root = Path(root)
-    name = canonical_scene_name(root.name, FORMAT_NAME)
+    name = SUITE_DEFAULTS.canonical(root.name) or root.name
     excluded = _exclude_list(root)
     frames: dict[str, list[Frame]] = {}
     references: Counter[Path] = Counter()
@@ -188,3 +194,10 @@ def write_scene(scene: Scene, out_dir: Path, pixels: Callable[[Frame], np.ndarra
             entries.append(entry)
         write_json(out_dir / SPLIT_FILES[split], {"frames": entries})
     return out_dir
+
+
+def official_ground_truth(frame: Frame) -> np.ndarray:
+    """sRGB colour times the alpha mask, composited on the frame's background (black), as the SSS-GS dataset class
+    does."""
+    rgb, alpha = c.stored_pixels(frame)
+    return colour.composite(rgb, alpha, frame.background, "straight")

@@ -20,7 +20,7 @@ from olatbench._native import NativeLibrary, Signature, per_float
 from olatbench._native.tensors import float_suffix, pointer, thread_count
 
 from ..compositing import THREE_DGS, CompositingRules
-from ..tiles import TILE_SIZE, TileBins
+from ..screen import RADIUS_SIGMAS, TILE_SIZE, TileBins, frustum_clamp_bounds
 
 CSRC = Path(__file__).parents[1] / "csrc"
 _P, _INT, _I64 = ctypes.c_void_p, ctypes.c_int, ctypes.c_int64  # a pointer (tensor data or NULL), int, int64_t
@@ -204,8 +204,6 @@ def project_cpu(
 ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
     """``projection.project`` on CPU float32/float64 tensors: (means2d (N, 2), conics (N, 3), radii (N,) int64,
     depths (N,)), differentiable w.r.t. means, quats, scales and w2c (``K`` is a constant)."""
-    from ..projection import RADIUS_SIGMAS, frustum_clamp_bounds
-
     if means.device.type != "cpu":
         raise ValueError(f"the C++ projection needs CPU tensors, got {means.device}")
     _suffix(means.dtype)

@@ -31,7 +31,7 @@ import importlib.util
 import torch
 
 from ..compositing import GSPLAT
-from ..tiles import TileBins
+from ..screen import TileBins
 
 # gsplat's kernels clamp alpha at 0.999 (olatbench's torch and C++ backends at 3DGS's 0.99 by default).
 GSPLAT_ALPHA_MAX = GSPLAT.alpha_max

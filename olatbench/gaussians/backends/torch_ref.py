@@ -18,7 +18,7 @@ import torch
 from torch.utils.checkpoint import checkpoint
 
 from ..compositing import ALPHA_MIN, T_MIN, THREE_DGS, CompositingRules
-from ..tiles import TileBins
+from ..screen import TileBins
 
 ALPHA_MAX = THREE_DGS.alpha_max  # the default rules' clamp
 # Elements (pixels × padded list length) evaluated per chunk; bounds peak memory (~10 tensors of this size).
