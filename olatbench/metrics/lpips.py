@@ -94,3 +94,4 @@ def lpips(pred: ArrayLike, gt: ArrayLike, net: str = "alex", mask: ArrayLike | N
     runner = get_runner(net, None if weights is None else str(weights), device, backend)
     with torch.no_grad():
         return to_output(lpips_nchw(runner, p, g, mask_to_n1hw(mask, p), unit_range_compat), batched)
+

@@ -27,6 +27,7 @@ from olatbench.datasets.errors import DatasetError
 from olatbench.datasets.formats import display_colourspace
 from olatbench.datasets.official import official_ground_truth
 from olatbench.datasets.records import Frame
+from olatbench.metrics.registry import MetricBatch, find_metric, get_metric, metric_names
 from olatbench.names import did_you_mean, match_name
 from olatbench.progress import progress_bar
 
@@ -57,10 +58,15 @@ class Protocol:
     #                                          "official": the official loader's image (olatbench.datasets.official)
     steps: tuple[str, ...] = field(default=())
     lpips_backend: str = field(default="auto", compare=False)  # execution only: values agree to ~1e-7
+    # the registered metrics it reports, in order (`olatbench.metrics.registry`); () for the standard list
+    metric_names: tuple[str, ...] = ()
 
     @property
     def metrics(self) -> tuple[str, ...]:
-        """Keys of ``evaluate``'s result: psnr, ssim, lpips (primary) and lpips_<net> when several nets."""
+        """Keys of ``evaluate``'s result: ``metric_names``, or by default psnr, ssim, lpips (primary) and
+        lpips_<net> when several nets."""
+        if self.metric_names:
+            return self.metric_names
         extra = tuple(f"lpips_{net}" for net in self.lpips_nets) if len(self.lpips_nets) > 1 else ()
         return ("psnr", "ssim", "lpips", *extra)
 
@@ -68,6 +74,7 @@ class Protocol:
         """JSON-able exact definition (stored in results and printed by ``olatbench metrics explain``)."""
         data = asdict(self)
         data.pop("lpips_backend")  # how LPIPS is executed, not what it computes
+        data.pop("metric_names")  # the list is "metrics", below
         data["metrics"] = list(self.metrics)
         data["steps"] = list(self.steps)
         data["lpips_nets"] = list(self.lpips_nets)
@@ -127,8 +134,10 @@ class Protocol:
         for net in self.lpips_nets:
             get_runner(net, backend="torch")
 
-    def _lpips_batch(self, pred: torch.Tensor, gt: torch.Tensor, mask: torch.Tensor | None,
-                     device: str) -> dict[str, list[float | None]]:
+    def lpips_batch(self, pred: torch.Tensor, gt: torch.Tensor, mask: torch.Tensor | None,
+                    device: str) -> dict[str, list[float | None]]:
+        """LPIPS of (B, 3, H, W) images per network of ``lpips_nets`` (None per image where its weights are not
+        installed, with a warning once per network); the ``lpips`` metrics read it (`olatbench.metrics.lpips`)."""
         import torch
 
         from olatbench.metrics.lpips import get_runner, lpips_nchw
@@ -153,27 +162,15 @@ class Protocol:
                         device: str) -> list[dict[str, float | None]]:
         import torch  # the metric kernels load only when scoring: plans and protocol listings stay torch-free
 
-        from olatbench.metrics.psnr import mse_torch
-        from olatbench.metrics.ssim import ssim_nchw
-
         pred = torch.from_numpy(np.stack(preds)).permute(0, 3, 1, 2).to(device)
         gt = torch.from_numpy(np.stack(gts)).permute(0, 3, 1, 2).to(device)
         mask = None
         if self.masked:
             mask = torch.from_numpy(np.stack(masks).astype(np.float32))[:, None].to(device)
+        batch = MetricBatch(pred, gt, mask, device)
         with torch.no_grad():
-            mse = mse_torch(pred.double(), gt.double(), None if mask is None else mask.double())
-            mse = mse.clamp_min(PSNR_MSE_FLOOR)
-            psnr = (10.0 * torch.log10(1.0 / mse)).tolist()
-            ssim = ssim_nchw(pred, gt, self.ssim_variant, mask).tolist()
-        lpips = self._lpips_batch(pred, gt, mask, device)
-        results = []
-        for i in range(len(preds)):
-            row: dict[str, float | None] = {"psnr": psnr[i], "ssim": ssim[i], "lpips": lpips[self.lpips_primary][i]}
-            if len(self.lpips_nets) > 1:
-                row.update({f"lpips_{net}": lpips[net][i] for net in self.lpips_nets})
-            results.append(row)
-        return results
+            columns = {name: get_metric(name).load()(batch, self) for name in self.metrics}
+        return [{name: columns[name][i] for name in self.metrics} for i in range(len(preds))]
 
     def _mask(self, mask: np.ndarray | torch.Tensor | None, shape: tuple[int, ...], index: int) -> np.ndarray | None:
         if not self.masked:
@@ -244,9 +241,13 @@ def _is_tensor(value: object) -> bool:
 
 
 def register_protocol(protocol: Protocol) -> Protocol:
-    """Add a protocol to the registry (ids are unique)."""
+    """Add a protocol to the registry (ids are unique; every metric it lists is registered)."""
     if protocol.id in _PROTOCOLS:
         raise ValueError(f"protocol {protocol.id!r} is already registered")
+    unknown = [name for name in protocol.metrics if find_metric(name) is None]
+    if unknown:
+        raise ValueError(f"protocol {protocol.id!r} lists unregistered metrics {unknown}; known: "
+                         f"{', '.join(metric_names())} (olatbench.metrics.registry.register_metric)")
     _PROTOCOLS[protocol.id] = protocol
     return protocol
 
@@ -340,4 +341,16 @@ register_protocol(Protocol(
         "LPIPS-alex v0.1 on inputs mapped to [-1, 1] (normalize=True)",
         "split score: mean of the per-image values",
     ),
+))
+
+register_protocol(Protocol(
+    id="olatbench-v1-flip", version=1,
+    description="olatbench-v1 and LDR-ꟻLIP (NVIDIA's perceptual error, mean over pixels; needs flip-evaluator).",
+    reproduces="olatbench-v1, plus flip_evaluator.evaluate(gt, pred, 'LDR') of NVIDIA's ꟻLIP",
+    metric_names=("psnr", "ssim", "lpips", "lpips_alex", "lpips_vgg", "flip"),
+    steps=(*_V1_STEPS[:-1],
+           "ꟻLIP: LDR-ꟻLIP of flip-evaluator >= 1.7 (Andersson et al. 2020) on the 8-bit images as sRGB, 67 pixels "
+           "per degree: flip_evaluator.evaluate(gt, pred, 'LDR', inputsRGB=True, parameters={'ppd': 67}), mean "
+           "error over pixels (0 = identical, lower is better); None when flip-evaluator is not installed",
+           _V1_STEPS[-1]),
 ))

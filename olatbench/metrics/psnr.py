@@ -2,10 +2,17 @@
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 import torch
 
 from olatbench.metrics._inputs import ArrayLike, check_same_shape, mask_to_n1hw, to_nchw, to_output
+from olatbench.metrics.protocols import PSNR_MSE_FLOOR
+
+if TYPE_CHECKING:
+    from olatbench.metrics.protocols import Protocol
+    from olatbench.metrics.registry import MetricBatch
 
 
 def mse_torch(pred: torch.Tensor, gt: torch.Tensor, mask: torch.Tensor | None = None) -> torch.Tensor:
@@ -34,3 +41,11 @@ def psnr(pred: ArrayLike, gt: ArrayLike, mask: ArrayLike | None = None, peak: fl
     check_same_shape(p, g)
     with torch.no_grad():
         return to_output(psnr_torch(p, g, mask_to_n1hw(mask, p), peak), batched)
+
+
+def protocol_psnr(batch: MetricBatch, protocol: Protocol) -> list[float]:
+    """The ``psnr`` metric: ``10 log10(1 / MSE)`` per image, the MSE in float64 (mask-weighted for masked
+    protocols) and floored at `PSNR_MSE_FLOOR` (at most 100 dB)."""
+    mask = None if batch.mask is None else batch.mask.double()
+    mse = mse_torch(batch.pred.double(), batch.gt.double(), mask).clamp_min(PSNR_MSE_FLOOR)
+    return (10.0 * torch.log10(1.0 / mse)).tolist()

@@ -19,7 +19,7 @@ other call uses the torch code here. See ``resolve_ssim_backend``.
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 import torch
@@ -28,6 +28,10 @@ import torch.nn.functional as F
 from olatbench._native import Unavailable, always, choose_backend
 from olatbench.metrics._inputs import ArrayLike, check_same_shape, mask_to_n1hw, to_nchw, to_output
 from olatbench.metrics.ssim_cpu import LIBRARY, ssim_loss_cpu, unsupported_reason
+
+if TYPE_CHECKING:
+    from olatbench.metrics.protocols import Protocol
+    from olatbench.metrics.registry import MetricBatch
 
 SSIMVariant = Literal["wang", "3dgs"]
 SSIM_VARIANTS: tuple[str, ...] = ("wang", "3dgs")
@@ -170,3 +174,9 @@ def ssim(pred: ArrayLike, gt: ArrayLike, variant: SSIMVariant = "wang",
     check_same_shape(p, g)
     with torch.no_grad():
         return to_output(ssim_nchw(p, g, variant, mask_to_n1hw(mask, p)), batched)
+
+
+def protocol_ssim(batch: MetricBatch, protocol: Protocol) -> list[float]:
+    """The ``ssim`` metric: `ssim_nchw` of the protocol's ``ssim_variant`` per image (mask-weighted for masked
+    protocols)."""
+    return ssim_nchw(batch.pred, batch.gt, protocol.ssim_variant, batch.mask).tolist()

@@ -16,14 +16,13 @@ import copy
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
+from olatbench.metrics.registry import find_metric
 from olatbench.reports.model import Block, Cell, Row, Table
 
 CellKey = tuple[str, str, str, str]  # (row, scene, split, metric)
 
-METRIC_TITLES = {"psnr": "PSNR ↑", "ssim": "SSIM ↑", "lpips": "LPIPS ↓", "lpips_alex": "LPIPS (Alex) ↓",
-                 "lpips_vgg": "LPIPS (VGG) ↓"}
-METRIC_DIRECTIONS = {"psnr": "max", "ssim": "max", "lpips": "min", "lpips_alex": "min", "lpips_vgg": "min",
-                     "fps": "max"}
+#: Ranked columns that are no image metric (the metrics' directions come from `olatbench.metrics.registry`).
+COLUMN_DIRECTIONS = {"fps": "max"}
 SPLIT_TITLES = {"train": "Train", "test": "Test", "val": "Val"}
 
 
@@ -42,7 +41,10 @@ class CellLookup:
 
 
 def metric_title(metric: str) -> str:
-    return METRIC_TITLES.get(metric, metric)
+    """A metric's column heading with its direction's arrow (``PSNR ↑``, from the metric registry); other
+    columns as named."""
+    registered = find_metric(metric)
+    return registered.heading if registered is not None else metric
 
 
 def split_title(split: str) -> str:
@@ -50,7 +52,8 @@ def split_title(split: str) -> str:
 
 
 def _direction(metric: str) -> str | None:
-    return METRIC_DIRECTIONS.get(metric)
+    registered = find_metric(metric)
+    return registered.direction if registered is not None else COLUMN_DIRECTIONS.get(metric)
 
 
 def scenes_layout(lookup: CellLookup, rows: Sequence[str], scenes: Sequence[str], splits: Sequence[str],

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import pandas as pd
 
+from olatbench.metrics.registry import find_metric, metric_names
 from olatbench.reports.layouts import (
     CellLookup,
     metric_columns_layout,
@@ -27,7 +28,6 @@ from olatbench.reports.published import PAPER_TABLES, published_table, table_id
 from olatbench.reports.ranking import rank_table
 
 SUITE_TITLES = {"nrhints": "NRHints", "gs3": "GS3", "sssgs": "SSS-GS", "all": "Average"}
-RANKED_METRICS = ("psnr", "ssim", "lpips")
 PROTOCOL = "published numbers: SSD-GS, ICLR 2026 (as printed in the paper)"
 
 
@@ -74,7 +74,7 @@ def _cells(rows: pd.DataFrame) -> dict[tuple[str, str, str, str], Cell]:
         std = None if pd.isna(row["std"]) else float(row["std"])
         if pd.isna(number):
             cell = Cell(str(row["value"]))
-        elif std is not None or row["metric"] not in RANKED_METRICS:
+        elif std is not None or find_metric(row["metric"]) is None:
             std_decimals = None if std is None else int(row["std_decimals"])
             cell = Cell(float(number), std=std, decimals=int(row["decimals"]), std_decimals=std_decimals)
         else:
@@ -103,7 +103,7 @@ def build_paper_table(name: str) -> tuple[Table, pd.DataFrame]:
     methods = _unique(rows["method"])
     label = table_id(name)
     caption, protocol = CAPTIONS[name], PROTOCOL
-    metrics = [m for m in RANKED_METRICS if m in set(rows["metric"])]
+    metrics = [m for m in metric_names() if m in set(rows["metric"])]  # the registry's order
     splits = [s for s in ("train", "test") if s in set(rows["split"])]
     if name in ("real", "gs3", "sssgs"):
         scenes = _average_last(_unique(rows["scene"]))

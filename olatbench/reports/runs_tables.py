@@ -26,6 +26,7 @@ from dataclasses import dataclass, field, replace
 
 import pandas as pd
 
+from olatbench.metrics.registry import find_metric
 from olatbench.names import did_you_mean, match_name
 from olatbench.reports.experiments import experiment_labels
 from olatbench.reports.layouts import (
@@ -379,7 +380,7 @@ def published_overview_cells(suite: str, metrics: Sequence[str], splits: Sequenc
             split = "-" if row["metric"] in ("train_time", "gpu", "fps") else row["split"]
             std = None if pd.isna(row["std"]) else float(row["std"])
             value = str(row["value"]) if pd.isna(row["number"]) else float(row["number"])
-            decimals = 4 if std is None and row["metric"] in ("psnr", "ssim", "lpips") else int(row["decimals"])
+            decimals = 4 if std is None and find_metric(row["metric"]) is not None else int(row["decimals"])
             cells[(label, "Average", split, row["metric"])] = Cell(value, std=std, decimals=decimals)
         return cells
     table = {"nrhints": "real", "gs3": "gs3"}.get(suite)
