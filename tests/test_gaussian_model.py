@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 import torch
 
-from olatbench.gaussians.model import GaussianModel, mean_neighbour_sq_distance
+from olatbench.gaussians.knn import mean_neighbour_sq_distance
+from olatbench.gaussians.model import GaussianModel
 from olatbench.gaussians.ply import PlyError, read_ply_points, write_ply_points
 
 
