@@ -178,7 +178,7 @@ def test_published_table_and_lookup():
     # the authors' code runs batch_script_synthetic_sssgs.py's flags: no --cam_opt / --pl_opt, "w/o Opt"
     assert paper_method("ssdgs-official", None, "sssgs") == "Ours (w/o Opt)"
     assert paper_method("ssdgs-official", "default", "sssgs") == "Ours (w/o Opt)"
-    assert paper_method("ssdgs-official", "opt", "sssgs") == "Ours (w/ Opt)"
+    assert paper_method("ssdgs-official", "opt", "sssgs", fitted=True) == "Ours (w/ Opt)"  # results.json says so
     assert paper_method("ssdgs-official", "default", "nrhints") == "Ours"
     assert paper_method("ssdgs", "ablation-E") == "E: Full - S"
     assert paper_method("gs3", "default") == "GS3"

@@ -17,8 +17,6 @@ from pathlib import Path
 
 import pandas as pd
 
-from olatbench.paper_rows import SSDGS_REFINED_VARIANT
-
 CSV_NAME = "ssdgs_iclr2026.csv"
 CSV_COLUMNS = ("table", "method", "suite", "scene", "split", "metric", "value", "std", "paper_rank")
 
@@ -117,15 +115,17 @@ def normalise_name(name: str) -> str:
     return re.sub(r"[^a-z0-9]", "", name.lower().replace("–", "-"))
 
 
-def paper_method(method: str, variant: str | None = None, suite: str | None = None) -> str | None:
+def paper_method(method: str, variant: str | None = None, suite: str | None = None,
+                 fitted: bool = False) -> str | None:
     """The paper's row label for a run's method, variant and suite, or None when the paper has no such row.
 
     ``ssdgs`` runs map to "Ours", or to the variant preset's label ("ablation-A" -> "A: Diff", "sssgs-no-opt" ->
     "Ours (w/o Opt)"). On the sssgs suite the row follows whether cameras and lights were refined: the native
-    preset refines them ("Ours (w/ Opt)"); ``ssdgs-official`` runs the flags of batch_script_synthetic_sssgs.py,
-    which passes neither --cam_opt nor --pl_opt ("Ours (w/o Opt)"), and its variant ``opt`` adds them
-    ("Ours (w/ Opt)"). Baselines match the paper's names ignoring case and punctuation ("gs3" -> "GS3"), the
-    authors' code (``-official``) the row of its method.
+    preset refines them ("Ours (w/ Opt)"); ``ssdgs-official`` follows ``fitted``, whether the run's test views were
+    scored with the poses its training fitted (results.json's ``evaluation.test_pose_fitting``: the flags of
+    batch_script_synthetic_sssgs.py fit none, "Ours (w/o Opt)"; its ``opt`` variant's --cam_opt --pl_opt /
+    --opt_pose do, "Ours (w/ Opt)"). Baselines match the paper's names ignoring case and punctuation ("gs3" ->
+    "GS3"), the authors' code (``-official``) the row of its method.
     """
     if variant in VARIANT_LABELS:
         return VARIANT_LABELS[variant]
@@ -134,7 +134,7 @@ def paper_method(method: str, variant: str | None = None, suite: str | None = No
     if normalise_name(method) == "ssdgs":
         if suite != "sssgs":
             return "Ours"
-        refined = (variant or "").split("~")[0] == SSDGS_REFINED_VARIANT if official else True
+        refined = fitted if official else True
         return "Ours (w/ Opt)" if refined else "Ours (w/o Opt)"
     wanted = normalise_name(method)
     for label in load_published()["method"].unique():

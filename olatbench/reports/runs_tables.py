@@ -175,6 +175,11 @@ class RunCells:
             listed = self.notes.failures if job["status"] == "failed" else self.notes.unfinished
             listed.append(f"{job['row']} on {job['scene']}, seed {job['seed']} — {job['error']}")
 
+    def fitted(self, row: str) -> bool:
+        """Whether the row's test numbers were scored with test views fitted during training (``test_poses``)."""
+        frame = self.frame
+        return bool(frame.loc[frame["row"] == row, "test_poses"].str.contains("fitted").any())
+
     def jobs(self, row: str, scene: str) -> pd.DataFrame:
         frame = self.frame
         return frame[(frame["row"] == row) & (frame["scene"].map(normalise_name) == normalise_name(scene))]
@@ -298,7 +303,7 @@ def _add_published(cells: dict, rows: list[str], run_cells: RunCells, suite: str
         ordered.append(row)
         method, variant = run_cells.source[row]
         row_suite = suite if isinstance(suite, str) else next(iter(suite.values()), None)
-        label = paper_method(method, variant, row_suite)
+        label = paper_method(method, variant, row_suite, fitted=run_cells.fitted(row))
         if label is None:
             continue
         paper_row, delta_row = f"{label} (paper)", f"Δ {row} − paper"

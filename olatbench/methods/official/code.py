@@ -251,6 +251,14 @@ class OfficialCode:
         flags = {arg for argv in commands for arg in argv}
         return next((path for flag, path in self.render_orders.items() if flag in flags), LOADER_ORDER)
 
+    def fits_test_views(self, suite: str, render_args: tuple[str, ...] = ()) -> bool:
+        """Whether a job on ``suite`` scores test views whose cameras and lights its training fitted to the test
+        images: its render command (its own flags, the suite's, ``render_args``) carries a flag of
+        ``render_orders`` (SSD-GS's and GS³'s ``--opt_pose``). The runner records it in results.json
+        (``evaluation.test_pose_fitting``) and the reports read it."""
+        own = [arg for step, argv in self.commands if step == "render" for arg in argv]
+        return self.render_order([[*own, *self.args_for(suite, "render"), *render_args]]) != LOADER_ORDER
+
     def describe(self) -> list[str]:
         """The commands and render pattern as text lines, placeholders kept (``olatbench methods show``)."""
         if not self.commands:

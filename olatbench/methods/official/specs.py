@@ -12,7 +12,6 @@ from __future__ import annotations
 
 from olatbench.methods.official.code import ANY_SUITE, SUITE_ARGS, OfficialCode, SceneArgs
 from olatbench.methods.spec import MethodSpec, SourcePin
-from olatbench.paper_rows import SSDGS_REFINED_VARIANT
 
 _CONFIG = "olatbench.methods.official.code:OfficialConfig"
 _MODULE = "olatbench.methods.official.specs"
@@ -305,7 +304,7 @@ SPECS: tuple[MethodSpec, ...] = (
                    "mini": {**_MINI, "preset_args": (*_MINI_SCHEDULE, "--maximum_gs", "5000")},
                    # the paper's "Ours (w/ Opt)" on SSS-GS: the real-data script's refinement flags, which
                    # batch_script_synthetic_sssgs.py does not pass (its runs are "Ours (w/o Opt)")
-                   SSDGS_REFINED_VARIANT: {"train_args": ("--cam_opt", "--pl_opt"), "render_args": ("--opt_pose",)}}),
+                   "opt": {"train_args": ("--cam_opt", "--pl_opt"), "render_args": ("--opt_pose",)}}),
     _spec("GS3_CODE", GS3_CODE, "GS³, the authors' code (CUDA) run on olatbench's data",
           SourcePin("gsrelight/gs-relight", "83c8daa41284cc310855dec6db3158106c065d11", "verified",
                     "Commands are those of syn_train.sh / syn_render.sh (GS³ data: --hdr, EXR, --gamma) and "
