@@ -48,7 +48,8 @@ before scoring it (e.g. SSD-GS ``test_time_refinement=true``); ``evaluation.test
 fitted the test views' poses/lights *during training* (``mode``, e.g. SSD-GS ``"interleaved"``, the official
 real-data protocol) and scored them with those fits (per frame: ``translation``, ``rotation_deg``,
 ``light_offset``), or ``mode`` ``"official"`` with no frames when an official implementation rendered the test
-views at the poses its training fitted (`OfficialCode.fits_test_views`). Files written before these keys existed lack them, which reads as ``null``.
+views at the poses its training fitted (`OfficialCode.fits_test_views`). Files written before these keys existed
+lack them, which reads as ``null``.
 ``hashes.data_matches_reference`` (``mini`` only, else ``null``; absent in older files) says whether the scene's
 files are byte-identical to the package's reference renders.
 
