@@ -17,7 +17,7 @@ import time
 import traceback
 from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 import torch
@@ -72,10 +72,8 @@ from olatbench.methods.backends import format_backends
 from olatbench.methods.base import Method, Views
 from olatbench.methods.evaluation_protocol import EvaluationProtocol, evaluation_protocol
 from olatbench.metrics.evaluate import sha256_file
+from olatbench.metrics.protocols import Protocol, get_protocol
 from olatbench.progress import progress_bar, progress_write
-
-if TYPE_CHECKING:
-    from olatbench.metrics.protocols import Protocol
 
 WARMUP_RENDERS = 1
 
@@ -394,8 +392,6 @@ def evaluate_split(method: Method, frames: list[Frame], job: Job, folder: Path, 
     test views (``protocol.refines``, test split only), ``{"split", "seconds", "frames": {frame_id: summary}}``:
     each view's pose/light is then fitted to its image (training space) before the render that is scored.
     """
-    from olatbench.metrics.protocols import get_protocol
-
     scoring = get_protocol(job.protocol)
     refinement = _Refinement(split) if split == job.test_split and protocol.refines else None
     render_seconds, per_image = 0.0, {}
