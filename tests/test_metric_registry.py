@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 from test_report_runs import write_run
 
+from olatbench.bench.results import ResultsError, read_results, write_results
 from olatbench.metrics.protocols import Protocol, get_protocol, register_protocol
 from olatbench.metrics.registry import Metric, MetricBatch, get_metric, metric_names, register_metric
 from olatbench.reports.collect import collect
@@ -53,12 +54,27 @@ def test_a_toy_metric_is_scored_titled_and_ranked_through_the_registry(toy_proto
     assert toy_protocol.definition()["metrics"] == ["psnr", "toy_red_gap"]
     assert metric_title("toy_red_gap") == "Red gap ↓"
     root = tmp_path / "runs"  # lower is better: the smaller gap ranks first
-    for method, gap in (("a", 0.3), ("b", 0.1)):
-        write_run(root, method, "default", "mini", "diffuse_shadow", 0, {"test": {"toy_red_gap": gap}})
+    for method, gap in (("a", 0.3), ("b", 0.1)):  # results of olatbench-v1 (write_run's), plus the toy metric
+        write_run(root, method, "default", "mini", "diffuse_shadow", 0,
+                  {"test": {"psnr": 30.0, "ssim": 0.9, "lpips": 0.1, "toy_red_gap": gap}})
     table = rank_table(scene_table(collect(root), metrics=["toy_red_gap"], splits=["test"]))
     assert table.blocks[0].title == "Red gap ↓"
     ranks = {row.labels[0]: row.cells[0].rank for row in table.blocks[0].rows}
     assert ranks == {"a": 2, "b": 1}
+
+
+def test_results_of_a_protocol_without_ssim_and_lpips_are_read(toy_protocol, tmp_path):
+    """results.json's check of a finished job's metrics asks its protocol which of psnr, ssim, lpips it lists."""
+    path = write_run(tmp_path / "runs", "a", "default", "mini", "diffuse_shadow", 0,
+                     {"test": {"psnr": 30.0, "ssim": 0.9, "lpips": 0.1}})
+    data = json.loads(path.read_text())
+    data["protocol"] = {"id": "toy-v1", "version": 1}
+    data["metrics"]["test"]["mean"] = {"psnr": 30.0, "toy_red_gap": 0.2}
+    write_results(path, data)
+    assert read_results(path)["metrics"]["test"]["mean"] == {"psnr": 30.0, "toy_red_gap": 0.2}
+    data["protocol"] = {"id": "olatbench-v1", "version": 1}
+    with pytest.raises(ResultsError, match="missing ssim, lpips"):
+        write_results(path, data)
 
 
 def test_a_protocol_listing_an_unregistered_metric_is_refused():

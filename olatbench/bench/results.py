@@ -76,6 +76,7 @@ from typing import Any, Literal, TypedDict
 
 from olatbench.atomic import write_json
 from olatbench.datasets.jsontext import parse_json
+from olatbench.metrics.protocols import get_protocol
 
 if sys.version_info >= (3, 11):
     from typing import NotRequired, get_type_hints
@@ -378,25 +379,40 @@ def validate_results(data: Any, source: str = "results") -> Results:
         raise ResultsError(f"{source}: job: expected an object (a run's job), found {_found(data['job'])}")
     problem = _checker(Results)(data, "")
     if problem is None and data["status"] == "done":
-        problem = _missing_metric(data["metrics"])
+        problem = _missing_metric(data["metrics"], recorded_metrics(data.get("protocol")))
     if problem is not None:
         raise ResultsError(f"{source}: {problem}")
     return data
 
 
-#: The metrics every finished job's split means hold (`olatbench.metrics.protocols.Protocol.metrics`; null when
-#: not computed, e.g. LPIPS without its weights).
+#: The metrics every finished job's split means hold (null when not computed, e.g. LPIPS without its weights), of
+#: those its protocol lists (`recorded_metrics`).
 RECORDED_METRICS = ("psnr", "ssim", "lpips")
 
 
-def _missing_metric(metrics: dict[str, Any]) -> str | None:
-    """The first split mean of a finished job that lacks one of `RECORDED_METRICS` (a table would show its cell as
-    never run), or None."""
+def recorded_metrics(protocol: Any) -> tuple[str, ...]:
+    """The metrics of `RECORDED_METRICS` a finished job scored under ``protocol`` (results.json's ``{"id",
+    "version"}``) must hold: those the registered protocol lists (`olatbench.metrics.protocols.Protocol.metrics`;
+    a protocol may list others, from `olatbench.metrics.registry`), all of them for a protocol not registered
+    here."""
+    if isinstance(protocol, dict) and isinstance(protocol.get("id"), str):
+        try:
+            registered = get_protocol(protocol["id"])
+        except ValueError:
+            return RECORDED_METRICS
+        if registered.id == protocol["id"] and registered.version == protocol.get("version"):
+            return tuple(name for name in RECORDED_METRICS if name in registered.metrics)
+    return RECORDED_METRICS
+
+
+def _missing_metric(metrics: dict[str, Any], recorded: tuple[str, ...]) -> str | None:
+    """The first split mean of a finished job that lacks one of ``recorded`` (a table would show its cell as never
+    run), or None."""
     for split, block in metrics.items():
-        missing = [key for key in RECORDED_METRICS if key not in block["mean"]]
+        missing = [key for key in recorded if key not in block["mean"]]
         if missing:
             return (f"metrics.{split}.mean: missing {', '.join(missing)} (a finished job records "
-                    f"{', '.join(RECORDED_METRICS)}, null when not computed)")
+                    f"{', '.join(recorded)}, null when not computed)")
     return None
 
 
