@@ -66,7 +66,7 @@ from olatbench.bench.views import VIEWS_FILE, load_views, view_camera
 from olatbench.datasets import colour, load_scene
 from olatbench.datasets.formats._common import safe_file_stem
 from olatbench.datasets.images import write_image
-from olatbench.datasets.records import Camera, Frame, LoadedImage, PointLight
+from olatbench.datasets.records import Camera, Frame, LoadedImage, PointLight, Scene
 from olatbench.gaussians.host_sync import allowed_host_sync
 from olatbench.methods.backends import format_backends
 from olatbench.methods.base import Method, Views
@@ -167,23 +167,7 @@ def _run(job: Job, folder: Path, log: JobLog, progress: bool, position: int, sta
 
     if torch.device(job.device).type == "cuda":
         torch.cuda.reset_peak_memory_stats(job.device)
-    seed_everything(job.seed)
-    scene = load_scene(job.scene_path, format=job.scene_format)
-    clock = time.perf_counter()
-    train_views = load_views(scene.split(job.train_split), job, progress, position)
-    log(f"loaded {len(train_views)} training views in {time.perf_counter() - clock:.1f} s")
-    if job.init_points:
-        train_views = dataclasses.replace(
-            train_views, points=load_init_points(job.init_points, job.init_points_digest))
-        log(f"starting from the {len(train_views.points)} points of {job.init_points}")
-
-    method_class = load_method_class(job)
-    method = method_class(method_class.resolve_config(None, **job.config))
-    protocol = evaluation_protocol(method)
-    if protocol.fitting is not None:  # the protocol fits the test views' poses/lights while the method trains
-        test_views = load_views(scene.split(job.test_split), job, progress, position, frame=train_views.frame)
-        protocol.attach_test_views(test_views)
-        log(f"loaded {len(test_views)} test views for test_pose_fitting={protocol.fitting}")
+    method, protocol, train_views, scene = prepare_method(job, log, progress, position)
     reused = _adopt_reusable_model(job, folder, log)
     train_seconds = _train(method, train_views, job, folder, log, progress, position)
 
@@ -216,6 +200,33 @@ def _run(job: Job, folder: Path, log: JobLog, progress: bool, position: int, sta
     log("done")
     return JobOutcome(job.id, job.label, str(folder), "done", metrics[job.test_split]["mean"], train_seconds,
                       render_fps)
+
+
+def prepare_method(job: Job, log: Callable[[str], None] = lambda line: None, progress: bool = False,
+                   position: int = 1) -> tuple[Method, EvaluationProtocol, Views, Scene]:
+    """Seed every RNG with ``job.seed``, read the scene, load its training views (with the job's initial points),
+    build the method from ``job.config`` and its evaluation protocol, attaching the test views when the protocol
+    fits their poses while the method trains: everything a job does before ``method.setup``, in the runner's
+    order. So ``method.setup(views, job.device, job.seed)`` followed by ``train_step(0)``, ``train_step(1)``, ...
+    reproduces the job's training bit for bit (``benchmarks/numerics_trace.py`` relies on it). ``log`` receives
+    the job log's lines."""
+    seed_everything(job.seed)
+    scene = load_scene(job.scene_path, format=job.scene_format)
+    clock = time.perf_counter()
+    train_views = load_views(scene.split(job.train_split), job, progress, position)
+    log(f"loaded {len(train_views)} training views in {time.perf_counter() - clock:.1f} s")
+    if job.init_points:
+        train_views = dataclasses.replace(
+            train_views, points=load_init_points(job.init_points, job.init_points_digest))
+        log(f"starting from the {len(train_views.points)} points of {job.init_points}")
+    method_class = load_method_class(job)
+    method = method_class(method_class.resolve_config(None, **job.config))
+    protocol = evaluation_protocol(method)
+    if protocol.fitting is not None:  # the protocol fits the test views' poses/lights while the method trains
+        test_views = load_views(scene.split(job.test_split), job, progress, position, frame=train_views.frame)
+        protocol.attach_test_views(test_views)
+        log(f"loaded {len(test_views)} test views for test_pose_fitting={protocol.fitting}")
+    return method, protocol, train_views, scene
 
 
 def _adopt_reusable_model(job: Job, folder: Path, log: JobLog) -> dict[str, str] | None:
