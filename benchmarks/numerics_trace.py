@@ -192,13 +192,17 @@ def record_trace(args: argparse.Namespace, reference: dict[str, Any] | None = No
 
 
 def _commit() -> str | None:
-    """The olatbench checkout's git commit (None outside a git checkout)."""
+    """The olatbench checkout's git commit, ``+changes`` when tracked files differ from it (None outside git)."""
     try:
-        done = subprocess.run(["git", "-C", str(PACKAGE_ROOT), "rev-parse", "--short", "HEAD"], capture_output=True,
+        head = subprocess.run(["git", "-C", str(PACKAGE_ROOT), "rev-parse", "--short", "HEAD"], capture_output=True,
                               text=True, timeout=30)
+        changed = subprocess.run(["git", "-C", str(PACKAGE_ROOT), "status", "--porcelain", "--untracked-files=no"],
+                                 capture_output=True, text=True, timeout=30)
     except (OSError, subprocess.SubprocessError):
         return None
-    return done.stdout.strip() or None if done.returncode == 0 else None
+    if head.returncode != 0 or not head.stdout.strip():
+        return None
+    return head.stdout.strip() + ("+changes" if changed.stdout.strip() else "")
 
 
 def read_trace(path: str | Path) -> dict[str, Any]:

@@ -128,11 +128,14 @@ def test_a_file_that_is_not_a_trace_gets_one_line_naming_it(tmp_path):
     assert done.stderr.startswith(f"numerics_trace: {bad}: not a numerics trace") and "0 grads for 1" in done.stderr
 
 
-def test_settings_records_each_side_in_a_fresh_process(data, tmp_path):
-    """An environment variable that decides nothing: the two fresh processes agree (on any CPU)."""
-    done = subprocess.run([sys.executable, str(SCRIPT), "settings", "--data", str(data), "--steps", "2",
-                           *(f"--set={item}" for item in SETTINGS), "--a", "OLATBENCH_TRACE_PROBE=1",
+def test_the_c_kernels_avx2_copy_and_their_baseline_copy_train_alike(data, tmp_path):
+    """``settings`` records each side in a fresh process; here A runs olatbench's C++ kernels' 16-byte copy
+    (``OLATBENCH_NATIVE_SIMD=baseline``) and B the AVX2 copy they choose on an AVX2 CPU. The copies do the same
+    operations lane by lane without FMA (``_native/include/simd.h``), so the steps are identical on any CPU: a
+    property of the code, not of the CPU's rounding (the tiny job runs every shading term from its second step)."""
+    done = subprocess.run([sys.executable, str(SCRIPT), "settings", "--data", str(data), "--steps", "3",
+                           *(f"--set={item}" for item in SETTINGS), "--a", "OLATBENCH_NATIVE_SIMD=baseline",
                            "-o", str(tmp_path / "out")], capture_output=True, text=True)
     assert done.returncode == 0, done.stdout + done.stderr
-    assert "identical over the 2 common steps" in done.stdout
-    assert "{'OLATBENCH_TRACE_PROBE': '1'}" in done.stdout
+    assert "identical over the 3 common steps" in done.stdout
+    assert "'OLATBENCH_NATIVE_SIMD': 'baseline'" in done.stdout

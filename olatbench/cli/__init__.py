@@ -14,7 +14,7 @@ import click
 
 from olatbench import __version__
 from olatbench.cli.options import without_hidden_suggestions
-from olatbench.numerics import pin_cpu_capability
+from olatbench.numerics import pin_numerics
 
 # verb -> "module:attribute" of a click command or group
 COMMANDS: dict[str, str] = {
@@ -64,7 +64,7 @@ class LazyGroup(click.Group):
     def main(self, *args, **kwargs):  # type: ignore[override]
         """Pin torch's CPU kernel width before any verb can import torch (`olatbench.numerics`), and let output
         show a file name that is not UTF-8 (as ``\\udcff``) instead of failing on it."""
-        pin_cpu_capability()
+        pin_numerics()
         for stream in (sys.stdout, sys.stderr):
             if isinstance(stream, io.TextIOWrapper) and stream.errors == "strict":
                 stream.reconfigure(errors="backslashreplace")

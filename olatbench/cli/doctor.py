@@ -115,6 +115,31 @@ def _bf16_networks() -> Check:
             "" if fast else "nothing to fix: keep network_precision=fp32 (the default)")
 
 
+def _numerics() -> Check:
+    """What decides CPU rounding here, and whether the README's seed-0 figures were measured on this CPU."""
+    if importlib.util.find_spec("torch") is None:
+        return "Numerics (seed-0 figures)", False, "needs torch", "pip install torch==2.13.0"
+    from olatbench.numerics import ROUNDING_ENV, cpu_label, cpu_numerics, seed_figure_run, seed_figure_runs
+
+    numerics = cpu_numerics()
+    settings = ", ".join(f"{name}={numerics[name]}" for name in ROUNDING_ENV if numerics[name] is not None)
+    detail = (f"torch {numerics['torch_cpu_capability']} kernels, {numerics['torch_threads']} threads, "
+              f"{settings or 'nothing pinned'}; CPU {cpu_label(numerics['cpu_id'])}")
+    run, differences = seed_figure_run(numerics)
+    guide = "python benchmarks/numerics_trace.py names where two machines part (docs/runner.md)"
+    if run is None:
+        checked = "; ".join(cpu_label(other["cpu"]) for other in seed_figure_runs())
+        return ("Numerics (seed-0 figures)", False, f"{detail}: not a CPU the README's seed-0 figures were measured on "
+                f"({checked}); expect other last digits, within seed noise",
+                f"nothing to fix: compare runs over seeds; {guide}")
+    figures = " / ".join(f"{value:.4f}" if value is not None else "?" for value in run["psnr"].values())
+    measured = f"the README's seed 0 gave {figures} dB on this CPU ({run['date']}, commit {run['commit']})"
+    if differences:
+        return ("Numerics (seed-0 figures)", False, f"{detail}: {measured}, but {'; '.join(differences)}: expect "
+                "other last digits", f"run with the settings above to get those figures; {guide}")
+    return "Numerics (seed-0 figures)", True, f"{detail}: {measured}; expect them to the last digit", ""
+
+
 def _mitsuba() -> Check:
     if importlib.util.find_spec("mitsuba") is None:
         return "Mitsuba (scene generator)", False, "not installed", "pip install 'olatbench[synth]'"
@@ -167,7 +192,7 @@ def _video() -> Check:
 
 CHECKS: tuple[Callable[[], Check], ...] = (
     _torch, _cuda, *(_native_check(module, name) for module, name in NATIVE_LIBRARIES), _gsplat, _stage_backends,
-    _bf16_networks, _mitsuba, _lpips, _exr, _slurm, _video)
+    _bf16_networks, _numerics, _mitsuba, _lpips, _exr, _slurm, _video)
 
 
 def run_checks() -> list[Check]:
@@ -204,8 +229,9 @@ def official_code_checks(code: tuple[str, ...] = ()) -> list[Check]:
                    "allowed (docs/gpu.md).")
 @json_option
 def doctor(code: tuple[str, ...], fake_cuda: bool, as_json: bool) -> None:
-    """Show what this machine supports and how to fix what is missing; for each configured official
-    implementation: its checkout and commit, its interpreter, the GPU it sees.
+    """Show what this machine supports and how to fix what is missing; what decides CPU rounding here and whether
+    the README's seed-0 figures were measured on this CPU; for each configured official implementation: its
+    checkout and commit, its interpreter, the GPU it sees.
 
     \b
     Example:
@@ -220,8 +246,10 @@ def doctor(code: tuple[str, ...], fake_cuda: bool, as_json: bool) -> None:
     if as_json:
         checks = [{"name": name, "ok": ok, "detail": detail, "fix": fix or None}
                   for name, ok, detail, fix in run_checks() + official_code_checks(code)]
+        from olatbench.numerics import cpu_numerics
+
         click.echo(json.dumps({"python": platform.python_version(), "machine": platform.machine(),
-                               "checks": checks}, indent=2))
+                               "numerics": cpu_numerics(), "checks": checks}, indent=2))
         return
     click.echo(f"olatbench on Python {platform.python_version()} ({platform.machine()})")
     for name, ok, detail, fix in run_checks() + official_code_checks(code):

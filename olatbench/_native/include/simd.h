@@ -8,6 +8,7 @@
 
 #include <cmath>
 #include <cstdint>
+#include <cstdlib>
 #include <cstring>
 
 #if defined(__SSE2__)
@@ -175,11 +176,18 @@ OLATBENCH_SIMD void store(F* p, int64_t count, const typename Simd<F, W>::V& v) 
   else std::memcpy(p, &v, sizeof(F) * size_t(count));
 }
 
-// On x86-64 with GCC or Clang, kernels may carry a 32-byte (AVX2) copy chosen at run time with have_avx2().
+// On x86-64 with GCC or Clang, kernels may carry a 32-byte (AVX2) copy chosen at run time with have_avx2(), unless
+// the environment variable OLATBENCH_NATIVE_SIMD is "baseline" when the library first asks (the 16-byte copy then
+// runs everywhere: the way to check that both copies give the same bits, benchmarks/numerics_trace.py settings).
 #if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
 #define OLATBENCH_SIMD_AVX2 1
 inline bool have_avx2() {
-  static const bool yes = (__builtin_cpu_init(), __builtin_cpu_supports("avx2") != 0);
+  static const bool yes = [] {
+    const char* forced = std::getenv("OLATBENCH_NATIVE_SIMD");
+    if (forced != nullptr && std::strcmp(forced, "baseline") == 0) return false;
+    __builtin_cpu_init();
+    return __builtin_cpu_supports("avx2") != 0;
+  }();
   return yes;
 }
 #endif
