@@ -149,6 +149,7 @@ def record_trace(args: argparse.Namespace, reference: dict[str, Any] | None = No
     ``reference`` trace (`read_trace`), stop after the first step that differs from it."""
     from olatbench.bench.execute import prepare_method
 
+    commit = _commit()  # the code this process runs, before anything changes the checkout
     with tempfile.TemporaryDirectory(prefix="numerics-trace-") as folder:
         job = plan_job(args, Path(folder))
         method, _, views, _ = prepare_method(job)
@@ -179,7 +180,7 @@ def record_trace(args: argparse.Namespace, reference: dict[str, Any] | None = No
                 break  # the first step that differs from the reference: later steps add nothing
     names = {kind: list(dict.fromkeys(name for step in steps for name in step[kind])) for kind in ("grads", "params")}
     trace = {"format": FORMAT, "numerics": cpu_numerics(), "torch": torch.__version__,
-             "olatbench": olatbench.__version__, "commit": _commit(),
+             "olatbench": olatbench.__version__, "commit": commit,
              "job": {"id": job.id, "method": job.method, "suite": job.suite, "scene": job.scene,
                      "variant": job.variant, "seed": job.seed, "iterations": job.iterations, "config": job.config},
              "tensors": names,
