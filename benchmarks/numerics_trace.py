@@ -39,7 +39,7 @@ import os  # noqa: E402
 import subprocess  # noqa: E402
 import sys  # noqa: E402
 import tempfile  # noqa: E402
-from collections.abc import Iterator  # noqa: E402
+from collections.abc import Callable, Iterator  # noqa: E402
 from pathlib import Path  # noqa: E402
 from typing import Any  # noqa: E402
 
@@ -153,7 +153,17 @@ def record_trace(args: argparse.Namespace, reference: dict[str, Any] | None = No
     with tempfile.TemporaryDirectory(prefix="numerics-trace-") as folder:
         job = plan_job(args, Path(folder))
         method, _, views, _ = prepare_method(job)
-        method.setup(views, job.device, job.seed)
+        recorders: dict[int, OpRecorder] = {}
+
+        def run(step: int, work: Callable[[], Any]) -> Any:
+            """``work()``, its operations recorded when ``step`` is the ``--ops-step``."""
+            if step != args.ops_step:
+                return work()
+            with OpRecorder() as recorder:
+                recorders[step] = recorder
+                return work()
+
+        run(0, lambda: method.setup(views, job.device, job.seed))
         optimizers = method_optimizers(method)
         grads: dict[str, str] = {}
 
@@ -161,23 +171,22 @@ def record_trace(args: argparse.Namespace, reference: dict[str, Any] | None = No
             grads.update({name: tensor_hash(param.grad) for name, param in
                           optimizer_parameters(optimizers.index(optimizer), optimizer) if param.grad is not None})
 
+        def params() -> dict[str, str]:
+            return {name: tensor_hash(param) for index, optimizer in enumerate(optimizers)
+                    for name, param in optimizer_parameters(index, optimizer)}
+
         for optimizer in optimizers:
             optimizer.register_step_pre_hook(hash_grads)
-        steps, ops = [], None
-        for step in range(1, args.steps + 1):
-            grads.clear()
-            if step == args.ops_step:
-                with OpRecorder() as recorder:
-                    scalars = method.train_step(step - 1)
-                ops = {"step": step, "ops": recorder.ops}
-            else:
-                scalars = method.train_step(step - 1)
-            steps.append({"step": step, "loss": float(scalars["loss"]), "grads": dict(grads),
-                          "params": {name: tensor_hash(param) for index, optimizer in enumerate(optimizers)
-                                     for name, param in optimizer_parameters(index, optimizer)}})
-            if reference is not None and step <= len(reference["steps"]) and \
-                    _step_differs(steps[-1], reference["steps"][step - 1]):
+        reference_steps = {step["step"]: step for step in reference["steps"]} if reference is not None else {}
+        steps = [{"step": 0, "loss": None, "grads": {}, "params": params()}]  # step 0: as set up
+        for step in range(0, args.steps + 1):
+            if step > 0:
+                grads.clear()
+                scalars = run(step, lambda step=step: method.train_step(step - 1))
+                steps.append({"step": step, "loss": float(scalars["loss"]), "grads": dict(grads), "params": params()})
+            if reference is not None and step in reference_steps and _step_differs(steps[-1], reference_steps[step]):
                 break  # the first step that differs from the reference: later steps add nothing
+        ops = {"step": args.ops_step, "ops": recorders[args.ops_step].ops} if recorders else None
     names = {kind: list(dict.fromkeys(name for step in steps for name in step[kind])) for kind in ("grads", "params")}
     trace = {"format": FORMAT, "numerics": cpu_numerics(), "torch": torch.__version__,
              "olatbench": olatbench.__version__, "commit": commit,
@@ -248,8 +257,10 @@ def first_difference(a: dict[str, Any], b: dict[str, Any]) -> dict[str, Any] | N
     """The first step where ``a`` and ``b`` differ: ``{"step", "loss": (a, b), "tensor", "kind", "differing",
     "ops"}`` (``tensor``: the first differing gradient, else parameter, in recorded order; ``ops``: `first_op`
     where both traces hold that step's operations), or None when every common step agrees."""
-    for step_a, step_b in zip(a["steps"], b["steps"], strict=False):
-        if not _step_differs(step_a, step_b):
+    steps_b = {step["step"]: step for step in b["steps"]}
+    for step_a in a["steps"]:
+        step_b = steps_b.get(step_a["step"])
+        if step_b is None or not _step_differs(step_a, step_b):
             continue
         differing = [(kind, name) for kind in ("grads", "params")
                      for name in dict.fromkeys([*step_a[kind], *step_b[kind]])
@@ -284,8 +295,9 @@ def first_op(a: list[dict[str, Any]], b: list[dict[str, Any]]) -> dict[str, Any]
 
 
 CAUSES = {"rounds": "equal inputs, different outputs: the rounding parts here",
-          "input": "an input differs although every earlier operation agreed: written outside torch's dispatcher "
-                   "(a C++ kernel through ctypes)",
+          "input": "an input differs although every earlier recorded operation agreed: made before this step "
+                   "(record the step before, or 0 for the set-up) or written outside torch's dispatcher (a C++ kernel "
+                   "through ctypes)",
           "sequence": "another operation runs here"}
 
 
@@ -294,12 +306,14 @@ def comparison_text(a: dict[str, Any], b: dict[str, Any], names: tuple[str, str]
     lines = [f"{name}: {_describe(trace)}" for name, trace in zip(names, (a, b), strict=True)]
     if a["job"]["id"] != b["job"]["id"]:
         lines.append(f"note: different jobs ({a['job']['id']} vs {b['job']['id']}; config or code differ)")
-    common = min(len(a["steps"]), len(b["steps"]))
+    common = {step["step"] for step in a["steps"]} & {step["step"] for step in b["steps"]}
     found = first_difference(a, b)
     if found is None:
-        lines.append(f"identical over the {common} common steps (losses, gradients and parameters)")
+        lines.append(f"identical over the {len(common - {0})} common steps{' and the set-up' if 0 in common else ''}"
+                     " (losses, gradients and parameters)")
         return "\n".join(lines), True
-    lines.append(f"first difference at step {found['step']}: loss {found['loss'][0]!r} vs {found['loss'][1]!r}; "
+    loss = "as set up" if found["step"] == 0 else f"loss {found['loss'][0]!r} vs {found['loss'][1]!r}"
+    lines.append(f"first difference at step {found['step']} ({loss}): "
                  + (f"first tensor {found['kind'][:-1]} {found['tensor']} ({found['differing']} differ)"
                     if found["tensor"] else "every tensor equal"))
     op = found["ops"]
@@ -374,7 +388,8 @@ def main(argv: list[str] | None = None) -> int:
     commands = parser.add_subparsers(dest="command", required=True)
     record = commands.add_parser("record", help="trace the first steps of a job")
     _add_job_options(record)
-    record.add_argument("--ops-step", type=int, help="also record every operation of this step (1-based)")
+    record.add_argument("--ops-step", type=int, help="also record every operation of this step (1-based; 0: the "
+                        "method's set-up)")
     record.add_argument("--until-differs", metavar="TRACE", help="stop after the first step that differs from TRACE")
     record.add_argument("-o", "--output", required=True, help="the trace file to write (JSON)")
     compare = commands.add_parser("compare", help="name the first step, tensor and op where two traces differ")
@@ -387,8 +402,8 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     try:
         if args.command == "record":
-            if args.steps < 1 or (args.ops_step is not None and not 1 <= args.ops_step <= args.steps):
-                raise TraceError(f"--steps {args.steps} / --ops-step {args.ops_step}: need 1 <= ops-step <= steps")
+            if args.steps < 0 or (args.ops_step is not None and not 0 <= args.ops_step <= args.steps):
+                raise TraceError(f"--steps {args.steps} / --ops-step {args.ops_step}: need 0 <= ops-step <= steps")
             trace = record_trace(args, read_trace(args.until_differs) if args.until_differs else None)
             write_trace(args.output, trace)
             print(f"wrote {args.output}: {len(trace['steps'])} steps of {trace['job']['scene']} on "

@@ -148,12 +148,15 @@ def seed_figure_runs(path: str | os.PathLike = SEED_FIGURES) -> list[dict[str, A
 def seed_figure_run(numerics: dict[str, Any], runs: list[dict[str, Any]] | None = None
                     ) -> tuple[dict[str, Any] | None, list[str]]:
     """The run of `seed_figure_runs` made on this CPU (``numerics``: `cpu_numerics`): same vendor and family, and
-    model and stepping where the run recorded them; and what differs from it here (threads, pins, flags it had),
-    each as a line. ``(None, [])`` for a CPU none was measured on."""
+    model and stepping where the run recorded them; and what differs from it here, each as a line: a variable of
+    `ROUNDING_ENV` (those not in the run's ``pins`` were unset there; ``OMP_NUM_THREADS`` counts through the
+    threads), torch's thread count where the run recorded it, a CPU flag it had. ``(None, [])`` for a CPU none was
+    measured on."""
     identity = numerics["cpu_id"]
     for run in seed_figure_runs() if runs is None else runs:
         if all(value is None or identity.get(key) == value for key, value in run["cpu"].items()):
-            differences = [f"{name}: {numerics.get(name)} here, {value} there" for name, value in run["pins"].items()
+            settings = {name: run["pins"].get(name) for name in ROUNDING_ENV if name != "OMP_NUM_THREADS"}
+            differences = [f"{name}: {numerics.get(name)} here, {value} there" for name, value in settings.items()
                            if numerics.get(name) != value]
             if run["threads"] is not None and numerics["torch_threads"] != run["threads"]:
                 differences.append(f"torch threads: {numerics['torch_threads']} here, {run['threads']} there")

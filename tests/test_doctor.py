@@ -16,7 +16,7 @@ def test_doctor_lists_every_capability():
     result = CliRunner().invoke(main, ["doctor"])
     assert result.exit_code == 0, result.output
     for name in ("torch", "CUDA", "C++ rasterizer", "C++ SSIM loss", "C++ SSD-GS shading", "gsplat", "Stage backends",
-                 "bf16 networks", "Mitsuba", "LPIPS weights", "EXR",
+                 "bf16 networks", "Numerics (seed-0 figures)", "Mitsuba", "LPIPS weights", "EXR",
                  "Slurm", "MP4"):
         assert name in result.output
 
@@ -114,3 +114,33 @@ def test_doctor_says_whether_bf16_is_fast(monkeypatch, flags, expected):
     monkeypatch.setattr(doctor_module, "CHECKS", (doctor_module._bf16_networks,))
     result = CliRunner().invoke(main, ["doctor"])
     assert result.exit_code == 0 and expected in result.output, result.output
+
+
+def numerics_here(cpu_id: dict, threads: int = 2, **variables) -> dict:
+    """cpu_numerics() of a made-up machine: the olatbench pins, ``threads`` torch threads, ``variables`` set."""
+    from olatbench import numerics
+
+    return {"torch_cpu_capability": "AVX2", "torch_threads": threads, "torch_libraries": {"mkl": None, "onednn": None},
+            **dict.fromkeys(numerics.ROUNDING_ENV), **numerics.PINS, **variables, "cpu_id": cpu_id,
+            "cpu_flags": ["sse4_2", "avx", "avx2", "fma", "avx512f", "avx512_bf16"]}
+
+
+@pytest.mark.parametrize(("cpu_id", "variables", "expected"), [
+    ({"vendor": "GenuineIntel", "family": 6, "model": 207, "stepping": 2}, {},
+     "ok  Numerics (seed-0 figures)        torch AVX2 kernels, 2 threads, ATEN_CPU_CAPABILITY=avx2; CPU GenuineIntel "
+     "family 6 model 207 stepping 2: the README's seed 0 gave 22.8706 / "),
+    ({"vendor": "GenuineIntel", "family": 6, "model": 207, "stepping": 2}, {"MKL_CBWR": "AVX2"},
+     "but MKL_CBWR: AVX2 here, None there: expect other last digits"),
+    ({"vendor": "GenuineIntel", "family": 6, "model": 143, "stepping": 8}, {},
+     "NO  Numerics (seed-0 figures)        torch AVX2 kernels, 2 threads, ATEN_CPU_CAPABILITY=avx2; CPU GenuineIntel "
+     "family 6 model 143 stepping 8: not a CPU the README's seed-0 figures were measured on (AuthenticAMD family 25;"),
+])
+def test_doctor_names_the_numerics_and_whether_the_figures_were_measured_on_this_cpu(monkeypatch, cpu_id, variables,
+                                                                                    expected):
+    from olatbench import numerics
+
+    monkeypatch.setattr(numerics, "cpu_numerics", lambda: numerics_here(cpu_id, **variables))
+    monkeypatch.setattr(doctor_module, "CHECKS", (doctor_module._numerics,))
+    result = CliRunner().invoke(main, ["doctor"])
+    assert result.exit_code == 0 and expected in result.output, result.output
+    assert ("fix: nothing to fix" in result.output) == (cpu_id["model"] == 143)

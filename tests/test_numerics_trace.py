@@ -54,9 +54,10 @@ def test_a_trace_follows_the_runners_training_step_for_step(trace_tool, data, tm
     path = tmp_path / "trace.json"
     trace_tool.write_trace(path, trace_tool.record_trace(job_args(data, 4)))
     trace = trace_tool.read_trace(path)
-    assert [step["loss"] for step in trace["steps"]] == logged[:4]  # bit for bit, as the runner trained
+    assert [step["step"] for step in trace["steps"]] == [0, 1, 2, 3, 4]  # 0: as set up
+    assert [step["loss"] for step in trace["steps"][1:]] == logged[:4]  # bit for bit, as the runner trained
     assert trace["job"]["id"] == job.id
-    assert {"0.means", "0.opacity_logits"} <= set(trace["steps"][0]["params"]) and trace["steps"][0]["grads"]
+    assert {"0.means", "0.opacity_logits"} <= set(trace["steps"][0]["params"]) and trace["steps"][1]["grads"]
     assert trace["numerics"]["cpu_id"].keys() == {"vendor", "family", "model", "stepping"}
     assert trace["numerics"]["torch_cpu_capability"] == torch.backends.cpu.get_cpu_capability()
     # the same steps again: identical, and compare says so (exit 0)
@@ -98,7 +99,7 @@ def test_compare_names_the_first_step_tensor_and_operation_of_an_injected_differ
     monkeypatch.setattr(trace_tool, "OpRecorder", Injecting)
     trace_tool.write_trace(tmp_path / "b.json", trace_tool.record_trace(job_args(data, 3, ops_step=2)))
     a, b = trace_tool.read_trace(tmp_path / "a.json"), trace_tool.read_trace(tmp_path / "b.json")
-    assert a["steps"][0] == b["steps"][0]  # step 1 untouched
+    assert a["steps"][:2] == b["steps"][:2]  # set-up and step 1 untouched
     found = trace_tool.first_difference(a, b)
     assert found["step"] == 2 and found["tensor"] is not None
     assert found["ops"]["index"] == injected["index"] and found["ops"]["op"] == "aten.mul.Tensor"
@@ -137,5 +138,5 @@ def test_the_c_kernels_avx2_copy_and_their_baseline_copy_train_alike(data, tmp_p
                            *(f"--set={item}" for item in SETTINGS), "--a", "OLATBENCH_NATIVE_SIMD=baseline",
                            "-o", str(tmp_path / "out")], capture_output=True, text=True)
     assert done.returncode == 0, done.stdout + done.stderr
-    assert "identical over the 3 common steps" in done.stdout
+    assert "identical over the 3 common steps and the set-up" in done.stdout
     assert "'OLATBENCH_NATIVE_SIMD': 'baseline'" in done.stdout
