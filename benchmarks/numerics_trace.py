@@ -66,7 +66,7 @@ def tensor_hash(tensor: torch.Tensor) -> str:
     data = tensor.detach()
     if data.layout != torch.strided or data.device.type == "meta":
         return f"<{data.layout} {data.device.type}>"
-    flat = data.cpu().contiguous().reshape(-1)
+    flat = data.cpu().reshape(-1).clone(memory_format=torch.contiguous_format)  # stride 1 (even a size-1 view)
     digest = hashlib.blake2b(flat.view(torch.uint8).numpy().tobytes() if flat.numel() else b"", digest_size=5)
     digest.update(f"{tuple(data.shape)} {data.dtype}".encode())
     return digest.hexdigest()

@@ -140,3 +140,14 @@ def test_the_c_kernels_avx2_copy_and_their_baseline_copy_train_alike(data, tmp_p
     assert done.returncode == 0, done.stdout + done.stderr
     assert "identical over the 3 common steps and the set-up" in done.stdout
     assert "'OLATBENCH_NATIVE_SIMD': 'baseline'" in done.stdout
+
+
+def test_tensor_hash_is_of_values_shape_and_dtype_not_of_memory_layout(trace_tool):
+    values = torch.arange(6, dtype=torch.float32).reshape(2, 3)
+    assert trace_tool.tensor_hash(values.t()) == trace_tool.tensor_hash(values.t().contiguous())
+    assert trace_tool.tensor_hash(torch.tensor(3.0).expand(1)) == trace_tool.tensor_hash(torch.tensor([3.0]))
+    assert trace_tool.tensor_hash(values) != trace_tool.tensor_hash(values.reshape(3, 2))
+    assert trace_tool.tensor_hash(values) != trace_tool.tensor_hash(values.double())
+    nudged = values.clone()
+    nudged[1, 2] = torch.nextafter(nudged[1, 2], torch.tensor(float("inf")))
+    assert trace_tool.tensor_hash(values) != trace_tool.tensor_hash(nudged)
