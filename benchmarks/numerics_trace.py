@@ -4,15 +4,17 @@
 numerics pins before torch is imported, `olatbench.bench.execute.prepare_method`, then ``setup`` and
 ``train_step``) and writes a JSON trace: per step the loss and a hash of every gradient (taken just before each
 optimiser step) and of every parameter after the step (names: ``<optimiser index>.<group name>``, with
-``.<k>`` for a group of several tensors); with ``--ops-step S``, also every ATen operation of step S (through a
-``TorchDispatchMode``): its name, where it ran (the innermost olatbench source line in the forward pass, the
-autograd node in the backward pass), and hashes of its inputs and outputs. The trace names the CPU (vendor,
-family, model, stepping, flags) and the numerics in effect (`olatbench.numerics.cpu_numerics`).
+``.<k>`` for a group of several tensors), step 0 holding the parameters as set up; with ``--ops-step S``, also
+every ATen operation of step S (0: the set-up), through a ``TorchDispatchMode``: its name, where it ran (the
+innermost olatbench source line in the forward pass, the autograd node in the backward pass), and hashes of its
+inputs and outputs. The trace names the CPU (vendor, family, model, stepping, flags) and the numerics in effect
+(`olatbench.numerics.cpu_numerics`).
 
 ``compare A B`` names the first step, the first tensor and (where both traces hold the ops of that step) the
 first operation that differs. An operation whose inputs are equal and whose outputs differ is where the rounding
-parts; an operation whose inputs already differ although every earlier operation's outputs matched reads a
-tensor written outside torch's dispatcher (olatbench's C++ kernels write through ctypes).
+parts; an operation whose inputs already differ although every earlier recorded operation's outputs matched reads
+a tensor made before the recorded step (record the step before) or written outside torch's dispatcher
+(olatbench's C++ kernels write through ctypes).
 
 ``settings`` does both for two settings of the environment on this CPU (e.g. ``ATEN_CPU_CAPABILITY=avx512``
 against the default): it records each in a fresh process, compares, and where they part at step S records step
