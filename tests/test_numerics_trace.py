@@ -151,3 +151,16 @@ def test_tensor_hash_is_of_values_shape_and_dtype_not_of_memory_layout(trace_too
     nudged = values.clone()
     nudged[1, 2] = torch.nextafter(nudged[1, 2], torch.tensor(float("inf")))
     assert trace_tool.tensor_hash(values) != trace_tool.tensor_hash(nudged)
+
+
+def test_every_committed_trace_reads_and_names_its_cpu(trace_tool):
+    """benchmarks/traces/<vendor>-<family>-<model>-<stepping>.json: what another CPU compares against (docs/runner.md);
+    comparing it with itself names no difference."""
+    traces = sorted((REPO / "benchmarks" / "traces").glob("*.json"))
+    assert traces
+    for path in traces:
+        trace = trace_tool.read_trace(path)
+        cpu = trace["numerics"]["cpu_id"]
+        assert path.stem == f"{cpu['vendor']}-{cpu['family']}-{cpu['model']}-{cpu['stepping']}"
+        assert trace["steps"][0]["step"] == 0 and len(trace["steps"]) > 1 and trace["commit"]
+        assert trace_tool.first_difference(trace, trace) is None
