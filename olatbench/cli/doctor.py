@@ -130,13 +130,14 @@ def _numerics() -> Check:
     if run is None:
         checked = "; ".join(cpu_label(other["cpu"]) for other in seed_figure_runs())
         return ("Numerics (seed-0 figures)", False, f"{detail}: not a CPU the README's seed-0 figures were measured on "
-                f"({checked}); expect other last digits, within seed noise",
+                f"({checked}); expect other last digits (README.md)",
                 f"nothing to fix: compare runs over seeds; {guide}")
     figures = " / ".join(f"{value:.4f}" if value is not None else "?" for value in run["psnr"].values())
     measured = f"the README's seed 0 gave {figures} dB on this CPU ({run['date']}, commit {run['commit']})"
     if differences:
         return ("Numerics (seed-0 figures)", False, f"{detail}: {measured}, but {'; '.join(differences)}: expect "
-                "other last digits", f"run with the settings above to get those figures; {guide}")
+                "other last digits", "to compare with those figures, run as that run did (threads: OMP_NUM_THREADS=N; "
+                f"a variable: set or unset it); {guide}")
     return "Numerics (seed-0 figures)", True, f"{detail}: {measured}; expect them to the last digit", ""
 
 
