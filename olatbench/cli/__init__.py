@@ -62,7 +62,7 @@ class LazyGroup(click.Group):
         self.help_lines = HELP_LINES if help_lines is None else help_lines
 
     def main(self, *args, **kwargs):  # type: ignore[override]
-        """Pin torch's CPU kernel width before any verb can import torch (`olatbench.numerics`), and let output
+        """Set the numerics pins before any verb can import torch (`olatbench.numerics.pin_numerics`), and let output
         show a file name that is not UTF-8 (as ``\\udcff``) instead of failing on it."""
         pin_numerics()
         for stream in (sys.stdout, sys.stderr):
