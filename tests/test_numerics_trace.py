@@ -164,3 +164,30 @@ def test_every_committed_trace_reads_and_names_its_cpu(trace_tool):
         assert path.stem == f"{cpu['vendor']}-{cpu['family']}-{cpu['model']}-{cpu['stepping']}"
         assert trace["steps"][0]["step"] == 0 and len(trace["steps"]) > 1 and trace["commit"]
         assert trace_tool.first_difference(trace, trace) is None
+
+
+@pytest.mark.slow
+def test_this_cpus_committed_trace_repeats_to_the_last_bit(trace_tool, tmp_path):
+    """Slow, and CPU-dependent by design: on a CPU (vendor, family, model, stepping) with a committed trace, the
+    same steps recorded again as the olatbench command runs them (a fresh process, its pins) give the same bits
+    wherever the threads and rounding variables are the trace's too (what README.md's "to the last digit on the CPU
+    and thread count measured" rests on). Elsewhere it skips, naming why."""
+    from olatbench.numerics import ROUNDING_ENV, cpu_id
+
+    committed = [trace_tool.read_trace(path) for path in sorted((REPO / "benchmarks" / "traces").glob("*.json"))]
+    committed = [trace for trace in committed if trace["numerics"]["cpu_id"] == cpu_id()]
+    if not committed:
+        pytest.skip(f"no committed trace of this CPU ({cpu_id()}) in benchmarks/traces")
+    reference = committed[0]
+    job = reference["job"]
+    out = tmp_path / "trace.json"
+    done = subprocess.run([sys.executable, str(SCRIPT), "record", "--method", job["method"], "--suite", job["suite"],
+                           "--scene", job["scene"], "--variant", job["variant"], "--seed", str(job["seed"]),
+                           "--steps", str(len(reference["steps"]) - 1), "-o", str(out)], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    trace = trace_tool.read_trace(out)
+    settings = ("torch_threads", "torch_cpu_capability", *ROUNDING_ENV)
+    changed = [key for key in settings if trace["numerics"].get(key) != reference["numerics"].get(key)]
+    if changed:
+        pytest.skip(f"this CPU's committed trace was made with other {', '.join(changed)}")
+    assert trace_tool.first_difference(reference, trace) is None, trace_tool.comparison_text(reference, trace)[0]
