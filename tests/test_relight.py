@@ -19,21 +19,8 @@ from olatbench.datasets.images import write_image
 from olatbench.datasets.lighting import DirectionalLight, SampledLights, read_lighting
 from olatbench.datasets.lighting.envmap import pixel_directions
 from olatbench.datasets.records import Camera, PointLight
-from olatbench.datasets.synth.analytic import ALBEDO, render_sphere
+from olatbench.datasets.synth.analytic import ALBEDO, render_sphere, sphere_hits
 from olatbench.methods.base import Method, Views
-
-
-def sphere_hits(camera: Camera) -> tuple[np.ndarray, np.ndarray]:
-    """(unit normals (H, W, 3), hit mask (H, W)) of the unit sphere at the origin seen by ``camera``."""
-    ys, xs = np.mgrid[0:camera.height, 0:camera.width] + 0.5
-    dirs = np.stack([xs, ys, np.ones_like(xs)], axis=-1) @ np.linalg.inv(camera.K).T @ camera.c2w[:3, :3].T
-    dirs /= np.linalg.norm(dirs, axis=-1, keepdims=True)
-    origin = camera.c2w[:3, 3]
-    b = dirs @ origin
-    disc = b * b - (origin @ origin - 1.0)
-    hit = disc > 0
-    t = -b - np.sqrt(np.where(hit, disc, 0.0))
-    return origin + t[..., None] * dirs, hit
 
 
 class AnalyticSphere(Method):

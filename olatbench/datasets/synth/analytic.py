@@ -30,8 +30,9 @@ def unit_directions(n: int, rng: np.random.Generator, min_elevation: float = -0.
     return np.array(out)
 
 
-def render_sphere(camera: Camera, light: PointLight, background: float = 0.0) -> np.ndarray:
-    """(H, W, 3) float32 linear image of the Lambertian unit sphere at the origin, clipped to [0, 1]."""
+def sphere_hits(camera: Camera) -> tuple[np.ndarray, np.ndarray]:
+    """(points (H, W, 3), hit (H, W) bool) where each pixel's ray (through its centre) first meets the unit sphere
+    at the origin; points are world positions, equal to the unit outward normals there (meaningless where not hit)."""
     ys, xs = np.mgrid[0:camera.height, 0:camera.width] + 0.5
     pix = np.stack([xs, ys, np.ones_like(xs)], axis=-1) @ np.linalg.inv(camera.K).T
     dirs = pix @ camera.c2w[:3, :3].T
@@ -41,7 +42,12 @@ def render_sphere(camera: Camera, light: PointLight, background: float = 0.0) ->
     disc = b * b - (origin @ origin - 1.0)
     hit = disc > 0
     t = -b - np.sqrt(np.where(hit, disc, 0.0))
-    points = origin + t[..., None] * dirs
+    return origin + t[..., None] * dirs, hit
+
+
+def render_sphere(camera: Camera, light: PointLight, background: float = 0.0) -> np.ndarray:
+    """(H, W, 3) float32 linear image of the Lambertian unit sphere at the origin, clipped to [0, 1]."""
+    points, hit = sphere_hits(camera)
     to_light = light.position - points
     d2 = np.sum(to_light**2, axis=-1, keepdims=True)
     cos = np.clip(np.sum(points * to_light, axis=-1, keepdims=True) / np.sqrt(d2), 0.0, None)
@@ -62,4 +68,4 @@ def sphere_rig(n: int, size: int, seed: int = 0) -> tuple[list[Camera], list[Poi
     return cameras, lights
 
 
-__all__ = ["ALBEDO", "LIGHT_INTENSITY", "render_sphere", "sphere_rig", "unit_directions"]
+__all__ = ["ALBEDO", "LIGHT_INTENSITY", "render_sphere", "sphere_hits", "sphere_rig", "unit_directions"]
