@@ -143,10 +143,17 @@ def compile_variant(name: str, sources: Sequence[Path], extra_includes: Sequence
 
 
 def _compile(sources: Sequence[Path], extra_includes: Sequence[Path], variant: str, target: Path) -> None:
+    flags = [*VARIANTS[variant], *(f"-I{folder}" for folder in include_dirs(extra_includes))]
+    compile_library([*flags, *map(str, sources)], target)
+
+
+def compile_library(arguments: Sequence[str], target: Path) -> None:
+    """Run the C++ compiler (`compiler`) with ``arguments`` (flags and sources) into a temporary file beside
+    ``target`` and move it into place atomically; a `BuildError` with the command and the compiler's message when it
+    cannot run or fails (nothing is left behind)."""
     fd, tmp_name = tempfile.mkstemp(prefix=".build-", suffix=".so", dir=target.parent)
     os.close(fd)
-    flags = [*VARIANTS[variant], *(f"-I{folder}" for folder in include_dirs(extra_includes))]
-    command = [*compiler(), *flags, *map(str, sources), "-o", tmp_name]
+    command = [*compiler(), *arguments, "-o", tmp_name]
     try:
         result = subprocess.run(command, capture_output=True, text=True, timeout=COMPILE_TIMEOUT_S)
     except (OSError, subprocess.SubprocessError) as error:

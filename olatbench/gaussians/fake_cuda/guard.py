@@ -11,14 +11,11 @@ from __future__ import annotations
 import ctypes
 import functools
 import hashlib
-import os
-import subprocess
-import tempfile
 from pathlib import Path
 
 import torch
 
-from olatbench._native.build import BuildError, build_lock, cache_root, compiler, compiler_version
+from olatbench._native.build import BuildError, build_lock, cache_root, compile_library, compiler, compiler_version
 
 SOURCE = Path(__file__).with_name("guard.cpp")
 NAME = "olatbench_fake_cuda_guard"
@@ -41,19 +38,8 @@ def library_path() -> Path:
 
 def _compile(target: Path) -> None:
     include, lib = _torch_dirs()
-    fd, tmp_name = tempfile.mkstemp(prefix=".build-", suffix=".so", dir=target.parent)
-    os.close(fd)
-    command = [*compiler(), "-O1", "-shared", "-fPIC", "-std=c++17", f"-I{include}", str(SOURCE), f"-L{lib}",
-               "-lc10", f"-Wl,-rpath,{lib}", "-o", tmp_name]
-    try:
-        result = subprocess.run(command, capture_output=True, text=True, timeout=300)
-    except (OSError, subprocess.SubprocessError) as error:
-        Path(tmp_name).unlink(missing_ok=True)
-        raise BuildError(f"could not run the C++ compiler {command[0]!r}: {error}") from error
-    if result.returncode != 0:
-        Path(tmp_name).unlink(missing_ok=True)
-        raise BuildError(f"building {SOURCE.name} failed (exit {result.returncode}): {result.stderr.strip()}")
-    os.replace(tmp_name, target)
+    compile_library(["-O1", "-shared", "-fPIC", "-std=c++17", f"-I{include}", str(SOURCE), f"-L{lib}", "-lc10",
+                     f"-Wl,-rpath,{lib}"], target)
 
 
 @functools.cache
