@@ -135,3 +135,15 @@ def no_lpips_weights(monkeypatch, tmp_path):
     clear_caches()
     yield
     clear_caches()
+
+
+@pytest.fixture()
+def mitsuba_scalar_variant(monkeypatch):
+    """Mitsuba's fast, deterministic ``scalar_rgb`` CPU variant for the generator's tests; the variant probe's cache
+    is reset around the test."""
+    from olatbench.datasets.synth import backend
+
+    monkeypatch.setenv(backend.VARIANT_ENV, "scalar_rgb")
+    backend.probe_variant.cache_clear()
+    yield
+    backend.probe_variant.cache_clear()

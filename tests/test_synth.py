@@ -24,14 +24,7 @@ from olatbench.datasets.synth.recipe import RECIPES, CameraRig, Recipe
 from olatbench.datasets.synth.render import SceneRenderer, object_mesh
 from olatbench.datasets.synth.rigs import make_rig
 
-
-@pytest.fixture(autouse=True)
-def scalar_variant(monkeypatch):
-    """Fast, deterministic CPU variant; the probe cache is reset around each test."""
-    monkeypatch.setenv(backend.VARIANT_ENV, "scalar_rgb")
-    backend.probe_variant.cache_clear()
-    yield
-    backend.probe_variant.cache_clear()
+pytestmark = pytest.mark.usefixtures("mitsuba_scalar_variant")
 
 
 def tiny(name: str = "diffuse_shadow", **overrides) -> Recipe:

@@ -17,19 +17,12 @@ from olatbench.datasets.images import read_image
 from olatbench.datasets.lighting import BUILT_IN_MAPS, DirectionalLight, EnvironmentMap, Lighting, SphereLight
 from olatbench.datasets.lighting.envmap import map_axes, pixel_directions, pixel_solid_angles
 from olatbench.datasets.records import PointLight
-from olatbench.datasets.synth import backend
 from olatbench.datasets.synth.lit import LitRenderer, emitters
 from olatbench.datasets.synth.recipe import RECIPES
 from olatbench.datasets.synth.render import SceneRenderer
 from olatbench.datasets.synth.rigs import make_rig
 
-
-@pytest.fixture(autouse=True)
-def scalar_variant(monkeypatch):
-    monkeypatch.setenv(backend.VARIANT_ENV, "scalar_rgb")
-    backend.probe_variant.cache_clear()
-    yield
-    backend.probe_variant.cache_clear()
+pytestmark = pytest.mark.usefixtures("mitsuba_scalar_variant")
 
 
 def tiny(**overrides):
