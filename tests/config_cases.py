@@ -22,8 +22,9 @@ from olatbench.bench.jobs import config_to_dict
 from olatbench.bench.plan import derived_preset, resolve_config
 from olatbench.datasets.suites import SUITES, Suite
 from olatbench.methods.registry import builtin_specs
+from olatbench.methods.resolve import DEFAULT_VARIANT
 from olatbench.methods.scene_presets import SceneFacts
-from olatbench.methods.spec import DEFAULT_VARIANT, MethodSpec
+from olatbench.methods.spec import MethodSpec
 
 _FACTS = SceneFacts(30, 64, 64)
 

@@ -132,14 +132,14 @@ def _outcome(resolve, preset: str):
 
 def test_composed_presets_resolve_the_same_everywhere():
     from olatbench.methods.ssdgs import SSDGS
-    from olatbench.methods.ssdgs.presets import resolve_presets
+    from olatbench.methods.ssdgs.presets import PRESETS
 
     spec = registry.get_spec("ssdgs")
     config = SSDGS.resolve_config("mini+ablation-C", iterations=7)
     assert config == spec.resolve_config("mini+ablation-C", iterations=7)
     assert (config.iterations, config.use_shadow, config.num_init_gaussians) == (7, False, 2_000)
     assert dataclasses.asdict(config) == dataclasses.asdict(spec.load_config_class()(**{
-        **resolve_presets("mini+ablation-C"), "iterations": 7}))
+        **PRESETS["mini"], **PRESETS["ablation-C"], "iterations": 7}))
     with pytest.raises(KeyError, match=r"method 'ssdgs' has no preset 'ablation-Z'; known presets: .*mini"):
         SSDGS.resolve_config("mini+ablation-Z")
 

@@ -228,7 +228,7 @@ def test_cli_dry_run_prints_the_table_without_running(data, tmp_path, cli_suite)
                                        str(tmp_path / "runs"), "--ablation", "schedule", "--seeds", "2",
                                        "--dry-run"])
     assert result.exit_code == 0, result.output
-    rows = [line for line in result.output.splitlines() if "schedule-" in line]
+    rows = [line for line in result.output.splitlines() if line[:1].isdigit() and "schedule-" in line]  # the table
     assert len(rows) == 2 * 4 * 2 and all("pending" in row for row in rows)
     assert "16 job(s)." in result.output
     assert not (tmp_path / "runs").exists()

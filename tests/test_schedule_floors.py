@@ -8,14 +8,12 @@ import pytest
 
 from olatbench.methods.gaussian_config import MIN_DENSIFICATIONS, GaussianConfig
 from olatbench.methods.registry import get_spec
-from olatbench.methods.spec import build_config
 
 METHODS = ("3dgs", "gs3", "ssdgs")
 
 
 def _config(method: str, preset: str | None, **overrides):
-    spec = get_spec(method)
-    return build_config(method, spec.load_config_class(), spec.presets, preset, overrides)
+    return get_spec(method).resolve_config(preset, **overrides)
 
 
 @pytest.mark.parametrize("method", METHODS)

@@ -5,8 +5,9 @@ from __future__ import annotations
 import pytest
 
 from olatbench.methods.ssdgs.config import SSDGSConfig
-from olatbench.methods.ssdgs.presets import PRESETS, resolve_presets
+from olatbench.methods.ssdgs.presets import PRESETS
 from olatbench.methods.ssdgs.schedule import SCHEDULES, get_schedule
+from olatbench.methods.ssdgs.spec import SPEC
 
 
 def test_schedule_i_matches_the_paper() -> None:
@@ -33,25 +34,25 @@ def test_schedule_scaling_with_the_run_length() -> None:
     assert half.frozen["asg_lobes"] == ((8_000, 11_000),)
     assert "shadow on" in "\n".join(half.timeline())
     # The 60K SSS-GS runs use the same absolute thresholds (the official script); mini compresses them.
-    assert SSDGSConfig(**resolve_presets("sssgs")).resolved_schedule().enable["specular"] == 16_000
-    mini = SSDGSConfig(**resolve_presets("mini")).resolved_schedule()
+    assert SPEC.resolve_config("sssgs").resolved_schedule().enable["specular"] == 16_000
+    mini = SPEC.resolve_config("mini").resolved_schedule()
     assert mini.enable == {"shadow": 250, "sss": 450, "specular": 800}
 
 
 def test_presets_compose_left_to_right() -> None:
-    cfg = SSDGSConfig(**resolve_presets("mini+ablation-C+schedule-K"))
+    cfg = SPEC.resolve_config("mini+ablation-C+schedule-K")
     assert cfg.iterations == 3_000 and cfg.schedule == "K"
     assert (cfg.use_specular, cfg.use_sss, cfg.use_shadow) == (True, True, False)
-    assert SSDGSConfig(**resolve_presets("nrhints")).refine_camera
-    assert not SSDGSConfig(**resolve_presets("sssgs-no-opt")).refine_light
-    assert SSDGSConfig(**resolve_presets("gs3")).background == (1.0, 1.0, 1.0)
-    assert SSDGSConfig(**resolve_presets("shadow-on-sss")).shadow_on_sss
+    assert SPEC.resolve_config("nrhints").refine_camera
+    assert not SPEC.resolve_config("sssgs-no-opt").refine_light
+    assert SPEC.resolve_config("gs3").background == (1.0, 1.0, 1.0)
+    assert SPEC.resolve_config("shadow-on-sss").shadow_on_sss
     for name in ("nrhints", "gs3", "sssgs", "sssgs-no-opt", "mini", *(f"ablation-{c}" for c in "ABCDEF"),
                  *(f"schedule-{c}" for c in "HIJK"), "shadow-on-sss"):
         assert name in PRESETS
-        SSDGSConfig(**resolve_presets(name))
+        SPEC.resolve_config(name)
     with pytest.raises(KeyError, match="known presets"):
-        resolve_presets("mini+ablation-Z")
+        SPEC.resolve_config("mini+ablation-Z")
 
 
 def test_config_rejects_unknown_choices() -> None:

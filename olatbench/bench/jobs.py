@@ -14,8 +14,8 @@ A job's id is a content hash of everything that decides its result:
   the pinned commit and the command lines).
 
 Settings that do not change the result (device, output folder, checkpoint cadence, executor, where an official
-implementation's checkout and environment live, why a derived preset chose its values: the values are in the
-config) are kept out of the id, so a job moved to another machine or
+implementation's checkout and environment live, why a derived preset chose its values and where each config value
+came from: the values are in the config) are kept out of the id, so a job moved to another machine or
 resumed elsewhere keeps its id.
 """
 
@@ -85,6 +85,8 @@ class Job:
     # then ask the method's spec, `olatbench.bench.ablation.job_ablation`). Not in the identity: it names, it
     # does not decide, the result
     ablation: dict[str, str] | None = None
+    # config field -> where its value came from (olatbench.methods.resolve: default, suite preset, variant, --set)
+    sources: dict[str, str] = field(default_factory=dict)
     id: str = field(default="")
 
     @property

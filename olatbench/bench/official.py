@@ -37,6 +37,7 @@ from olatbench.methods.official.code import OfficialCode, OfficialConfig
 from olatbench.methods.official.process import OfficialRunError
 from olatbench.methods.official.runner import OfficialRun, collect, execute, prepare
 from olatbench.methods.official.settings import CodeSettings, checkout_commit
+from olatbench.methods.registry import get_spec
 from olatbench.methods.spec import import_reference
 from olatbench.metrics.evaluate import read_prediction
 
@@ -50,7 +51,7 @@ def run_official_job(job: Job, folder: Path, log: JobLog, started: str) -> JobOu
     write_json(folder / "config.json", job.config)
     code: OfficialCode = import_reference(job.method_ref)
     settings = CodeSettings.from_json(job.official or {"method": job.method})
-    config = OfficialConfig(**job.config)
+    config: OfficialConfig = get_spec(job.method).resolve_config(None, **job.config)  # the one resolver
     log(f"job {job.id}: {job.method} (official code) on {job.suite}/{job.label}, {config.iterations} iterations; "
         f"official scripts cannot resume: commands that had not finished run from their start")
     scene = load_scene(job.scene_path, format=job.scene_format)

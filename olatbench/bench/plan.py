@@ -1,6 +1,7 @@
 """Plans: method × suite × scene × variant × seed -> a list of `Job`.
 
-Config resolution order for one job (later wins): the method config's defaults, the suite's
+Config resolution order for one job (later wins; `olatbench.methods.resolve`, which also names each value's
+source): the method config's defaults, the suite's
 ``iterations`` (or the method's own, `MethodSpec.iterations`, when its spec fixes one), the method's preset
 named after the suite (`Suite.preset`; when the method has one), or for a scene of no suite (``run --data``,
 ``[suites.NAME]``) the preset derived from it when the method declares a scene recipe (`derived_preset`; else the
@@ -17,7 +18,7 @@ import json
 import math
 import os
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -29,14 +30,9 @@ from olatbench.datasets.sizes import checked_size
 from olatbench.datasets.suites import Suite, get_suite
 from olatbench.methods.overrides import OverrideError, check_overrides
 from olatbench.methods.registry import config_class, get_spec
+from olatbench.methods.resolve import DEFAULT_VARIANT, ResolvedConfig, resolve, variant_presets
 from olatbench.methods.scene_presets import DerivedPreset, SceneFacts, derive_preset
-from olatbench.methods.spec import (
-    DEFAULT_VARIANT,
-    MethodSpec,
-    import_reference,
-    preset_overrides,
-    variant_presets,
-)
+from olatbench.methods.spec import MethodSpec, import_reference
 from olatbench.names import did_you_mean, match_name
 
 DATA_ENV = "OLATBENCH_DATA"
@@ -96,29 +92,24 @@ def expand_variants(spec: MethodSpec, variants: Sequence[str] = (), ablation: st
 def resolve_config(spec: MethodSpec, suite: Suite, variant: str = DEFAULT_VARIANT,
                    iterations: int | None = None, overrides: dict[str, Any] | None = None,
                    derived: DerivedPreset | None = None) -> Any:
-    """The method's config for one suite and variant (resolution order in the module docstring); ``derived``, the
-    preset derived from a scene of no suite (`derived_preset`), takes the place of the suite's preset."""
-    config_type = config_class(spec)
-    field_names = {f.name for f in fields(config_type)}
+    """The method's config for one suite and variant (`resolve_sources` without the sources)."""
+    return resolve_sources(spec, suite, variant, iterations, overrides, derived).config
+
+
+def resolve_sources(spec: MethodSpec, suite: Suite, variant: str = DEFAULT_VARIANT,
+                    iterations: int | None = None, overrides: dict[str, Any] | None = None,
+                    derived: DerivedPreset | None = None) -> ResolvedConfig:
+    """The method's config for one suite and variant, and each field's source (`olatbench.methods.resolve`, the
+    order in the module docstring); ``derived``, the preset derived from a scene of no suite (`derived_preset`),
+    takes the place of the suite's preset. A `PlanError` names the method, the variant and what is wrong."""
     overrides = checked_overrides(spec, overrides)
     overrides = with_iterations(overrides, iterations)
-    own = spec.iterations
-    if own == 0 and overrides.get("iterations", 0) != 0:
+    if spec.iterations == 0 and overrides.get("iterations", 0) != 0:
         raise PlanError(f"method '{spec.name}' learns nothing (its spec says iterations=0), so it takes no "
                         f"--iterations / --set iterations (got {overrides['iterations']})")
-    values: dict[str, Any] = {}
-    if "iterations" in field_names:
-        values["iterations"] = suite.iterations if own is None else own
     try:
-        if derived is not None:
-            values.update(derived.values)
-        elif suite.preset in spec.presets:
-            values.update(preset_overrides(spec.name, spec.presets, suite.preset))
-            if suite.iterations_given and "iterations" in field_names:
-                values["iterations"] = suite.iterations
-        values.update(preset_overrides(spec.name, spec.presets, variant))
-        values.update(overrides)
-        return config_type(**values)
+        return resolve(spec.name, config_class(spec), spec.presets, variant, overrides, suite=suite,
+                       own_iterations=spec.iterations, derived=derived)
     except (KeyError, TypeError, ValueError) as error:
         raise PlanError(f"method '{spec.name}', variant '{variant}': {error}") from None
 
@@ -413,8 +404,7 @@ def make_plan(method: str, suite: str | Suite, out: str | Path, scenes: Sequence
     # typed before they name the variant (use_sss=False -> false); --iterations N is --set iterations=N
     overrides = checked_overrides(spec, with_iterations(overrides, iterations))
     code = code_hash(spec.implementation)  # located, not imported: dry runs need no torch
-    suite_configs = {variant: config_to_dict(resolve_config(spec, suite, variant, overrides=overrides))
-                     for variant in variant_names}
+    suite_configs = {variant: resolve_sources(spec, suite, variant, overrides=overrides) for variant in variant_names}
     jobs = []
     for scene in scene_names:
         scene_path = suite.scene_path(root, scene) if root is not None or suite.scene_paths else None
@@ -434,7 +424,7 @@ def make_plan(method: str, suite: str | Suite, out: str | Path, scenes: Sequence
         facts = SceneFacts(count, *(size or native)) if native and suite.scene_paths else None
         derived = derived_preset(spec, suite, facts, overrides)
         configs = suite_configs if derived is None else {
-            variant: config_to_dict(resolve_config(spec, suite, variant, overrides=overrides, derived=derived))
+            variant: resolve_sources(spec, suite, variant, overrides=overrides, derived=derived)
             for variant in variant_names}
         for variant in variant_names:
             for seed in range(seeds):
@@ -445,7 +435,7 @@ def make_plan(method: str, suite: str | Suite, out: str | Path, scenes: Sequence
                 except ValueError as error:
                     raise PlanError(str(error)) from None
                 job = Job(method=method, method_ref=spec.implementation, suite=suite.name, scene=scene,
-                          variant=label, seed=seed, config=configs[variant],
+                          variant=label, seed=seed, config=config_to_dict(configs[variant].config),
                           scene_path=str(scene_path) if scene_path else "", scene_format=suite.format,
                           colourspace=suite.colourspace, resolution=size,
                           train_split=suite.train_split, test_split=suite.test_split,
@@ -458,6 +448,7 @@ def make_plan(method: str, suite: str | Suite, out: str | Path, scenes: Sequence
                           init_points_digest=points_digest(points) if points else None,
                           frame="dataset" if spec.kind == "official" else suite.frame,  # the authors' code: as is
                           derived=dict(derived.reasons) if derived is not None else {},
-                          ablation=spec.ablation_of(variant, ablation))
+                          ablation=spec.ablation_of(variant, ablation),
+                          sources=dict(configs[variant].sources))
                 jobs.append(job.with_id() if manifest is not None else job)
     return jobs

@@ -98,20 +98,23 @@ def list_methods(as_json: bool) -> None:
     click.echo("Details: olatbench methods show NAME")
 
 
-def _config_rows(config_class: type, as_repr: bool = True) -> list[tuple[str, str, Any, str]]:
-    """(name, type, default, help) per config field; the default as ``repr`` text, or with ``as_repr=False`` as the
-    value itself (None when the field is required)."""
+def _config_rows(config_class: type, resolved: Any = None, as_repr: bool = True
+                 ) -> list[tuple[str, str, Any, str, str]]:
+    """(name, type, value, source, help) per config field: the value and its source from ``resolved`` (a
+    `ResolvedConfig`), else the default; the value as ``repr`` text, or with ``as_repr=False`` as the value itself
+    (None when the field is required)."""
     rows = []
     for field in dataclasses.fields(config_class):
-        if field.default is not dataclasses.MISSING:
-            default = field.default
+        if resolved is not None:
+            value, source = getattr(resolved.config, field.name), resolved.sources[field.name]
+        elif field.default is not dataclasses.MISSING:
+            value, source = field.default, "default"
         elif field.default_factory is not dataclasses.MISSING:
-            default = field.default_factory()
+            value, source = field.default_factory(), "default"
         else:
-            default = "(required)" if as_repr else None
-            rows.append((field.name, _type_name(field), default, _help(field)))
+            rows.append((field.name, _type_name(field), "(required)" if as_repr else None, "", _help(field)))
             continue
-        rows.append((field.name, _type_name(field), repr(default) if as_repr else default, _help(field)))
+        rows.append((field.name, _type_name(field), repr(value) if as_repr else value, source, _help(field)))
     return rows
 
 
@@ -123,15 +126,19 @@ def _help(field: dataclasses.Field) -> str:
     return field.metadata.get("help", "") if field.metadata else ""
 
 
-def _show_json(spec) -> dict:
-    """`_method_json` plus the config fields, each preset's values and, for official code, its commands."""
+def _show_json(spec, resolved: Any) -> dict:
+    """`_method_json` plus the config fields (each one's default, and its value and source in ``resolved``, a
+    `ResolvedConfig` or None), each preset's values and, for official code, its commands."""
     from olatbench.methods.registry import config_class
 
     data = _method_json(spec.name)
     data["presets"] = {preset: dict(values) for preset, values in spec.presets.items()}
     try:
-        data["config"] = [{"name": name, "type": kind, "default": default, "help": help_text}
-                          for name, kind, default, help_text in _config_rows(config_class(spec), as_repr=False)]
+        config_type = config_class(spec)
+        defaults = {name: value for name, _, value, _, _ in _config_rows(config_type, as_repr=False)}
+        data["config"] = [{"name": name, "type": kind, "default": defaults[name], "value": value, "source": source,
+                           "help": help_text}
+                          for name, kind, value, source, help_text in _config_rows(config_type, resolved, False)]
     except Exception as error:  # a plugin's config module that does not import: say so
         data["config"], data["config_error"] = None, f"{type(error).__name__}: {error}"
     code = _official_code(spec)
@@ -140,6 +147,24 @@ def _show_json(spec) -> dict:
         data["runnable"], data["unsupported"] = code.runnable, code.unsupported or None
         data["commands"] = list(code.describe()) if code.runnable else []
     return data
+
+
+def resolved_config(spec, suite_name: str | None, variant: str | None, settings: tuple[str, ...] = ()) -> Any:
+    """The `ResolvedConfig` of ``spec`` on ``suite_name`` (None: no suite) with ``variant`` and ``--set`` values, as
+    a run resolves it; None when none of them is given (the defaults); a usage error naming what is wrong."""
+    from olatbench.bench.plan import PlanError, parse_overrides, resolve_sources
+    from olatbench.datasets.errors import DatasetError
+    from olatbench.datasets.suites import get_suite
+
+    if suite_name is None and variant is None and not settings:
+        return None
+    try:
+        overrides = parse_overrides(settings)
+        if suite_name is not None:
+            return resolve_sources(spec, get_suite(suite_name), variant or "default", overrides=overrides)
+        return spec.resolve_sources(variant, overrides)
+    except (PlanError, DatasetError, KeyError, TypeError, ValueError) as error:
+        raise click.UsageError(str(error.args[0] if isinstance(error, KeyError) else error)) from None
 
 
 def _derived(spec, folder: Path, iterations: int | None):
@@ -160,14 +185,21 @@ def _derived(spec, folder: Path, iterations: int | None):
               help="A scene folder of your own: also show the preset derived from it (as run --data uses it) and "
                    "why each value was chosen.")
 @click.option("--iterations", type=click.IntRange(min=1), help="With --data: the run length asked for.")
+@click.option("--suite", "suite_name", help="Resolve the config as a run on this suite does (its length and preset).")
+@click.option("--variant", help="Resolve the config with this variant (presets joined by '+', e.g. mini+official).")
+@click.option("--set", "settings", multiple=True, metavar="KEY=VALUE", help="A config value, as run --set.")
 @json_option
-def show(name: str, data_path: Path | None, iterations: int | None, as_json: bool) -> None:
-    """Config fields (type, default), presets (the fields each one changes), ablation grids, outputs and
-    capabilities of method NAME; for an official implementation, the repository and commit it is pinned to.
+def show(name: str, data_path: Path | None, iterations: int | None, suite_name: str | None, variant: str | None,
+         settings: tuple[str, ...], as_json: bool) -> None:
+    """Config fields (type, value, and where the value came from: default, suite preset, variant, --set), presets
+    (the fields each one changes), ablation grids, outputs and capabilities of method NAME; for an official
+    implementation, the repository and commit it is pinned to.
 
     \b
     Example:
       olatbench methods show ssdgs
+      olatbench methods show ssdgs --variant official          # values and their sources
+      olatbench methods show ssdgs --suite mini --variant official
       olatbench methods show ssdgs --json    # the same as data (defaults as JSON values)
       olatbench methods show ssdgs --data captures/cup    # + the preset derived from your scene, and why
     """
@@ -177,8 +209,9 @@ def show(name: str, data_path: Path | None, iterations: int | None, as_json: boo
     if iterations is not None and data_path is None:
         raise click.UsageError("--iterations goes with --data")
     derived = _derived(spec, data_path, iterations) if data_path is not None else None
+    resolved = resolved_config(spec, suite_name, variant, settings)
     if as_json:
-        data = _show_json(spec)
+        data = _show_json(spec, resolved)
         if data_path is not None:
             data["derived"] = None if derived is None else {
                 field: {"value": derived.values.get(field), "why": why} for field, why in derived.reasons.items()}
@@ -207,13 +240,16 @@ def show(name: str, data_path: Path | None, iterations: int | None, as_json: boo
     except Exception as error:  # a plugin's config module that does not import: say so, show the rest
         click.echo(f"config: {spec.config} (cannot be imported: {type(error).__name__}: {error})")
     else:
-        click.echo(f"config: {config_type.__name__}")
-        rows = _config_rows(config_type)
+        asked = ", ".join(part for part in (suite_name and f"suite {suite_name}", variant and f"variant {variant}",
+                                            settings and "--set") if part)
+        click.echo(f"config: {config_type.__name__}" + (f" ({asked})" if asked else "")
+                   + " (field, type, value, source)")
+        rows = _config_rows(config_type, resolved)
         if rows:
-            widths = [max(len(str(row[i])) for row in rows) for i in range(3)]
+            widths = [max(len(str(row[i])) for row in rows) for i in range(4)]
             for row in rows:
-                click.echo("  " + "  ".join(str(cell).ljust(width) for cell, width in zip(row, widths, strict=False))
-                           + (f"  {row[3]}" if row[3] else ""))
+                click.echo(("  " + "  ".join(str(cell).ljust(width) for cell, width in zip(row, widths, strict=False))
+                            + (f"  {row[4]}" if row[4] else "")).rstrip())
     click.echo("presets:" if spec.presets else "presets: none")
     for preset, values in spec.presets.items():
         changes = ", ".join(f"{key}={value!r}" for key, value in values.items()) or "(defaults)"

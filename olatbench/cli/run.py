@@ -337,7 +337,7 @@ def plan_json(jobs, states, out: Path, estimates: list[float | None], reuse: lis
              "scene": job.scene, "seed": job.seed, "iterations": job.iterations, "state": _state_text(state),
              "step": state.step, "train_seconds_estimate": seconds, "reuse": note,
              "resolution": list(job.resolution) if job.resolution else "native", "frame": job.frame,
-             "folder": str(Path(job.folder).relative_to(out)), "config": job.config,
+             "folder": str(Path(job.folder).relative_to(out)), "config": job.config, "sources": job.sources,
              "derived": {name: {"value": job.config.get(name), "why": why} for name, why in job.derived.items()}}
             for index, (job, state, seconds, note) in enumerate(zip(jobs, states, estimates, reuse, strict=True))]
 
@@ -358,6 +358,7 @@ def _print_plan(jobs, states, out: Path, estimates: list[float | None], reuse: l
                      str(Path(job.folder).relative_to(out))])
     click.echo(_table(rows, ["#", "suite", "method", "variant", "scene", "seed", "iters", "size", "train (est.)",
                              "id", "state", "folder"]))
+    _print_sources(jobs)
     _print_derived(jobs)
     note = "" if all(job.id for job in jobs) else "; ids are computed once the data exists"
     click.echo(f"{len(jobs)} job(s){note}.")
@@ -377,6 +378,27 @@ def _print_plan(jobs, states, out: Path, estimates: list[float | None], reuse: l
 FRAME_NOTES = {"fitted": "the canonical frame fitted to the training cameras (a suite in olatbench.toml may set "
                          "frame = \"dataset\" to keep the data's own)",
                "dataset": "the data's own world frame"}
+
+
+def _print_sources(jobs) -> None:
+    """For each method and variant of the plan, once: where its config values came from (source: fields), those
+    left at the config's defaults counted; --json gives every field's source."""
+    from olatbench.methods.resolve import DEFAULT_SOURCE
+
+    shown = set()
+    for job in jobs:
+        key = (job.method, job.suite, job.variant, tuple(sorted(job.sources.items())))
+        if not job.sources or key in shown:
+            continue
+        shown.add(key)
+        by_source: dict[str, list[str]] = {}
+        for name, source in job.sources.items():
+            by_source.setdefault(source, []).append(name)
+        defaults = len(by_source.pop(DEFAULT_SOURCE, []))
+        click.echo(f"{job.method} {job.variant} on {job.suite}: config from "
+                   + "; ".join(f"{source}: {', '.join(names)}" for source, names in by_source.items())
+                   + f"; {defaults} field(s) at their defaults (olatbench methods show {job.method} --suite "
+                     f"{job.suite} --variant VARIANT)")
 
 
 def _print_derived(jobs) -> None:

@@ -9,14 +9,15 @@ renders must be returned in the same space.
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
 from olatbench.datasets.similarity import Similarity
-from olatbench.methods.spec import DEFAULT_EVALUATION, MethodSpec, build_config
+from olatbench.methods.resolve import SET_SOURCE, ResolvedConfig, resolve
+from olatbench.methods.spec import DEFAULT_EVALUATION, MethodSpec
 
 if TYPE_CHECKING:
     import torch
@@ -112,8 +113,15 @@ class Method(ABC):
     @classmethod
     def resolve_config(cls, preset: str | None = None, **overrides: Any) -> Any:
         """The config dataclass with the presets named in ``preset`` (``"mini+ablation-C"``: left to right), then
-        explicit overrides, applied (`olatbench.methods.spec.build_config`, the one resolution path)."""
-        return build_config(cls.name, cls.config_class, cls.presets, preset, overrides)
+        explicit overrides, applied (`olatbench.methods.resolve`, the one resolution path)."""
+        return cls.resolve_sources(preset, overrides).config
+
+    @classmethod
+    def resolve_sources(cls, preset: str | None = None, overrides: Mapping[str, Any] | None = None,
+                        overrides_source: str = SET_SOURCE) -> ResolvedConfig:
+        """`resolve_config` with the source of each field's value (``overrides`` reported as
+        ``overrides_source``: ``"job.json"`` when a job's config is rebuilt)."""
+        return resolve(cls.name, cls.config_class, cls.presets, preset, overrides, overrides_source)
 
     @abstractmethod
     def setup(self, train: Views, device: str | torch.device, seed: int) -> None:

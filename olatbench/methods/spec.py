@@ -17,10 +17,8 @@ from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import Any, Literal
 
+from olatbench.methods.resolve import DEFAULT_VARIANT, SET_SOURCE, ResolvedConfig, resolve, variant_presets
 from olatbench.names import path_component
-
-#: The variant that applies no preset (``run --variant default``; may appear in an ablation grid).
-DEFAULT_VARIANT = "default"
 
 #: The evaluation protocol of a spec that names none: the test views scored as given
 #: (`olatbench.methods.evaluation_protocol`).
@@ -158,8 +156,14 @@ class MethodSpec:
 
     def resolve_config(self, preset: str | None = None, **overrides: Any) -> Any:
         """The config dataclass with the presets named in ``preset`` (``"a+b"``, left to right), then
-        ``overrides``, applied over its defaults (imports only the torch-free config module)."""
-        return build_config(self.name, self.load_config_class(), self.presets, preset, overrides)
+        ``overrides``, applied over its defaults (`olatbench.methods.resolve`; imports only the torch-free config
+        module)."""
+        return self.resolve_sources(preset, overrides).config
+
+    def resolve_sources(self, preset: str | None = None, overrides: Mapping[str, Any] | None = None,
+                        overrides_source: str = SET_SOURCE) -> ResolvedConfig:
+        """`resolve_config` with the source of each field's value."""
+        return resolve(self.name, self.load_config_class(), self.presets, preset, overrides, overrides_source)
 
     def load_config_class(self) -> type:
         """The config dataclass (imports only its torch-free module)."""
@@ -168,45 +172,6 @@ class MethodSpec:
     def load_implementation(self) -> type:
         """The `Method` subclass (imports the implementation, usually torch)."""
         return import_reference(self.implementation)
-
-
-def variant_presets(variant: str | None) -> list[str]:
-    """The presets a variant name combines, left to right: ``"a+b"`` -> ``["a", "b"]`` (spaces around each
-    stripped); ``None``, ``""`` and ``"default"`` combine none. A `ValueError` for an empty part (``"a+"``,
-    ``"+a"``, ``"a++b"``), which names no preset. The one parser of variant names."""
-    if not variant or variant == DEFAULT_VARIANT:
-        return []
-    parts = [part.strip() for part in variant.split("+")]
-    if not all(parts):
-        raise ValueError(f"variant {variant!r} has an empty preset name: combine presets as 'a+b' (e.g. "
-                         "'mini+ablation-C')")
-    return parts
-
-
-def preset_overrides(method: str, presets: Mapping[str, Mapping[str, Any]], preset: str | None) -> dict[str, Any]:
-    """The config overrides of ``preset``: ``"a+b+c"`` merges the presets ``a``, ``b``, ``c`` left to right
-    (later wins, `variant_presets`); ``None``, ``""`` and ``"default"`` apply none. A `KeyError` lists ``method``'s
-    presets."""
-    values: dict[str, Any] = {}
-    try:
-        names = variant_presets(preset)
-    except ValueError as error:
-        raise KeyError(f"method '{method}': {error}") from None
-    for name in names:
-        if name not in presets:
-            raise KeyError(f"method '{method}' has no preset '{name}'; known presets: "
-                           f"{', '.join(sorted(presets)) or 'none'} (combine with '+', e.g. 'mini+ablation-C')")
-        values.update(presets[name])
-    return values
-
-
-def build_config(method: str, config_class: type, presets: Mapping[str, Mapping[str, Any]], preset: str | None,
-                 overrides: Mapping[str, Any] | None = None) -> Any:
-    """The one config resolution every caller uses (`Method.resolve_config`, `MethodSpec.resolve_config`, the
-    runner's plan): ``config_class(**(preset overrides, then overrides))``."""
-    values = preset_overrides(method, presets, preset)
-    values.update(overrides or {})
-    return config_class(**values)
 
 
 def import_reference(reference: str) -> Any:

@@ -10,7 +10,7 @@ import importlib
 from typing import Any
 
 _EXPORTS = {"SSDGS": "olatbench.methods.ssdgs.method", "SSDGSConfig": "olatbench.methods.ssdgs.config",
-            "PRESETS": "olatbench.methods.ssdgs.presets", "resolve_presets": "olatbench.methods.ssdgs.presets"}
+            "PRESETS": "olatbench.methods.ssdgs.presets"}
 
 __all__ = sorted(_EXPORTS)
 

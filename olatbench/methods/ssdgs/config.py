@@ -143,3 +143,13 @@ class SSDGSConfig(ShadingConfig):
     def resolved_schedule(self) -> Schedule:
         """The schedule with its thresholds scaled to this run's length."""
         return get_schedule(self.schedule, self.reference_iterations, self.iterations)
+
+    def refinement_starts(self) -> dict[str, int]:
+        """The first step of camera and light refinement in this run (``{"camera": ..., "light": ...}``):
+        ``refine_camera_from`` / ``refine_light_from`` scaled to the run's length, or where None the step the
+        schedule starts it (with the shadow / specular phase)."""
+        schedule = self.resolved_schedule()
+        return {"camera": schedule.refine_camera_from if self.refine_camera_from is None
+                else self.steps(self.refine_camera_from),
+                "light": schedule.refine_light_from if self.refine_light_from is None
+                else self.steps(self.refine_light_from)}

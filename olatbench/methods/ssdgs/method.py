@@ -68,11 +68,7 @@ class SSDGS(GaussianMethod, spec=SPEC):
                              f"views' {tuple(background.tolist())}; the images are composited on the latter")
         self.background = torch.as_tensor(background, device=self.device)
         self.schedule: Schedule = cfg.resolved_schedule()
-        self.refine_from = {  # first step of camera / light refinement: the config's, else the schedule's
-            "camera": cfg.steps(cfg.refine_camera_from) if cfg.refine_camera_from is not None
-            else self.schedule.refine_camera_from,
-            "light": cfg.steps(cfg.refine_light_from) if cfg.refine_light_from is not None
-            else self.schedule.refine_light_from}
+        self.refine_from = cfg.refinement_starts()
         self.near_cap = False  # official `prune_visibility`: a densification left > 95 % of max_gaussians
         self.terms_in_model = frozenset(
             t for t, on in (("shadow", cfg.use_shadow), ("sss", cfg.use_sss), ("specular", cfg.use_specular)) if on)

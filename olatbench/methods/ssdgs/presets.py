@@ -1,4 +1,5 @@
-"""Named SSD-GS presets; `resolve_presets` composes several (``"mini+ablation-C"``) left to right.
+"""Named SSD-GS presets; a variant composes several (``"mini+ablation-C"``) left to right
+(`olatbench.methods.resolve`).
 
 Suite presets set the run length, background and refinement of the paper's settings; ablation presets
 only switch terms (Composition A-F), schedule presets only pick the schedule (H-K), so a suite preset
@@ -8,8 +9,6 @@ combines with one of each.
 from __future__ import annotations
 
 from typing import Any
-
-from olatbench.methods.spec import preset_overrides
 
 # The official code's behaviour where it departs from the paper's equations (docs/ssdgs.md, "Where the paper and
 # the official code differ"): the paper's numbers were produced by that code, so the suite presets follow it; the
@@ -95,7 +94,3 @@ EVALUATION_PRESETS: dict[str, dict[str, Any]] = {"test-time-refinement": {"test_
 
 PRESETS: dict[str, dict[str, Any]] = {**SUITE_PRESETS, **ABLATION_PRESETS, **SCHEDULE_PRESETS, **EVALUATION_PRESETS}
 
-
-def resolve_presets(spec: str | None) -> dict[str, Any]:
-    """Merge the presets named in ``spec`` (``"a+b+c"``, applied left to right) into one override dict."""
-    return preset_overrides("ssdgs", PRESETS, spec)

@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from olatbench.methods.spec import DEFAULT_VARIANT, AblationGrid, MethodSpec
+from olatbench.methods.resolve import DEFAULT_VARIANT
+from olatbench.methods.spec import AblationGrid, MethodSpec
 from olatbench.methods.ssdgs.presets import PRESETS
 
 #: The paper's grids (``olatbench run --ablation NAME``): Composition A-F against the full model D, Schedule H-K
