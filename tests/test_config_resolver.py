@@ -81,3 +81,32 @@ def test_dry_run_and_methods_show_print_the_sources(tmp_path) -> None:
     assert (fields["use_sss"]["value"], fields["use_sss"]["source"]) == (True, "variant ablation-C")
     assert (fields["num_asg"]["value"], fields["num_asg"]["default"], fields["num_asg"]["source"]) == \
         (4, 8, "suite preset mini")
+
+
+def test_one_scaling_rule_moves_no_step_of_any_plan() -> None:
+    """`scaled_steps` replaced two formulas (``round(v * it / ref)`` in `GaussianConfig.steps`, ``round(v * (it /
+    ref))`` in `Schedule.scaled` and the official runner, which alone kept positive values >= 1): on every resolved
+    config of the baseline, every iteration-valued field and schedule threshold lands where the old formula put it."""
+    from olatbench.methods.run_length import scaled_steps
+    from olatbench.methods.ssdgs.schedule import SCHEDULES
+
+    thresholds = {v for s in SCHEDULES.values() for v in (*s.enable.values(), s.refine_camera_from,
+                                                           s.refine_light_from)}
+    thresholds |= {v for s in SCHEDULES.values() for windows in s.frozen.values() for w in windows for v in w}
+    checked = 0
+    for key, outcome in read(str(BASELINE)).items():
+        method = key.split("|")[0]
+        spec = get_spec(method)
+        if "config" not in outcome or key.endswith("|defaults") or spec.kind == "official":
+            continue
+        config = spec.resolve_config(None, **outcome["config"])
+        it, ref = config.iterations, config.reference_iterations
+        for name in type(config).iteration_fields:
+            value = getattr(config, name)
+            if value is not None:
+                assert scaled_steps(value, it, ref) == round(value * it / ref), (key, name)
+                checked += 1
+        if method == "ssdgs":
+            for value in thresholds:
+                assert scaled_steps(value, it, ref) == round(value * (it / ref)), (key, value)
+    assert checked > 1000

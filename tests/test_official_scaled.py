@@ -35,7 +35,7 @@ def test_the_schedule_flags_scale_on_the_command_line_and_from_the_parsers_defau
     values = {"scene": "/s", "model": "/m", "checkout": "/c", "iterations": 3000}
     [(_, train), (_, render)] = SSDGS_CODE.commands
     argv = SSDGS_CODE.command("train", train, values, "mini", ("--densify_until_iter", "7"), scene="x",
-                              schedule_factor=0.05)
+                              schedule_lengths=(3000, 60000))
     assert flag_value(argv, "--unfreeze_iterations") == "250"  # on the command line: 5000
     assert flag_value(argv, "--position_lr_max_steps") == "2500"  # the suite's 50000
     assert flag_value(argv, "--opacity_reset_interval") == "150"  # the parser's default 3000, appended
@@ -43,14 +43,14 @@ def test_the_schedule_flags_scale_on_the_command_line_and_from_the_parsers_defau
     assert flag_value(argv, "--iterations") == "3000" and flag_value(argv, "--save_iterations") == "3000"
     assert "--densification_interval" not in argv  # a cadence: not scaled
     assert flag_value(argv, "--densify_until_iter") == "7"  # the user's own flag comes last, as given
-    tiny = SSDGS_CODE.command("train", train, values, "mini", scene="x", schedule_factor=1e-5)
+    tiny = SSDGS_CODE.command("train", train, values, "mini", scene="x", schedule_lengths=(3, 300000))
     assert flag_value(tiny, "--opacity_reset_interval") == "1"  # taken modulo by train.py: never 0
     assert flag_value(tiny, "--unfreeze_iterations") == "1"
     unscaled = SSDGS_CODE.command("train", train, values, "mini", scene="x")
     assert flag_value(unscaled, "--unfreeze_iterations") == "5000" and "--opacity_reset_interval" not in unscaled
-    assert SSDGS_CODE.command("render", render, values, "mini", scene="x", schedule_factor=0.05) == \
+    assert SSDGS_CODE.command("render", render, values, "mini", scene="x", schedule_lengths=(3000, 60000)) == \
         SSDGS_CODE.command("render", render, values, "mini", scene="x")
-    gs3 = GS3_CODE.command("train", GS3_CODE.commands[0][1], values, "mini", scene="x", schedule_factor=0.05)
+    gs3 = GS3_CODE.command("train", GS3_CODE.commands[0][1], values, "mini", scene="x", schedule_lengths=(3000, 60000))
     assert flag_value(gs3, "--spcular_freeze_step") == "450" and "--scatter_warmup_step" not in gs3
 
 

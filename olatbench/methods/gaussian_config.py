@@ -13,6 +13,7 @@ from dataclasses import asdict, dataclass
 from typing import Any, ClassVar
 
 from olatbench.methods.ranges import AT_LEAST_ONE, NON_NEGATIVE, OPEN_UNIT, POSITIVE, RATE, UNIT, Range, check_ranges
+from olatbench.methods.run_length import scaled_steps
 
 #: Densification steps the density-control window holds at least: a shortened run densifies more often rather
 #: than once or never (the 3DGS window holds 145 at 30K steps, the mini presets' 20 at 3000).
@@ -41,6 +42,9 @@ class GaussianConfig:
     """Run length, initialisation, loss, the 3DGS learning rates and density control (defaults: 3DGS's)."""
 
     label: ClassVar[str] = "Gaussian method"  # the method's name in messages
+    # the fields given at reference_iterations, which a run takes scaled to its length (`steps`)
+    iteration_fields: ClassVar[tuple[str, ...]] = ("position_lr_max_steps", "densify_from", "densify_until",
+                                                   "opacity_reset_interval")
     ranges: ClassVar[dict[str, Range]] = {  # checked when the config is made (olatbench.methods.ranges)
         "iterations": AT_LEAST_ONE, "reference_iterations": AT_LEAST_ONE, "num_init_gaussians": AT_LEAST_ONE,
         "init_radius": POSITIVE, "init_opacity": OPEN_UNIT, "max_gaussians": AT_LEAST_ONE, "lambda_dssim": UNIT,
@@ -85,8 +89,9 @@ class GaussianConfig:
             raise ValueError(f"{self.label} config: init_shape must be 'ball' or 'box', not {self.init_shape!r}")
 
     def steps(self, value: int) -> int:
-        """An iteration count given at ``reference_iterations``, scaled to ``iterations``."""
-        return round(value * self.iterations / self.reference_iterations)
+        """An iteration count given at ``reference_iterations``, scaled to ``iterations`` (`scaled_steps`, the rule
+        the official runner applies to the authors' flags)."""
+        return scaled_steps(value, self.iterations, self.reference_iterations)
 
     def density_windows(self) -> DensityWindows:
         """The densification window and opacity-reset interval scaled to ``iterations`` (`steps`, at least 1

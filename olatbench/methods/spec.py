@@ -110,6 +110,9 @@ class MethodSpec:
     # the preset scaled to scenes of no suite (olatbench.methods.scene_presets; None: they get their format's preset)
     scene_recipe: str | None = None
     evaluation: str = DEFAULT_EVALUATION
+    # "module:ATTRIBUTE" of the method's `AuthorsConfig` (olatbench.methods.authors: the authors' values, the
+    # variant "official", `olatbench methods diff`), in a torch-free module; None: the method has no authors' code
+    authors: str | None = None
 
     def __post_init__(self) -> None:
         path_component(self.name, "method")  # it names a folder of each of its jobs
@@ -117,7 +120,8 @@ class MethodSpec:
                                             or self.iterations < 0):
             raise ValueError(f"method spec {self.name!r}: iterations must be a whole number >= 0 or None, not "
                              f"{self.iterations!r}")
-        for reference in (self.implementation, self.config, self.evaluation):
+        for reference in (self.implementation, self.config, self.evaluation,
+                          *((self.authors,) if self.authors else ())):
             module, sep, attribute = reference.partition(":")
             if not (module and sep and attribute):
                 raise ValueError(f"method spec {self.name!r}: {reference!r} is not of the form 'module:Class'")
@@ -164,6 +168,14 @@ class MethodSpec:
                         overrides_source: str = SET_SOURCE) -> ResolvedConfig:
         """`resolve_config` with the source of each field's value."""
         return resolve(self.name, self.load_config_class(), self.presets, preset, overrides, overrides_source)
+
+    def load_authors(self) -> Any:
+        """The method's `AuthorsConfig` (None when it declares none), checked against its config class."""
+        if self.authors is None:
+            return None
+        authors = import_reference(self.authors)
+        authors.check(self.load_config_class(), self.name)
+        return authors
 
     def load_config_class(self) -> type:
         """The config dataclass (imports only its torch-free module)."""

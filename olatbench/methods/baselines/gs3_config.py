@@ -15,6 +15,8 @@ class GS3Config(ShadingConfig):
     schedule, networks and rates."""
 
     label: ClassVar[str] = "GS³"
+    iteration_fields: ClassVar[tuple[str, ...]] = (*ShadingConfig.iteration_fields, "shadow_from", "mlp_freeze_from",
+                                                   "specular_from", "asg_lobes_from")
     ranges: ClassVar[dict[str, Range]] = {
         "shadow_from": NON_NEGATIVE, "mlp_freeze_from": NON_NEGATIVE, "specular_from": NON_NEGATIVE,
         "asg_lobes_from": NON_NEGATIVE, "other_hidden": AT_LEAST_ONE, "other_layers": AT_LEAST_ONE,

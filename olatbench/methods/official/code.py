@@ -62,6 +62,7 @@ from types import MappingProxyType
 from typing import ClassVar
 
 from olatbench.methods.ranges import AT_LEAST_ONE, Range, check_ranges
+from olatbench.methods.run_length import scaled_steps
 
 SUITE_ARGS = "{*suite_args}"
 ANY_SUITE = "*"
@@ -200,34 +201,38 @@ class OfficialCode:
         return tuple(arg for entry in self.scene_args if (entry.suite, entry.scene, entry.step) == (suite, scene, step)
                      for arg in entry.args)
 
-    def scaled_schedule(self, argv: list[str], factor: float) -> list[str]:
-        """``argv`` with each flag of ``schedule_flags`` set to ``factor`` × its value (its last occurrence in
-        ``argv``, else the parser's default), rounded to an integer and at least 1 where the value is positive
-        (the scripts take some of them modulo)."""
+    def scaled_schedule(self, argv: list[str], iterations: int, reference_iterations: int) -> list[str]:
+        """``argv`` with each flag of ``schedule_flags`` (its last occurrence in ``argv``, else the parser's default)
+        taken from a run of ``reference_iterations`` to one of ``iterations`` (`scaled_steps`, the rule the native
+        methods apply to their iteration-valued fields)."""
         scaled: list[str] = []
         for flag, default in self.schedule_flags.items():
             where = last_index(argv, flag)
             value = int(argv[where + 1]) if where is not None else default
-            new = round(value * factor)
-            scaled += [flag, str(max(new, 1) if value > 0 else new)]
+            scaled += [flag, str(scaled_steps(value, iterations, reference_iterations))]
         return apply_scene_args(argv, tuple(scaled))
 
-    def milestone_values(self, iterations: int, factor: float | None) -> dict[str, int]:
-        """The ``milestones`` for a run of ``iterations`` steps: as the scripts write them, or × ``factor`` (a scaled
-        run) and rounded; `ValueError` when one is not between 1 and ``iterations`` - 1 (a stage would be empty)."""
-        values = {name: value if factor is None else round(value * factor) for name, value in self.milestones.items()}
+    def milestone_values(self, iterations: int, reference_iterations: int | None) -> dict[str, int]:
+        """The ``milestones`` for a run of ``iterations`` steps: as the scripts write them, or scaled from a run of
+        ``reference_iterations`` (`scaled_steps`); `ValueError` when one is not between 1 and ``iterations`` - 1 (a
+        stage would be empty)."""
+        values = {name: value if reference_iterations is None else scaled_steps(value, iterations,
+                                                                                   reference_iterations)
+                  for name, value in self.milestones.items()}
         for name, value in values.items():
             if not 1 <= value < iterations:
-                raise ValueError(f"{name} = {value} (the scripts' {self.milestones[name]}"
-                                 f"{'' if factor is None else f' × {factor:g}'}) must lie between 1 and iterations - 1 "
-                                 f"= {iterations - 1}: run more iterations, or set reference_iterations to scale it")
+                scale = "" if reference_iterations is None else f" × {iterations}/{reference_iterations}"
+                raise ValueError(f"{name} = {value} (the scripts' {self.milestones[name]}{scale}) must lie between 1 "
+                                 f"and iterations - 1 = {iterations - 1}: run more iterations, or set "
+                                 "reference_iterations to scale it")
         return values
 
     def command(self, step: str, argv: tuple[str, ...], values: Mapping[str, str], suite: str,
-                extra: tuple[str, ...] = (), scene: str | None = None, schedule_factor: float | None = None,
-                preset_args: tuple[str, ...] = ()) -> list[str]:
+                extra: tuple[str, ...] = (), scene: str | None = None,
+                schedule_lengths: tuple[int, int] | None = None, preset_args: tuple[str, ...] = ()) -> list[str]:
         """One command's arguments with the placeholders filled, ``scene``'s own flags and then ``preset_args``
-        applied, the train step's schedule scaled by ``schedule_factor`` (when given; `scaled_schedule`) and
+        applied, the train step's schedule scaled from ``schedule_lengths`` = (iterations, reference_iterations) (when
+        given; `scaled_schedule`) and
         ``extra`` appended (as given: a flag the user sets is never scaled)."""
         filled: list[str] = []
         for arg in argv:
@@ -242,8 +247,8 @@ class OfficialCode:
         filled = apply_scene_args(filled, self.args_for_scene(suite, scene, step))
         if step in self.train_steps:
             filled = apply_scene_args(filled, preset_args)
-            if schedule_factor is not None:
-                filled = self.scaled_schedule(filled, schedule_factor)
+            if schedule_lengths is not None:
+                filled = self.scaled_schedule(filled, *schedule_lengths)
         return filled + list(extra)
 
     def render_order(self, commands: list[list[str]]) -> str:

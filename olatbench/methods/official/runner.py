@@ -60,14 +60,15 @@ def prepare(code: OfficialCode, settings: CodeSettings, source: Scene, work: Pat
     work = Path(work).resolve()
     checkout = Path(str(settings.checkout)).expanduser().resolve()
     scene_dir, model_dir = work / "scene", work / "model"
-    factor = None if config.reference_iterations is None else config.iterations / config.reference_iterations
+    lengths = None if config.reference_iterations is None else (int(config.iterations),
+                                                                 int(config.reference_iterations))
     values: dict[str, object] = {"scene": str(scene_dir), "model": str(model_dir), "checkout": str(checkout),
                                  "iterations": int(config.iterations),
-                                 **code.milestone_values(int(config.iterations), factor)}
+                                 **code.milestone_values(int(config.iterations), config.reference_iterations)}
     prefix = settings.prefix(work)
     extra = {**{step: tuple(config.train_args) for step in code.train_steps}, "render": tuple(config.render_args)}
     commands = [CommandRecord(step, prefix + code.command(step, argv, values, suite, extra.get(step, ()),
-                                                          scene=source.name, schedule_factor=factor,
+                                                          scene=source.name, schedule_lengths=lengths,
                                                           preset_args=(*config.preset_args,
                                                                        *background_args(code, source, suite))),
                               str(checkout))
@@ -126,9 +127,8 @@ def mark_finished(work: Path, commands: list[CommandRecord]) -> int:
 def config_problems(code: OfficialCode, config: OfficialConfig) -> list[str]:
     """What in ``config`` ``code`` cannot do (empty when it can)."""
     problems = []
-    factor = None if config.reference_iterations is None else config.iterations / config.reference_iterations
     try:
-        code.milestone_values(int(config.iterations), factor)
+        code.milestone_values(int(config.iterations), config.reference_iterations)
     except ValueError as error:
         problems.append(str(error))
     if config.reference_iterations is not None and not code.schedule_flags:

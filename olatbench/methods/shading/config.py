@@ -20,6 +20,8 @@ class ShadingConfig(GaussianConfig):
     """The shared Gaussian fields plus the ASG specular lobes, the material embedding, the shadow network, the
     light-view pass and their learning rates (defaults: the official SSD-GS / GS³ code's, which agree)."""
 
+    iteration_fields: ClassVar[tuple[str, ...]] = (*GaussianConfig.iteration_fields, "asg_lr_decay_from",
+                                                   "asg_lr_max_steps")
     ranges: ClassVar[dict[str, Range]] = {
         "num_asg": AT_LEAST_ONE, "material_dim": AT_LEAST_ONE, "fresnel_f0": UNIT, "shadow_hidden": AT_LEAST_ONE,
         "shadow_layers": AT_LEAST_ONE, "shadow_resolution": AT_LEAST_ONE, "shadow_depth_offset": NON_NEGATIVE,

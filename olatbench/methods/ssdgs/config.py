@@ -36,8 +36,12 @@ class SSDGSConfig(ShadingConfig):
     redeclared here have SSD-GS's defaults."""
 
     label: ClassVar[str] = "SSD-GS"
+    iteration_fields: ClassVar[tuple[str, ...]] = (
+        *ShadingConfig.iteration_fields, "mlp_lr_decay_from", "mlp_lr_max_steps", "refinement_lr_max_steps",
+        "refine_camera_from", "refine_light_from", "camera_lr_delay_steps", "light_lr_delay_steps")
     ranges: ClassVar[dict[str, Range]] = {
-        "dipole_eta": POSITIVE, "sss_hidden": AT_LEAST_ONE, "sss_layers": AT_LEAST_ONE, "sss_freqs": NON_NEGATIVE,
+        "dipole_eta": POSITIVE, "sss_hidden": AT_LEAST_ONE, "sss_layers": AT_LEAST_ONE,
+        "sss_last_hidden": AT_LEAST_ONE, "sss_freqs": NON_NEGATIVE,
         "shadow_freqs": NON_NEGATIVE, "background": UNIT, "mlp_lr_init": RATE, "mlp_lr_final": RATE,
         "mlp_lr_decay_from": NON_NEGATIVE, "mlp_lr_max_steps": AT_LEAST_ONE, "camera_lr_init": RATE,
         "camera_lr_final": RATE, "light_lr_init": RATE, "light_lr_final": RATE,
@@ -68,6 +72,7 @@ class SSDGSConfig(ShadingConfig):
     dipole_virtual_factor: str = "jensen"
     sss_hidden: int = 256
     sss_layers: int = 6
+    sss_last_hidden: int | None = None  # the last hidden layer's width (None: sss_hidden; the official code: 128)
     sss_freqs: int = 4
     shadow_freqs: int = 3
     # light-view framing: "camera" (official: the scene at the viewing camera's pixel scale) or "scene" (the sphere

@@ -10,6 +10,9 @@ from __future__ import annotations
 
 from typing import Any
 
+from olatbench.methods.authors import OFFICIAL_VARIANT
+from olatbench.methods.ssdgs.authors import AUTHORS
+
 # The official code's behaviour where it departs from the paper's equations (docs/ssdgs.md, "Where the paper and
 # the official code differ"): the paper's numbers were produced by that code, so the suite presets follow it; the
 # config defaults keep the paper's choices. Values read from irisfreesiri/SSD-GS (train.py, arguments/,
@@ -92,5 +95,10 @@ SCHEDULE_PRESETS: dict[str, dict[str, Any]] = {f"schedule-{name}": {"schedule": 
 # Combine with a suite that refines cameras/lights, e.g. --variant test-time-refinement on nrhints.
 EVALUATION_PRESETS: dict[str, dict[str, Any]] = {"test-time-refinement": {"test_time_refinement": True}}
 
-PRESETS: dict[str, dict[str, Any]] = {**SUITE_PRESETS, **ABLATION_PRESETS, **SCHEDULE_PRESETS, **EVALUATION_PRESETS}
+# The authors' code on any suite and length (`olatbench.methods.ssdgs.authors`): every field with a counterpart in
+# their code takes their value, over the suite preset's run settings (`--variant official`).
+PARITY_PRESETS: dict[str, dict[str, Any]] = {OFFICIAL_VARIANT: AUTHORS.preset()}
+
+PRESETS: dict[str, dict[str, Any]] = {**SUITE_PRESETS, **ABLATION_PRESETS, **SCHEDULE_PRESETS, **EVALUATION_PRESETS,
+                                      **PARITY_PRESETS}
 

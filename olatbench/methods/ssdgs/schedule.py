@@ -16,6 +16,8 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 
+from olatbench.methods.run_length import scaled_steps
+
 TERMS: tuple[str, ...] = ("shadow", "sss", "specular")
 GROUPS: tuple[str, ...] = ("shadow_mlp", "material", "sss_mlp", "specular", "asg_lobes")
 
@@ -49,11 +51,9 @@ class Schedule:
         return any(start <= step < end for start, end in self.frozen.get(group, ()))
 
     def scaled(self, iterations: int) -> Schedule:
-        """The same schedule for a run of ``iterations`` total steps (thresholds scaled and rounded)."""
-        factor = iterations / self.reference_iterations
-
+        """The same schedule for a run of ``iterations`` total steps (thresholds scaled: `scaled_steps`)."""
         def s(value: int) -> int:
-            return round(value * factor)
+            return scaled_steps(value, iterations, self.reference_iterations)
 
         return Schedule(
             name=self.name, description=self.description, reference_iterations=iterations,

@@ -77,7 +77,8 @@ class Shader(nn.Module):
         self.backend = backend
         self.asg = ASGMixture(config.num_asg, config.asg_form)
         self.sss_net = SSSNetwork(config.material_dim, config.sss_hidden, config.sss_layers, config.sss_freqs,
-                                  config.dipole_eta, config.dipole_virtual_factor, config.network_precision)
+                                  config.dipole_eta, config.dipole_virtual_factor, config.network_precision,
+                                  config.sss_last_hidden)
         self.shadow_net = ShadowNetwork(config.material_dim, config.shadow_hidden, config.shadow_layers,
                                         config.shadow_freqs, config.network_precision)
 

@@ -26,4 +26,5 @@ SPEC = MethodSpec(
     capabilities=frozenset({"relight", "refine_view", "components", "checkpoint", "init_points"}),
     scene_recipe="own-data",  # presets.py: the mini recipe over the official code's switches
     evaluation="olatbench.methods.ssdgs.evaluation:SSDGSTestViews",  # as given, fitted during training, or refined
+    authors="olatbench.methods.ssdgs.authors:AUTHORS",
 )

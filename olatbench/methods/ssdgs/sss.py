@@ -72,18 +72,19 @@ class SSSNetwork(nn.Module):
 
     Inputs: positions, view and light directions positionally encoded with ``num_freqs`` bands, the normal
     and the per-Gaussian material embedding (``material_dim``). ``num_linear`` counts Linear layers (the
-    paper's "6 layers"; the official code uses 5 with a 128-wide last hidden layer).
+    paper's "6 layers"; the official code uses 5 with a 128-wide last hidden layer: ``last_hidden``).
     """
 
     def __init__(self, material_dim: int = 6, hidden: int = 256, num_linear: int = 6, num_freqs: int = 4,
-                 eta: float = 1.3, virtual_factor: VirtualFactor = "jensen", precision: str = "fp32") -> None:
+                 eta: float = 1.3, virtual_factor: VirtualFactor = "jensen", precision: str = "fp32",
+                 last_hidden: int | None = None) -> None:
         super().__init__()
         self.num_freqs = num_freqs
         self.precision = precision  # of the MLP (methods.shading.precision); inputs and output are float32
         self.eta = eta
         self.virtual_factor = virtual_factor
         in_dim = 3 * positional_encoding_dim(3, num_freqs) + 3 + material_dim
-        self.network = mlp(in_dim, hidden, 3, num_linear)
+        self.network = mlp(in_dim, hidden, 3, num_linear, last_hidden)
 
     def encode(self, positions: torch.Tensor, wo: torch.Tensor, wi: torch.Tensor, normals: torch.Tensor,
                material: torch.Tensor) -> torch.Tensor:
