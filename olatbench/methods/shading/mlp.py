@@ -14,7 +14,7 @@ def mlp(in_dim: int, hidden: int, out_dim: int, num_linear: int, last_hidden: in
     if last_hidden is not None:
         widths[-1] = last_hidden
     layers: list[nn.Module] = []
-    for width_in, width_out in zip([in_dim, *widths], widths, strict=True):
+    for width_in, width_out in zip([in_dim, *widths[:-1]], widths, strict=True):
         layers += [nn.Linear(width_in, width_out), nn.ReLU()]
     layers.append(nn.Linear(widths[-1], out_dim))
     return nn.Sequential(*layers)
