@@ -1,4 +1,5 @@
-"""``olatbench methods list`` and ``olatbench methods show NAME``: read from the method specs (no torch)."""
+"""``olatbench methods list``, ``methods show NAME`` and ``methods diff NAME``: read from the method specs (no
+torch)."""
 
 from __future__ import annotations
 
@@ -20,6 +21,7 @@ def methods() -> None:
     Examples:
       olatbench methods list
       olatbench methods show ssdgs
+      olatbench methods diff ssdgs --variant mini
     """
 
 
@@ -277,3 +279,87 @@ def show(name: str, data_path: Path | None, iterations: int | None, suite_name: 
         return
     click.echo(f"Run one: olatbench run --method {name} --suite mini [--variant PRESET]"
                + (f" [--ablation {next(iter(spec.ablations))}]" if spec.ablations else ""))
+
+
+@methods.command("diff")
+@click.argument("name")
+@click.option("--suite", "suite_name", help="Resolve the config as a run on this suite does (its length and preset).")
+@click.option("--variant", help="The variant to compare (presets joined by '+'; default: the config's defaults).")
+@click.option("--set", "settings", multiple=True, metavar="KEY=VALUE", help="A config value, as run --set.")
+@click.option("--markdown", is_flag=True, help="Print the table as Markdown (as docs/ssdgs.md embeds it).")
+@json_option
+def diff(name: str, suite_name: str | None, variant: str | None, settings: tuple[str, ...], markdown: bool,
+         as_json: bool) -> None:
+    """Every config field of method NAME where it departs from the authors' code: our value and where it came
+    from, the authors' value and the file:line that sets it, and the reason and measured effect recorded for the
+    preset (olatbench/methods/<method>/authors.py). Fields the suite sets for both runners (length, budget,
+    initialisation, density window) are listed apart; so are differences no field switches.
+
+    \b
+    Example:
+      olatbench methods diff ssdgs --variant mini
+      olatbench methods diff gs3 --variant mini --json
+      olatbench methods diff ssdgs --suite mini --variant official    # nothing departs
+    """
+    from olatbench.methods.authors import departures
+
+    spec = _spec(name)
+    authors = spec.load_authors()
+    if authors is None:
+        raise click.UsageError(f"method '{name}' declares no authors' configuration to compare with; methods that "
+                               "do: olatbench methods show NAME (see docs/ssdgs.md, docs/baselines.md)")
+    resolved = resolved_config(spec, suite_name, variant, settings) or spec.resolve_sources(None)
+    rows = departures(resolved, authors)
+    if as_json:
+        click.echo(json.dumps(_diff_json(spec, authors, rows), indent=2, default=str))
+        return
+    asked = ", ".join(part for part in (suite_name and f"suite {suite_name}", variant and f"variant {variant}",
+                                        settings and "--set") if part) or "defaults"
+    head = (f"{name} ({asked}) against the authors' code, {authors.repository} @ {authors.commit[:7]}: "
+            f"{len(rows)} field(s) depart")
+    notes = [f"set by the suite for both runners (not compared): {', '.join(sorted(authors.suite_fields))}",
+             *(f"not switchable: {item.what}: the authors' {item.where}; here {item.native}"
+               for item in authors.unswitchable)]
+    if markdown:
+        click.echo("\n\n".join([head + ":", diff_markdown(rows), "\n".join(f"- {note}" for note in notes)]))
+        return
+    click.echo("\n".join([head, _diff_text(rows), *notes]))
+
+
+def _cell(value: Any) -> str:
+    return json.dumps(value) if not isinstance(value, str) else value
+
+
+def diff_markdown(rows) -> str:
+    """The departures (`olatbench.methods.authors.DepartureRow`) as a Markdown table."""
+    lines = ["| field | here | from | authors' | where | why | measured |", "|---|---|---|---|---|---|---|"]
+    for row in rows:
+        why, effect = (row.departure.reason, row.departure.effect) if row.departure else ("(none recorded)", "")
+        where = row.authors.where + (f" ({row.authors.note})" if row.authors.note else "")
+        cells = [f"`{row.name}`", f"`{_cell(row.value)}`", row.source, f"`{_cell(row.authors.value)}`", where, why,
+                 effect]
+        lines.append("| " + " | ".join(cell.replace("|", "\\|") for cell in cells) + " |")
+    return "\n".join(lines)
+
+
+def _diff_text(rows) -> str:
+    out = []
+    for row in rows:
+        out.append(f"  {row.name}: {_cell(row.value)} ({row.source}); authors' {_cell(row.authors.value)} at "
+                   f"{row.authors.where}" + (f" ({row.authors.note})" if row.authors.note else ""))
+        if row.departure is not None:
+            out.append(f"      why: {row.departure.reason}")
+            out.append(f"      measured: {row.departure.effect}")
+        else:
+            out.append("      why: none recorded for this source")
+    return "\n".join(out)
+
+
+def _diff_json(spec, authors, rows) -> dict:
+    return {"method": spec.name, "repository": authors.repository, "commit": authors.commit,
+            "departures": [{"field": row.name, "value": row.value, "source": row.source,
+                            "authors": row.authors.value, "where": row.authors.where, "note": row.authors.note,
+                            "reason": row.departure.reason if row.departure else None,
+                            "effect": row.departure.effect if row.departure else None} for row in rows],
+            "suite_fields": sorted(authors.suite_fields),
+            "unswitchable": [{"what": u.what, "where": u.where, "native": u.native} for u in authors.unswitchable]}

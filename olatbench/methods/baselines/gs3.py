@@ -42,6 +42,7 @@ from olatbench.methods.baselines.gs3_spec import PRESETS, SPEC
 from olatbench.methods.baselines.triple_splat import composite, triple_splat
 from olatbench.methods.gaussian_method import GaussianMethod, ParameterGroup, SplatColour, albedo_splat_colour
 from olatbench.methods.initialisation import initial_ball
+from olatbench.methods.shading.light_view import light_view_options
 from olatbench.methods.training import (
     camera_centre,
     camera_tensors,
@@ -170,10 +171,11 @@ class GS3(GaussianMethod, spec=SPEC):
         hint, light_weight = None, None
         if self.shadow_on(step):
             with torch.no_grad():
+                target = means.detach().mean(0)
                 gathered = shadow_gather(means.detach(), model.quats.detach(), model.scales.detach(),
-                                         opacities.detach(), light_position.detach(), means.detach().mean(0),
-                                         resolution=self.config.shadow_resolution,
-                                         depth_offset=self.config.shadow_depth_offset)
+                                         opacities.detach(), light_position.detach(), target,
+                                         **light_view_options(self.config, K, width, height, camera_centre(w2c),
+                                                              light_position.detach(), target))
             hint, light_weight = visible.pick(gathered.visibility), gathered.weight
         attributes = {name: visible.pick(value) for name, value in model.attributes.items()}
         intensity = shaded_intensity(intensity, self.config.ignores_light_intensity)
@@ -219,14 +221,15 @@ class GS3(GaussianMethod, spec=SPEC):
         separately and composites per pixel, so a render of these colours equals it only where one Gaussian
         covers a pixel (docs/export.md)."""
         model, step = self.model, max(self.step - 1, 0)
-        w2c, _ = camera_tensors(camera, self.device)
+        w2c, K = camera_tensors(camera, self.device)
         position, intensity = light_tensors(light, self.device)
         intensity = shaded_intensity(intensity, self.config.ignores_light_intensity)
         hint = None
         if self.shadow_on(step):
-            hint = shadow_gather(model.means, model.quats, model.scales, model.opacities, position,
-                                 model.means.mean(0), resolution=self.config.shadow_resolution,
-                                 depth_offset=self.config.shadow_depth_offset).visibility
+            target = model.means.mean(0)
+            hint = shadow_gather(model.means, model.quats, model.scales, model.opacities, position, target,
+                                 **light_view_options(self.config, K, camera.width, camera.height, camera_centre(w2c),
+                                                      position, target)).visibility
         shaded = self.shader(model.means, dict(model.attributes), camera_centre(w2c), position, intensity,
                              self.specular_on(step), hint)
         return composite(shaded.shading, shaded.visibility, shaded.other) if self.shadow_on(step) else shaded.shading

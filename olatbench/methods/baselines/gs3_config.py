@@ -38,6 +38,7 @@ class GS3Config(ShadingConfig):
     other_layers: int = 3
     num_freqs: int = 4
     shadow_resolution: int | None = 256
+    shadow_framing: str = "scene"
     # The brightest the initial diffuse shading albedo/π · I/d² may be at the initial ball's centre under the median
     # training light (GS3.prepare); None: the official albedo (softplus(0.5)) however bright the lights.
     initial_shading: float | None = 0.5

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from typing import Any
 
+from olatbench.methods.authors import OFFICIAL_VARIANT
+from olatbench.methods.baselines.gs3_authors import AUTHORS
 from olatbench.methods.spec import MethodSpec
 
 PRESETS: dict[str, dict[str, Any]] = {
@@ -19,6 +21,9 @@ PRESETS: dict[str, dict[str, Any]] = {
              "other_hidden": 64,
              "position_lr_max_steps": 60_000, "densify_from": 4_000, "densify_until": 44_000,
              "opacity_reset_interval": 30_000, "asg_lr_decay_from": 40_000, "asg_lr_max_steps": 20_000},
+    # The authors' code on any suite and length (`olatbench.methods.baselines.gs3_authors`): every field with a
+    # counterpart in their code takes their value, over the suite preset's run settings.
+    OFFICIAL_VARIANT: AUTHORS.preset(),
 }
 
 
@@ -32,4 +37,5 @@ SPEC = MethodSpec(
     outputs=("rgb", "diffuse", "specular", "shading", "shadow", "shadow_coarse", "other", "alpha"),
     capabilities=frozenset({"relight", "components", "checkpoint", "init_points"}),
     scene_recipe="mini",
+    authors="olatbench.methods.baselines.gs3_authors:AUTHORS",
 )

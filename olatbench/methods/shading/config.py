@@ -13,6 +13,8 @@ NETWORK_PRECISIONS = ("fp32", "bf16", "fp16")  # methods.shading.precision.PRECI
 # intensity, olatbench's convention); "ignored" takes every light at intensity 1, as the authors' SSD-GS and GS³
 # code do (they read pl_intensity and drop it), which is what a file without pl_intensity gives anyway.
 LIGHT_INTENSITY_CONVENTIONS = ("recorded", "ignored")
+SHADOW_FRAMINGS = ("camera", "scene")
+SHADOW_MODES = ("uniform", "density", "footprint")  # gaussians.shadow.ShadowMode (this module is torch-free)
 
 
 @dataclass
@@ -36,6 +38,10 @@ class ShadingConfig(GaussianConfig):
     shadow_layers: int = 3  # shadow network hidden layers
     shadow_resolution: int | None = None  # light-view size (px); None: the view's size, as the official code
     shadow_depth_offset: float = 0.0  # light-view self-shadow offset (squared distance; official kernel: 0.015)
+    # light-view framing: "camera" (official: the scene at the viewing camera's pixel scale) or "scene" (the sphere
+    # around the Gaussians' mean holding every centre fills the view)
+    shadow_framing: str = "camera"
+    shadow_mode: str = "uniform"  # light-view average: "uniform" (fast C++), "density" (official), "footprint"
     colour_lr: float = 0.01  # per-Gaussian colours
     asg_lr_init: float = 0.01  # ASG weights and lobes; a learned shading frame uses the same decay
     asg_lr_final: float = 1e-4
@@ -59,9 +65,16 @@ class ShadingConfig(GaussianConfig):
         if self.light_intensity not in LIGHT_INTENSITY_CONVENTIONS:
             raise ValueError(f"{self.label} config: light_intensity must be one of {LIGHT_INTENSITY_CONVENTIONS}, "
                              f"not {self.light_intensity!r}")
+        for name, allowed in (("shadow_framing", SHADOW_FRAMINGS), ("shadow_mode", SHADOW_MODES)):
+            if getattr(self, name) not in allowed:
+                raise ValueError(f"{self.label} config: {name} must be one of {allowed}, not {getattr(self, name)!r}")
         if self.network_precision not in NETWORK_PRECISIONS:
             raise ValueError(f"{self.label} config: network_precision must be one of {NETWORK_PRECISIONS}, "
                              f"not {self.network_precision!r}")
+
+    def light_view_size(self, width: int, height: int) -> int:
+        """Side (px) of the square light-view pass for a view of ``width`` × ``height``."""
+        return int(self.shadow_resolution or max(width, height))
 
     @property
     def ignores_light_intensity(self) -> bool:

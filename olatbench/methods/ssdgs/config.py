@@ -21,8 +21,6 @@ _CHOICES = {
     "shading_frame": ("min_scale", "learned"),
     "asg_form": ("xu", "official"),
     "dipole_virtual_factor": ("jensen", "official"),
-    "shadow_mode": ("uniform", "density", "footprint"),
-    "shadow_framing": ("camera", "scene"),
     "refinement_lr_clock": ("start", "absolute"),
     "light_weight_accumulation": ("always", "near_cap"),
     "test_pose_fitting": ("none", "interleaved"),
@@ -75,10 +73,6 @@ class SSDGSConfig(ShadingConfig):
     sss_last_hidden: int | None = None  # the last hidden layer's width (None: sss_hidden; the official code: 128)
     sss_freqs: int = 4
     shadow_freqs: int = 3
-    # light-view framing: "camera" (official: the scene at the viewing camera's pixel scale) or "scene" (the sphere
-    # around the Gaussians' mean holding every centre fills the view)
-    shadow_framing: str = "camera"
-    shadow_mode: str = "uniform"  # light-view average: "uniform" (fast C++), "density" (official), "footprint"
     clamp_output: bool = True
     # Size.
     max_gaussians: int | None = 550_000
@@ -140,10 +134,6 @@ class SSDGSConfig(ShadingConfig):
         if self.test_pose_fitting != "none" and not (self.refine_camera or self.refine_light):
             raise ValueError("SSD-GS config: test_pose_fitting fits what refine_camera / refine_light switch on; "
                              "enable at least one of them")
-
-    def light_view_size(self, width: int, height: int) -> int:
-        """Side (px) of the square light-view pass for a view of ``width`` × ``height``."""
-        return int(self.shadow_resolution or max(width, height))
 
     def resolved_schedule(self) -> Schedule:
         """The schedule with its thresholds scaled to this run's length."""

@@ -24,10 +24,11 @@ from olatbench.gaussians.optim import make_adam
 from olatbench.gaussians.projection import project
 from olatbench.gaussians.rasterize import rasterize
 from olatbench.gaussians.refinement import LightRefinement, PoseRefinement
-from olatbench.gaussians.shadow import camera_matched_focal, shadow_gather
+from olatbench.gaussians.shadow import shadow_gather
 from olatbench.methods.base import Views
 from olatbench.methods.evaluation_protocol import RefinedView
 from olatbench.methods.gaussian_method import GaussianMethod, ParameterGroup, SplatColour, albedo_splat_colour
+from olatbench.methods.shading.light_view import light_view_options
 from olatbench.methods.ssdgs.config import SSDGSConfig
 from olatbench.methods.ssdgs.schedule import Schedule
 from olatbench.methods.ssdgs.shader import Components, Shader
@@ -217,15 +218,10 @@ class SSDGS(GaussianMethod, spec=SPEC):
 
     def light_view_options(self, K: torch.Tensor, width: int, height: int, camera_position: torch.Tensor,
                            light_position: torch.Tensor) -> dict[str, Any]:
-        """`shadow_gather` options of the light-view pass for a view (K (3, 3), size, camera centre (3,))."""
-        cfg = self.config
-        resolution = cfg.light_view_size(width, height)
-        focal = None
-        if cfg.shadow_framing == "camera":
-            focal = camera_matched_focal(K[0, 0], width, resolution, camera_position, light_position,
-                                         self.model.means.detach().mean(0))
-        return {"resolution": resolution, "focal_px": focal, "mode": cfg.shadow_mode,
-                "depth_offset": cfg.shadow_depth_offset}
+        """`shadow_gather` options of the light-view pass for a view (K (3, 3), size, camera centre (3,)), looking
+        at the Gaussians' mean (`light_view_options`)."""
+        return light_view_options(self.config, K, width, height, camera_position, light_position,
+                                  self.model.means.detach().mean(0))
 
     # ------------------------------------------------------------------------------------------ training
     def training_forward(self, index: int, step: int) -> dict[str, Any]:
