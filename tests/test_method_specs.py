@@ -57,6 +57,11 @@ def test_methods_list_and_show_import_no_torch():
     assert "components: ablation-A, ablation-B" in shown["output"] and "num_asg" in shown["output"]
     assert "outputs: rgb, diffuse, specular, sss, shadow, shadow_coarse, alpha" in shown["output"]
     assert not listed["torch"] and not shown["torch"]
+    diff = _cli_without_torch(["methods", "diff", "ssdgs", "--variant", "mini"])
+    official = _cli_without_torch(["methods", "show", "ssdgs", "--suite", "mini", "--variant", "official"])
+    assert diff["code"] == 0 and official["code"] == 0, diff["output"] + official["output"]
+    assert "num_asg: 4 (variant mini); authors' 8 at arguments/__init__.py:69" in diff["output"]
+    assert not diff["torch"] and not official["torch"]
 
 
 def test_ablation_dry_run_imports_no_torch_and_expands_the_specs_grid(tmp_path):
