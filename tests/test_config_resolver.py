@@ -45,10 +45,31 @@ def test_sources_name_each_layer() -> None:
     assert plain["refine_camera"] == "suite preset nrhints" and plain["use_sss"] == "default"
 
 
+def test_a_scene_of_no_suite_names_its_recipe_and_what_was_derived() -> None:
+    from dataclasses import replace
+
+    from olatbench.bench.plan import derived_preset
+    from olatbench.methods.scene_presets import SceneFacts
+
+    spec = get_spec("ssdgs")
+    suite = replace(SUITES["nrhints"], name="own", scene_paths={"scene": "/nowhere"}, method_preset="nrhints")
+    derived = derived_preset(spec, suite, SceneFacts(300, 128, 128))
+    sources = resolve_sources(spec, suite, "ablation-C", derived=derived).sources
+    assert sources["iterations"] == sources["max_gaussians"] == "derived from the scene"
+    assert sources["asg_form"] == "scene recipe own-data" and sources["use_sss"] == "variant ablation-C"
+
+
 def test_a_spec_that_fixes_its_length_is_named() -> None:
-    spec = get_spec("3dgs")
-    sources = resolve_sources(spec, SUITES["gs3"]).sources
-    assert sources["iterations"] in ("suite gs3", "suite preset gs3")
+    from olatbench.methods.spec import MethodSpec
+
+    spec = MethodSpec(name="fixed", description="", implementation="a:B", iterations=7,
+                      config="olatbench.methods.gaussian_config:GaussianConfig")
+    resolved = resolve_sources(spec, SUITES["gs3"])
+    assert (resolved.config.iterations, resolved.sources["iterations"]) == (7, "method spec")
+    assert resolve_sources(get_spec("nrhints-official"), SUITES["mini"]).sources["iterations"] == "suite mini"
+    assert resolve_sources(get_spec("3dgs"), SUITES["gs3"]).sources["iterations"] == "suite preset gs3"
+    assert resolve_sources(get_spec("3dgs"), SUITES["gs3"], overrides={"iterations": 9}).sources["iterations"] == \
+        "--set"
 
 
 @pytest.mark.parametrize("method", ["ssdgs", "gs3", "3dgs"])

@@ -323,7 +323,7 @@ def diff(name: str, suite_name: str | None, variant: str | None, settings: tuple
     if markdown:
         click.echo("\n\n".join([head + ":", diff_markdown(rows), "\n".join(f"- {note}" for note in notes)]))
         return
-    click.echo("\n".join([head, _diff_text(rows), *notes]))
+    click.echo("\n".join([head, *([_diff_text(rows)] if rows else []), *notes]))
 
 
 def _cell(value: Any) -> str:
