@@ -73,8 +73,10 @@ def test_the_paper_and_mini_suites_resolve_exactly_the_configs_they_did():
               "3dgs/sssgs": "daf0ff331c953bca", "gs3/mini": "8193ab3d90681b01", "gs3/nrhints": "986e28f7a3dbb3f9",
               "gs3/gs3": "986e28f7a3dbb3f9", "gs3/sssgs": "f454cb5c470aff7b", "ssdgs/mini": "6f8b66a8ab3d73ea",
               "ssdgs/nrhints": "bf38f10786d5f7fa", "ssdgs/gs3": "7b5eb3ba20257039", "ssdgs/sssgs": "41a38367d0eac679"}
-    # fields added since, each at the value that keeps the old behaviour (#45: the recorded light intensity)
+    # fields added since, each at the value that keeps the old behaviour (#45: the recorded light intensity; #53:
+    # SSD-GS's official SSS widths, GS³'s light-view framing and mode, now shared with SSD-GS)
     added_since = {"light_intensity": "recorded"}
+    added_to = {"ssdgs": {"sss_last_hidden": None}, "gs3": {"shadow_framing": "scene", "shadow_mode": "uniform"}}
     # fields added since that change the old behaviour on purpose: GS³'s bound on its start's brightness under
     # recorded intensities (docs/baselines.md, "Brightness at the start"; None would keep the old start)
     changed_since = {"gs3": {"initial_shading": 0.5}}
@@ -82,7 +84,7 @@ def test_the_paper_and_mini_suites_resolve_exactly_the_configs_they_did():
     for method in NATIVE:
         for suite in ("mini", "nrhints", "gs3", "sssgs"):
             config = config_to_dict(resolve_config(get_spec(method), SUITES[suite]))
-            for name, old_behaviour in added_since.items():
+            for name, old_behaviour in {**added_since, **added_to.get(method, {})}.items():
                 assert config.pop(name, old_behaviour) == old_behaviour, (method, suite, name)
             for name, value in changed_since.get(method, {}).items():
                 assert config.pop(name) == value, (method, suite, name)
