@@ -187,7 +187,8 @@ def _derived(spec, folder: Path, iterations: int | None):
               help="A scene folder of your own: also show the preset derived from it (as run --data uses it) and "
                    "why each value was chosen.")
 @click.option("--iterations", type=click.IntRange(min=1), help="With --data: the run length asked for.")
-@click.option("-s", "--suite", "suite_name", help="Resolve the config as a run on this suite does (its length and preset).")
+@click.option("-s", "--suite", "suite_name",
+              help="Resolve the config as a run on this suite does (its length and preset).")
 @click.option("--variant", help="Resolve the config with this variant (presets joined by '+', e.g. mini+official).")
 @click.option("--set", "settings", multiple=True, metavar="KEY=VALUE", help="A config value, as run --set.")
 @json_option
@@ -283,7 +284,8 @@ def show(name: str, data_path: Path | None, iterations: int | None, suite_name: 
 
 @methods.command("diff")
 @click.argument("name")
-@click.option("-s", "--suite", "suite_name", help="Resolve the config as a run on this suite does (its length and preset).")
+@click.option("-s", "--suite", "suite_name",
+              help="Resolve the config as a run on this suite does (its length and preset).")
 @click.option("--variant", help="The variant to compare (presets joined by '+'; default: the config's defaults).")
 @click.option("--set", "settings", multiple=True, metavar="KEY=VALUE", help="A config value, as run --set.")
 @click.option("--markdown", is_flag=True, help="Print the table as Markdown (as docs/ssdgs.md embeds it).")
