@@ -35,9 +35,10 @@ def test_the_official_variant_departs_from_the_authors_nowhere(method: str, suit
 
 
 @pytest.mark.parametrize("method", METHODS)
-def test_every_departure_of_the_defaults_and_mini_has_a_reason(method: str) -> None:
+def test_every_departure_of_the_defaults_mini_and_the_grids_has_a_reason(method: str) -> None:
     spec = get_spec(method)
-    for variant in ("default", "mini"):
+    for variant in ("default", "mini", *(f"mini+{name}" for grid in spec.ablations.values() for name in grid
+                                         if name != "default")):
         rows = departures(spec.resolve_sources(variant), spec.load_authors())
         assert rows, variant
         assert [row.name for row in rows if row.departure is None] == [], variant
