@@ -307,6 +307,8 @@ def test_a_light_path_with_a_negative_intensity_is_refused_naming_the_field(data
 EMPTY_FOLDER_ENTRIES = {
     "status": (["status", "{empty}"], "no job folders (job.json) below"),
     "status --json": (["status", "{empty}", "--json"], "no job folders (job.json) below"),
+    "status -s data-nrhints": (["status", "{empty}", "-s", "data-nrhints"],
+                               "start one with: olatbench run --method ssdgs --data SCENE_FOLDER"),
     "report": (["report", "{empty}"], "no job folder and no results.json below"),
     "view": (["view", "{empty}", "--port", "0"], "no job.json in or below it"),
 }

@@ -469,9 +469,12 @@ def status(runs: Path, suite: str | None, as_json: bool) -> None:
     suite = checked_suite(suite)
     states = [state for state in scan_runs(runs) if in_suite(state.folder, suite)]
     if not states:
+        from olatbench.datasets.suites import DATA_SUITE_PREFIX
+
+        source = ("--data SCENE_FOLDER" if suite is not None and suite.startswith(DATA_SUITE_PREFIX)
+                  else f"--suite {suite or 'mini'}")  # data-<format> suites are made by run --data
         raise click.UsageError(f"no job folders (job.json){'' if suite is None else f' of suite {suite}'} below "
-                                   f"{runs}; start one with: olatbench run --method ssdgs --suite {suite or 'mini'} "
-                                   f"--output {runs}")
+                               f"{runs}; start one with: olatbench run --method ssdgs {source} --output {runs}")
     if as_json:
         click.echo(json.dumps([{"job": str(state.folder.relative_to(runs)), "state": state.state,
                                 "id": state.job_id, "step": state.step, "iterations": state.iterations,
