@@ -20,7 +20,7 @@ from olatbench.viewer.geometry import (
     quaternion_to_matrix,
     render_size,
 )
-from olatbench.viewer.scheduler import RenderScheduler
+from olatbench.viewer.scheduler import RenderScheduler, Superseded
 
 
 class ManualClock:
@@ -138,6 +138,86 @@ def test_render_errors_go_to_on_error_and_the_worker_goes_on():
         scheduler.submit("b", "good")
         assert scheduler.wait_idle(BACKSTOP_SECONDS)
     assert errors == [("a", "no such component")] and delivered == ["good"]
+
+
+class Refiner:
+    """A render function that refines: each pass of a request adds one to its count, and a pass stops early (as the
+    viewer's environment-map passes do) when the scheduler says the request was superseded; passes can be held at
+    a gate."""
+
+    def __init__(self) -> None:
+        self.scheduler: RenderScheduler | None = None
+        self.passes: dict[object, int] = {}
+        self.delivered: list[tuple[object, int, str]] = []  # (request, its pass count, quality)
+        self.gate = threading.Semaphore(0)  # one release per pass allowed to finish
+        self.cancelled_passes: list[object] = []
+        self.started: list[object] = []  # each pass's request, once it waits at the gate
+
+    def render(self, request, quality):
+        self.started.append(request)
+        if not self.gate.acquire(timeout=BACKSTOP_SECONDS):
+            raise AssertionError("the test never released this pass")
+        if quality == "full" and self.scheduler.superseded():
+            self.cancelled_passes.append(request)
+            raise Superseded()
+        if quality == "full":
+            self.passes[request] = self.passes.get(request, 0) + 1
+        return self.passes.get(request, 0)
+
+    def deliver(self, key, request, image, quality):
+        self.delivered.append((request, image, quality))
+
+
+def test_a_refining_request_gets_all_its_passes_and_a_newer_request_restarts_the_refinement():
+    refiner = Refiner()
+    with RenderScheduler(refiner.render, refiner.deliver, settle_seconds=0.0) as scheduler:
+        refiner.scheduler = scheduler
+        scheduler.submit("tab", "view A", progressive=False, passes=5)
+        for _ in range(2):
+            refiner.gate.release()
+        wait_until(lambda: len(refiner.started) == 3, "A's third pass waiting at the gate", poll=0.001)
+        assert len(refiner.delivered) == 2 and not scheduler.idle()
+        scheduler.submit("tab", "view B", progressive=False, passes=3)  # the camera moved during A's third pass
+        for _ in range(4):  # A's pass in flight (it stops: superseded), then B's three
+            refiner.gate.release()
+        assert scheduler.wait_idle(BACKSTOP_SECONDS)
+    assert refiner.delivered == [("view A", 1, "full"), ("view A", 2, "full"),
+                                 ("view B", 1, "full"), ("view B", 2, "full"), ("view B", 3, "full")]
+    assert refiner.cancelled_passes == ["view A"] and scheduler.cancelled == 1
+
+
+def test_refinement_passes_wait_for_the_view_to_be_still_and_a_preview_is_never_cancelled():
+    refiner = Refiner()
+    clock = ManualClock()
+    with RenderScheduler(refiner.render, refiner.deliver, settle_seconds=0.15, clock=clock) as scheduler:
+        refiner.scheduler = scheduler
+        scheduler.submit("tab", "moving", passes=3)
+        scheduler.submit("tab", "moved", passes=3)  # arrives before the first preview starts
+        refiner.gate.release()
+        wait_until(lambda: refiner.delivered, "a preview", poll=0.001)
+        assert refiner.delivered == [("moved", 0, "preview")] and not scheduler.idle()
+        clock.now += 0.15
+        for _ in range(3):
+            refiner.gate.release()
+        assert scheduler.wait_idle(BACKSTOP_SECONDS)
+    assert [(request, count) for request, count, _ in refiner.delivered] == [
+        ("moved", 0), ("moved", 1), ("moved", 2), ("moved", 3)]
+    assert scheduler.cancelled == 0
+
+
+def test_a_failed_pass_ends_the_refinement_of_its_request():
+    calls = []
+
+    def render(request, quality):
+        calls.append(request)
+        raise ValueError("the map cannot be read")
+
+    errors = []
+    with RenderScheduler(render, lambda *args: None, settle_seconds=0.0,
+                         on_error=lambda key, error: errors.append(str(error))) as scheduler:
+        scheduler.submit("tab", "view", progressive=False, passes=4)
+        assert scheduler.wait_idle(BACKSTOP_SECONDS)
+    assert calls == ["view"] and errors == ["the map cannot be read"]
 
 
 def test_quaternions_match_scipy():

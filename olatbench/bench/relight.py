@@ -146,18 +146,34 @@ class Relighter:
         """The linear RGB image (H, W, 3) float32 of ``camera`` under ``lights`` (module docstring)."""
         import torch
 
+        todo = self.rendered_probes(lights)
+        total, empty = None, None
+        with torch.no_grad():
+            for probe in progress_bar(todo, desc="lights", unit="light", disable=not progress or len(todo) < 2,
+                                      leave=False):
+                lit, empty = self.contribution(camera, probe)
+                total = lit if total is None else total + lit
+        return self.composite(total, empty)
+
+    def rendered_probes(self, lights: SampledLights) -> list[Probe]:
+        """The probes `linear` renders, in its order: `probes`, or for a method that ignores the light one probe
+        carrying their summed weight."""
         if len(lights) == 0:
             raise RelightError("the lighting has no lights")
         todo = self.probes(lights)
         if not self.relightable:  # one render: the light changes nothing but the summed weight
             todo = [Probe(todo[0].light, np.sum([probe.weight for probe in todo], axis=0))]
-        total, empty = None, None
-        with torch.no_grad():
-            for probe in progress_bar(todo, desc="lights", unit="light", disable=not progress or len(todo) < 2,
-                                      leave=False):
-                lit, empty = self._linear_render(camera, probe.light)
-                total = lit * probe.weight.astype(np.float32) if total is None else \
-                    total + lit * probe.weight.astype(np.float32)
+        return todo
+
+    def contribution(self, camera: Camera, probe: Probe) -> tuple[np.ndarray, np.ndarray]:
+        """(the probe's weighted light without the background, linear (H, W, 3) float32; the uncovered share
+        1 - alpha (H, W, 1)): `linear` is `composite` of the sum of these over `rendered_probes`."""
+        lit, empty = self._linear_render(camera, probe.light)
+        return lit * probe.weight.astype(np.float32), empty
+
+    def composite(self, total: np.ndarray, empty: np.ndarray) -> np.ndarray:
+        """A sum of `contribution` images (H, W, 3) with the job's background, in linear light, put back once where
+        the scene is uncovered (``empty`` (H, W, 1)): (H, W, 3) float32."""
         background = colour.convert_colourspace(self.background.reshape(1, 1, 3), self.colourspace, "linear")
         return (total + empty * background).astype(np.float32)
 

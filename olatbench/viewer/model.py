@@ -6,27 +6,41 @@ newer checkpoint when the runner has written one and swaps it in between two ren
 display as the sweeps do (`olatbench.reports.video.display_image`: sRGB, 8-bit). Ground truth is read only for a
 frame the user snaps to, and compared in the job's evaluation colour space as the runner scores (both clipped to
 [0, 1]).
+
+Under an environment map (`olatbench.viewer.environment`) the model is relit through `olatbench.bench.relight`
+as ``olatbench render --envmap`` relights it (the same samples for the same settings), progressively
+(`olatbench.bench.progressive`): the map is stood on the training rig's vertical and sampled once per setting
+(a few are cached).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import threading
+from collections import OrderedDict
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from olatbench.bench.progressive import ProgressiveRelight
+from olatbench.bench.relight import Relighter, shown
 from olatbench.bench.restore import RestoreError, newest_checkpoint, restore
 from olatbench.bench.results import ResultsError, read_results
 from olatbench.bench.store import RESULTS_FILE, list_checkpoints
-from olatbench.bench.views import view_camera
+from olatbench.bench.views import frame_views, view_camera
 from olatbench.datasets import colour, load_scene
+from olatbench.datasets.lighting import SampledLights
 from olatbench.datasets.records import Camera, Frame, PointLight
 from olatbench.metrics.psnr import psnr
 from olatbench.reports.sweeps import orbit_frame
 from olatbench.reports.video import display_image
+from olatbench.viewer.environment import EnvironmentSettings
 from olatbench.viewer.geometry import LightFrame
+
+CACHED_LIGHTINGS = 4  # sampled environment settings kept per model
 
 
 @dataclass(frozen=True)
@@ -83,6 +97,9 @@ class ViewerModel:
         self.light_frame = LightFrame.of(centre, up, self.train[0].camera.position)
         self.full_size = (first.camera.width, first.camera.height)
         self._lock = threading.Lock()
+        self._train_frames = train
+        self._relighter: Relighter | None = None  # built on the first environment-map view
+        self._lightings: OrderedDict[EnvironmentSettings, SampledLights] = OrderedDict()
         self.components: tuple[str, ...] = tuple(self.render_outputs(first.camera.resized(8, 8), first.light))
         self._recorded = self._recorded_psnr()
 
@@ -144,6 +161,50 @@ class ViewerModel:
         if component not in outputs:
             raise KeyError(f"method '{self.job.method}' renders no {component!r}; it renders {', '.join(outputs)}")
         return colour.quantize_8bit(display_image(outputs[component], self.job.colourspace)), step
+
+    @property
+    def relightable(self) -> bool:
+        """Whether the method's render depends on the light (else a lighting only scales its one render)."""
+        return "relight" in self.method.capabilities
+
+    def _relighter_of_current(self) -> tuple[Relighter, int]:
+        """(a relighter of the current model, its step); call with the lock held. A `RelightError` when the
+        training lights give no reference irradiance."""
+        if self._relighter is None:
+            self._relighter = Relighter.for_views(self.method, frame_views(self._train_frames, self.job))
+        return dataclasses.replace(self._relighter, method=self.method), self.step
+
+    def environment_lights(self, settings: EnvironmentSettings) -> SampledLights:
+        """The directional lights of ``settings`` (stood on the training rig's vertical, as ``olatbench render``
+        stands a map), cached; a `DatasetError` for a map that cannot be read."""
+        with self._lock:
+            lights = self._lightings.get(settings)
+            if lights is not None:
+                self._lightings.move_to_end(settings)
+                return lights
+            up = self._relighter_of_current()[0].reference.up
+        lights = settings.lighting().sample(up)
+        with self._lock:
+            self._lightings[settings] = lights
+            while len(self._lightings) > CACHED_LIGHTINGS:
+                self._lightings.popitem(last=False)
+        return lights
+
+    def progressive(self, camera: Camera, settings: EnvironmentSettings) -> tuple[ProgressiveRelight, int]:
+        """A progressive relight of ``camera`` under ``settings`` by the current model, and that model's step (the
+        relight keeps that model, even when a newer checkpoint is swapped in meanwhile)."""
+        lights = self.environment_lights(settings)
+        with self._lock:
+            relighter, step = self._relighter_of_current()
+        return ProgressiveRelight(relighter, camera, lights), step
+
+    def refine(self, relight: ProgressiveRelight, count: int, stop: Callable[[], bool] | None = None
+               ) -> np.ndarray | None:
+        """Render ``count`` more probes of ``relight`` (fewer if ``stop()`` turns true first), serialised with the
+        other renders; its image for display, (H, W, 3) uint8 sRGB (None when nothing has been rendered yet)."""
+        with self._lock:
+            relight.advance(count, stop)
+        return colour.quantize_8bit(shown(relight.estimate())) if relight.done else None
 
     def compare(self, frame: ViewerFrame) -> Comparison:
         """Render ``frame`` with its own camera and light and put it beside the ground truth."""

@@ -7,6 +7,13 @@ renders at reduced resolution while changes keep coming and at the browser canva
 ``max_resolution``) once they stop, then sends as the tab's background image (JPEG). Snapping to a dataset frame
 renders it with the frame's own camera and light, beside its ground truth and PSNR (lossless PNG in the GUI panel).
 
+A tab's *lighting* menu switches between the point light and an environment map (`olatbench.viewer.environment`):
+while the view moves, each image is the map's estimate from ``preview_samples`` of its ``K`` samples at the drag
+resolution; once still, the full-resolution image is refined pass by pass (``preview_samples`` first, then
+``batch_samples`` more per pass, each image the average so far: `olatbench.bench.progressive`) until it is the
+``K``-sample relight ``olatbench render --envmap`` makes; a camera move or a changed setting supersedes it at the
+next sample (`RenderScheduler.superseded`) and the refinement starts again.
+
 A job still training is followed: every ``follow_seconds`` a follower thread restores the newest checkpoint of each
 shown job that has not finished, when the runner has written a newer one, and every tab showing it renders again.
 """
@@ -19,17 +26,35 @@ import time
 import traceback
 from collections import OrderedDict
 from collections.abc import Callable, Hashable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from olatbench.bench.progressive import ProgressiveRelight
 from olatbench.bench.restore import RestoreError
 from olatbench.datasets.records import PointLight
+from olatbench.viewer.environment import (
+    BATCH_SAMPLES,
+    DEFAULT_SAMPLES,
+    ENVIRONMENT_MODE,
+    EXPOSURE_RANGE,
+    MAX_SAMPLES,
+    MODES,
+    POINT_MODE,
+    PREVIEW_SAMPLES,
+    ROTATION_RANGE,
+    EnvironmentSettings,
+    SettingsError,
+    map_menu,
+    parse_settings,
+    pass_size,
+    refinement_passes,
+)
 from olatbench.viewer.geometry import MAX_RESOLUTION, browser_camera, camera_pose, render_size
 from olatbench.viewer.model import Comparison, ViewerFrame, ViewerModel
-from olatbench.viewer.scheduler import Quality, RenderScheduler
+from olatbench.viewer.scheduler import Quality, RenderScheduler, Superseded
 
 JPEG_QUALITY = 90
 MAX_MODELS = 4  # restored models kept at once; the least recently chosen goes first
@@ -51,6 +76,30 @@ class ViewRequest:
     component: str
 
 
+@dataclass
+class Refinement:
+    """How far an environment-map request has been refined at full resolution: its progressive relight and the
+    checkpoint step of the model drawing it (set and advanced by the render worker only)."""
+
+    relight: ProgressiveRelight | None = None
+    step: int = 0
+
+
+@dataclass(frozen=True, eq=False)
+class EnvironmentRequest:
+    """Render ``model`` from a browser pose (as `ViewRequest`) under an environment map's ``settings``; the
+    scheduler renders it once as a preview and then refines it pass by pass (``refinement``)."""
+
+    model: ViewerModel
+    wxyz: tuple[float, ...]
+    position: tuple[float, ...]
+    fov: float
+    canvas: tuple[int, int]
+    settings: EnvironmentSettings
+    refinement: Refinement = field(default_factory=Refinement)
+    component: str = "rgb"  # only rgb adds up over lights
+
+
 @dataclass(frozen=True)
 class CompareRequest:
     """Render a dataset frame with its own camera and light beside its ground truth."""
@@ -61,14 +110,15 @@ class CompareRequest:
 
 @dataclass(frozen=True)
 class Delivered:
-    """The newest image a tab received: what was asked, the (H, W, 3) uint8 image, its quality, render time and the
-    checkpoint step of the model that drew it."""
+    """The newest image a tab received: what was asked, the (H, W, 3) uint8 image, its quality, render time, the
+    checkpoint step of the model that drew it and, under an environment map, (samples averaged, of ``K``)."""
 
-    request: ViewRequest
+    request: ViewRequest | EnvironmentRequest
     image: np.ndarray
     quality: Quality
     seconds: float
     step: int
+    samples: tuple[int, int] | None = None
 
 
 class ViewerApp:
@@ -78,7 +128,9 @@ class ViewerApp:
     resolution factor while the user drags (1.0: always full); ``settle_seconds`` how long a view must be still
     before its full-resolution render; ``follow_seconds`` how often jobs still training are checked for a newer
     checkpoint; ``max_models`` how many restored models are kept (a tab keeps showing its model after the cache
-    lets go of it).
+    lets go of it). ``maps`` is the environment-map menu (label -> source, `olatbench.viewer.environment.map_menu`;
+    default the built-in maps), ``samples`` the ``K`` a tab starts with, ``preview_samples`` and ``batch_samples``
+    the samples of the moving view's image and of each refinement pass.
 
     Only the listed ``folders`` are ever opened: a tab chooses among them by name (`listed`), so a browser cannot
     make the server read another path, even when it is reachable from other machines (``--host 0.0.0.0``).
@@ -87,11 +139,14 @@ class ViewerApp:
     def __init__(self, folders: list[Path], first: ViewerModel, *, host: str = "127.0.0.1", port: int = 8080,
                  device: str = "cpu", drag_scale: float = 0.5, settle_seconds: float = 0.25,
                  max_resolution: int = MAX_RESOLUTION, follow_seconds: float = 2.0, verbose: bool = False,
-                 max_models: int = MAX_MODELS) -> None:
+                 max_models: int = MAX_MODELS, maps: dict[str, str] | None = None, samples: int = DEFAULT_SAMPLES,
+                 preview_samples: int = PREVIEW_SAMPLES, batch_samples: int = BATCH_SAMPLES) -> None:
         self.folders = [Path(f) for f in folders]
         self.host, self.port, self.device, self.verbose = host, port, device, verbose
         self.drag_scale, self.max_resolution = drag_scale, max_resolution
         self.max_models = max(1, max_models)
+        self.maps = map_menu() if maps is None else dict(maps)
+        self.samples, self.preview_samples, self.batch_samples = samples, preview_samples, batch_samples
         self._models: OrderedDict[Path, ViewerModel] = OrderedDict({self.folders[0]: first})
         self._models_lock = threading.Lock()
         self.sessions: dict[int, ClientSession] = {}
@@ -184,19 +239,44 @@ class ViewerApp:
             self.scheduler.forget((client.client_id, kind))
 
     # ------------------------------------------------------------------------------------------- rendering
-    def _render(self, request: ViewRequest | CompareRequest, quality: Quality) -> tuple[Any, float, int]:
+    def _render(self, request: ViewRequest | EnvironmentRequest | CompareRequest, quality: Quality
+                ) -> tuple[Any, float, int, tuple[int, int] | None]:
+        """(image or comparison, seconds, checkpoint step, (samples averaged, K) under an environment map)."""
         started = time.perf_counter()
         if isinstance(request, CompareRequest):
-            return request.model.compare(request.frame), time.perf_counter() - started, request.model.step
+            return request.model.compare(request.frame), time.perf_counter() - started, request.model.step, None
         size = render_size(request.canvas, self.max_resolution, 1.0 if quality == "full" else self.drag_scale)
         camera = browser_camera(np.asarray(request.wxyz), np.asarray(request.position), request.fov, *size)
+        if isinstance(request, EnvironmentRequest):
+            image, step, samples = self._refine(request, camera, quality)
+            return image, time.perf_counter() - started, step, samples
         image, step = request.model.render_with_step(camera, request.light, request.component)
-        return image, time.perf_counter() - started, step
+        return image, time.perf_counter() - started, step, None
 
-    def _deliver(self, key: Hashable, request: Any, result: tuple[Any, float, int], quality: Quality) -> None:
+    def _refine(self, request: EnvironmentRequest, camera: Any, quality: Quality
+                ) -> tuple[np.ndarray, int, tuple[int, int]]:
+        """A preview (a fresh relight of the moving view at ``preview_samples``) or the next refinement pass of the
+        still view; a pass whose request is superseded stops at the next sample (`Superseded`)."""
+        if quality == "preview":  # short: always finished and shown, so that a drag shows images
+            relight, step = request.model.progressive(camera, request.settings)
+            image = request.model.refine(relight, self.preview_samples)
+            if image is None:
+                raise ValueError("an environment map preview needs at least one sample")
+        else:
+            refinement = request.refinement
+            if refinement.relight is None:
+                refinement.relight, refinement.step = request.model.progressive(camera, request.settings)
+            relight, step = refinement.relight, refinement.step
+            image = request.model.refine(relight, pass_size(relight.done, self.preview_samples,
+                                                            self.batch_samples), self.scheduler.superseded)
+            if image is None or self.scheduler.superseded():
+                raise Superseded()
+        return image, step, (relight.done, relight.total)
+
+    def _deliver(self, key: Hashable, request: Any, result: tuple[Any, float, int, Any], quality: Quality) -> None:
         session = self.sessions.get(key[0])
         if session is not None:
-            session.show(request, result[0], quality, result[1], result[2])
+            session.show(request, result[0], quality, result[1], result[2], result[3])
 
     def _render_failed(self, key: Hashable, error: BaseException) -> None:
         session = self.sessions.get(key[0])
@@ -260,6 +340,18 @@ class ClientSession:
             self.job_dropdown = gui.add_dropdown("job", [str(f) for f in self.app.folders],
                                                  initial_value=str(self.app.folders[0]))
             self.job_dropdown.on_update(self._job_chosen)
+        self.mode = gui.add_dropdown("lighting", MODES, initial_value=POINT_MODE)
+        self.mode.on_update(self._mode_chosen)
+        self.environment: EnvironmentSettings | None = None  # the valid settings of the environment-map controls
+        with gui.add_folder("Environment map"):
+            self.env_map = gui.add_dropdown("map", list(self.app.maps), initial_value=next(iter(self.app.maps)))
+            self.env_rotation = gui.add_slider("rotation °", *ROTATION_RANGE, 1.0, 0.0)
+            self.env_exposure = gui.add_slider("exposure (stops)", *EXPOSURE_RANGE, 0.25, 0.0)
+            self.env_samples = gui.add_number("samples", self.app.samples, min=1, max=MAX_SAMPLES, step=1)
+        self.env_map.on_update(lambda event: self._environment_changed(event, progressive=False))
+        for control in (self.env_rotation, self.env_exposure):
+            control.on_update(self._environment_changed)
+        self.env_samples.on_update(lambda event: self._environment_changed(event, progressive=False))
         with gui.add_folder("Light"):
             self.azimuth = gui.add_slider("azimuth °", -180.0, 180.0, 1.0, 0.0)
             self.elevation = gui.add_slider("elevation °", -89.0, 89.0, 1.0, 0.0)
@@ -314,6 +406,7 @@ class ClientSession:
             "/train/lights", np.array([f.light.position for f in model.train], dtype=np.float32),
             colors=LIGHT_COLOUR, point_size=0.01 * extent, visible=bool(self.show_lights.value))
         self._scene_nodes = [self.light_handle, *self.cameras, self.lights]  # the bulb goes with /light
+        self._set_mode(str(self.mode.value))  # the new handle's visibility
         self.snap(model.home, compare=False)
 
     def _set_visible(self, kind: str, visible: bool) -> None:
@@ -342,7 +435,10 @@ class ClientSession:
 
     @_locked
     def snap(self, frame: ViewerFrame, compare: bool = True) -> None:
-        """Camera and light to a dataset frame; with ``compare``, render it beside its ground truth."""
+        """Camera and light to a dataset frame; with ``compare`` (back to the point-light mode, the frame's), render
+        it beside its ground truth."""
+        if compare:
+            self._set_mode(POINT_MODE)
         wxyz, position, fov = camera_pose(frame.camera)
         self.pose = (tuple(wxyz), tuple(position), fov)
         self.canvas = (frame.camera.width, frame.camera.height) if not self._camera_known else self.canvas
@@ -374,8 +470,22 @@ class ClientSession:
         if self.pose is None:
             return
         wxyz, position, fov = self.pose
-        self.app.scheduler.submit((self.client.client_id, "view"), ViewRequest(
+        key = (self.client.client_id, "view")
+        if self.mode.value == ENVIRONMENT_MODE and self.environment is not None:
+            total = self.environment.samples if self.model.relightable else 1  # a light-blind method: one render
+            self.app.scheduler.submit(key, EnvironmentRequest(self.model, wxyz, position, fov, self.canvas,
+                                                              self.environment), progressive,
+                                      refinement_passes(total, self.app.preview_samples, self.app.batch_samples))
+            return
+        self.app.scheduler.submit(key, ViewRequest(
             self.model, wxyz, position, fov, self.canvas, self.light, str(self.output.value)), progressive)
+
+    def _set_mode(self, mode: str) -> None:
+        """Show ``mode`` (`MODES`): the light handle and the output menu go with the point light."""
+        self.mode.value = mode
+        point = mode == POINT_MODE
+        self.light_handle.visible = point
+        self.output.disabled = not point
 
     # ------------------------------------------------------------------------------------------- events
     @_locked
@@ -415,6 +525,35 @@ class ClientSession:
             self.request(progressive=False)
 
     @_locked
+    def _mode_chosen(self, event: Any) -> None:
+        if event.client is None:
+            return
+        mode = self.mode.value
+        if mode not in MODES:  # the tab sends the value
+            self.status.content = f"**lighting**: {mode!r} is not one of {', '.join(MODES)}"
+            return
+        if mode == ENVIRONMENT_MODE and not self._read_environment():
+            return
+        self._set_mode(mode)
+        self.request(progressive=False)
+
+    @_locked
+    def _environment_changed(self, event: Any, progressive: bool = True) -> None:
+        if event.client is not None and self._read_environment() and self.mode.value == ENVIRONMENT_MODE:
+            self.request(progressive)
+
+    def _read_environment(self) -> bool:
+        """Take the environment controls' values as the settings; whether they are valid (else the status says
+        why in one line, and the last valid settings stay)."""
+        try:
+            self.environment = parse_settings(self.app.maps, self.env_map.value, self.env_rotation.value,
+                                              self.env_exposure.value, self.env_samples.value)
+        except SettingsError as error:
+            self.status.content = f"**environment map**: {error}"
+            return False
+        return True
+
+    @_locked
     def _snap_clicked(self, event: Any) -> None:
         try:  # the tab sends the name: one that is not in the list is said there, not raised on the server
             frame = self.model.frame(str(self.frame_dropdown.value))
@@ -439,7 +578,8 @@ class ClientSession:
             self.status.content = f"**cannot show {folder}**: {error}"
 
     # ------------------------------------------------------------------------------------------- output
-    def show(self, request: Any, result: Any, quality: Quality, seconds: float, step: int) -> None:
+    def show(self, request: Any, result: Any, quality: Quality, seconds: float, step: int,
+             samples: tuple[int, int] | None = None) -> None:
         """Put a finished render in the tab (called on the render worker)."""
         if isinstance(request, CompareRequest):
             self.comparison = result
@@ -448,8 +588,13 @@ class ClientSession:
             recorded = f" (runner: {result.recorded_psnr:.2f} dB)" if result.recorded_psnr is not None else ""
             self.comparison_text.content = f"**{result.frame.label}**: PSNR {result.psnr:.2f} dB{recorded}"
             return
-        self.delivered = Delivered(request, result, quality, seconds, step)  # before the image leaves: tests wait
+        self.delivered = Delivered(request, result, quality, seconds, step, samples)  # before it leaves: tests wait
         self.client.scene.set_background_image(result, format="jpeg", jpeg_quality=JPEG_QUALITY)
         height, width = result.shape[:2]
-        self.status.content = (f"{self.model.label} · {request.component} · {width}×{height} "
-                               f"({'full' if quality == 'full' else 'dragging'}) in {1000 * seconds:.0f} ms")
+        state = "full" if quality == "full" else "dragging"
+        if samples is None:
+            what = request.component
+        else:
+            what = f"{request.settings.label} · {samples[0]}/{samples[1]} samples"
+            state = "moving" if quality == "preview" else "converged" if samples[0] == samples[1] else "refining"
+        self.status.content = f"{self.model.label} · {what} · {width}×{height} ({state}) in {1000 * seconds:.0f} ms"
