@@ -7,6 +7,7 @@ import os
 import shutil
 import subprocess
 import sys
+import time
 import urllib.request
 from pathlib import Path
 
@@ -235,6 +236,75 @@ def test_renders_fill_the_browser_window_capped_by_max_resolution(app):
         finally:
             client.close()
             app.max_resolution = MAX_RESOLUTION
+
+
+def gui_message(client: ViserTestClient, label: str) -> dict:
+    """The message that added the tab's GUI control named ``label``."""
+    return client.wait_for(lambda m: str(m.get("type", "")).startswith("Gui") and m.get("props", {}).get("label")
+                           == label)
+
+
+def test_the_environment_map_mode_refines_to_the_render_commands_image_and_restarts_when_the_camera_moves(
+        app, trained, monkeypatch):
+    from olatbench.bench.relight import restore_relighter, shown
+    from olatbench.datasets.lighting import environment_lighting
+    from olatbench.reports.video import sample_lighting
+    from olatbench.viewer.environment import ENVIRONMENT_MODE
+
+    model = app.model(app.folders[0])
+    samples = 24
+    monkeypatch.setattr(app, "batch_samples", 2)  # a pass per 2 samples: 1 + 10 passes of a still view
+    refine = model.refine
+
+    def slow_refine(*args, **kwargs):  # time for the camera to move while the view refines
+        time.sleep(0.05)
+        return refine(*args, **kwargs)
+
+    monkeypatch.setattr(model, "refine", slow_refine)
+    client = connect_home(app)
+    try:
+        owner = client.wait_for(lambda m: m.get("type") == "TransformControlsMessage")["owner"]
+        session = app.sessions[int(owner)]
+        full_image(client, model)
+        shown_images = []
+        show = session.show
+
+        def recording_show(request, result, quality, seconds, step, samples=None):
+            shown_images.append((request, quality, samples))
+            show(request, result, quality, seconds, step, samples)
+
+        monkeypatch.setattr(session, "show", recording_show)
+        client.send(_messages.GuiUpdateMessage(gui_message(client, "samples")["uuid"], {"value": samples}))
+        client.send(_messages.GuiUpdateMessage(gui_message(client, "rotation °")["uuid"], {"value": 40.0}))
+        client.send(_messages.GuiUpdateMessage(gui_message(client, "lighting")["uuid"], {"value": ENVIRONMENT_MODE}))
+        wait_until(lambda: len([s for _, q, s in shown_images if q == "full" and s]) >= 3, "three refinement passes",
+                   poll=0.005)
+        first_request = shown_images[-1][0]
+        wxyz, position, fov = camera_pose(model.home.camera)
+        moved = np.asarray(position) * 1.1  # the camera backs off during the refinement
+        client.send_camera(wxyz, moved, fov, *model.full_size)
+        wait_until(lambda: app.scheduler.idle() and session.delivered.request.position == tuple(moved)
+                   and session.delivered.samples == (samples, samples), "the moved view refined", poll=0.01)
+    finally:
+        client.close()
+    first = [s[0] for r, q, s in shown_images if r is first_request]
+    assert first[:3] == [4, 6, 8] and first[-1] < samples  # refined two samples a pass, then cancelled
+    second_request = session.delivered.request
+    second = [(q, s[0]) for r, q, s in shown_images if r is second_request]
+    assert second[-11:] == [("full", n) for n in range(4, samples + 1, 2)]  # from the start: 4, then 2 a pass
+    assert all(q == "preview" and n == 4 for q, n in second[:-11])  # the moving view's previews (4 samples)
+    assert not [r for r, _, _ in shown_images[shown_images.index(next(x for x in shown_images if x[0] is
+                second_request)):] if r is first_request]  # nothing of the old view after the new one's first
+    # the converged image is what 'olatbench render --envmap studio --samples 24' renders (same samples)
+    relighter, _ = restore_relighter(trained)
+    job = JobFolder.open(trained)
+    lights = sample_lighting(job, environment_lighting("studio", samples, rotation=40.0))
+    image = session.delivered.image
+    camera = browser_camera(np.asarray(second_request.wxyz), np.asarray(second_request.position),
+                            second_request.fov, image.shape[1], image.shape[0])
+    expected = colour.quantize_8bit(shown(relighter.linear(camera, lights))).astype(int)
+    assert np.abs(image.astype(int) - expected).max() <= 1  # float32 sums in another order: a rounding at most
+    assert np.abs(image.astype(int) - expected).mean() < 0.01
 
 
 def write_earlier_checkpoint(job: Path, final: Path, step: int) -> None:

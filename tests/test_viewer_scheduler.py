@@ -251,3 +251,29 @@ def test_light_frame_spherical_coordinates():
     for azimuth, elevation, distance in ((-170.0, 10.0, 0.5), (35.0, -60.0, 3.0), (120.0, 80.0, 1.0)):
         position = frame.position(azimuth, elevation, distance)
         assert frame.spherical(position) == pytest.approx((azimuth, elevation, distance))
+
+
+def test_environment_settings_errors_are_one_line_naming_the_field(tmp_path):
+    from olatbench.viewer.environment import SettingsError, map_menu, parse_settings, refinement_passes
+
+    menu = map_menu()
+    assert list(menu) == ["studio", "sky", "furnace"]
+    settings = parse_settings(menu, "sky", 30, "-1.5", 16.0)
+    assert (settings.source, settings.rotation, settings.exposure, settings.samples) == ("sky", 30.0, -1.5, 16)
+    bad = {"map 'attic'": ("attic", 0, 0, 64), "map '/etc/passwd'": ("/etc/passwd", 0, 0, 64),
+           "rotation °": ("sky", float("nan"), 0, 64), "exposure (stops)": ("sky", 0, "bright", 64),
+           "samples: 0": ("sky", 0, 0, 0), "samples: 2.5": ("sky", 0, 0, 2.5), "samples: 100000": ("sky", 0, 0, 1e5)}
+    for field, values in bad.items():
+        with pytest.raises(SettingsError) as caught:
+            parse_settings(menu, *values)
+        message = str(caught.value)
+        assert message.startswith(field) and "\n" not in message, message
+    broken = tmp_path / "broken.exr"
+    broken.write_bytes(b"not an image")
+    for path, says in ((tmp_path / "room.png", "an .exr or .hdr file"), (tmp_path / "missing.exr", "not found"),
+                       (broken, str(broken))):
+        with pytest.raises(SettingsError) as caught:
+            map_menu([path])
+        message = str(caught.value)
+        assert message.startswith(f"--envmap {path}") and says in message and "\n" not in message, message
+    assert [refinement_passes(k, 4, 8) for k in (1, 4, 5, 12, 13, 64)] == [1, 1, 2, 2, 3, 9]

@@ -17,6 +17,7 @@ from olatbench.cli.options import (
     suite_filter_option,
 )
 from olatbench.datasets.sizes import MAX_SIDE
+from olatbench.viewer.environment import DEFAULT_SAMPLES, MAX_SAMPLES, SettingsError, map_menu
 from olatbench.viewer.geometry import MAX_RESOLUTION
 
 
@@ -31,14 +32,19 @@ from olatbench.viewer.geometry import MAX_RESOLUTION
               help="Renders fill the browser window, their longer side capped at this many pixels.")
 @click.option("--drag-scale", type=click.FloatRange(0.05, 1.0), default=0.5, show_default=True,
               help="Resolution factor while the camera or light moves (full resolution once still).")
+@click.option("--envmap", "envmaps", multiple=True, metavar="FILE",
+              help="An .exr/.hdr environment map to add to the tab's map menu beside the built-in studio, sky and "
+                   "furnace (repeatable).")
+@click.option("--samples", type=click.IntRange(1, MAX_SAMPLES), default=DEFAULT_SAMPLES, show_default=True,
+              help="Environment-map mode: the samples K a still view is refined to (the tab can change it).")
 @click.option("--record", nargs=2, type=(click.Choice(("light-orbit", "view-orbit")), click.Path(dir_okay=False,
               path_type=Path)), help="Instead of serving: render KIND OUT.mp4 (the sweep of 'olatbench render').")
 @click.option("--component", default="rgb", show_default=True, help="With --record: the output to record.")
 @click.option("--frames", "count", type=click.IntRange(min=1), help="With --record: spread this many frames.")
 @click.option("--start-frame", help="With --record: test frame id whose camera and light start (default: first).")
 @quiet_option
-def view(folder, suite, port, host, device, max_resolution, drag_scale, record, component, count, start_frame,
-         quiet) -> None:
+def view(folder, suite, port, host, device, max_resolution, drag_scale, envmaps, samples, record, component, count,
+         start_frame, quiet) -> None:
     """Open a web viewer on a trained job (or every job of a run folder); a job still training is followed, its
     newest checkpoint shown as the runner writes it.
 
@@ -47,11 +53,14 @@ def view(folder, suite, port, host, device, max_resolution, drag_scale, record, 
 
     \b
     Move the light (handle or sliders), orbit the camera, switch outputs (rgb, diffuse, specular, sss, shadow, …),
-    snap to a dataset frame to see its ground truth and PSNR.
+    snap to a dataset frame to see its ground truth and PSNR. The 'lighting' menu switches to an environment map
+    (rotation, exposure, samples K): a few samples while the view moves, refined to the K-sample image of
+    'olatbench render --envmap' while it is still.
     Examples:
       olatbench view runs/mini/ssdgs/default/translucent/seed0
       olatbench view runs/mini --port 8081 --max-resolution 1024
       olatbench view runs/ -s mycaptures          # the jobs of one suite (e.g. of olatbench.toml)
+      olatbench view runs/mini/ssdgs/default/translucent/seed0 --envmap room.exr --samples 128
       olatbench view runs/mini/ssdgs/default/translucent/seed0 --record light-orbit orbit.mp4
     """
     # Idle OpenMP threads sleep instead of spinning: on a shared 2-core machine spinning made each render of the
@@ -64,6 +73,10 @@ def view(folder, suite, port, host, device, max_resolution, drag_scale, record, 
     from olatbench.viewer.model import ViewerModel
 
     suite = checked_suite(suite)
+    try:
+        maps = map_menu(envmaps)
+    except SettingsError as error:  # one line naming the file
+        raise click.UsageError(str(error)) from None
     try:
         folders, skipped = job_folders(folder, device)
         folders = [job for job in folders if in_suite(job, suite)]
@@ -85,7 +98,7 @@ def view(folder, suite, port, host, device, max_resolution, drag_scale, record, 
         from olatbench.viewer.server import ViewerApp
 
         app = ViewerApp(folders, first, host=host, port=port, device=device, drag_scale=drag_scale,
-                        max_resolution=max_resolution).start()
+                        max_resolution=max_resolution, maps=maps, samples=samples).start()
     except OSError as error:
         raise click.ClickException(f"cannot listen on {host}:{port} ({error}); try --port 0") from None
     click.echo(f"olatbench view: {len(folders)} job(s) at {app.url} (Ctrl-C to stop)")
