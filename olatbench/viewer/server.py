@@ -271,7 +271,8 @@ class ViewerApp:
                                                             self.batch_samples), self.scheduler.superseded)
             if image is None or self.scheduler.superseded():
                 raise Superseded()
-        return image, step, (relight.done, relight.total)
+        # in map samples: a light-blind method's one render stands for all K
+        return image, step, (relight.done * request.settings.samples // relight.total, request.settings.samples)
 
     def _deliver(self, key: Hashable, request: Any, result: tuple[Any, float, int, Any], quality: Quality) -> None:
         session = self.sessions.get(key[0])
