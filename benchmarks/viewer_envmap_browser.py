@@ -61,8 +61,8 @@ STATUS = r"""
 })()
 """
 
-# The centre of the input of the GUI control labelled LABEL (an element whose own text is the label, and the nearest
-# input around it), or null.
+# The centre of the input of the visible GUI control labelled LABEL (an element whose own text is the label, and the
+# nearest input around it), or null.
 CONTROL = r"""
 ((label) => {
   const own = (el) => [...el.childNodes].filter((n) => n.nodeType === 3).map((n) => n.textContent).join('').trim();
@@ -72,6 +72,7 @@ CONTROL = r"""
       const input = node.querySelector('input:not([type=hidden])');
       if (input) {
         const r = input.getBoundingClientRect();
+        if (r.width === 0) break;  // a hidden folder's control: not yet shown
         return JSON.stringify([r.x + r.width / 2, r.y + r.height / 2]);
       }
     }

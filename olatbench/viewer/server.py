@@ -344,7 +344,8 @@ class ClientSession:
         self.mode = gui.add_dropdown("lighting", MODES, initial_value=POINT_MODE)
         self.mode.on_update(self._mode_chosen)
         self.environment: EnvironmentSettings | None = None  # the valid settings of the environment-map controls
-        with gui.add_folder("Environment map"):
+        self.env_folder = gui.add_folder("Environment map", visible=False)
+        with self.env_folder:
             self.env_map = gui.add_dropdown("map", list(self.app.maps), initial_value=next(iter(self.app.maps)))
             self.env_rotation = gui.add_slider("rotation °", *ROTATION_RANGE, 1.0, 0.0)
             self.env_exposure = gui.add_slider("exposure (stops)", *EXPOSURE_RANGE, 0.25, 0.0)
@@ -353,7 +354,8 @@ class ClientSession:
         for control in (self.env_rotation, self.env_exposure):
             control.on_update(self._environment_changed)
         self.env_samples.on_update(lambda event: self._environment_changed(event, progressive=False))
-        with gui.add_folder("Light"):
+        self.light_folder = gui.add_folder("Light")
+        with self.light_folder:
             self.azimuth = gui.add_slider("azimuth °", -180.0, 180.0, 1.0, 0.0)
             self.elevation = gui.add_slider("elevation °", -89.0, 89.0, 1.0, 0.0)
             self.distance = gui.add_slider("distance", 0.01, 1.0, 0.01, 0.5)
@@ -482,10 +484,12 @@ class ClientSession:
             self.model, wxyz, position, fov, self.canvas, self.light, str(self.output.value)), progressive)
 
     def _set_mode(self, mode: str) -> None:
-        """Show ``mode`` (`MODES`): the light handle and the output menu go with the point light."""
+        """Show ``mode`` (`MODES`): the light's folder, handle and the output menu go with the point light, the
+        environment map's folder with the map."""
         self.mode.value = mode
         point = mode == POINT_MODE
-        self.light_handle.visible = point
+        self.light_handle.visible = self.light_folder.visible = point
+        self.env_folder.visible = not point
         self.output.disabled = not point
 
     # ------------------------------------------------------------------------------------------- events
