@@ -423,3 +423,24 @@ def test_the_browser_latency_benchmark_times_light_moves_in_headless_chromium(tr
     assert fields["moves"] == fields["valid"] == "2"
     assert 0 < float(fields["first_painted_ms"]) <= float(fields["full_painted_ms"])
     assert float(fields["full_arrived_ms"]) <= float(fields["full_painted_ms"])
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(CHROMIUM is None, reason="needs Debian's chromium (apt-get install chromium)")
+def test_the_environment_map_mode_converges_in_headless_chromium(trained, tmp_path):
+    """benchmarks/viewer_envmap_browser.py: the lighting menu clicked to the environment map and the sky map, a camera
+    drag during the refinement restarts it, the view converges to K samples, and the screenshot is written."""
+    root = Path(__file__).resolve().parents[1]
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [str(root), os.environ.get("PYTHONPATH")]))}
+    shot = tmp_path / "envmap.png"
+    result = subprocess.run([sys.executable, str(root / "benchmarks" / "viewer_envmap_browser.py"), str(trained),
+                             "--out", str(shot), "--samples", "32", "--map", "sky", "--move-after", "12",
+                             "--startup-timeout", str(int(BACKSTOP_SECONDS)), "--timeout", str(int(BACKSTOP_SECONDS))],
+                            capture_output=True, text=True, timeout=2 * BACKSTOP_SECONDS, env=env)
+    assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
+    assert "dragged the camera at" in result.stdout
+    summary = [line for line in result.stdout.splitlines() if line.startswith("SUMMARY viewer_envmap_browser ")]
+    fields = dict(field.split("=", 1) for field in summary[0].split()[2:])
+    assert fields["status"] == "ok" and fields["samples"] == "32" and fields["map"] == "sky"
+    image = cv2.imread(str(shot))
+    assert image is not None and image.shape[0] > 100 and image.std() > 1.0

@@ -277,3 +277,15 @@ def test_environment_settings_errors_are_one_line_naming_the_field(tmp_path):
         message = str(caught.value)
         assert message.startswith(f"--envmap {path}") and says in message and "\n" not in message, message
     assert [refinement_passes(k, 4, 8) for k in (1, 4, 5, 12, 13, 64)] == [1, 1, 2, 2, 3, 9]
+    from olatbench.datasets.images import write_image
+
+    for folder in ("a", "b"):
+        (tmp_path / folder).mkdir()
+        write_image(tmp_path / folder / "room.exr", np.full((4, 8, 3), 0.5, dtype=np.float32))
+    write_image(tmp_path / "hall.hdr", np.full((4, 8, 3), 0.5, dtype=np.float32))
+    menu = map_menu([tmp_path / "a" / "room.exr", tmp_path / "b" / "room.exr", tmp_path / "hall.hdr"])
+    assert menu == {"studio": "studio", "sky": "sky", "furnace": "furnace",  # two files named alike: by path
+                    str(tmp_path / "a" / "room.exr"): str(tmp_path / "a" / "room.exr"),
+                    str(tmp_path / "b" / "room.exr"): str(tmp_path / "b" / "room.exr"),
+                    "hall.hdr": str(tmp_path / "hall.hdr")}
+    assert parse_settings(menu, "hall.hdr", 0, 0, 8).lighting().sample().directions  # the file is sampled
