@@ -159,6 +159,7 @@ def test_snap_to_a_frame_name_not_in_the_list_is_said_in_the_tab_not_raised_on_t
         dropdown = client.wait_for(lambda m: m.get("type") == "GuiDropdownMessage" and m["props"]["label"] == "frame")
         owner = client.wait_for(lambda m: m.get("type") == "TransformControlsMessage")["owner"]
         session = app.sessions[int(owner)]
+        full_image(client, session.model)  # the tab's first image, whose status line would overwrite the one checked
         light = np.array(session.light_handle.position)
         client.send(_messages.GuiUpdateMessage(dropdown["uuid"], {"value": "test/no-such-frame"}))
         wait_until(lambda: str(session.frame_dropdown.value) == "test/no-such-frame", "the forged frame name")
