@@ -30,7 +30,7 @@ from viser_client import ViserTestClient, decode_image
 
 from olatbench.viewer.geometry import MAX_RESOLUTION, browser_camera, camera_pose
 from olatbench.viewer.model import ViewerModel
-from olatbench.viewer.server import ViewerApp
+from olatbench.viewer.server import ViewerApp, ViewRequest
 
 
 @pytest.fixture(scope="module")
@@ -250,7 +250,7 @@ def test_the_environment_map_mode_refines_to_the_render_commands_image_and_resta
     from olatbench.bench.relight import restore_relighter, shown
     from olatbench.datasets.lighting import environment_lighting
     from olatbench.reports.video import sample_lighting
-    from olatbench.viewer.environment import ENVIRONMENT_MODE
+    from olatbench.viewer.environment import ENVIRONMENT_MODE, POINT_MODE
 
     model = app.model(app.folders[0])
     samples = 24
@@ -286,11 +286,18 @@ def test_the_environment_map_mode_refines_to_the_render_commands_image_and_resta
         client.send_camera(wxyz, moved, fov, *model.full_size)
         wait_until(lambda: app.scheduler.idle() and session.delivered.request.position == tuple(moved)
                    and session.delivered.samples == (samples, samples), "the moved view refined", poll=0.01)
+        converged = session.delivered
+        assert not session.light_folder.visible and not session.light_handle.visible
+        client.send(_messages.GuiUpdateMessage(gui_message(client, "lighting")["uuid"], {"value": POINT_MODE}))
+        wait_until(lambda: app.scheduler.idle() and session.delivered is not converged, "back to the point light",
+                   poll=0.01)
+        assert isinstance(session.delivered.request, ViewRequest) and session.delivered.samples is None
+        assert session.light_folder.visible and session.light_handle.visible and not session.env_folder.visible
     finally:
         client.close()
     first = [s[0] for r, q, s in shown_images if r is first_request]
     assert first[:3] == [4, 6, 8] and first[-1] < samples  # refined two samples a pass, then cancelled
-    second_request = session.delivered.request
+    second_request = converged.request
     second = [(q, s[0]) for r, q, s in shown_images if r is second_request]
     assert second[-11:] == [("full", n) for n in range(4, samples + 1, 2)]  # from the start: 4, then 2 a pass
     assert all(q == "preview" and n == 4 for q, n in second[:-11])  # the moving view's previews (4 samples)
@@ -300,7 +307,7 @@ def test_the_environment_map_mode_refines_to_the_render_commands_image_and_resta
     relighter, _ = restore_relighter(trained)
     job = JobFolder.open(trained)
     lights = sample_lighting(job, environment_lighting("studio", samples, rotation=40.0))
-    image = session.delivered.image
+    image = converged.image
     camera = browser_camera(np.asarray(second_request.wxyz), np.asarray(second_request.position),
                             second_request.fov, image.shape[1], image.shape[0])
     expected = colour.quantize_8bit(shown(relighter.linear(camera, lights))).astype(int)
