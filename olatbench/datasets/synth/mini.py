@@ -8,7 +8,9 @@ Mitsuba's arithmetic, and Mitsuba is not needed. Rendering with Mitsuba is an ex
 (``render=True``, ``olatbench datasets synth --mini --render``; by default into `default_render_root`): the
 result is compared with the reference and the log says how it differs; `data_matches_reference` tells the runner.
 
-Each scene folder carries a ``manifest.json`` with the recipe and the sha256 of every file; a scene is reused only
+Each scene folder carries a ``manifest.json`` with the recipe and the sha256 of every file (but those of its
+``novel_lights/`` folder, the ground truth under new illumination, installed and checked apart with its own manifest
+by `olatbench.datasets.novel_lights`); a scene is reused only
 when its recipe is today's and every hash matches (and, for the installed suite, the files are the reference's),
 otherwise it is installed (or rendered) again. Scenes are written into a temporary sibling folder and renamed into
 place, so an interruption never leaves half a scene; a lock file serialises concurrent callers (several runner
@@ -33,6 +35,9 @@ from olatbench.datasets.synth.backend import pinned_variant
 from olatbench.datasets.synth.generate import GENERATOR_VERSION, generate
 from olatbench.datasets.synth.recipe import RECIPES, Recipe
 from olatbench.datasets.synth.reference import (
+    MINI,
+    NOVEL_LIGHTS,
+    Package,
     SceneComparison,
     archive_path,
     compare_scene,
@@ -45,6 +50,9 @@ MINI_SCENES = ("diffuse_shadow", "aniso_metal", "translucent")
 #: other pixels than ``scalar_rgb``, so a probed variant would make the data depend on the machine.
 MINI_VARIANT = "scalar_rgb"
 MANIFEST = "manifest.json"
+#: Folders of a scene installed and checked apart, each with its own manifest (and their transient partial and stale
+#: copies, `publish`): not among the scene's files.
+APART = (NOVEL_LIGHTS.subfolder, f".{NOVEL_LIGHTS.subfolder}.partial", f".{NOVEL_LIGHTS.subfolder}.stale")
 log = logging.getLogger(__name__)
 
 
@@ -68,11 +76,12 @@ def default_render_root() -> Path:
     return _cache() / "mini-rendered"
 
 
-def file_hashes(folder: Path) -> dict[str, str]:
-    """sha256 of every file below ``folder`` except the manifest, keyed by POSIX relative path."""
+def file_hashes(folder: Path, exclude: Sequence[str] = ()) -> dict[str, str]:
+    """sha256 of every file below ``folder`` except the manifest and what lies in its top-level folders named in
+    ``exclude``, keyed by POSIX relative path."""
     hashes = {}
     for path in sorted(folder.rglob("*")):
-        if path.is_file() and path.name != MANIFEST:
+        if path.is_file() and path.name != MANIFEST and path.relative_to(folder).parts[0] not in exclude:
             hashes[path.relative_to(folder).as_posix()] = hashlib.sha256(path.read_bytes()).hexdigest()
     return hashes
 
@@ -93,13 +102,13 @@ def scene_is_valid(folder: Path, recipe: Recipe) -> tuple[bool, str]:
     expected = _expected_header(recipe)
     if any(manifest.get(key) != value for key, value in expected.items()):
         return False, "made by another recipe or generator version"
-    if manifest.get("files") != file_hashes(folder):
+    if manifest.get("files") != file_hashes(folder, APART):
         return False, "files differ from the manifest (missing, extra or modified)"
     return True, "ok"
 
 
 @contextlib.contextmanager
-def _locked(root: Path) -> Iterator[None]:
+def locked(root: Path) -> Iterator[None]:
     """An exclusive lock on ``root/.lock`` where the platform has ``fcntl`` (no-op elsewhere)."""
     root.mkdir(parents=True, exist_ok=True)
     try:
@@ -115,7 +124,7 @@ def _locked(root: Path) -> Iterator[None]:
             fcntl.flock(handle, fcntl.LOCK_UN)
 
 
-def _publish(root: Path, name: str, partial: Path) -> Path:
+def publish(root: Path, name: str, partial: Path) -> Path:
     """Rename a finished ``partial`` scene folder to ``root/name``, replacing what was there."""
     final = root / name
     if final.exists():
@@ -133,8 +142,29 @@ def render_mini_scene(root: Path, name: str, recipe: Recipe, progress: bool = Tr
     shutil.rmtree(partial, ignore_errors=True)
     with pinned_variant(MINI_VARIANT):
         generate(recipe, partial, "nrhints", progress=progress)
-    write_json(partial / MANIFEST, {**_expected_header(recipe), "files": file_hashes(partial)})
-    return _publish(root, name, partial)
+    write_json(partial / MANIFEST, {**_expected_header(recipe), "files": file_hashes(partial, APART)})
+    return publish(root, name, partial)
+
+
+def unpack_verified(name: str, partial: Path, reference: dict[str, Any], package: Package = MINI) -> dict[str, str]:
+    """Unpack scene ``name``'s packaged archive of ``package`` into the fresh folder ``partial`` and check every
+    file against the reference hashes; return them (relpath -> sha256). A `DatasetError` naming the archive (and a
+    file that does not match) otherwise, ``partial`` removed."""
+    shutil.rmtree(partial, ignore_errors=True)
+    archive = archive_path(name, package=package)
+    try:
+        unpack_reference(name, partial, package=package)
+    except ValueError as error:  # a damaged or unsafe archive (the downloader's extract names it)
+        shutil.rmtree(partial, ignore_errors=True)
+        raise DatasetError(f"cannot unpack the packaged {package.label} ({error}); reinstall olatbench",
+                           path=archive) from None
+    files, expected = file_hashes(partial), reference["scenes"][name]["files"]
+    if files != expected:
+        wrong = sorted(set(files) ^ set(expected)) or sorted(p for p in files if files[p] != expected[p])
+        shutil.rmtree(partial, ignore_errors=True)
+        raise DatasetError(f"the packaged {package.label} does not match the hashes in {package.record} "
+                           f"({len(wrong)} files, e.g. {wrong[0]}); reinstall olatbench", path=archive)
+    return files
 
 
 def install_reference_scene(root: Path, name: str, recipe: Recipe, reference: dict[str, Any]) -> Path:
@@ -142,20 +172,8 @@ def install_reference_scene(root: Path, name: str, recipe: Recipe, reference: di
     reference hashes and the scene's ``synth.json`` against ``recipe`` and this generator, write the manifest and
     rename the folder to ``root/name``. A `DatasetError` naming the archive when anything does not match."""
     partial = root / f".{name}.partial"
-    shutil.rmtree(partial, ignore_errors=True)
     archive = archive_path(name)
-    try:
-        unpack_reference(name, partial)
-    except ValueError as error:  # a damaged or unsafe archive (the downloader's extract names it)
-        shutil.rmtree(partial, ignore_errors=True)
-        raise DatasetError(f"cannot unpack the packaged mini reference ({error}); reinstall olatbench",
-                           path=archive) from None
-    files, expected = file_hashes(partial), reference["scenes"][name]["files"]
-    if files != expected:
-        wrong = sorted(set(files) ^ set(expected)) or sorted(p for p in files if files[p] != expected[p])
-        shutil.rmtree(partial, ignore_errors=True)
-        raise DatasetError(f"the packaged mini reference does not match the hashes in mini_reference.json "
-                           f"({len(wrong)} files, e.g. {wrong[0]}); reinstall olatbench", path=archive)
+    files = unpack_verified(name, partial, reference)
     made_by = json.loads((partial / "synth.json").read_text(encoding="utf-8"))
     header = _expected_header(recipe)
     if any(made_by.get(key) != value for key, value in header.items()):
@@ -164,7 +182,7 @@ def install_reference_scene(root: Path, name: str, recipe: Recipe, reference: di
                            f"with another recipe or generator than this olatbench's (version {GENERATOR_VERSION}); "
                            "render the suite with: olatbench datasets synth --mini --render", path=archive)
     write_json(partial / MANIFEST, {**header, "files": files})
-    return _publish(root, name, partial)
+    return publish(root, name, partial)
 
 
 def ensure_mini_suite(root: Path | None = None, progress: bool = True,
@@ -190,7 +208,7 @@ def ensure_mini_suite(root: Path | None = None, progress: bool = True,
         recipes = {name: recipe for name, recipe in recipes.items() if name in scenes}
     reference = load_reference() if recipes_are_builtin and (compare or not render) else None
     rendered = set()
-    with _locked(root):
+    with locked(root):
         for name, recipe in recipes.items():
             valid, reason = scene_is_valid(root / name, recipe)
             if not render:

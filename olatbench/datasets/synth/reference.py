@@ -11,6 +11,10 @@ its images, by how much (max / mean absolute difference in [0, 1] pixel units, a
 
 `write_reference` (maintainers, ``--mini --render --write-reference``) replaces both after a generator or
 Mitsuba pin change.
+
+The mini suite's ground truth under new illumination (`olatbench.datasets.novel_lights`) is packaged the same way,
+by the same functions given its `Package`, `NOVEL_LIGHTS`: ``data/novel_lights/<scene>.tar.xz`` (each condition's
+folder of the scene) and ``data/novel_lights_reference.json``.
 """
 
 from __future__ import annotations
@@ -29,9 +33,32 @@ from olatbench.atomic import atomic_path, write_json
 from olatbench.datasets.images import read_image
 
 REFERENCE_FORMAT = 2  # 2: the whole scenes are packaged (data/mini/<scene>.tar.xz); 1 carried four samples each
-ARCHIVE_FOLDER = "mini"
 ARCHIVE_SUFFIX = ".tar.xz"
-IMAGE_SPLITS = ("train", "test")  # the frames' images; geometry/ holds the diagnostic pass
+
+
+@dataclass(frozen=True)
+class Package:
+    """One set of packaged reference renders: archives ``<root>/<folder>/<scene>.tar.xz`` of the files below
+    ``<scene folder>/<subfolder>``, hashes in ``<root>/<record>``, and which of those files are images whose pixels
+    a comparison measures (``images``: (first folder of the relative path, or "" for any; file suffix))."""
+
+    folder: str
+    subfolder: str
+    record: str
+    label: str
+    images: tuple[tuple[str, str], ...]
+
+    def is_image(self, relpath: str) -> bool:
+        """Whether a file of a scene is one of the images a comparison reads."""
+        first = relpath.split("/", 1)[0]
+        return any((folder in ("", first)) and relpath.endswith(suffix) for folder, suffix in self.images)
+
+
+#: The mini suite: its frames' images (geometry/ holds the diagnostic pass, compared by hash only).
+MINI = Package("mini", "", "mini_reference.json", "mini reference", (("train", ".png"), ("test", ".png")))
+#: The mini scenes' ground truth under new illumination: ``<condition>/<frame_id>.exr`` per scene.
+NOVEL_LIGHTS = Package("novel_lights", "novel_lights", "novel_lights_reference.json", "novel-light ground truth",
+                       (("", ".exr"),))
 
 
 def reference_root() -> Path:
@@ -39,29 +66,29 @@ def reference_root() -> Path:
     return Path(str(resources.files("olatbench.datasets.synth") / "data"))
 
 
-def load_reference(root: Path | None = None) -> dict[str, Any]:
-    """The reference record: ``{"format", "generator_version", "mitsuba_version", "mitsuba_variant",
+def load_reference(root: Path | None = None, package: Package = MINI) -> dict[str, Any]:
+    """The reference record of ``package``: ``{"format", "generator_version", "mitsuba_version", "mitsuba_variant",
     "made_on", "scenes": {name: {"files": {relpath: sha256}}}}``."""
-    path = (root or reference_root()) / "mini_reference.json"
+    path = (root or reference_root()) / package.record
     record = json.loads(path.read_text(encoding="utf-8"))
     if record.get("format") != REFERENCE_FORMAT:
         raise ValueError(f"{path}: reference format {record.get('format')!r}, expected {REFERENCE_FORMAT}")
     return record
 
 
-def archive_path(scene: str, root: Path | None = None) -> Path:
-    """The packaged archive of one mini scene: ``<root>/mini/<scene>.tar.xz``."""
-    return (root or reference_root()) / ARCHIVE_FOLDER / f"{scene}{ARCHIVE_SUFFIX}"
+def archive_path(scene: str, root: Path | None = None, package: Package = MINI) -> Path:
+    """The packaged archive of one mini scene: ``<root>/<package folder>/<scene>.tar.xz``."""
+    return (root or reference_root()) / package.folder / f"{scene}{ARCHIVE_SUFFIX}"
 
 
-def unpack_reference(scene: str, destination: Path, root: Path | None = None) -> Path:
+def unpack_reference(scene: str, destination: Path, root: Path | None = None, package: Package = MINI) -> Path:
     """Unpack the packaged renders of ``scene`` into ``destination`` (created; members checked to stay inside
     it, no links). The bytes are not checked here: compare them with the reference hashes."""
     from olatbench.datasets.download.archives import extract
 
-    archive = archive_path(scene, root)
+    archive = archive_path(scene, root, package)
     if not archive.is_file():
-        raise FileNotFoundError(f"{archive}: the packaged mini reference of {scene!r} is missing (a broken "
+        raise FileNotFoundError(f"{archive}: the packaged {package.label} of {scene!r} is missing (a broken "
                                 "install?); reinstall olatbench, or render the suite: olatbench datasets synth "
                                 "--mini --render")
     extract(archive, Path(destination))
@@ -80,7 +107,8 @@ class PixelDifference:
 @dataclass
 class SceneComparison:
     """A rendered scene against its reference: file lists, and the pixel differences of its differing images
-    (``images``: how many images were compared; the others are byte-identical)."""
+    (``images``: how many images were compared; the others are byte-identical); ``label`` names it in the summary
+    (default ``mini/<scene>``)."""
 
     scene: str
     missing: list[str] = field(default_factory=list)
@@ -88,6 +116,7 @@ class SceneComparison:
     differing: list[str] = field(default_factory=list)
     pixels: list[PixelDifference] = field(default_factory=list)
     images: int = 0
+    label: str = ""
 
     @property
     def identical(self) -> bool:
@@ -96,13 +125,14 @@ class SceneComparison:
     def summary(self, reference: dict[str, Any]) -> str:
         """One plain sentence for logs and the CLI."""
         renderer = f"Mitsuba {reference['mitsuba_version']} {reference['mitsuba_variant']}"
+        name = self.label or f"mini/{self.scene}"
         if self.identical:
-            return f"mini/{self.scene}: identical to the reference ({renderer})"
+            return f"{name}: identical to the reference ({renderer})"
         parts = [f"{len(self.differing)} differ"] if self.differing else []
         parts += [f"{len(self.missing)} missing"] if self.missing else []
         parts += [f"{len(self.extra)} extra"] if self.extra else []
         example = (self.differing or self.missing or self.extra)[0]
-        text = (f"mini/{self.scene}: NOT identical to the reference rendered with {renderer} on "
+        text = (f"{name}: NOT identical to the reference rendered with {renderer} on "
                 f"{reference['made_on']}: files {', '.join(parts)} (e.g. {example})")
         if not self.images:
             return text
@@ -114,35 +144,32 @@ class SceneComparison:
                 f"({worst.path}), mean |Δ| = {mean:.3g} over all {self.images} (pixel values in [0, 1])")
 
 
-def is_image(relpath: str) -> bool:
-    """Whether a scene file is one of the frames' images (``train/`` or ``test/``, PNG)."""
-    return relpath.split("/", 1)[0] in IMAGE_SPLITS and relpath.endswith(".png")
-
-
 def compare_scene(folder: Path, scene: str, files: dict[str, str], reference: dict[str, Any] | None = None,
-                  root: Path | None = None, measure_pixels: bool = True) -> SceneComparison:
-    """Compare a scene's file hashes (``files``: relpath -> sha256, as in its manifest) with the reference.
+                  root: Path | None = None, measure_pixels: bool = True, package: Package = MINI,
+                  label: str = "") -> SceneComparison:
+    """Compare a scene's file hashes (``files``: relpath -> sha256, as in its manifest) with ``package``'s reference.
 
     With ``measure_pixels``, every image present in both is compared: those whose bytes differ are read from
     ``folder`` and from the packaged renders (unpacked into a temporary folder) and their pixels compared; without,
     only hashes are compared.
     """
-    reference = reference or load_reference(root)
+    reference = reference or load_reference(root, package)
     if scene not in reference["scenes"]:
-        raise KeyError(f"the mini reference has no scene {scene!r}; it has {', '.join(reference['scenes'])}")
+        raise KeyError(f"the {package.label} has no scene {scene!r}; it has {', '.join(reference['scenes'])}")
     expected = reference["scenes"][scene]["files"]
     comparison = SceneComparison(scene,
                                  missing=sorted(set(expected) - set(files)),
                                  extra=sorted(set(files) - set(expected)),
-                                 differing=sorted(p for p in set(expected) & set(files) if expected[p] != files[p]))
+                                 differing=sorted(p for p in set(expected) & set(files) if expected[p] != files[p]),
+                                 label=label)
     if not measure_pixels:
         return comparison
-    comparison.images = sum(1 for relpath in set(expected) & set(files) if is_image(relpath))
-    differing_images = [relpath for relpath in comparison.differing if is_image(relpath)]
+    comparison.images = sum(1 for relpath in set(expected) & set(files) if package.is_image(relpath))
+    differing_images = [relpath for relpath in comparison.differing if package.is_image(relpath)]
     if not differing_images:
         return comparison
     with tempfile.TemporaryDirectory(prefix="olatbench-mini-reference-") as temporary:
-        theirs_root = unpack_reference(scene, Path(temporary), root)
+        theirs_root = unpack_reference(scene, Path(temporary), root, package)
         for relpath in differing_images:
             ours, theirs = read_image(Path(folder) / relpath), read_image(theirs_root / relpath)
             if ours.shape != theirs.shape:
@@ -168,9 +195,10 @@ def _write_archive(scene_folder: Path, files: dict[str, str], target: Path) -> N
 
 
 def write_reference(suite_root: Path, scenes: dict[str, dict[str, str]], metadata: dict[str, Any],
-                    out: Path | None = None) -> Path:
-    """Make the renders below ``suite_root`` the reference: one archive per scene and the hashes (``scenes``:
-    name -> manifest files), written below ``out`` (default: the package's `reference_root`).
+                    out: Path | None = None, package: Package = MINI) -> Path:
+    """Make the renders below ``suite_root`` the reference of ``package``: one archive per scene and the hashes
+    (``scenes``: name -> manifest files, relative to ``suite_root/<name>/<package.subfolder>``), written below
+    ``out`` (default: the package's `reference_root`).
 
     ``metadata`` holds ``generator_version``, ``mitsuba_version``, ``mitsuba_variant`` and ``made_on``.
     Run once by a maintainer when the generator or the pinned Mitsuba changes (``olatbench datasets synth
@@ -179,7 +207,7 @@ def write_reference(suite_root: Path, scenes: dict[str, dict[str, str]], metadat
     out = out or reference_root()
     record = {"format": REFERENCE_FORMAT, **metadata, "scenes": {}}
     for scene, files in scenes.items():
-        _write_archive(Path(suite_root) / scene, files, archive_path(scene, out))
+        _write_archive(Path(suite_root) / scene / package.subfolder, files, archive_path(scene, out, package))
         record["scenes"][scene] = {"files": files}
-    write_json(out / "mini_reference.json", record)
-    return out / "mini_reference.json"
+    write_json(out / package.record, record)
+    return out / package.record
