@@ -95,6 +95,9 @@ def test_manifest_cache_matches_a_fresh_hash_and_sees_same_size_edits(data, tmp_
     (scene / "notes.txt").unlink()
     (scene / ".DS_Store").write_bytes(b"hidden files are ignored")
     assert data_manifest_hash(scene) == cached
+    (scene / "novel_lights" / "studio").mkdir(parents=True)  # ground truth under new illumination, installed later
+    (scene / "novel_lights" / "studio" / "r_0000.exr").write_bytes(b"not read by training or the test split")
+    assert data_manifest_hash(scene) == cached
 
 
 def test_code_hash_follows_the_method_source(tmp_path, monkeypatch):

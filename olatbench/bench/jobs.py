@@ -5,7 +5,9 @@ A job's id is a content hash of everything that decides its result:
 * the method name and its fully resolved config (after suite preset, variant preset and overrides),
 * the suite, scene, seed, training colour space, image resolution, the train/test split names and the frame the
   method works in (when it is not the dataset's own),
-* the scene's data manifest (`data_manifest_hash`: every file's relative path and content hash),
+* the scene's data manifest (`data_manifest_hash`: every file's relative path and content hash, but those of its
+  ``novel_lights/`` folder, the ground truth under new illumination installed on first use, which neither training
+  nor the test split reads: installing it leaves the scene's jobs as they were),
 * the point cloud the Gaussians start from, when one is used (``init_points_digest``: its content hash; the
   file's path is not part of the id),
 * the evaluation protocol id and version,
@@ -34,6 +36,7 @@ from pathlib import Path
 from typing import Any
 
 from olatbench.atomic import write_json
+from olatbench.datasets.novel_lights import FOLDER as NOVEL_LIGHTS_FOLDER
 
 JOB_SCHEMA = "olatbench-job-v1"
 ID_LENGTH = 16
@@ -179,7 +182,8 @@ def _hash_cache_path(root: Path) -> Path:
 
 
 def data_manifest_hash(root: str | Path, use_cache: bool = True) -> str:
-    """Hash of a scene folder: every non-hidden file's relative path and content digest.
+    """Hash of a scene folder: every non-hidden file's relative path and content digest, but its ``novel_lights/``
+    folder's (module docstring).
 
     Content digests are cached per file under ``$XDG_CACHE_HOME/olatbench/file-hashes`` keyed by
     (size, mtime in ns), as git's index does: a re-plan reads only files that changed, and a copy
@@ -188,8 +192,8 @@ def data_manifest_hash(root: str | Path, use_cache: bool = True) -> str:
     root = Path(root)
     if not root.is_dir():
         raise FileNotFoundError(f"{root}: scene folder not found")
-    files = sorted(p for p in root.rglob("*")
-                   if p.is_file() and not any(part.startswith(".") for part in p.relative_to(root).parts))
+    files = sorted(p for p in root.rglob("*") if p.is_file() and p.relative_to(root).parts[0] != NOVEL_LIGHTS_FOLDER
+                   and not any(part.startswith(".") for part in p.relative_to(root).parts))
     cache_file = _hash_cache_path(root)
     cache: dict[str, list] = {}
     if use_cache and cache_file.is_file():

@@ -29,22 +29,27 @@ def _machine() -> str:
 
 
 def _report_reference(root: Path, write: bool) -> None:
-    """Print each mini scene's comparison with the packaged reference (or first make it the reference)."""
+    """Print each mini scene's comparison with the packaged reference, then that of its ground truth under new
+    illumination (or first make them the reference)."""
     import json
 
+    from olatbench.datasets.novel_lights import FOLDER, compare_novel_lights
     from olatbench.datasets.synth.mini import MINI_SCENES, compare_with_reference, manifest_files
-    from olatbench.datasets.synth.reference import load_reference, write_reference
+    from olatbench.datasets.synth.reference import MINI, NOVEL_LIGHTS, load_reference, write_reference
 
     if write:
         synth_info = json.loads((root / MINI_SCENES[0] / "synth.json").read_text(encoding="utf-8"))
-        scenes = {name: manifest_files(root / name) for name in MINI_SCENES}
-        path = write_reference(root, scenes, {
-            "generator_version": synth_info["generator_version"], "mitsuba_version": synth_info["mitsuba_version"],
-            "mitsuba_variant": synth_info["mitsuba_variant"], "made_on": _machine()})
-        click.echo(f"wrote the reference to {path} and the scenes' archives beside it")
-    reference = load_reference()
-    for name in MINI_SCENES:
-        click.echo(compare_with_reference(root / name, reference).summary(reference))
+        metadata = {"generator_version": synth_info["generator_version"],
+                    "mitsuba_version": synth_info["mitsuba_version"],
+                    "mitsuba_variant": synth_info["mitsuba_variant"], "made_on": _machine()}
+        for package, folder in ((MINI, ""), (NOVEL_LIGHTS, FOLDER)):
+            scenes = {name: manifest_files(root / name / folder) for name in MINI_SCENES}
+            path = write_reference(root, scenes, metadata, package=package)
+            click.echo(f"wrote the {package.label} to {path} and the scenes' archives beside it")
+    for package, compare in ((MINI, compare_with_reference), (NOVEL_LIGHTS, compare_novel_lights)):
+        reference = load_reference(package=package)
+        for name in MINI_SCENES:
+            click.echo(compare(root / name).summary(reference))
 
 
 @click.command()
@@ -66,12 +71,15 @@ def _report_reference(root: Path, write: bool) -> None:
 @click.option("--lights", "lights_file", type=click.Path(dir_okay=False, path_type=Path),
               help="Instead of the OLAT scene, render the recipe's test cameras under this lighting file (JSON: point, "
                    "directional, area lights, environment maps; docs/relighting.md) into -o as <frame_id>.exr "
-                   "(linear) and lit.json: ground truth under new illumination.")
+                   "(linear), lighting.json and lit.json: ground truth under new illumination (-o SCENE/novel_lights/"
+                   "NAME makes it condition NAME of the recipe's scene SCENE).")
 @click.option("--mini", is_flag=True,
-              help="Install (or verify) the mini suite, the packaged reference renders, instead of one recipe.")
+              help="Install (or verify) the mini suite, the packaged reference renders with their ground truth under "
+                   "new illumination, instead of one recipe.")
 @click.option("--render", "render_mini", is_flag=True,
-              help="With --mini: render the suite with Mitsuba on this machine instead (into "
-                   "~/.cache/olatbench/mini-rendered unless -o) and compare it with the reference.")
+              help="With --mini: render the suite and its ground truth under new illumination with Mitsuba on this "
+                   "machine instead (into ~/.cache/olatbench/mini-rendered unless -o) and compare them with the "
+                   "reference.")
 @click.option("--write-reference", is_flag=True,
               help="With --mini --render, for maintainers: make this machine's renders the packaged reference "
                    "(after a generator or Mitsuba pin change; commit the result).")
@@ -89,12 +97,13 @@ def synth(recipe_name: str | None, fmt: str, out_dir: Path | None, res: tuple[in
       olatbench datasets synth --recipe my_recipe.json --format gs3 -o data/synth/mine --resolution 128 --spp 256
       olatbench datasets synth --mini                # the mini suite into ~/.cache/olatbench/mini
       olatbench datasets synth --mini --render       # render it here with Mitsuba and compare
-      olatbench datasets synth --recipe aniso_metal --lights two_lights.json -o data/synth/aniso_metal_two
+      olatbench datasets synth --recipe aniso_metal --lights two_lights.json -o data/synth/aniso_metal/novel_lights/two
 
     The mini suite is the packaged reference renders: --mini installs them (every file's sha256 checked), so
-    every machine trains on the same bytes. --mini --render renders the suite with this machine's Mitsuba
-    instead and says whether it is identical to the reference (if not: which files differ, how many images
-    were compared and their max and mean |Δ|); train on it with --data-root.
+    every machine trains on the same bytes, with each scene's ground truth under the novel-light conditions in
+    SCENE/novel_lights/ (docs/relighting.md). --mini --render renders both with this machine's Mitsuba instead
+    and says whether they are identical to the reference (if not: which files differ, how many images were
+    compared and their max and mean |Δ|); train on it with --data-root.
     """
     from olatbench.datasets.synth.backend import MitsubaMissing
     from olatbench.datasets.synth.recipe import RECIPES, get_recipe, recipe_names
@@ -112,10 +121,13 @@ def synth(recipe_name: str | None, fmt: str, out_dir: Path | None, res: tuple[in
         if mini and lights_file is not None:
             raise click.UsageError("--lights goes with --recipe, not --mini")
         if mini:
-            from olatbench.datasets.synth.mini import ensure_mini_suite
+            from olatbench.datasets.novel_lights import ensure_novel_lights
+            from olatbench.datasets.synth.mini import MINI_SCENES, ensure_mini_suite
 
             # compare=False: _report_reference below prints the comparison
             root = ensure_mini_suite(out_dir, progress=show_progress(quiet), compare=False, render=render_mini)
+            for name in MINI_SCENES:
+                ensure_novel_lights(root / name, render=render_mini, progress=show_progress(quiet))
             _report_reference(root, write_reference)
             data_root = f" --data-root {root}" if render_mini or out_dir is not None else ""
             click.echo(f"mini suite ready in {root}. Next: olatbench run --method ssdgs --suite mini{data_root}")

@@ -161,6 +161,28 @@ def write_image(path: str | Path, pixels: np.ndarray, bit_depth: BitDepth | None
     return path
 
 
+HALF_MANTISSA_BITS = 10
+
+
+def round_half_mantissa(pixels: np.ndarray, bits: int) -> np.ndarray:
+    """Float32 pixels that are half floats with only ``bits`` of their 10 mantissa bits (round to nearest, ties
+    away from zero, on the half value): written as ``half`` they keep these values exactly, and the files compress
+    better. The relative error is at most ``2^-(bits+1)`` more than half's own (``2^-11``); non-finite values and
+    those that would round past half's largest finite value are refused."""
+    if not 0 <= bits <= HALF_MANTISSA_BITS:
+        raise ValueError(f"a half float has 0 to {HALF_MANTISSA_BITS} mantissa bits, not {bits}")
+    half = np.asarray(pixels, dtype=np.float32).astype(np.float16)
+    if bits == HALF_MANTISSA_BITS:
+        return half.astype(np.float32)
+    code = half.view(np.uint16).astype(np.uint32)
+    sign, magnitude = code & 0x8000, code & 0x7FFF
+    drop = HALF_MANTISSA_BITS - bits
+    magnitude = ((magnitude + (1 << (drop - 1))) >> drop) << drop  # a carry into the exponent rounds up correctly
+    if np.any(magnitude >= 0x7C00):
+        raise ValueError("cannot round non-finite or too large values to a half float")
+    return (sign | magnitude).astype(np.uint16).view(np.float16).astype(np.float32)
+
+
 def resize_image(pixels: np.ndarray, width: int, height: int) -> np.ndarray:
     """Resize float (H, W, C) pixels to (height, width, C) with area averaging (``cv2.INTER_AREA``).
 

@@ -10,6 +10,7 @@ import numpy as np
 
 from olatbench.datasets.errors import DatasetError
 from olatbench.datasets.formats import is_scene_folder
+from olatbench.datasets.novel_lights import condition_names
 from olatbench.datasets.records import Scene
 
 
@@ -50,6 +51,7 @@ def scene_summary(scene: Scene) -> dict[str, Any]:
         "colourspace": sorted({f.colourspace for f in frames}),
         "alpha": sorted({f.alpha_mode for f in frames}),
         "background": np.asarray(scene.background, dtype=float).tolist(),
+        "novel_lights": condition_names(scene.root),
         "lights": {
             "distinct_positions": distinct_lights,
             "distance_to_origin": _range(np.linalg.norm(lights, axis=1)),
@@ -79,6 +81,9 @@ def format_summary(summary: dict[str, Any]) -> str:
         f"{'known' if lights['intensity_known'] else 'unknown (1)'}",
         f"  cameras:     distance to origin {span(summary['camera_distance_to_origin'])}",
     ]
+    if summary["novel_lights"]:
+        lines.append(f"  novel lights: {', '.join(summary['novel_lights'])} (ground truth of the test views under "
+                     "these lightings, novel_lights/)")
     if summary["refined_poses"]:
         lines.append(f"  poses:       {summary['refined_poses']} frame(s) posed by their refined R_opt/T_opt")
     if summary["images_outside_folder"]:

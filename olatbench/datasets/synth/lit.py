@@ -15,12 +15,16 @@ emitters hidden, so the background stays empty) and the cameras are its test spl
   reversed and a ``to_world`` taking local +y to up, −z to the map's x axis and +x to minus its y axis, then turned
   by ``rotation`` about up, so every direction sees the radiance olatbench's convention gives it.
 
-`render_lit` writes ``<frame_id>.exr`` (linear RGB, straight alpha, float) per test frame and ``lit.json``: the
-lighting, the recipe, the cameras (``K``, OpenCV ``c2w``, size) and the generator and Mitsuba versions.
+`render_lit` writes ``<frame_id>.exr`` (linear RGB, straight alpha; float, or half for the packaged ground truth)
+per test frame, ``lighting.json`` (the lighting file, maps given by file named by their absolute path, so that it
+reads back from the folder) and ``lit.json``: the lighting, the recipe, the cameras (``K``, OpenCV ``c2w``, size) and
+the generator and Mitsuba versions. A folder of these is one condition of a scene's ground truth under new
+illumination (`olatbench.datasets.novel_lights`: ``<scene>/novel_lights/<condition>/``).
 """
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 from typing import Any
 
@@ -28,8 +32,16 @@ import numpy as np
 
 from olatbench.atomic import write_json
 from olatbench.datasets.errors import OutputExistsError
-from olatbench.datasets.lighting import DirectionalLight, EnvironmentMap, Lighting, lighting_to_dict
-from olatbench.datasets.lighting.envmap import map_axes
+from olatbench.datasets.images import BitDepth
+from olatbench.datasets.lighting import (
+    DirectionalLight,
+    EnvironmentMap,
+    Lighting,
+    LightSource,
+    lighting_to_dict,
+    write_lighting,
+)
+from olatbench.datasets.lighting.envmap import BUILT_IN_MAPS, map_axes
 from olatbench.datasets.records import Camera
 from olatbench.datasets.synth.backend import active_variant, mitsuba, sensor_dict
 from olatbench.datasets.synth.recipe import Recipe
@@ -79,6 +91,19 @@ def emitters(lighting: Lighting, up: np.ndarray = SCENE_UP) -> dict[str, dict[st
     return out
 
 
+def with_absolute_maps(lighting: Lighting) -> Lighting:
+    """``lighting`` with every map given by a relative file path named by its absolute path instead (a lighting
+    file written elsewhere then still finds its maps)."""
+    def absolute(source: LightSource) -> LightSource:
+        if not isinstance(source, EnvironmentMap) or source.source in BUILT_IN_MAPS:
+            return source
+        path = Path(source.source)
+        path = path if path.is_absolute() or source.base is None else Path(source.base) / path
+        return dataclasses.replace(source, source=str(path.resolve()), base=None)
+
+    return dataclasses.replace(lighting, sources=tuple(absolute(source) for source in lighting.sources))
+
+
 class LitRenderer:
     """A recipe's Mitsuba scene under a lighting; renders any camera."""
 
@@ -97,10 +122,13 @@ class LitRenderer:
                                                 seed=int(seed), spp=self.recipe.spp), dtype=np.float32))
 
 
-def render_lit(recipe: Recipe, lighting: Lighting, out_dir: Path, progress: bool = True) -> Path:
+def render_lit(recipe: Recipe, lighting: Lighting, out_dir: Path, progress: bool = True,
+               bit_depth: BitDepth = "float", mantissa_bits: int | None = None) -> Path:
     """Render ``recipe``'s test cameras under ``lighting`` into ``out_dir`` (module docstring; refused, before
-    rendering, when the folder exists and is not empty); returns ``out_dir``."""
-    from olatbench.datasets.images import write_image
+    rendering, when the folder exists and is not empty), the EXRs at ``bit_depth`` (``float`` or ``half``), with
+    ``mantissa_bits``: half colours rounded to this many mantissa bits (`round_half_mantissa`; alpha kept as
+    half); returns ``out_dir``."""
+    from olatbench.datasets.images import round_half_mantissa, write_image
     from olatbench.datasets.synth.generate import GENERATOR_VERSION, frame_seed
     from olatbench.progress import progress_bar
 
@@ -108,6 +136,7 @@ def render_lit(recipe: Recipe, lighting: Lighting, out_dir: Path, progress: bool
     if out_dir.exists() and (not out_dir.is_dir() or any(out_dir.iterdir())):
         raise OutputExistsError("the folder for the renders under a lighting is not empty; choose another",
                                 path=out_dir)
+    lighting = with_absolute_maps(lighting)
     renderer = LitRenderer(recipe, lighting)
     rig = make_rig(recipe, renderer.mesh.bounding_sphere()[0])
     train, test = rig.frames.get("train", []), rig.frames.get("test", [])
@@ -118,9 +147,13 @@ def render_lit(recipe: Recipe, lighting: Lighting, out_dir: Path, progress: bool
                                                       unit="img", disable=not progress)):
         frame_id = f"r_{number:04d}"  # the test frames' ids in the recipe's scene (generate.render_recipe)
         seed = frame_seed(recipe, len(train) + number)
-        write_image(out_dir / f"{frame_id}.exr", renderer.render(camera, seed), bit_depth="float")
+        pixels = renderer.render(camera, seed)
+        if mantissa_bits is not None:
+            pixels[..., :3] = round_half_mantissa(pixels[..., :3], mantissa_bits)
+        write_image(out_dir / f"{frame_id}.exr", pixels, bit_depth=bit_depth)
         cameras[frame_id] = {"K": np.asarray(camera.K).tolist(), "c2w": np.asarray(camera.c2w).tolist(),
                              "width": camera.width, "height": camera.height, "seed": seed}
+    write_lighting(out_dir / "lighting.json", lighting)
     write_json(out_dir / "lit.json", {
         "lighting": lighting_to_dict(lighting), "recipe": recipe.to_dict(), "split": "test", "frames": cameras,
         "generator_version": GENERATOR_VERSION, "mitsuba_version": mitsuba().__version__,
@@ -129,4 +162,4 @@ def render_lit(recipe: Recipe, lighting: Lighting, out_dir: Path, progress: bool
     return out_dir
 
 
-__all__ = ["LitRenderer", "emitters", "envmap_emitter", "envmap_to_world", "render_lit"]
+__all__ = ["LitRenderer", "emitters", "envmap_emitter", "envmap_to_world", "render_lit", "with_absolute_maps"]
