@@ -35,7 +35,7 @@ SEED_OFFSET = 7_919  # the 4× renders' sampler seeds: the packaged frame's seed
 
 def display(rgba: np.ndarray) -> np.ndarray:
     """(H, W, 3) sRGB in [0, 1] of linear RGB + straight alpha over black (as the mini suite's PNGs are)."""
-    return np.clip(colour.linear_to_srgb(np.clip(colour.premultiply(rgba[..., :3], rgba[..., 3:4]), 0.0, None)),
+    return np.clip(colour.linear_to_srgb(np.clip(colour.premultiply(rgba[..., :3], rgba[..., 3]), 0.0, None)),
                    0.0, 1.0)
 
 
@@ -52,16 +52,17 @@ def figure(root: Path, out: Path, view: str, scale: int) -> None:
         frame = next(frame for frame in load_scene(scene).split("test") if frame.frame_id == view)
         tiles = [np.asarray(frame.load().rgb, dtype=np.float32)[..., :3]]
         tiles += [display(read_image(load_condition(scene, condition).frames[view])) for condition in CONDITIONS]
-        tiles = [np.repeat(np.repeat(tile, scale, axis=0), scale, axis=1) for tile in tiles]
-        row = np.concatenate([np.ones((tiles[0].shape[0], label_width, 3)), *tiles], axis=1)
+        tiles = [np.rint(255 * np.repeat(np.repeat(tile, scale, axis=0), scale, axis=1)).astype(np.uint8)
+                 for tile in tiles]
+        row = np.concatenate([np.full((tiles[0].shape[0], label_width, 3), 255, np.uint8), *tiles], axis=1)
         cv2.putText(row, name, (4, row.shape[0] // 2), cv2.FONT_HERSHEY_SIMPLEX, 0.42, (0, 0, 0), 1, cv2.LINE_AA)
         rows.append(row)
-    top = np.ones((header, rows[0].shape[1], 3))
+    top = np.full((header, rows[0].shape[1], 3), 255, np.uint8)
     width = (rows[0].shape[1] - label_width) // (len(CONDITIONS) + 1)
     for index, title in enumerate(("OLAT test light", *CONDITIONS)):
         cv2.putText(top, title, (label_width + index * width + 4, 15), cv2.FONT_HERSHEY_SIMPLEX, 0.42, (0, 0, 0), 1,
                     cv2.LINE_AA)
-    write_image(out, np.concatenate([top, *rows], axis=0), "uint8")
+    write_image(out, np.concatenate([top, *rows], axis=0) / 255.0, "uint8")
     print(f"wrote {out}")
 
 
