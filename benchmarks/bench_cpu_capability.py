@@ -11,7 +11,8 @@ counts removed and then the setting's set. The median step time of each setting 
 first setting's, and the load average before and after (a ratio under heavy load says little). Example::
 
     python benchmarks/bench_cpu_capability.py --rounds 3
-    python benchmarks/bench_cpu_capability.py --setting native= --setting cbwr=ATEN_CPU_CAPABILITY=avx2,MKL_CBWR=AVX2
+    python benchmarks/bench_cpu_capability.py --setting native= \\
+        --setting cbwr=ATEN_CPU_CAPABILITY=avx2,MKL_CBWR=AVX2
 """
 
 from __future__ import annotations

@@ -17,11 +17,11 @@ iteration count at that step time (an upper bound for a run that reaches N Gauss
 precision (``--precisions``) and ``light pass`` the backend the preset's light-view pass ran on. The last line is
 a parseable summary with the worst peak memory at 512² (target: ≤ 8 GiB with 550K Gaussians). Examples::
 
-    python benchmarks/bench_scale.py                                  # the three suites, 100K/300K/550K
+    python benchmarks/bench_scale.py                           # the three suites, 100K/300K/550K
     python benchmarks/bench_scale.py --suites gs3 --counts 550000 --steps 3
-    python benchmarks/bench_scale.py --suites nrhints --images 100    # a quicker stand-in (fewer images)
-    python benchmarks/bench_scale.py --images 100 --fill-stack        # quick render, the suites' full memory
-    python benchmarks/bench_scale.py --suites sssgs --precisions fp32 bf16   # every case with fp32 and bf16 networks
+    python benchmarks/bench_scale.py --suites nrhints --images 100   # quicker (fewer images)
+    python benchmarks/bench_scale.py --images 100 --fill-stack       # the suites' full memory
+    python benchmarks/bench_scale.py --suites sssgs --precisions fp32 bf16   # both precisions
 
 ``--fill-stack`` repeats the rendered training frames until the stack has the suite's realistic count
 (`STANDINS`): each image is read and held as often as a distinct one would be, so the stack's memory, its

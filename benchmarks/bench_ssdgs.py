@@ -42,11 +42,11 @@ the step (``mlp / step``) without and with culling; every stage of a case, culle
 same rounds. The last line is a parseable summary. Example::
 
     python benchmarks/bench_ssdgs.py --repeats 3
-    python benchmarks/bench_ssdgs.py --sizes 128 --counts 5000 --no-shadow   # without the light-view pass
-    python benchmarks/bench_ssdgs.py --light-view-scale 0.5                    # light view at half the size
+    python benchmarks/bench_ssdgs.py --sizes 128 --counts 5000 --no-shadow   # no light-view pass
+    python benchmarks/bench_ssdgs.py --light-view-scale 0.5          # light view at half the size
     python benchmarks/bench_ssdgs.py --states surface --sizes 256
-    python benchmarks/bench_ssdgs.py --counts 20000 --cull-epsilons 0 0.001            # culled vs unculled
-    python benchmarks/bench_ssdgs.py --states --jobs runs/mini/ssdgs/default/*/seed0   # trained mini models
+    python benchmarks/bench_ssdgs.py --counts 20000 --cull-epsilons 0 0.001  # culled vs unculled
+    python benchmarks/bench_ssdgs.py --states --jobs runs/mini/ssdgs/default/*/seed0  # trained
 """
 
 from __future__ import annotations

@@ -23,7 +23,8 @@ shape (10 hex digits). Examples::
 
     python benchmarks/numerics_trace.py record --scene diffuse_shadow --steps 300 -o trace.json
     python benchmarks/numerics_trace.py compare benchmarks/traces/GenuineIntel-6-207-2.json trace.json
-    python benchmarks/numerics_trace.py settings --scene diffuse_shadow --steps 300 --a ATEN_CPU_CAPABILITY=avx512
+    python benchmarks/numerics_trace.py settings --scene diffuse_shadow --steps 300 \\
+        --a ATEN_CPU_CAPABILITY=avx512
 
 Exit status: 0 when the traces (or settings) agree, 1 when they differ, 2 for bad input.
 """

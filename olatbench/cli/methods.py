@@ -204,7 +204,7 @@ def show(name: str, data_path: Path | None, iterations: int | None, suite_name: 
       olatbench methods show ssdgs --variant official          # values and their sources
       olatbench methods show ssdgs --suite mini --variant official
       olatbench methods show ssdgs --json    # the same as data (defaults as JSON values)
-      olatbench methods show ssdgs --data captures/cup    # + the preset derived from your scene, and why
+      olatbench methods show ssdgs --data captures/cup    # + your scene's preset, and why
     """
     from olatbench.methods.registry import config_class
 

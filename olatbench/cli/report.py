@@ -93,7 +93,7 @@ def report(runs, suite, methods, metrics, splits, layouts, average, fmt, as_json
       olatbench report runs/ --json > results.json        # every number, with its job's identity
       olatbench report runs/ -o results.csv               # the same as tidy CSV
       olatbench report runs/ --suite nrhints --published -o table.tex --standalone
-      olatbench report runs/ --suite nrhints -o table.tex --fit        # paper code, at most the line wide
+      olatbench report runs/ --suite nrhints -o table.tex --fit   # paper code, at most the line wide
       olatbench report runs/ --layout ablation --format markdown
       olatbench report runs/ --suite sssgs --layout overview -o report.html
       olatbench report runs/ --suite mini -o report.html --figures pdf   # + report_figures/*.pdf
@@ -285,8 +285,10 @@ def render(run, kind, camera_path, orbit, elevation, radius, light, light_path, 
       olatbench render runs/mini/ssdgs/default/translucent/seed0 --sweep light-orbit
       olatbench render runs/nrhints/ssdgs/default/Pixiu/seed0 --sweep paper --resolution 256x256
       olatbench render runs/mini/ssdgs/default/translucent/seed0 --camera-path path.json --light 0
-      olatbench render runs/mini/ssdgs/default/translucent/seed0 --orbit --elevation 30 --frames 90 --light 1,2,3
-      olatbench render runs/mini/ssdgs/default/translucent/seed0 --orbit --envmap studio --samples 64
+      olatbench render runs/mini/ssdgs/default/translucent/seed0 --orbit --elevation 30 \\
+          --frames 90 --light 1,2,3
+      olatbench render runs/mini/ssdgs/default/translucent/seed0 --orbit --envmap studio \\
+          --samples 64
       olatbench render runs/mini/ssdgs/default/translucent/seed0 --lights two_lights.json
     """
     from olatbench.datasets.errors import DatasetError

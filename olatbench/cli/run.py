@@ -155,16 +155,17 @@ def run(method, suite, data_paths, protocol_name, scenes, variants, ablation, se
     \b
     Examples:
       olatbench run --method ssdgs --suite mini
-      olatbench run -m ssdgs --data captures/cup        # your own scene: presets derived from it (--dry-run shows)
+      olatbench run -m ssdgs --data captures/cup   # your own scene; --dry-run shows its presets
       olatbench run -m 3dgs --data captures/cup --data captures/mug --iterations 30000 --resolution 256
       olatbench run -m ssdgs -s nrhints --scenes Pixiu,Fish --data-root /data/nrhints
       olatbench run -m ssdgs -s nrhints --scenes Pixiu --ablation components --dry-run
-      olatbench run -m ssdgs -s gs3 --scenes Lego --data-root /data/gs3 --dry-run --calibrate   # + time estimate
+      olatbench run -m ssdgs -s gs3 --scenes Lego --data-root /data/gs3 --dry-run --calibrate
       olatbench run -m ssdgs -s mini --scenes translucent --set shadow_mode=density --set num_asg=8
-      olatbench run -m 3dgs --data captures/cup --init-points captures/cup/sparse.ply   # start from a point cloud
+      olatbench run -m 3dgs --data captures/cup --init-points captures/cup/sparse.ply
       olatbench run -m ssdgs -s gs3 --seeds 3 --executor slurm --slurm-partition gpu --slurm-gpus 1
       olatbench run -m gs3-official -s gs3 --code checkout=~/src/gs-relight --code conda_env=gs3
-      olatbench run -m ssdgs-official -s mini --code checkout=~/SSD-GS --code python=~/venv/bin/python --code device=cpu
+      olatbench run -m ssdgs-official -s mini --code checkout=~/SSD-GS \\
+          --code python=~/venv/bin/python --code device=cpu
     """
     from olatbench.bench import session
     from olatbench.bench.executors import SlurmOptions, Terminated

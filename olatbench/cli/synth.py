@@ -94,10 +94,12 @@ def synth(recipe_name: str | None, fmt: str, out_dir: Path | None, res: tuple[in
     \b
     Examples:
       olatbench datasets synth --recipe aniso_metal -o data/synth/aniso_metal
-      olatbench datasets synth --recipe my_recipe.json --format gs3 -o data/synth/mine --resolution 128 --spp 256
+      olatbench datasets synth --recipe my_recipe.json --format gs3 -o data/synth/mine \\
+          --resolution 128 --spp 256
       olatbench datasets synth --mini                # the mini suite into ~/.cache/olatbench/mini
       olatbench datasets synth --mini --render       # render it here with Mitsuba and compare
-      olatbench datasets synth --recipe aniso_metal --lights two_lights.json -o data/synth/aniso_metal/novel_lights/two
+      olatbench datasets synth --recipe aniso_metal --lights two_lights.json \\
+          -o data/synth/aniso_metal/novel_lights/two
 
     The mini suite is the packaged reference renders: --mini installs them (every file's sha256 checked), so
     every machine trains on the same bytes, with each scene's ground truth under the novel-light conditions in

@@ -52,10 +52,10 @@ def view(folder, suite, port, host, device, max_resolution, drag_scale, envmaps,
     holds no job.json at all, an unknown suite).
 
     \b
-    Move the light (handle or sliders), orbit the camera, switch outputs (rgb, diffuse, specular, sss, shadow, …),
-    snap to a dataset frame to see its ground truth and PSNR. The 'lighting' menu switches to an environment map
-    (rotation, exposure, samples K): a few samples while the view moves, refined to the K-sample image of
-    'olatbench render --envmap' while it is still.
+    Move the light (handle or sliders), orbit the camera, switch outputs (rgb, diffuse, specular,
+    sss, shadow, …), snap to a dataset frame to see its ground truth and PSNR. The 'lighting' menu
+    switches to an environment map (rotation, exposure, samples K): a few samples while the view
+    moves, refined to the K-sample image of 'olatbench render --envmap' while it is still.
     Examples:
       olatbench view runs/mini/ssdgs/default/translucent/seed0
       olatbench view runs/mini --port 8081 --max-resolution 1024

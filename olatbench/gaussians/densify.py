@@ -7,7 +7,7 @@ Usage per training iteration (after ``loss.backward()``, before ``optimizer.step
     densifier.accumulate(projected.means2d.grad, projected.radii, projected.radii > 0,
                          width=projected.width, height=projected.height)
     densifier.accumulate_priority(shadow.weight)         # optional (SSD-GS light-view weight)
-    stats = densifier.step(model, optimizer, iteration, scene_extent)  # iteration = the runner's step + 1
+    stats = densifier.step(model, optimizer, iteration, scene_extent)  # the runner's step + 1
 
 (`observe_and_step` does the last three from the runner's 0-based step.) Conventions follow the reference 3DGS
 code (and SSD-GS, which uses it unchanged):

@@ -71,9 +71,13 @@ def lpips_nchw(model: Runner, pred: torch.Tensor, gt: torch.Tensor, mask: torch.
         pred, gt = pred * 2 - 1, gt * 2 - 1
     if isinstance(model, LPIPSNet):
         parameter = next(model.parameters())
-        prepare = lambda t: t.to(parameter.device, parameter.dtype).contiguous(memory_format=torch.channels_last)  # noqa: E731
+
+        def prepare(t: torch.Tensor) -> torch.Tensor:
+            return t.to(parameter.device, parameter.dtype).contiguous(memory_format=torch.channels_last)
     else:
-        prepare = lambda t: t  # noqa: E731
+
+        def prepare(t: torch.Tensor) -> torch.Tensor:
+            return t
     out = [model(prepare(pred[i:i + batch_size]), prepare(gt[i:i + batch_size]))
            for i in range(0, pred.shape[0], batch_size)]
     return torch.cat(out).to(pred.device)

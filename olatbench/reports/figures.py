@@ -68,8 +68,9 @@ def method_keys(labels: Iterable[str]) -> dict[str, str]:
 
 
 def key_legend(figure: Figure, keys: Mapping[str, str], colours: Mapping[str, str], width_inches: float) -> None:
-    """Spell out the keys below the figure's panels, one line per method in its colour (``A  full label``), each
-    label wrapped to ``width_inches`` (saved with ``bbox_inches="tight"``, which takes the legend in)."""
+    """Spell out the keys below the figure's panels, one line per method in its colour
+    (``A  full label``), each label wrapped to ``width_inches`` (saved with
+    ``bbox_inches="tight"``, which takes the legend in)."""
     characters = max(20, int(width_inches * 72 / (KEY_FONT_SIZE * 0.6)))  # ~0.6 em per character
     handles = [Patch(color=colours.get(label, "#000000")) for label in keys]
     texts = [f"{key}: " + "\n    ".join(textwrap.wrap(label, characters - 4) or [""]) for label, key in keys.items()]

@@ -61,12 +61,13 @@ NRHINTS_BASE_URL = "https://igpublicshare.z20.web.core.windows.net/NRHints/Data/
 # --- GS³ (Bi et al., SIGGRAPH Asia 2024): Hugging Face dataset gsrelight/gsrelight-data ----------------------
 # The repository is named by the GS³ README ("huggingface-cli download --repo-type dataset
 # gsrelight/gsrelight-data"). Its file names were read on the Hub's own pages: tree
-# huggingface.co/datasets/gsrelight/gsrelight-data/tree/78df91b8153db055a0119707f2b3c049cd316690/Synthetic
-# (commit f12915d "Upload 6 files": Synthetic/{AnisoMetal,Drums,FurBall,Hotdog,Lego,Translucent}.zip) and
+# huggingface.co/datasets/gsrelight/gsrelight-data/tree/78df91b8153db055a0119707f2b3c049cd316690/
+# Synthetic (commit f12915d "Upload 6 files":
+# Synthetic/{AnisoMetal,Drums,FurBall,Hotdog,Lego,Translucent}.zip) and
 # .../tree/e855a9af9b855222894ee7a82098d518f6d5c6b1/NRHints (commit a6d7795 "Upload 7 files":
 # NRHints/{Cat,Cat_on_Decor,Cluttered,Cup-Fabric,Fish,Pikachu,Pixiu}.zip). The revision is pinned to
-# ac856efb0cf970f7fd4ea5fc490bd109122ffdb2 (main's history; later commits only edit README.md), so the sha256
-# the Hub reports for these files cannot change under a benchmark.
+# ac856efb0cf970f7fd4ea5fc490bd109122ffdb2 (main's history; later commits only edit README.md),
+# so the sha256 the Hub reports for these files cannot change under a benchmark.
 GS3_REPO = "gsrelight/gsrelight-data"
 GS3_REVISION = "ac856efb0cf970f7fd4ea5fc490bd109122ffdb2"
 GS3_NRHINTS_FOLDERS = {"CatSmall": "Cat_on_Decor", "FurScene": "Cluttered", "CupFabric": "Cup-Fabric"}

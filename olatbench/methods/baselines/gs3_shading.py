@@ -2,8 +2,8 @@
 
 For K visible Gaussians (directions point away from the Gaussian: ``wi`` to the light, ``wo`` to the camera)::
 
-    I = (k_d / π + k_s · D_ASG(h) · F(ωi·h)) · cos⁺(n, ωi) · L / d²        (the cosine multiplies both terms)
-    V = Θ_shadow(ωi, x, m, v̂)        v̂: the light-view visibility hint (`olatbench.gaussians.shadow`)
+    I = (k_d / π + k_s · D_ASG(h) · F(ωi·h)) · cos⁺(n, ωi) · L / d²   (the cosine multiplies both)
+    V = Θ_shadow(ωi, x, m, v̂)   v̂: the light-view visibility hint (`olatbench.gaussians.shadow`)
     O = 2 · sigmoid(Θ_other(ωo, x, m)) · L / d²
 
 k_d, k_s are softplus colours, D_ASG the official GS³ mixture of angular Gaussians (`ASGMixture` with

@@ -7,7 +7,8 @@ Dipole (η = 1.3 by default; lengths in scene units, coefficients in 1/scene uni
     σ_t' = σ_s + σ_a     α' = σ_s / σ_t'    σ_tr = sqrt(3 σ_a σ_t')
     z_r = 1/σ_t'         z_v = z_r (1 + 4A/3)
     d_r = sqrt(r² + z_r²)   d_v = sqrt(r² + z_v²)
-    R_d(r) = α'/(4π) [ z_r (σ_tr d_r + 1) e^{-σ_tr d_r} / d_r³  +  k_v (σ_tr d_v + 1) e^{-σ_tr d_v} / d_v³ ]
+    R_d(r) = α'/(4π) [ z_r (σ_tr d_r + 1) e^{-σ_tr d_r} / d_r³
+                     + k_v (σ_tr d_v + 1) e^{-σ_tr d_v} / d_v³ ]
 
 with ``k_v = z_v`` (``"jensen"``, default) or ``k_v = z_r z_v`` (``"official"``: the factor in the
 paper's Eq. 4 and the official code). The exponent uses the effective transport coefficient σ_tr, as in

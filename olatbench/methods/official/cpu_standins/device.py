@@ -9,10 +9,11 @@ itself) makes, for the rest of the process:
 - ``Tensor.cuda(...)`` return the tensor on the CPU and ``Module.cuda(...)`` return the module unchanged;
 - ``torch.load(..., map_location="cuda")`` (RNG's ``train.py:46`` loads its stage-1 checkpoint so) load onto the
   CPU: a CUDA device given as ``map_location`` (str or torch.device) becomes the CPU;
-- ``torch.cuda.Stream``/``stream``/``current_stream``/``Event``/``synchronize``/``empty_cache``/``set_device``
-  harmless on the CPU: streams are placeholders whose ``wait_stream`` does nothing and ``stream(s)`` is an empty
-  context (CPU work is already ordered); an ``Event`` records the wall clock, so ``start.elapsed_time(end)``
-  is the milliseconds between the two ``record()`` calls, as the CUDA event reports them after a synchronize.
+- ``torch.cuda.Stream``, ``stream``, ``current_stream``, ``Event``, ``synchronize``, ``empty_cache``,
+  ``set_device`` harmless on the CPU: streams are placeholders whose ``wait_stream`` does nothing and
+  ``stream(s)`` is an empty context (CPU work is already ordered); an ``Event`` records the wall clock, so
+  ``start.elapsed_time(end)`` is the milliseconds between the two ``record()`` calls, as the CUDA event
+  reports them after a synchronize.
 
 ``torch.cuda.is_available()`` stays False (code that asks takes its CPU path).
 """

@@ -2,9 +2,9 @@
 
 The authors' ``render`` calls it under ``torch.no_grad()`` with a camera at the light::
 
-    _, out_weight, _, shadow = GaussianRasterizer(raster_settings=settings)(means3D, means2D, shs=None,
-        colors_precomp=zeros(2, 3), opacities, scales, rotations, cov3D_precomp=None, non_trans=zeros(N),
-        offset=0.015, thres=4, is_train=...)
+    _, out_weight, _, shadow = GaussianRasterizer(raster_settings=settings)(
+        means3D, means2D, shs=None, colors_precomp=zeros(2, 3), opacities, scales, rotations,
+        cov3D_precomp=None, non_trans=zeros(N), offset=0.015, thres=4, is_train=...)
 
 and then uses ``shadow / clamp_min(non_trans, 1e-6)`` as each Gaussian's shadow hint and ``out_weight`` to rank
 Gaussians for pruning. This module reproduces ``forward.cu`` of the two pinned repositories:

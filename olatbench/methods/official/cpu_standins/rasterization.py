@@ -2,9 +2,9 @@
 
 The authors' SSD-GS and GS³ call (``gaussian_renderer/__init__.py``)::
 
-    rendered, alphas, meta = rasterization(means, quats, scales, opacities, colors [N, D], viewmats [1, 4, 4],
-        Ks [1, 3, 3], width, height, near_plane, far_plane, eps2d=0.3, sh_degree=None, packed=False,
-        backgrounds [1, D])
+    rendered, alphas, meta = rasterization(means, quats, scales, opacities, colors [N, D],
+        viewmats [1, 4, 4], Ks [1, 3, 3], width, height, near_plane, far_plane, eps2d=0.3,
+        sh_degree=None, packed=False, backgrounds [1, D])
 
 and read ``meta["radii"]`` ([C, N] in 1.1.1) and ``meta["means2d"]`` ([C, N, 2], on which they call
 ``retain_grad()`` to read the screen-space gradient for densification). This function has 1.1.1's signature and

@@ -3,8 +3,9 @@
 SSD-GS (26e4251) and GS³ (83c8daa) ``scene/neural_phase_function.py`` build::
 
     tcnn.Encoding(3, {"otype": "Frequency", "n_frequencies": 8})
-    tcnn.Network(n_in, n_out, {"otype": "FullyFusedMLP", "activation": "LeakyReLU", "output_activation": "Sigmoid",
-                               "n_neurons": 64 or 128, "n_hidden_layers": 3})
+    tcnn.Network(n_in, n_out, {"otype": "FullyFusedMLP", "activation": "LeakyReLU",
+                               "output_activation": "Sigmoid", "n_neurons": 64 or 128,
+                               "n_hidden_layers": 3})
 
 What tiny-cuda-nn computes for them, reproduced here:
 
