@@ -1,40 +1,11 @@
 """A trained method's image under a lighting (`olatbench.datasets.lighting`): the sum, in linear light, of its
-renders under the point and directional lights that stand for it (docs/relighting.md).
+renders under the point and directional lights that stand for it.
 
-A method's ``render(camera, light)`` takes one point light and answers in the job's colour space (``srgb``,
-``gamma22`` or ``linear``: the space it was trained and scored in; no method applies a display transform of its
-own). Light adds in linear light, so each render is decoded to linear (`olatbench.datasets.colour`), weighted and
-summed, and the sum is what a caller encodes for display. Each light is rendered as a **probe**:
-
-* at its own position (a directional light: at ``distant_factor`` × the training lights' distance from the scene
-  centre along its direction, by default that distance itself), with its own light-view shadow pass (the
-  method's), and
-* at the **training irradiance**: the intensity that gives at the scene centre the irradiance the training lights
-  gave (`LightingReference`), so that every render is in the range the method was trained on (no light clipped by
-  the method's [0, 1] output; no dim light darkened further by decoding a value the method scaled in its encoded
-  space), and is then scaled in linear light by the light's own irradiance at the centre over the training one.
-  For a method in linear space this is the render under the light itself (its output is linear in the
-  intensity); for one in an encoded space it keeps the sum linear in light.
-
-The methods take point lights only, so a directional light (an environment map's samples too) is a point light of
-intensity E·D² at distance D along its direction. As D grows its direction and irradiance across the scene approach
-the directional light's (within O(r/D), r the scene's radius), but the trained model leaves the distances it was
-trained at: SSD-GS's and GS³'s light-view pass keeps a self-shadow band in squared-distance units
-(`olatbench.gaussians.shadow`, ``depth_offset``), a band of offset / 2D along the ray, so far away the coarse shadow
-hint collapses (its mean on a trained mini model: 0.51 at the training distance, 0.24 at 1000 times it) and the
-shadow network sees inputs it never saw. Measured against Mitsuba's ground truth (docs/relighting.md), the
-training distance and twice it relight far better than far away; the default is the training distance itself
-(``distant_factor`` = 1, `DISTANT_FACTOR`). A renderer without that bias (the analytic sphere of the tests) takes a
-large factor.
-
-The background of the job (``Views.background``, in the job's colour space) is counted once: each render's
-coverage ``alpha`` (an output of every native method) takes ``(1 - alpha) · background`` out before decoding,
-and the background is added back, in linear light, after the sum (exact where a pixel is covered or empty; at
-partly covered edges the composite is made in linear light instead of the job's space). A method that renders
-no ``alpha`` can be relit on a black background only. A method without the ``relight`` capability (3DGS: its render
-ignores the light) is rendered once and scaled by the summed weights.
-
-Memory: one render and one running sum at a time, whatever the number of lights.
+Each light is rendered by the method as a point-light probe at the training irradiance, decoded from the job's
+colour space to linear light, weighted by its own irradiance over the training one and summed, one render at a
+time; a directional light is a point light at ``distant_factor`` × the training lights' distance; the
+background is counted once. docs/relighting.md ("Rendering a trained model under a lighting") explains each
+choice and what was measured.
 """
 
 from __future__ import annotations

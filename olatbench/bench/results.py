@@ -1,68 +1,8 @@
 """The ``results.json`` schema: written by ``olatbench run`` (one per job) and ``olatbench evaluate``, read by reports.
 
-Schema version 2 (unknown values are ``null``; blocks marked *run* are ``null`` in an ``evaluate`` file)::
-
-    {
-      "schema_version": 2,
-      "kind": "run" | "evaluate",
-      "status": "done" | "failed",
-      "job": {"id": str, "method": str, "variant": str, "suite": str, "scene": str, "seed": int,
-              "config": {...resolved method config...}, "resolution": [width, height] | null (native)}
-             | null (evaluate),
-      "protocol": {"id": "olatbench-v1", "version": 1[, "definition": {...}]},
-      "metrics": {"<split>": {"mean": {"psnr": float, "ssim": float, "lpips": float | null, ...},
-                               "per_image": {"<frame_id>": {"psnr": ..., ...}}}},
-      "timing": {"started": str, "finished": str, "train_seconds": float | null, "render_fps": float | null},
-      "resources": {"device": str, "peak_rss_mb": float, "cuda_peak_mb": float | null,
-                    "backends": {stage: backend} (done runs; e.g. {"rasterizer": "cuda", "ssim": "torch"})},
-      "hardware": {"machine": str, "cpu": {"model": str | null, "cores": int | null, "threads": int | null,
-                                           "usable_threads": int | null},
-                   "gpus": [{"index": int, "name": str, "memory_mb": float}]},
-      "model": {"iterations": int, "num_gaussians": int | null,
-                "reused_from": {"job_id": str, "folder": str} | null} | null (evaluate),
-      "versions": {"olatbench": str, "python": str, "numpy": str, "torch": str | null, "cuda": str | null,
-                   "opencv": str | null, "openimageio": str | null, "platform": str},
-      "hashes": {"data_manifest": str | null, "config": str | null, "code": str | null,
-                 "data_matches_reference": bool | null, "checkpoint": str | null},
-      "files": {"<split>": {"<frame_id>": {"render": str, "render_sha256": str,
-                                           "ground_truth": str | null, "ground_truth_sha256": str | null}}},
-      "source": null (run) | {"predictions": str, "scene": {"name": str, "format": str, "root": str},
-                              "split": str, "colourspace": str, "png_space": str},
-      "evaluation": {"test_time_refinement": null | {"split": str, "seconds": float,
-                                                     "frames": {"<frame_id>": {"loss_before": ..., ...}}},
-                     "test_pose_fitting": null | {"mode": str, "split": str,
-                                                  "frames": {"<frame_id>": {"translation": ..., ...}}}},
-      "error": null | {"type": str, "message": str}
-    }
-
-Provenance (new in version 2): ``timing.started`` / ``timing.finished`` are UTC ISO 8601 (for a run: the
-session that completed the job; earlier sessions of a resumed job are in its ``log.txt``); ``hardware`` is
-`olatbench.bench.provenance.hardware_identity`; ``hashes.checkpoint`` is the sha256 of the final checkpoint
-(the file kept in ``checkpoints/``); ``files`` holds the sha256 of every render scored and of the ground-truth
-image file each was scored against (a run's render paths are relative to the job folder, ground-truth paths
-absolute). Runs and ``olatbench evaluate`` write the same keys through the same code
-(`olatbench.bench.provenance`).
-
-``evaluation.test_time_refinement`` is set when the method fitted each test view's pose/light to its image
-before scoring it (e.g. SSD-GS ``test_time_refinement=true``); ``evaluation.test_pose_fitting`` when the method
-fitted the test views' poses/lights *during training* (``mode``, e.g. SSD-GS ``"interleaved"``, the official
-real-data protocol) and scored them with those fits (per frame: ``translation``, ``rotation_deg``,
-``light_offset``), or ``mode`` ``"official"`` with no frames when an official implementation rendered the test
-views at the poses its training fitted (`OfficialCode.fits_test_views`). Files written before these keys existed
-lack them, which reads as ``null``.
-``hashes.data_matches_reference`` (``mini`` only, else ``null``; absent in older files) says whether the scene's
-files are byte-identical to the package's reference renders.
-
-Official implementations (``olatbench.bench.official``) add ``"method_kind": "official"`` and ``"official"``:
-the repository, the pinned commit and the one checked out, the launcher settings, and each command with its exit
-code and wall time (`OfficialProvenance`); their metrics hold the test split only.
-
-Metric keys: ``psnr`` (dB), ``ssim``, ``lpips`` (the protocol's primary network), and optionally
-``lpips_alex`` / ``lpips_vgg``. Splits are ``train`` and ``test`` (and ``val`` when present).
-
-Older files: version 1 (runs only; no ``kind``, ``hardware``, ``files``, ``source``, start/end times or
-checkpoint hash) is read and upgraded in memory (`upgrade_results`): ``kind`` becomes ``"run"`` and the keys it
-lacks are absent, which readers treat as ``null``.
+`Results` and its nested TypedDicts are the schema (version 2); `validate_results` checks a file against them,
+naming the key and the value found; `upgrade_results` reads version-1 files; `read_results` / `write_results`
+read and write (atomically) a validated file. docs/runner.md ("results.json") says what each key holds.
 """
 
 import functools
@@ -80,7 +20,8 @@ from olatbench.metrics.protocols import get_protocol
 
 if sys.version_info >= (3, 11):
     from typing import NotRequired, get_type_hints
-else:  # pragma: no cover - Python 3.10: typing's get_type_hints would keep typing_extensions' NotRequired
+else:  # pragma: no cover
+    # Python 3.10: typing's get_type_hints would keep typing_extensions' NotRequired
     from typing_extensions import NotRequired, get_type_hints
 
 # The schema as types (no `from __future__ import annotations` here: the TypedDicts' required/optional keys stay

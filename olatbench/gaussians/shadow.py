@@ -1,48 +1,12 @@
 """SSD-GS light-view visibility pass (forward only): a coarse shadow hint per Gaussian.
 
-The Gaussians are splatted from a pinhole camera placed at the point light, sorted front to back by their
-**squared distance to the light**, and every pixel is composited with the 3DGS rules (α = min(0.99, o·G),
-skip α < 1/255, stop once T would drop below 1e-4: every Gaussian behind a stopped pixel sees T = 0 there).
-For each Gaussian g this yields:
-
-- ``visibility`` (N,) in [0, 1]: the transmittance *in front of* g averaged over pixels near g's projected
-  centre (the coarse visibility v̂_g of the paper, Eq. 6). ``mode`` chooses the average:
-
-  * ``"uniform"`` (default): the plain mean over the pixels whose centre lies within ``radius_px`` = 2 px of
-    g's 2D mean (the C++ kernel; fast);
-  * ``"density"``: the same pixels weighted by g's own 2D density ρ = exp(-½ dᵀ conic d) (no opacity):
-    v̂ = Σ ρ T / Σ ρ. This is what the official SSD-GS CUDA kernel computes (``out_trans / non_trans`` with
-    ``dd < thres = 4``); for Gaussians wider than a few pixels ρ ≈ 1 on the disc and it equals ``"uniform"``;
-  * ``"footprint"`` (the paper's Eq. 6 read literally): every pixel g is composited at (α ≥ 1/255), weighted
-    by ρ.
-
-  "In front of" always excludes g itself; with ``depth_offset`` > 0 it also excludes every Gaussian whose
-  squared distance to the light is within ``depth_offset`` of g's (the official self-shadow offset, 0.015 in
-  squared-distance units, i.e. the sort key's units): only Gaussians j with key_j < key_g − depth_offset remain,
-  both sides rounded to float32 like the tile sort (so they are a prefix of g's tile list).
-  ``OFFICIAL_KERNEL`` = ``{"mode": "density", "depth_offset": 0.015}`` reproduces the official kernel's
-  arithmetic, except that its lagging pointer also counts the first Gaussian inside the offset band for later
-  Gaussians at the same pixel (an order-dependent artefact we do not copy) and it never stops a pixel at
-  T < 1e-4. Gaussians the light camera does not see (behind it, outside its frustum, culled, or with no pixel to
-  average over) get visibility 0 ("hint 0") and ``seen = False``.
-- ``weight`` (N,): g's accumulated blending weight Σ_pixels T·α in the light view (how much of the light g
-  intercepts; SSD-GS uses it to cap the number of Gaussians).
-- ``seen`` (N,) bool.
-
-The light camera (:func:`light_camera`) sits at the light, looks at ``target`` with world up +z (another up
-when the view direction is parallel to it, see :func:`olatbench.datasets.cameras.look_at`) and has the
-narrowest square field of view that contains the sphere of ``scene_radius`` around ``target`` (× ``margin``),
-at most 120°. The official code instead scales the *viewing* camera's focal length by |light| / |camera| and
-looks at the mean of the Gaussian centres (with the viewing image size), so the scene appears at the viewing
-camera's pixel scale: pass that mean as ``target`` and :func:`camera_matched_focal` as ``focal_px``.
-
-Backends: ``"torch"`` (reference, any device) implements every option; ``"cpu"`` (the C++ kernel of
-:mod:`olatbench.gaussians.backends.cpu`) implements ``mode="uniform"`` and ``mode="density"`` with any
-``depth_offset`` (a lagging second transmittance per pixel for offsets > 0; its compositing runs 4–8 pixels at a
-time with a polynomial exp within a few ulp of libm's, so it matches torch up to rounding; the density weights
-and their sums are float64 like torch's); ``"auto"`` uses the C++ kernel for CPU tensors whenever the mode
-allows it and torch otherwise. The pass is forward only: SSD-GS and GS³ call it under ``torch.no_grad()``, as
-the official SSD-GS renderer calls its light rasterizer (``gaussian_renderer/__init__.py``).
+The Gaussians are splatted from a pinhole camera at the point light, sorted by squared distance to the light and
+composited with the 3DGS rules; each Gaussian g gets ``visibility`` (N,) in [0, 1] (the transmittance in front of
+g averaged near its projected centre, the paper's v̂_g, Eq. 6; ``mode`` picks the average, ``depth_offset`` the
+self-shadow band), ``weight`` (N,) (Σ T·α: the light g intercepts) and ``seen`` (N,) bool; unseen Gaussians get
+0. `OFFICIAL_KERNEL` reproduces the official kernel's arithmetic. Backends: ``"torch"`` (every option, any
+device), ``"cpu"`` (C++; ``"uniform"`` and ``"density"``), ``"auto"``. docs/gaussians-training.md ("The
+light-view visibility pass") gives the modes, the light camera, the offset and what differs from the official code.
 """
 
 from __future__ import annotations

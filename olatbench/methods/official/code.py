@@ -1,57 +1,10 @@
 """How to run one official implementation, as data (stdlib only): `OfficialCode` and the config of its jobs.
 
-An `OfficialCode` says, for the authors' scripts:
-
-- in which olatbench format a scene must be written for their loader (``data_formats``: per suite, ``"*"`` for
-  the others; written by `olatbench.datasets.convert.write_scene`);
-- the commands to run, in order: ``(step, argv)`` where ``argv`` starts with the script (``train.py``), never
-  with an interpreter — the launcher of `olatbench.methods.official.settings` puts the configured Python, conda
-  environment or container command in front;
-- where the renders of the test split land (``renders``) and what their PNGs hold (``render_colourspace``);
-- which frame each render shows: the render script numbers its renders by the order of the frames of the
-  transforms file it reads. That is the converted scene's ``transforms_test.json`` (``LOADER_ORDER``) unless a
-  command carries a flag of ``render_orders``, which names the file the script then reads instead (SSD-GS and
-  GS³ ``render.py --opt_pose`` read the refined cameras their ``train.py`` saved, in its shuffled order). Renders
-  are paired with frames through that file's ``img_path`` / ``file_path``, never by position in olatbench's split
-  (`olatbench.methods.official.convert.pair_renders`). A render script that also writes the ground truth it
-  rendered each view for (RNG's ``gt/<index:05d>.png``) names it in ``render_ground_truths``; each is then checked
-  against its paired frame's image (`olatbench.methods.official.convert.check_ground_truths`).
-
-Placeholders in ``argv`` and ``renders`` (`str.format` fields), filled per job:
-
-- ``{scene}`` the converted scene folder, ``{model}`` the output folder the scripts write to,
-  ``{checkout}`` the user's clone, ``{iterations}`` the job's training length;
-- ``{index}`` (renders only): the render's number, i.e. the position of its frame in the transforms file the
-  render script read (e.g. ``{index:05d}``);
-- an argument that is exactly ``{*suite_args}`` expands to ``suite_args[suite][step]`` (``"*"``: any other
-  suite), possibly to nothing: e.g. ``--white_background`` for GS³ data.
-
-A scene of one's own (a ``--data`` folder or a ``[suites.NAME]`` of olatbench.toml: no benchmark suite) is trained
-on the background its files declare, as the native methods do: when that is white, ``white_background_args`` (the
-flags that composite the training images over white; the renders read it from the saved config) are applied to
-the train steps as a scene's flags are. The benchmark suites keep the background their scripts pass.
-
-Where the authors' scripts give one scene other flags than its suite's (GS³ ``real_train.sh``: Fish densifies until
-100K), ``scene_args`` holds them as `SceneArgs`, keyed by the canonical scene name and citing script and lines; a
-scene's flag replaces the value the command already has for it, or is appended.
-
-A code that trains in several commands (RNG: stage 1, then stage 2 from stage 1's checkpoint) names them in
-``train_steps`` (default: the one step ``train``); ``milestones`` are the iteration counts its commands name
-besides the run's end, as placeholders (RNG's ``{stage1_iterations}``: 30000 in its README), and ``sources`` says
-where each command and per-suite argument came from (`olatbench methods show`).
-
-Runs shorter than the scripts' (the CPU-sized ``mini`` suite) scale the schedule as the native presets do: with
-``reference_iterations`` set in the job's config, every flag of ``schedule_flags`` (the train script's
-iteration-valued options: freeze, warm-up and decay steps, densification window, opacity reset) is multiplied by
-``iterations / reference_iterations`` — its value on the command line, or the parser's default named there — and
-rounded (`OfficialCode.scaled_schedule`), in every train step, and so is every milestone
-(`OfficialCode.milestone_values`); cadences such as the densification interval are not scaled. With
-``init_points`` set, olatbench writes that many initial points, drawn like a native method's from the job's seed
-(`olatbench.methods.initialisation.initial_points`), where the loader reads its initial point cloud
-(``point_cloud``), instead of the loader's own initialisation.
-
-A code whose data cannot be fed (it has no point-light input) has ``unsupported`` set to the reason; the
-runner refuses to plan it and `olatbench methods list` shows why.
+An `OfficialCode` names the olatbench format the authors' loader reads, the commands to run in order (the script
+first; the launcher of `olatbench.methods.official.settings` puts the interpreter in front) with the placeholders
+filled per job, where the test renders land and which frame each shows, per-scene flags, the training steps and
+milestones, and how a run shorter than the scripts' scales their schedule. docs/official.md ("Adding an official
+implementation") describes each field.
 """
 
 from __future__ import annotations

@@ -1,42 +1,9 @@
 """CPU stand-ins for the CUDA-only modules of the authors' code, for official jobs run with ``--code device=cpu``.
 
-The authors' SSD-GS (26e4251) and GS³ (83c8daa) need CUDA only through ``gsplat`` (1.1.1), their
-``diff_gaussian_rasterization_light``, ``tinycudann``, ``simple_knn`` and ``.cuda()``/``torch.cuda`` calls; their
-``render.py`` also imports ``torchvision`` for ``save_image``. In a ``device=cpu`` job `job_environment` puts the
-folder `SITE` first on the commands' ``PYTHONPATH`` (and olatbench's own folder after it), so that those names
-import these stand-ins and its ``sitecustomize`` installs the device shim (`device`); nothing is written into the
-user's checkout, and nothing of this is importable under those names anywhere else.
-
-RNG (4e8748e) needs CUDA through its two rasterizer forks (``diff_gaussian_rasterization`` with a low-pass radius
-and depth/alpha outputs, ``diff_gaussian_rasterization_orthographic``), ``simple_knn`` and ``.cuda()`` calls;
-its ``render.py`` imports ``torchvision`` (``save_image``) and ``torchmetrics.functional.image`` (PSNR, SSIM, LPIPS
-for a metrics.txt). Its jobs get `SITE` with `RNG_MODULES` (the other methods' modules there are not imported by
-its code).
-
-NRHints (291800d) runs on the CPU by itself: it picks the CPU when ``torch.cuda`` reports no device
-(``trainer/trainer.py:48``), its networks are torch (frequency encodings, ``nn.Linear``), and ``tinycudann`` is
-only an optional import for a ``HashEncoding`` its configs do not build (``fields/encodings.py:31-36, 237``). But
-``utils/metrics.py:4`` imports ``lpips``, which needs torchvision and downloads AlexNet, and its test-view
-rendering keeps every chunk's autograd graph on the CPU (`device_copy`): its jobs get `NRHINTS_SITE` instead,
-which holds only ``lpips`` (`lpips`) and a ``sitecustomize`` installing `device_copy` — none of the other
-stand-ins and not the CUDA device shim, so that its own CPU path and optional-import fallbacks stay as written.
-
-==============================================  ==============================================================
-real module                                     stand-in (this package)
-==============================================  ==============================================================
-``gsplat.rasterization``                        `rasterization` (olatbench's projection and C++ rasterizer)
-``diff_gaussian_rasterization_light``           `light` (forward.cu per pinned commit; C++ per-pixel loop)
-``tinycudann.Encoding`` / ``Network``           `tcnn` (Frequency; FullyFusedMLP LeakyReLU/Sigmoid)
-``simple_knn._C.distCUDA2``                     `knn` (olatbench's exact 3-nearest-neighbour search)
-``diff_gaussian_rasterization`` (RNG's fork)    `rng_rasterizer` (forward.cu/__init__.py of RNG's fork)
-``diff_gaussian_rasterization_orthographic``    `rng_orthographic` (RNG; forward only, as the fork)
-``torchmetrics.functional.image`` (RNG only)    `torchmetrics_image` (PSNR, SSIM, LPIPS at render.py's defaults)
-``torchvision.utils.save_image``                `save_image`
-``torch.cuda`` / ``.cuda()`` / ``device=cuda``  `device` (installed by ``SITE/sitecustomize.py``)
-``lpips.LPIPS(net="alex")`` (NRHints only)      `lpips` (olatbench's LPIPSNet, installed weights), in `NRHINTS_SITE`
-``Tensor.to`` under ``no_grad`` (NRHints only)  `device_copy` (drops the graph as a GPU copy does), by
-                                                ``NRHINTS_SITE/sitecustomize.py``
-==============================================  ==============================================================
+`job_environment` puts the folder `SITE` (SSD-GS, GS³; RNG with `RNG_MODULES`) or `NRHINTS_SITE` first on the
+commands' ``PYTHONPATH``, so that the CUDA-only names the authors' scripts import load these modules instead;
+nothing is written into the user's checkout. docs/official.md ("Running the authors' code on the CPU") lists each
+real module, its stand-in and what differs.
 """
 
 from __future__ import annotations

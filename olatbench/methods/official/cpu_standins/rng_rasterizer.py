@@ -1,36 +1,11 @@
 """``diff_gaussian_rasterization`` as RNG (sssssy/RNG_release @ 4e8748e) forks it, on the CPU with olatbench's
 projection and rasterizer.
 
-RNG's ``submodules/diff-gaussian-rasterization`` is the Inria rasterizer (graphdeco-inria/diff-gaussian-rasterization
-@ 59f5f77) with these changes, all followed here (paths below that folder):
-
-- ``GaussianRasterizationSettings.low_pass_filter_radius`` (``diff_gaussian_rasterization/__init__.py:174``),
-  added to the 2D covariance's diagonal instead of Inria's fixed 0.3 (``cuda_rasterizer/forward.cu:74, 110-111``);
-- two more outputs, ``rasterizer(...)`` returns ``(color, radii, depth, alpha)``
-  (``__init__.py:87-100``, ``rasterize_points.cu:71-72, 120``): ``depth`` [1, H, W] = Σ_i z_i α_i T_i (view-space
-  z, *not* divided by the coverage) and ``alpha`` [1, H, W] = Σ_i α_i T_i, accumulated over the same Gaussians as
-  the colour (``forward.cu:308-309, 363-364, 384-388``);
-- no gradient reaches anything through ``depth`` or ``alpha``: the Python backward takes their gradients as
-  arguments but hands the C++ backward only the colour's (``__init__.py:104-127``), and ``backward.cu`` is Inria's
-  unchanged. Here both outputs are returned detached;
-- ``NUM_CHANNELS`` 16 (``cuda_rasterizer/config.h:15``): ``colors_precomp`` must have 16 channels (RNG's latent
-  features, or its colour MLP's RGB padded with zeros).
-
-Inria's rules kept (``forward.cu``, ``auxiliary.h``): Gaussians with view-space z <= 0.2 are culled
-(``auxiliary.h:154``), the Jacobian clamps x/z, y/z at 1.3 tan(fov/2) (``forward.cu:82-87``), the radius is
-``ceil(3 sqrt(mid + sqrt(max(0.1, mid² - det))))`` (``forward.cu:230-233``), a Gaussian whose 16-pixel tile
-rectangle is empty is culled and the others are composited in every pixel of the tiles of that rectangle
-(``auxiliary.h:46-56``, ``forward.cu:236-238``; `inria_bins`), nearest first; the composite clamps α at 0.99, skips
-α < 1/255 and stops before T < 1e-4 (``forward.cu:349-357``); the 2D mean comes from ``projmatrix``
-(``forward.cu:198-201``), which must be the symmetric perspective of ``tanfovx``/``tanfovy`` (RNG's
-``getProjectionMatrix``) — any other is refused — so that olatbench's pinhole K (f = size / (2 tan), centre at the
-middle) reproduces it. The ``means2D`` argument's gradient is the loss's gradient with respect to the 2D mean in
-Inria's units, pixels × (W/2, H/2) (``backward.cu:460-461, 545-546``), which ``densify_and_prune`` thresholds.
-
-Not reproduced, refused with `NotImplementedError`: SH colours (``shs``: RNG's commands pass ``colors_precomp``,
-``--color_mlp``), ``cov3D_precomp`` and ``prefiltered``. One difference: the background has 3 entries but the
-kernel reads 16 (``forward.cu:381``, past the end of the tensor on the GPU); here channels 3-15 get 0. The kernel
-divides by ``w + 1e-7`` (``forward.cu:200``), the stand-in by z: 2D means differ by about 1e-7 relative.
+RNG's fork of the Inria rasterizer (graphdeco-inria/diff-gaussian-rasterization @ 59f5f77) adds a low-pass
+radius, ``depth`` and ``alpha`` outputs (no gradient flows through them: returned detached here) and 16 colour
+channels; Inria's culling, radius, tile and compositing rules are kept. SH colours, ``cov3D_precomp``,
+``prefiltered`` and an off-centre ``projmatrix`` raise `NotImplementedError`. docs/official.md (the CPU
+stand-ins' table) cites the fork's lines for each rule and the two small differences.
 """
 
 from __future__ import annotations
