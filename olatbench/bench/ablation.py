@@ -1,6 +1,6 @@
 """Which ablation grid a job belongs to and the variant it is compared with, as the reports need it.
 
-A job planned now records both in its job.json (``Job.ablation``: ``{"grid", "reference"}`` from the method's
+Every planned job records both in its job.json (``Job.ablation``: ``{"grid", "reference"}`` from the method's
 spec, `olatbench.methods.spec.MethodSpec.ablation_of`; ``null`` outside every grid). A job.json written before the
 field existed has no ``ablation`` key, and a results.json may have no job.json beside it: for those the method's
 spec is asked now, with the job's variant, as the plan would have asked it (None when the method is not installed

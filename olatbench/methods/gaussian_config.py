@@ -20,8 +20,8 @@ from olatbench.methods.run_length import scaled_steps
 MIN_DENSIFICATIONS = 10
 #: An opacity reset sets every opacity to 0.01 (logit -4.6); Adam moves a logit by about ``opacity_lr`` per step,
 #: so climbing back to 0.5 takes about 4.6 / opacity_lr steps (92 at 3DGS's 0.05). Resets come at least three
-#: such climbs apart, else the Gaussians never recover and pruning removes them (the 200-step run of issue #46
-#: reset every 6 steps and fell from 10,000 Gaussians to 627).
+#: such climbs apart, else the Gaussians never recover and pruning removes them (a 200-step 3DGS run that reset
+#: every 6 steps fell from 10,000 Gaussians to 627).
 OPACITY_RECOVERY_CLIMBS = 3
 _RESET_LOGIT_CLIMB = math.log(99.0)  # logit(0.5) - logit(0.01)
 

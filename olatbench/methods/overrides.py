@@ -2,8 +2,8 @@
 
 The plan reads each VALUE as JSON where it can (``50``, ``true``, ``[1, 1, 1]``) and keeps the text otherwise
 (`olatbench.bench.plan.parse_overrides`); `check_overrides` then fits every value to its field's annotation, so a
-run never receives a value of the wrong type (``use_sss=False`` used to arrive as the truthy string
-``"False"``, leaving SSS on):
+run never receives a value of the wrong type (unchecked, ``use_sss=False`` would arrive as the truthy string
+``"False"`` and leave SSS on):
 
 * ``bool``: ``true`` / ``false`` in any case (``False``, ``TRUE``); nothing else (``1``, ``yes``, ``maybe``);
 * ``int``: a whole number (``50``, ``5e3``); never a bool or a fraction;
