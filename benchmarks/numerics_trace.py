@@ -22,7 +22,8 @@ S's operations in both and names the first that differs. Hashes are blake2b over
 shape (10 hex digits). Examples::
 
     python benchmarks/numerics_trace.py record --scene diffuse_shadow --steps 300 -o trace.json
-    python benchmarks/numerics_trace.py compare benchmarks/traces/GenuineIntel-6-207-2.json trace.json
+    python benchmarks/numerics_trace.py compare benchmarks/traces/GenuineIntel-6-207-2.json \\
+        trace.json
     python benchmarks/numerics_trace.py settings --scene diffuse_shadow --steps 300 \\
         --a ATEN_CPU_CAPABILITY=avx512
 

@@ -93,7 +93,7 @@ def report(runs, suite, methods, metrics, splits, layouts, average, fmt, as_json
       olatbench report runs/ --json > results.json        # every number, with its job's identity
       olatbench report runs/ -o results.csv               # the same as tidy CSV
       olatbench report runs/ --suite nrhints --published -o table.tex --standalone
-      olatbench report runs/ --suite nrhints -o table.tex --fit   # paper code, at most the line wide
+      olatbench report runs/ --suite nrhints -o table.tex --fit  # paper code, at most the line wide
       olatbench report runs/ --layout ablation --format markdown
       olatbench report runs/ --suite sssgs --layout overview -o report.html
       olatbench report runs/ --suite mini -o report.html --figures pdf   # + report_figures/*.pdf

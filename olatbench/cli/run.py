@@ -156,7 +156,8 @@ def run(method, suite, data_paths, protocol_name, scenes, variants, ablation, se
     Examples:
       olatbench run --method ssdgs --suite mini
       olatbench run -m ssdgs --data captures/cup   # your own scene; --dry-run shows its presets
-      olatbench run -m 3dgs --data captures/cup --data captures/mug --iterations 30000 --resolution 256
+      olatbench run -m 3dgs --data captures/cup --data captures/mug --iterations 30000 \\
+          --resolution 256
       olatbench run -m ssdgs -s nrhints --scenes Pixiu,Fish --data-root /data/nrhints
       olatbench run -m ssdgs -s nrhints --scenes Pixiu --ablation components --dry-run
       olatbench run -m ssdgs -s gs3 --scenes Lego --data-root /data/gs3 --dry-run --calibrate

@@ -3,7 +3,7 @@
 >>> from olatbench.datasets import load_scene
 >>> from olatbench.datasets.torch_adapter import FrameDataset
 >>> data = FrameDataset(load_scene("data/nrhints/Pixiu").split("train"), colourspace="srgb")
->>> item = data[0]  # image (H, W, 3), alpha (H, W), K (3, 3), c2w / w2c (4, 4) OpenCV, light_pos (3,)
+>>> item = data[0]  # image (H, W, 3), alpha (H, W), K (3, 3), c2w/w2c (4, 4) OpenCV, light_pos (3,)
 """
 
 from __future__ import annotations

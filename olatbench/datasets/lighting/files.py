@@ -6,8 +6,10 @@ Format (docs/relighting.md)::
      "lights": [
        {"type": "point", "position": [x, y, z], "intensity": [r, g, b]},
        {"type": "directional", "direction": [x, y, z], "irradiance": [r, g, b]},
-       {"type": "sphere", "centre": [x, y, z], "radius": 0.5, "intensity": [r, g, b], "samples": 16},
-       {"type": "rect", "centre": [x, y, z], "u": [x, y, z], "v": [x, y, z], "intensity": [r, g, b]},
+       {"type": "sphere", "centre": [x, y, z], "radius": 0.5, "intensity": [r, g, b],
+        "samples": 16},
+       {"type": "rect", "centre": [x, y, z], "u": [x, y, z], "v": [x, y, z],
+        "intensity": [r, g, b]},
        {"type": "envmap", "map": "studio", "rotation": 90, "exposure": -1, "up": [0, 0, 1],
         "samples": 256}]}
 
