@@ -635,7 +635,7 @@ def test_the_counts_in_this_docstring_are_true(archive_cases):
     scenes, dataset_cases = len(BROKEN_SCENES), len(BROKEN_SCENES) * len(ENTRY_POINTS)
     stated = re.search(r"(\d+) corruptions give (\d+) broken scenes over the three formats, met by (\d+) entry "
                        r"points: (\d+) dataset cases;\s+(\d+) archives, 1 cut-off copy, (\d+) damaged manifests, "
-                       r"(\d+) damaged Hub listings: (\d+) cases in all", __doc__)
+                       r"(\d+) damaged Hub listings: (\d+) cases in all", " ".join(__doc__.split()))
     assert stated is not None
     others = len(ARCHIVE_CASES) + 1 + len(MANIFEST_DAMAGE) + len(HUB_DAMAGE)
     assert tuple(map(int, stated.groups())) == (len(CORRUPTIONS), scenes, len(ENTRY_POINTS), dataset_cases,
