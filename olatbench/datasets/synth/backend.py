@@ -30,7 +30,8 @@ _PROBE_SCRIPT = """
 import mitsuba as mi
 mi.set_variant("llvm_ad_rgb")
 scene = mi.load_dict({"type": "scene", "integrator": {"type": "path"},
-                      "sphere": {"type": "sphere", "bsdf": {"type": "roughconductor", "alpha_u": 0.1, "alpha_v": 0.3}},
+                      "sphere": {"type": "sphere", "bsdf": {"type": "roughconductor",
+                                                            "alpha_u": 0.1, "alpha_v": 0.3}},
                       "light": {"type": "point", "position": [0, 0, 4]},
                       "sensor": {"type": "perspective", "to_world": mi.ScalarTransform4f().look_at(
                           origin=[0, -4, 1], target=[0, 0, 0], up=[0, 0, 1]),
