@@ -245,7 +245,7 @@ def gui_message(client: ViserTestClient, label: str) -> dict:
                            == label)
 
 
-def test_the_environment_map_mode_refines_to_the_render_commands_image_and_restarts_when_the_camera_moves(
+def test_the_environment_map_mode_refines_to_the_render_image_and_restarts_on_a_camera_move(
         app, trained, monkeypatch):
     from olatbench.bench.relight import restore_relighter, shown
     from olatbench.datasets.lighting import environment_lighting

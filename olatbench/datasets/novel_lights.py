@@ -11,12 +11,13 @@ installing never runs Mitsuba.
 
 Layout, below a scene folder (an interface: the novel-illumination protocol reads it)::
 
-    <scene>/novel_lights/manifest.json                 the installed files' sha256 (mini scenes)
-    <scene>/novel_lights/<condition>/lighting.json     the lighting (`olatbench.datasets.lighting.read_lighting`)
-    <scene>/novel_lights/<condition>/lit.json          render_lit's record: lighting, recipe, cameras, versions
-    <scene>/novel_lights/<condition>/<frame_id>.exr    linear RGB + straight alpha, one per test frame, named as the
-                                                       scene's test split names its frames (half floats for the
-                                                       packaged ones)
+    <scene>/novel_lights/manifest.json               the installed files' sha256 (mini scenes)
+    <scene>/novel_lights/<condition>/lighting.json   the lighting (`lighting.read_lighting`)
+    <scene>/novel_lights/<condition>/lit.json        render_lit's record: lighting, recipe, cameras,
+                                                     versions
+    <scene>/novel_lights/<condition>/<frame_id>.exr  linear RGB + straight alpha, one per test
+                                                     frame, named as the scene's test split names
+                                                     its frames (half floats for the packaged ones)
 
 Any scene rendered by the generator gets the same layout with ``olatbench datasets synth --recipe R --lights
 FILE.json -o <scene>/novel_lights/<condition>`` (``render_lit`` writes the three kinds of file); such a folder is
