@@ -1,0 +1,304 @@
+"""Step-by-step parity of native ``ssdgs --variant official`` with the authors' unmodified SSD-GS ``train.py``.
+
+Both codes start from the same initial Gaussians, the same network weights and follow the same order of training
+views, on one mini scene, and the harness prints per step both losses and their relative difference, and at step
+N per parameter group the largest difference (issue #53, item 3)::
+
+    python benchmarks/parity.py --scene aniso_metal --checkout /work/ext/ssdgs \\
+        --python /work/ext/official-venv/bin/python [--steps 100] [--iterations 600] [--tolerance 1e-3]
+
+How:
+
+1. Both jobs are planned as ``olatbench run`` plans them (`make_plan`): ``ssdgs-official`` on ``mini`` with
+   ``--iterations ITER --code device=cpu`` and ``ssdgs --variant official`` with ``--iterations ITER``, so the
+   authors' flags and the native schedule are both compressed from the mini presets' 60K reference by
+   `olatbench.methods.run_length.scaled_steps`. At the default ITER = 600 the shadow term switches on after
+   iteration 50 and the SSS term at 90, inside the first 100 steps.
+2. The official job's scene and train command come from the official runner (`prepare`: the converted scene, the
+   2000 initial points of the seed, the CPU stand-ins on ``PYTHONPATH``). The command runs through
+   ``parity_hook/official_side.py`` (its docstring: it wraps three of the authors' functions at import time),
+   which saves the initial state after ``training_setup``, records each iteration's view and loss, and saves the
+   state after ``STEPS`` updates.
+3. The native method is set up as the runner does (`prepare_method`, ``setup``); then its Gaussians and networks
+   are overwritten with the authors' initial state (`native_tensors`: the authors' names and layouts in the
+   native ones) and its view order is the recorded one (`TrainingViews` state); it takes ``STEPS`` steps.
+
+Exit status: 0 when every step's relative loss difference is at most ``--tolerance``; 1 otherwise (the first
+step that misses it is named); 2 for bad input or a failed official run.
+"""
+
+from __future__ import annotations
+
+from olatbench.numerics import pin_numerics
+
+pin_numerics()  # before torch is imported, as the olatbench command does
+
+import argparse  # noqa: E402
+import json  # noqa: E402
+import os  # noqa: E402
+import subprocess  # noqa: E402
+import sys  # noqa: E402
+import tempfile  # noqa: E402
+from collections.abc import Mapping, Sequence  # noqa: E402
+from dataclasses import dataclass  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import torch  # noqa: E402
+
+HOOK = Path(__file__).resolve().parent / "parity_hook" / "official_side.py"
+SSS_ROWS = (1, 2, 0)  # native SSS output rows (σ_s, σ_a, r) from the authors' (r, σ_s', σ_a): scatter_mlp.py:43-49
+
+
+class ParityError(ValueError):
+    """Bad input or a run that could not be compared (exit 2)."""
+
+
+def frequency_columns(dims: int, frequencies: int) -> list[int]:
+    """For each column of olatbench's `frequency_encoding` (all sines, then all cosines, frequency-major), the
+    column of tiny-cuda-nn's Frequency encoding holding the same value (per input dimension, per frequency: sin,
+    cos; `olatbench.methods.official.cpu_standins.tcnn.frequency_encoding`)."""
+    return [d * 2 * frequencies + 2 * k + phase for phase in (0, 1) for k in range(frequencies) for d in range(dims)]
+
+
+def shadow_layers(params: torch.Tensor, in_dim: int, hidden: int, num_hidden: int, frequencies: int
+                  ) -> list[torch.Tensor]:
+    """The authors' shadow network (a tiny-cuda-nn FullyFusedMLP: one flat ``params``, input padded with ones to a
+    multiple of 16, no biases, output padded to 16 rows) as olatbench's `ShadowNetwork` layers: [first weight
+    (hidden, in_dim), first bias (hidden,) = the sum of the padded columns' weights (the ones act as a bias),
+    then each further weight]. The first layer's encoded columns are reordered (`frequency_columns`) for the two
+    encoded 3-vectors (light direction, position); material and coarse visibility follow in both."""
+    padded = -(-in_dim // 16) * 16
+    shapes = [(hidden, padded)] + [(hidden, hidden)] * (num_hidden - 1) + [(16, hidden)]
+    if params.numel() != sum(rows * cols for rows, cols in shapes):
+        raise ParityError(f"the authors' shadow network has {params.numel()} parameters, not the "
+                          f"{sum(r * c for r, c in shapes)} of a {in_dim}-input {num_hidden}×{hidden} FullyFusedMLP")
+    weights, start = [], 0
+    for rows, cols in shapes:
+        weights.append(params[start:start + rows * cols].view(rows, cols))
+        start += rows * cols
+    encoded = 3 * 2 * frequencies
+    order = frequency_columns(3, frequencies)
+    columns = [*order, *(encoded + c for c in order), *range(2 * encoded, in_dim)]
+    first = weights[0]
+    return [first[:, columns], first[:, in_dim:].sum(dim=1), *weights[1:-1], weights[-1][:1]]
+
+
+def native_tensors(state: Mapping[str, torch.Tensor], shadow_hidden: int, shadow_layers_count: int,
+                   shadow_freqs: int, shadow_in: int) -> dict[str, torch.Tensor]:
+    """The authors' model (``official_side.gaussian_state``) under the native names and layouts: per-Gaussian
+    parameters as `GaussianModel.per_gaussian_parameters` names them, ``shader.<key>`` as ``Shader.state_dict``."""
+    out = {"means": state["_xyz"], "log_scales": state["_scaling"], "quats": state["_rotation"],
+           "opacity_logits": state["_opacity"].reshape(-1), "attributes.diffuse": state["kd"],
+           "attributes.specular": state["ks"], "attributes.sss": state["ksss"],
+           "attributes.asg_weights": state["alpha_asg"], "attributes.shading_quat": state["local_q"],
+           "attributes.material": state["neural_material"], "shader.asg.raw_sigma": state["asg_sigma"],
+           "shader.asg.raw_scales": state["asg_scales"], "shader.asg.rotation": state["asg_rotation"]}
+    linear = sorted({int(k.split(".")[2]) for k in state if k.startswith("scatter.network.")})
+    for index in linear:
+        weight, bias = state[f"scatter.network.{index}.weight"], state[f"scatter.network.{index}.bias"]
+        if index == linear[-1]:
+            weight, bias = weight[list(SSS_ROWS)], bias[list(SSS_ROWS)]
+        out[f"shader.sss_net.network.{index}.weight"], out[f"shader.sss_net.network.{index}.bias"] = weight, bias
+    first, bias, *rest = shadow_layers(state["phasefunc.params"], shadow_in, shadow_hidden, shadow_layers_count,
+                                       shadow_freqs)
+    out["shader.shadow_net.layers.0.weight"], out["shader.shadow_net.layers.0.bias"] = first, bias
+    for index, weight in enumerate(rest, start=1):
+        out[f"shader.shadow_net.layers.{index}.weight"] = weight
+    return out
+
+
+def method_tensors(method) -> dict[str, torch.Tensor]:
+    """The native method's tensors under the names of `native_tensors`."""
+    tensors = dict(method.model.per_gaussian_parameters())
+    tensors.update({f"shader.{k}": v for k, v in method.shader.state_dict().items() if k in _SHADER_KEYS(method)})
+    return tensors
+
+
+def _SHADER_KEYS(method) -> set[str]:  # noqa: N802 - the parameters, not the buffers
+    return {name for name, _ in method.shader.named_parameters()}
+
+
+def load_native(method, tensors: Mapping[str, torch.Tensor]) -> None:
+    """Overwrite the native method's parameters with ``tensors`` (`native_tensors`), in place (the optimisers keep
+    their parameters; they have taken no step yet). A `ParityError` names a tensor that is missing or has
+    another shape."""
+    own = method_tensors(method)
+    missing = sorted(set(own) - set(tensors))
+    if missing:
+        raise ParityError(f"the authors' state has no counterpart of {', '.join(missing)}")
+    with torch.no_grad():
+        for name, target in own.items():
+            value = tensors[name]
+            if value.shape != target.shape:
+                raise ParityError(f"{name}: the authors' tensor is {tuple(value.shape)}, the native one "
+                                  f"{tuple(target.shape)}")
+            target.copy_(value.to(target.dtype))
+
+
+@dataclass(frozen=True)
+class StepComparison:
+    """Step ``step`` (from 1, the authors' iteration): both losses and ``|native - official| / |official|``."""
+
+    step: int
+    official: float
+    native: float
+
+    @property
+    def relative(self) -> float:
+        return abs(self.native - self.official) / max(abs(self.official), 1e-12)
+
+
+def first_miss(steps: Sequence[StepComparison], tolerance: float) -> StepComparison | None:
+    """The first step whose relative loss difference exceeds ``tolerance`` (None: all within)."""
+    return next((s for s in steps if not s.relative <= tolerance), None)
+
+
+def largest_differences(official: Mapping[str, torch.Tensor], native: Mapping[str, torch.Tensor]
+                        ) -> dict[str, float | str]:
+    """Per tensor name of ``official``: the largest absolute difference to ``native``, or why there is none (a
+    missing tensor, another shape: densification made other Gaussians)."""
+    out: dict[str, float | str] = {}
+    for name, value in official.items():
+        other = native.get(name)
+        if other is None:
+            out[name] = "missing in the native model"
+        elif other.shape != value.shape:
+            out[name] = f"shapes differ: official {tuple(value.shape)}, native {tuple(other.shape)}"
+        else:
+            out[name] = float((other.detach().double() - value.double()).abs().max()) if value.numel() else 0.0
+    return out
+
+
+def plan_jobs(scene: str, iterations: int, checkout: str, python: str, out: Path):
+    """The ``ssdgs --variant official`` and ``ssdgs-official`` (``device=cpu``) jobs of ``scene`` on mini."""
+    from olatbench.bench.plan import PlanOptions, make_plan
+
+    native = make_plan("ssdgs", "mini", out / "runs", scenes=[scene], variants=["official"], iterations=iterations,
+                       progress=False)[0]
+    code = {"checkout": checkout, "python": python, "device": "cpu"}
+    official = make_plan("ssdgs-official", "mini", out / "runs", scenes=[scene], iterations=iterations,
+                         progress=False, options=PlanOptions(code=code))[0]
+    return native, official
+
+
+def run_official(job, steps: int, out: Path) -> Path:
+    """The authors' train command of ``job`` through the hook, for ``steps`` updates; returns the hook's folder."""
+    from olatbench.datasets import load_scene
+    from olatbench.methods.official.code import OfficialCode
+    from olatbench.methods.official.runner import prepare
+    from olatbench.methods.official.settings import CodeSettings
+    from olatbench.methods.registry import get_spec
+    from olatbench.methods.spec import import_reference
+
+    code: OfficialCode = import_reference(job.method_ref)
+    settings = CodeSettings.from_json(job.official)
+    config = get_spec(job.method).resolve_config(None, **job.config)
+    scene = load_scene(job.scene_path, format=job.scene_format)
+    run = prepare(code, settings, scene, out / "official", job.suite, job.train_split, job.test_split,
+                  tuple(job.resolution) if job.resolution else None, config, job.seed)
+    [train] = [record for record in run.commands if record.step == "train"]
+    hook_out = out / "hook"
+    argv = [train.argv[0], str(HOOK), str(hook_out), str(steps), *train.argv[1:]]
+    env = {**os.environ, **run.env, "OMP_NUM_THREADS": os.environ.get("OMP_NUM_THREADS", "1")}
+    done = subprocess.run(argv, cwd=train.cwd, env=env, capture_output=True, text=True)
+    (out / "official.log").write_text(done.stdout + done.stderr)
+    if done.returncode != 0 or not (hook_out / "steps.json").is_file():
+        raise ParityError(f"the authors' train.py failed (exit {done.returncode}); its output: "
+                          f"{out / 'official.log'}\n{(done.stdout + done.stderr)[-2000:]}")
+    return hook_out
+
+
+def run_native(job, hook_out: Path, steps: int) -> tuple[list[float], dict[str, torch.Tensor], object]:
+    """The native method of ``job`` from the authors' initial state, along their recorded views: per-step losses,
+    the tensors after ``steps`` steps, the method."""
+    from olatbench.bench.execute import prepare_method
+
+    method, _, views, _ = prepare_method(job)
+    method.setup(views, job.device, job.seed)
+    cfg = method.config
+    shadow_in = method.shader.shadow_net.layers[0].in_features
+    initial = torch.load(hook_out / "initial.pt")
+    load_native(method, native_tensors(initial, cfg.shadow_hidden, cfg.shadow_layers, cfg.shadow_freqs, shadow_in))
+    records = json.loads((hook_out / "steps.json").read_text())
+    index = {frame_id: i for i, frame_id in enumerate(views.frame_ids)}
+    unknown = sorted({r["view"] for r in records} - set(index))
+    if unknown:
+        raise ParityError(f"the authors' views {', '.join(unknown[:3])} are not frames of the native job")
+    state = method.train_views.state_dict()
+    method.train_views.load_state_dict({**state, "order": torch.tensor([index[r["view"]] for r in records]),
+                                        "cursor": 0})
+    losses = [float(method.train_step(step)["loss"]) for step in range(min(steps, len(records)))]
+    return losses, method_tensors(method), method
+
+
+def report(comparisons: Sequence[StepComparison], differences: Mapping[str, float | str], tolerance: float,
+           events: Mapping[int, str]) -> str:
+    """The printed table: per step both losses, the relative difference and a mark where it exceeds
+    ``tolerance`` (and the schedule's ``events`` at their steps); then the parameter differences."""
+    lines = [f"{'step':>5} {'official':>12} {'native':>12} {'rel.diff':>10}"]
+    for s in comparisons:
+        mark = "  <-- over" if not s.relative <= tolerance else ""
+        event = f"  [{events[s.step]}]" if s.step in events else ""
+        lines.append(f"{s.step:>5} {s.official:>12.7f} {s.native:>12.7f} {s.relative:>10.2e}{mark}{event}")
+    lines.append(f"largest absolute difference per tensor after step {len(comparisons)}:")
+    lines += [f"  {name:<40} {value if isinstance(value, str) else f'{value:.3e}'}"
+              for name, value in differences.items()]
+    return "\n".join(lines)
+
+
+def schedule_events(method, steps: int) -> dict[int, str]:
+    """The steps (from 1) at which the native schedule switches a term on, within ``steps``."""
+    events: dict[int, list[str]] = {}
+    for term in ("shadow", "sss", "specular"):
+        on = next((s for s in range(steps) if method.schedule.is_enabled(term, s)), None)
+        if on is not None and on > 0:
+            events.setdefault(on + 1, []).append(f"{term} on")
+    return {step: ", ".join(names) for step, names in events.items()}
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--scene", default="aniso_metal", help="mini scene (default aniso_metal)")
+    parser.add_argument("--checkout", required=True, help="SSD-GS checkout at 26e4251")
+    parser.add_argument("--python", required=True, help="the official environment's interpreter")
+    parser.add_argument("--steps", type=int, default=100, help="steps compared (default 100)")
+    parser.add_argument("--iterations", type=int, default=600,
+                        help="run length both schedules are compressed to (default 600: shadow on after step 50)")
+    parser.add_argument("--tolerance", type=float, default=1e-3, help="largest relative loss difference")
+    parser.add_argument("--out", help="keep the runs here (default: a temporary folder)")
+    args = parser.parse_args(argv)
+    if args.steps < 1 or args.iterations <= args.steps:
+        print("parity: --steps must be at least 1 and below --iterations", file=sys.stderr)
+        return 2
+    with tempfile.TemporaryDirectory(prefix="parity-") as temporary:
+        out = Path(args.out or temporary).resolve()
+        out.mkdir(parents=True, exist_ok=True)
+        try:
+            native_job, official_job = plan_jobs(args.scene, args.iterations, args.checkout, args.python, out)
+            hook_out = run_official(official_job, args.steps, out)
+            losses, native_final, method = run_native(native_job, hook_out, args.steps)
+        except ParityError as error:
+            print(f"parity: {error}", file=sys.stderr)
+            return 2
+        records = json.loads((hook_out / "steps.json").read_text())
+        comparisons = [StepComparison(r["iteration"], float(r["loss"]), loss)
+                       for r, loss in zip(records, losses, strict=False)]
+        cfg = method.config
+        official_final = native_tensors(torch.load(hook_out / "final.pt"), cfg.shadow_hidden, cfg.shadow_layers,
+                                        cfg.shadow_freqs, method.shader.shadow_net.layers[0].in_features)
+        print(report(comparisons, largest_differences(official_final, native_final), args.tolerance,
+                     schedule_events(method, args.steps)))
+    if len(comparisons) < args.steps:
+        print(f"parity: only {len(comparisons)} of {args.steps} steps were recorded", file=sys.stderr)
+        return 1
+    miss = first_miss(comparisons, args.tolerance)
+    if miss is not None:
+        print(f"parity: missed at step {miss.step}: relative loss difference {miss.relative:.2e} > "
+              f"{args.tolerance:g} (official {miss.official:.7f}, native {miss.native:.7f})")
+        return 1
+    print(f"parity: all {len(comparisons)} steps within {args.tolerance:g}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
