@@ -108,14 +108,10 @@ def native_tensors(state: Mapping[str, torch.Tensor], shadow_hidden: int, shadow
 
 
 def method_tensors(method) -> dict[str, torch.Tensor]:
-    """The native method's tensors under the names of `native_tensors`."""
+    """The native method's parameters under the names of `native_tensors` (per-Gaussian, then the shader's)."""
     tensors = dict(method.model.per_gaussian_parameters())
-    tensors.update({f"shader.{k}": v for k, v in method.shader.state_dict().items() if k in _SHADER_KEYS(method)})
+    tensors.update({f"shader.{name}": value for name, value in method.shader.named_parameters()})
     return tensors
-
-
-def _SHADER_KEYS(method) -> set[str]:  # noqa: N802 - the parameters, not the buffers
-    return {name for name, _ in method.shader.named_parameters()}
 
 
 def load_native(method, tensors: Mapping[str, torch.Tensor]) -> None:
@@ -142,6 +138,7 @@ class StepComparison:
     step: int
     official: float
     native: float
+    image: float = float("nan")  # the largest absolute difference of the two renders (before clipping)
 
     @property
     def relative(self) -> float:
@@ -208,9 +205,11 @@ def run_official(job, steps: int, out: Path) -> Path:
     return hook_out
 
 
-def run_native(job, hook_out: Path, steps: int) -> tuple[list[float], dict[str, torch.Tensor], object]:
+def run_native(job, hook_out: Path, steps: int
+               ) -> tuple[list[float], list[float], dict[str, torch.Tensor], object]:
     """The native method of ``job`` from the authors' initial state, along their recorded views: per-step losses,
-    the tensors after ``steps`` steps, the method."""
+    per step the largest absolute difference of its render (before clamping) to the authors' render of that
+    iteration, the tensors after ``steps`` steps, the method."""
     from olatbench.bench.execute import prepare_method
 
     method, _, views, _ = prepare_method(job)
@@ -227,19 +226,26 @@ def run_native(job, hook_out: Path, steps: int) -> tuple[list[float], dict[str, 
     state = method.train_views.state_dict()
     method.train_views.load_state_dict({**state, "order": torch.tensor([index[r["view"]] for r in records]),
                                         "cursor": 0})
-    losses = [float(method.train_step(step)["loss"]) for step in range(min(steps, len(records)))]
-    return losses, method_tensors(method), method
+    renders = torch.load(hook_out / "renders.pt")  # (steps, 3, H, W)
+    losses, images = [], []
+    for step in range(min(steps, len(records))):
+        with torch.no_grad():  # the forward pass train_step takes next (no state changes, no random numbers)
+            image = method.training_forward(index[records[step]["view"]], step)["image"]
+        images.append(float((image.permute(2, 0, 1) - renders[step]).abs().max()))
+        losses.append(float(method.train_step(step)["loss"]))
+    return losses, images, method_tensors(method), method
 
 
 def report(comparisons: Sequence[StepComparison], differences: Mapping[str, float | str], tolerance: float,
            events: Mapping[int, str]) -> str:
     """The printed table: per step both losses, the relative difference and a mark where it exceeds
     ``tolerance`` (and the schedule's ``events`` at their steps); then the parameter differences."""
-    lines = [f"{'step':>5} {'official':>12} {'native':>12} {'rel.diff':>10}"]
+    lines = [f"{'step':>5} {'official':>12} {'native':>12} {'rel.diff':>10} {'image':>9}"]
     for s in comparisons:
         mark = "  <-- over" if not s.relative <= tolerance else ""
         event = f"  [{events[s.step]}]" if s.step in events else ""
-        lines.append(f"{s.step:>5} {s.official:>12.7f} {s.native:>12.7f} {s.relative:>10.2e}{mark}{event}")
+        lines.append(f"{s.step:>5} {s.official:>12.7f} {s.native:>12.7f} {s.relative:>10.2e} {s.image:>9.2e}"
+                     f"{mark}{event}")
     lines.append(f"largest absolute difference per tensor after step {len(comparisons)}:")
     lines += [f"  {name:<40} {value if isinstance(value, str) else f'{value:.3e}'}"
               for name, value in differences.items()]
@@ -276,13 +282,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         try:
             native_job, official_job = plan_jobs(args.scene, args.iterations, args.checkout, args.python, out)
             hook_out = run_official(official_job, args.steps, out)
-            losses, native_final, method = run_native(native_job, hook_out, args.steps)
+            losses, images, native_final, method = run_native(native_job, hook_out, args.steps)
         except ParityError as error:
             print(f"parity: {error}", file=sys.stderr)
             return 2
         records = json.loads((hook_out / "steps.json").read_text())
-        comparisons = [StepComparison(r["iteration"], float(r["loss"]), loss)
-                       for r, loss in zip(records, losses, strict=False)]
+        comparisons = [StepComparison(r["iteration"], float(r["loss"]), loss, image)
+                       for r, loss, image in zip(records, losses, images, strict=False)]
         cfg = method.config
         official_final = native_tensors(torch.load(hook_out / "final.pt"), cfg.shadow_hidden, cfg.shadow_layers,
                                         cfg.shadow_freqs, method.shader.shadow_net.layers[0].in_features)

@@ -13,7 +13,8 @@ Before ``train.py`` runs, three of the authors' functions are wrapped at import 
   ``OUT/initial.pt`` (`gaussian_state`);
 - ``gaussian_renderer.render``, which ``train.py:139`` calls once per iteration: records the training view's
   ``image_name`` (the view ``viewpoint_stack.pop(randint(...))`` drew, ``train.py:127``); at call ``STEPS + 1``
-  (after ``STEPS`` optimizer updates) it saves the state to ``OUT/final.pt`` and ends the process;
+  (after ``STEPS`` optimizer updates) it saves the state to ``OUT/final.pt`` and ends the process; each
+  iteration's render (3, H, W), before ``train.py`` clips it, goes to ``OUT/renders.pt`` (STEPS, 3, H, W);
 - ``torch.utils.tensorboard.SummaryWriter``, which ``train.py:29-31`` imports when present: a recorder of the
   scalars ``training_report`` logs each iteration (``train.py:256-258``: the loss and its L1 part).
 
@@ -27,7 +28,7 @@ import os
 import runpy
 import sys
 import types
-from typing import Any
+from typing import Any, ClassVar
 
 import torch
 
@@ -51,7 +52,7 @@ def gaussian_state(gaussians: Any) -> dict[str, torch.Tensor]:
 class _Recorder:
     """Stands in for tensorboard's ``SummaryWriter``: keeps the per-iteration scalars, ignores the rest."""
 
-    scalars: dict[int, dict[str, float]] = {}
+    scalars: ClassVar[dict[int, dict[str, float]]] = {}
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         pass
@@ -76,6 +77,7 @@ def main(argv: list[str]) -> None:
 
     held: dict[str, Any] = {}
     views: list[str] = []
+    renders: list[torch.Tensor] = []
     setup, render = GaussianModel.training_setup, gaussian_renderer.render
 
     def training_setup(self: Any, training_args: Any) -> None:
@@ -90,13 +92,16 @@ def main(argv: list[str]) -> None:
                     "train_loss_patches/l1_loss")} for i, view in enumerate(views[:steps])]
         with open(os.path.join(out, "steps.json"), "w") as file:
             json.dump(records, file)
+        torch.save(torch.stack(renders[:steps]) if renders else torch.zeros(0), os.path.join(out, "renders.pt"))
 
     def recorded_render(viewpoint_camera: Any, *args: Any, **kwargs: Any) -> Any:
         if len(views) == steps:
             finish()
             raise SystemExit(0)
         views.append(viewpoint_camera.image_name)
-        return render(viewpoint_camera, *args, **kwargs)
+        package = render(viewpoint_camera, *args, **kwargs)
+        renders.append(package["render"].detach().clone())
+        return package
 
     GaussianModel.training_setup = training_setup
     gaussian_renderer.render = recorded_render

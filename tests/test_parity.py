@@ -1,0 +1,157 @@
+"""benchmarks/parity.py: the pieces of the step-by-step parity harness — the authors' network layouts carried into
+the native ones (the same functions after the transfer), the state transfer's refusals, and the comparison and exit
+logic. The harness itself against the authors' code: tests/test_parity_slow.py."""
+
+from __future__ import annotations
+
+import importlib.util
+import math
+import sys
+from pathlib import Path
+from types import SimpleNamespace
+
+import pytest
+import torch
+from torch import nn
+
+from olatbench.methods.official.cpu_standins import tcnn
+from olatbench.methods.shading.encoding import frequency_encoding
+from olatbench.methods.shading.shadow_mlp import ShadowNetwork
+from olatbench.methods.ssdgs.sss import SSSNetwork
+
+SCRIPT = Path(__file__).resolve().parents[1] / "benchmarks" / "parity.py"
+
+
+@pytest.fixture(scope="module")
+def parity():
+    spec = importlib.util.spec_from_file_location("parity", SCRIPT)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules["parity"] = module  # its dataclasses look their module up
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_frequency_columns_reorder_tiny_cuda_nn_encoding_into_olatbench(parity):
+    x = torch.rand(50, 3) * 4 - 2
+    for frequencies in (3, 4):
+        official = tcnn.frequency_encoding(x, frequencies)
+        assert not torch.equal(official, frequency_encoding(x, frequencies))  # the layouts do differ
+        torch.testing.assert_close(official[:, parity.frequency_columns(3, frequencies)],
+                                   frequency_encoding(x, frequencies), rtol=0, atol=0)
+
+
+def official_shadow(network: tcnn.Network, encoding: tcnn.Encoding, wi, pos, material, hint):
+    """The authors' Neural_phase.forward (scene/neural_phase_function.py:42-48 at 26e4251) on the stand-ins."""
+    decay = network(torch.concat([encoding(wi), encoding(pos), material, hint], dim=-1))
+    return torch.relu(decay - 1e-5)
+
+
+def test_the_authors_shadow_network_carried_over_computes_the_same_function(parity):
+    torch.manual_seed(0)
+    frequencies, hidden, layers, material_dim = 4, 32, 3, 6
+    encoding = tcnn.Encoding(3, {"otype": "Frequency", "n_frequencies": frequencies})
+    in_dim = material_dim + 2 * encoding.n_output_dims + 1
+    network = tcnn.Network(in_dim, 1, {"otype": "FullyFusedMLP", "activation": "LeakyReLU",
+                                       "output_activation": "Sigmoid", "n_neurons": hidden,
+                                       "n_hidden_layers": layers})
+    with torch.no_grad():  # weights large enough that the padded columns' bias matters
+        network.params.mul_(4.0)
+    native = ShadowNetwork(material_dim, hidden, layers, frequencies)
+    first, bias, *rest = parity.shadow_layers(network.params.detach(), in_dim, hidden, layers, frequencies)
+    with torch.no_grad():
+        native.layers[0].weight.copy_(first)
+        native.layers[0].bias.copy_(bias)
+        for layer, weight in zip(native.layers[1:], rest, strict=True):
+            layer.weight.copy_(weight)
+    wi, pos = nn.functional.normalize(torch.randn(40, 3), dim=-1), torch.rand(40, 3) - 0.5
+    material, hint = torch.randn(40, material_dim), torch.rand(40, 1)
+    expected = official_shadow(network, encoding, wi, pos, material, hint)
+    assert expected.std() > 0.01  # not a saturated network
+    torch.testing.assert_close(native(pos, wi, hint, material), expected, rtol=1e-5, atol=1e-6)
+
+
+def test_a_wrongly_sized_shadow_network_is_refused(parity):
+    with pytest.raises(parity.ParityError, match="FullyFusedMLP"):
+        parity.shadow_layers(torch.zeros(100), 55, 32, 3, 4)
+
+
+def official_sss_parameters(out: torch.Tensor):
+    """The authors' ScatterMLP head (scene/scatter_mlp.py:43-49 at 26e4251): (r, σ_s', σ_a) from the rows."""
+    r = torch.sigmoid(out[:, 0]) * 3.0 + 0.1
+    sigma_s = torch.sigmoid(out[:, 1]).unsqueeze(-1) * 2.0 + 0.05
+    sigma_a = torch.sigmoid(out[:, 2]).unsqueeze(-1) * 2.0 + 0.05
+    return sigma_s, sigma_a, r.unsqueeze(-1)
+
+
+def official_state(sss: nn.Sequential, params: torch.Tensor, n: int, lobes: int) -> dict[str, torch.Tensor]:
+    state = {"_xyz": torch.randn(n, 3), "_scaling": torch.randn(n, 3), "_rotation": torch.randn(n, 4),
+             "_opacity": torch.randn(n, 1), "kd": torch.randn(n, 3), "ks": torch.randn(n, 3),
+             "ksss": torch.randn(n, 3), "alpha_asg": torch.randn(n, lobes), "local_q": torch.randn(n, 4),
+             "neural_material": torch.randn(n, 6), "asg_sigma": torch.randn(lobes),
+             "asg_scales": torch.randn(lobes, 2), "asg_rotation": torch.randn(lobes, 4), "phasefunc.params": params}
+    state.update({f"scatter.network.{k}": v for k, v in sss.state_dict().items()})
+    return state
+
+
+def test_the_authors_sss_network_carried_over_gives_the_same_dipole_parameters(parity):
+    torch.manual_seed(1)
+    native = SSSNetwork(6, 256, 5, 4, virtual_factor="official", last_hidden=128)
+    official = nn.Sequential(nn.Linear(3 * 27 + 3 + 6, 256), nn.ReLU(), nn.Linear(256, 256), nn.ReLU(),
+                             nn.Linear(256, 256), nn.ReLU(), nn.Linear(256, 128), nn.ReLU(), nn.Linear(128, 3))
+    shadow = tcnn.Network(55, 1, {"otype": "FullyFusedMLP", "activation": "LeakyReLU",
+                                  "output_activation": "Sigmoid", "n_neurons": 32, "n_hidden_layers": 3})
+    tensors = parity.native_tensors(official_state(official, shadow.params.detach(), 5, 8), 32, 3, 4, 55)
+    with torch.no_grad():
+        for name, value in native.network.state_dict().items():
+            value.copy_(tensors[f"shader.sss_net.network.{name}"])
+    encoded = torch.randn(30, 3 * 27 + 3 + 6)
+    with torch.no_grad():
+        for got, expected in zip(native.parameters_from_input(encoded), official_sss_parameters(official(encoded)),
+                                 strict=True):
+            torch.testing.assert_close(got, expected)
+
+
+class _Shader(nn.Module):
+    def __init__(self) -> None:
+        super().__init__()
+        self.weight = nn.Parameter(torch.zeros(2, 3))
+
+
+def fake_method(n: int) -> SimpleNamespace:
+    params = {"means": nn.Parameter(torch.zeros(n, 3)), "opacity_logits": nn.Parameter(torch.zeros(n))}
+    return SimpleNamespace(model=SimpleNamespace(per_gaussian_parameters=lambda: params), shader=_Shader())
+
+
+def test_load_native_overwrites_in_place_and_refuses_missing_or_misshapen_tensors(parity):
+    method = fake_method(4)
+    kept = method.model.per_gaussian_parameters()["means"]
+    tensors = {"means": torch.ones(4, 3), "opacity_logits": torch.full((4,), 2.0), "shader.weight": torch.ones(2, 3)}
+    parity.load_native(method, tensors)
+    assert kept is method.model.per_gaussian_parameters()["means"] and torch.equal(kept, torch.ones(4, 3))
+    assert torch.equal(method.shader.weight, torch.ones(2, 3))
+    with pytest.raises(parity.ParityError, match="no counterpart of shader.weight"):
+        parity.load_native(fake_method(4), {k: v for k, v in tensors.items() if k != "shader.weight"})
+    with pytest.raises(parity.ParityError, match=r"means: the authors' tensor is \(5, 3\)"):
+        parity.load_native(fake_method(4), {**tensors, "means": torch.ones(5, 3)})
+
+
+def test_first_miss_names_the_first_step_over_the_tolerance(parity):
+    steps = [parity.StepComparison(1, 0.5, 0.5002), parity.StepComparison(2, 0.4, 0.4008),
+             parity.StepComparison(3, 0.3, 0.3)]
+    assert math.isclose(steps[1].relative, 2e-3)
+    assert parity.first_miss(steps, 1e-3).step == 2
+    assert parity.first_miss(steps, 3e-3) is None
+    assert parity.first_miss([parity.StepComparison(1, 0.5, float("nan"))], 1.0).step == 1  # NaN never passes
+
+
+def test_largest_differences_name_tensors_they_cannot_compare(parity):
+    official = {"a": torch.zeros(3), "b": torch.zeros(2), "c": torch.zeros(1)}
+    native = {"a": torch.tensor([0.0, -0.5, 0.25]), "b": torch.zeros(3)}
+    differences = parity.largest_differences(official, native)
+    assert differences["a"] == 0.5
+    assert "shapes differ" in differences["b"] and "missing" in differences["c"]
+
+
+def test_bad_arguments_exit_2(parity, capsys):
+    assert parity.main(["--checkout", "x", "--python", "y", "--steps", "700", "--iterations", "600"]) == 2
+    assert "--steps" in capsys.readouterr().err
