@@ -60,13 +60,15 @@ def frequency_columns(dims: int, frequencies: int) -> list[int]:
     return [d * 2 * frequencies + 2 * k + phase for phase in (0, 1) for k in range(frequencies) for d in range(dims)]
 
 
-def shadow_layers(params: torch.Tensor, in_dim: int, hidden: int, num_hidden: int, frequencies: int
-                  ) -> list[torch.Tensor]:
+def shadow_layers(params: torch.Tensor, in_dim: int, hidden: int, num_hidden: int, frequencies: int,
+                  input_bias: str = "padded_ones") -> dict[str, torch.Tensor]:
     """The authors' shadow network (a tiny-cuda-nn FullyFusedMLP: one flat ``params``, input padded with ones to a
-    multiple of 16, no biases, output padded to 16 rows) as olatbench's `ShadowNetwork` layers: [first weight
-    (hidden, in_dim), first bias (hidden,) = the sum of the padded columns' weights (the ones act as a bias),
-    then each further weight]. The first layer's encoded columns are reordered (`frequency_columns`) for the two
-    encoded 3-vectors (light direction, position); material and coarse visibility follow in both."""
+    multiple of 16, no biases, output padded to 16 rows) as the state of olatbench's `ShadowNetwork` with
+    ``input_bias`` (``layers.<i>.weight``, ``layers.0.bias``): with "padded_ones" the same layout; with "vector"
+    the padded columns' weights summed into the first layer's bias (the same function; not the same training,
+    `olatbench.methods.shading.shadow_mlp`). The first layer's encoded columns are reordered
+    (`frequency_columns`) for the two encoded 3-vectors (light direction, position); material and coarse
+    visibility follow in both."""
     padded = -(-in_dim // 16) * 16
     shapes = [(hidden, padded)] + [(hidden, hidden)] * (num_hidden - 1) + [(16, hidden)]
     if params.numel() != sum(rows * cols for rows, cols in shapes):
@@ -80,13 +82,19 @@ def shadow_layers(params: torch.Tensor, in_dim: int, hidden: int, num_hidden: in
     order = frequency_columns(3, frequencies)
     columns = [*order, *(encoded + c for c in order), *range(2 * encoded, in_dim)]
     first = weights[0]
-    return [first[:, columns], first[:, in_dim:].sum(dim=1), *weights[1:-1], weights[-1][:1]]
+    if input_bias == "padded_ones":
+        state = {"layers.0.weight": torch.cat([first[:, columns], first[:, in_dim:]], dim=1)}
+    else:
+        state = {"layers.0.weight": first[:, columns], "layers.0.bias": first[:, in_dim:].sum(dim=1)}
+    state.update({f"layers.{i}.weight": w for i, w in enumerate(weights[1:-1], start=1)})
+    state[f"layers.{num_hidden}.weight"] = weights[-1][:1]
+    return state
 
 
-def native_tensors(state: Mapping[str, torch.Tensor], shadow_hidden: int, shadow_layers_count: int,
-                   shadow_freqs: int, shadow_in: int) -> dict[str, torch.Tensor]:
+def native_tensors(state: Mapping[str, torch.Tensor], shadow: Mapping[str, object]) -> dict[str, torch.Tensor]:
     """The authors' model (``official_side.gaussian_state``) under the native names and layouts: per-Gaussian
-    parameters as `GaussianModel.per_gaussian_parameters` names them, ``shader.<key>`` as ``Shader.state_dict``."""
+    parameters as `GaussianModel.per_gaussian_parameters` names them, ``shader.<key>`` as ``Shader.state_dict``;
+    ``shadow``: the native shadow network's `shadow_layers` arguments (`shadow_layout`)."""
     out = {"means": state["_xyz"], "log_scales": state["_scaling"], "quats": state["_rotation"],
            "opacity_logits": state["_opacity"].reshape(-1), "attributes.diffuse": state["kd"],
            "attributes.specular": state["ks"], "attributes.sss": state["ksss"],
@@ -99,12 +107,16 @@ def native_tensors(state: Mapping[str, torch.Tensor], shadow_hidden: int, shadow
         if index == linear[-1]:
             weight, bias = weight[list(SSS_ROWS)], bias[list(SSS_ROWS)]
         out[f"shader.sss_net.network.{index}.weight"], out[f"shader.sss_net.network.{index}.bias"] = weight, bias
-    first, bias, *rest = shadow_layers(state["phasefunc.params"], shadow_in, shadow_hidden, shadow_layers_count,
-                                       shadow_freqs)
-    out["shader.shadow_net.layers.0.weight"], out["shader.shadow_net.layers.0.bias"] = first, bias
-    for index, weight in enumerate(rest, start=1):
-        out[f"shader.shadow_net.layers.{index}.weight"] = weight
+    layers = shadow_layers(state["phasefunc.params"], **shadow)  # type: ignore[arg-type]
+    out.update({f"shader.shadow_net.{name}": value for name, value in layers.items()})
     return out
+
+
+def shadow_layout(method) -> dict[str, object]:
+    """The `shadow_layers` arguments of the native method's shadow network."""
+    cfg, net = method.config, method.shader.shadow_net
+    return {"in_dim": net.in_dim, "hidden": cfg.shadow_hidden, "num_hidden": cfg.shadow_layers,
+            "frequencies": cfg.shadow_freqs, "input_bias": cfg.shadow_input_bias}
 
 
 def method_tensors(method) -> dict[str, torch.Tensor]:
@@ -205,19 +217,19 @@ def run_official(job, steps: int, out: Path) -> Path:
     return hook_out
 
 
-def run_native(job, hook_out: Path, steps: int
+def run_native(job, hook_out: Path, steps: int, authors_images: bool = False
                ) -> tuple[list[float], list[float], dict[str, torch.Tensor], object]:
     """The native method of ``job`` from the authors' initial state, along their recorded views: per-step losses,
     per step the largest absolute difference of its render (before clamping) to the authors' render of that
-    iteration, the tensors after ``steps`` steps, the method."""
+    iteration, the tensors after ``steps`` steps, the method. With ``authors_images`` the views the authors' code
+    trained on are given the images its loader made (`use_authors_images`)."""
     from olatbench.bench.execute import prepare_method
 
     method, _, views, _ = prepare_method(job)
+    if authors_images:
+        use_authors_images(views, torch.load(hook_out / "targets.pt"))
     method.setup(views, job.device, job.seed)
-    cfg = method.config
-    shadow_in = method.shader.shadow_net.layers[0].in_features
-    initial = torch.load(hook_out / "initial.pt")
-    load_native(method, native_tensors(initial, cfg.shadow_hidden, cfg.shadow_layers, cfg.shadow_freqs, shadow_in))
+    load_native(method, native_tensors(torch.load(hook_out / "initial.pt"), shadow_layout(method)))
     records = json.loads((hook_out / "steps.json").read_text())
     index = {frame_id: i for i, frame_id in enumerate(views.frame_ids)}
     unknown = sorted({r["view"] for r in records} - set(index))
@@ -234,6 +246,21 @@ def run_native(job, hook_out: Path, steps: int
         images.append(float((image.permute(2, 0, 1) - renders[step]).abs().max()))
         losses.append(float(method.train_step(step)["loss"]))
     return losses, images, method_tensors(method), method
+
+
+def use_authors_images(views, targets: Mapping[str, torch.Tensor]) -> None:
+    """Replace, in place, the images of ``views`` (N, H, W, 3) named in ``targets`` (frame id -> (3, H, W)) by
+    those. The authors' loader composites each RGBA PNG over the background and stores the result in 8 bits,
+    truncated (``np.array(arr * 255.0, dtype=np.byte)``, scene/dataset_readers.py:164-166 at 26e4251), where
+    olatbench keeps the float composite: on the mini scenes' partly transparent pixels up to 1/255 darker."""
+    index = {frame_id: i for i, frame_id in enumerate(views.frame_ids)}
+    for name, image in targets.items():
+        if name not in index:
+            raise ParityError(f"the authors' view {name} is not a frame of the native job")
+        if tuple(image.shape) != (3, *views.images[index[name]].shape[:2]):
+            raise ParityError(f"the authors' image of {name} is {tuple(image.shape)}, the native one "
+                              f"{views.images[index[name]].shape}")
+        views.images[index[name]] = image.permute(1, 2, 0).numpy()
 
 
 def report(comparisons: Sequence[StepComparison], differences: Mapping[str, float | str], tolerance: float,
@@ -272,6 +299,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                         help="run length both schedules are compressed to (default 600: shadow on after step 50)")
     parser.add_argument("--tolerance", type=float, default=1e-3, help="largest relative loss difference")
     parser.add_argument("--out", help="keep the runs here (default: a temporary folder)")
+    parser.add_argument("--authors-images", action="store_true",
+                        help="train the native side on the images as the authors' loader made them (8-bit, "
+                             "truncated composite) instead of olatbench's float composite")
     args = parser.parse_args(argv)
     if args.steps < 1 or args.iterations <= args.steps:
         print("parity: --steps must be at least 1 and below --iterations", file=sys.stderr)
@@ -282,16 +312,14 @@ def main(argv: Sequence[str] | None = None) -> int:
         try:
             native_job, official_job = plan_jobs(args.scene, args.iterations, args.checkout, args.python, out)
             hook_out = run_official(official_job, args.steps, out)
-            losses, images, native_final, method = run_native(native_job, hook_out, args.steps)
+            losses, images, native_final, method = run_native(native_job, hook_out, args.steps, args.authors_images)
         except ParityError as error:
             print(f"parity: {error}", file=sys.stderr)
             return 2
         records = json.loads((hook_out / "steps.json").read_text())
         comparisons = [StepComparison(r["iteration"], float(r["loss"]), loss, image)
                        for r, loss, image in zip(records, losses, images, strict=False)]
-        cfg = method.config
-        official_final = native_tensors(torch.load(hook_out / "final.pt"), cfg.shadow_hidden, cfg.shadow_layers,
-                                        cfg.shadow_freqs, method.shader.shadow_net.layers[0].in_features)
+        official_final = native_tensors(torch.load(hook_out / "final.pt"), shadow_layout(method))
         print(report(comparisons, largest_differences(official_final, native_final), args.tolerance,
                      schedule_events(method, args.steps)))
     if len(comparisons) < args.steps:

@@ -82,15 +82,18 @@ def test_the_official_variant_and_the_official_runner_compress_to_the_same_steps
     for flag, name in _FIELDS.items():
         assert _flag(argv, flag) == config.steps(getattr(config, name)), flag
     schedule, starts = config.resolved_schedule(), config.refinement_starts()
+    # train.py:131-133 counts iterations from 1: shadow on after iteration unfreeze_iterations (our step
+    # unfreeze_iterations), SSS on at iteration scatter_warmup_step (our step scatter_warmup_step - 1)
     assert _flag(argv, "--unfreeze_iterations") == schedule.enable["shadow"]
-    assert _flag(argv, "--scatter_warmup_step") == schedule.enable["sss"]
+    assert _flag(argv, "--scatter_warmup_step") - 1 == schedule.enable["sss"]
     assert _flag(argv, "--asg_freeze_step") == schedule.frozen["asg_lobes"][0][1]
     assert (_flag(argv, "--scatter_freeze_step"), _flag(argv, "--scatter_unfreeze_step")) == \
         schedule.frozen["sss_mlp"][0]
     assert _flag(argv, "--specular_freeze_step") == schedule.frozen["shadow_mlp"][0][0]
-    # specular on at specular_freeze_step + fit_linear_step: two flags rounded apart, one threshold here
+    # specular on at iteration specular_freeze_step + fit_linear_step (our step one less): two flags rounded
+    # apart, one threshold here
     total = _flag(argv, "--specular_freeze_step") + _flag(argv, "--fit_linear_step")
-    assert abs(total - schedule.enable["specular"]) <= 1
+    assert abs(total - 1 - schedule.enable["specular"]) <= 1
     assert (starts["camera"], starts["light"]) == (_flag(argv, "--train_cam_freeze_step"),
                                                    _flag(argv, "--train_pl_freeze_step"))
     gs3 = resolve_sources(get_spec("gs3"), SUITES["mini"], OFFICIAL_VARIANT, overrides={"iterations": iterations})

@@ -14,7 +14,8 @@ Before ``train.py`` runs, three of the authors' functions are wrapped at import 
 - ``gaussian_renderer.render``, which ``train.py:139`` calls once per iteration: records the training view's
   ``image_name`` (the view ``viewpoint_stack.pop(randint(...))`` drew, ``train.py:127``); at call ``STEPS + 1``
   (after ``STEPS`` optimizer updates) it saves the state to ``OUT/final.pt`` and ends the process; each
-  iteration's render (3, H, W), before ``train.py`` clips it, goes to ``OUT/renders.pt`` (STEPS, 3, H, W);
+  iteration's render (3, H, W), before ``train.py`` clips it, goes to ``OUT/renders.pt`` (STEPS, 3, H, W), and
+  each view's image as the authors' loader made it (``original_image``, (3, H, W)) to ``OUT/targets.pt``;
 - ``torch.utils.tensorboard.SummaryWriter``, which ``train.py:29-31`` imports when present: a recorder of the
   scalars ``training_report`` logs each iteration (``train.py:256-258``: the loss and its L1 part).
 
@@ -78,6 +79,7 @@ def main(argv: list[str]) -> None:
     held: dict[str, Any] = {}
     views: list[str] = []
     renders: list[torch.Tensor] = []
+    targets: dict[str, torch.Tensor] = {}
     setup, render = GaussianModel.training_setup, gaussian_renderer.render
 
     def training_setup(self: Any, training_args: Any) -> None:
@@ -93,12 +95,14 @@ def main(argv: list[str]) -> None:
         with open(os.path.join(out, "steps.json"), "w") as file:
             json.dump(records, file)
         torch.save(torch.stack(renders[:steps]) if renders else torch.zeros(0), os.path.join(out, "renders.pt"))
+        torch.save(targets, os.path.join(out, "targets.pt"))
 
     def recorded_render(viewpoint_camera: Any, *args: Any, **kwargs: Any) -> Any:
         if len(views) == steps:
             finish()
             raise SystemExit(0)
         views.append(viewpoint_camera.image_name)
+        targets[viewpoint_camera.image_name] = viewpoint_camera.original_image.detach().clone()
         package = render(viewpoint_camera, *args, **kwargs)
         renders.append(package["render"].detach().clone())
         return package

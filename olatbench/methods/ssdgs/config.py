@@ -9,7 +9,7 @@ paper is silent; `olatbench.methods.ssdgs.presets` adapts them per suite.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import ClassVar
 
 from olatbench.methods.ranges import AT_LEAST_ONE, NON_NEGATIVE, POSITIVE, RATE, UNIT, Range
@@ -24,6 +24,8 @@ _CHOICES = {
     "refinement_lr_clock": ("start", "absolute"),
     "light_weight_accumulation": ("always", "near_cap"),
     "test_pose_fitting": ("none", "interleaved"),
+    "shadow_input_bias": ("vector", "padded_ones"),
+    "schedule_counting": ("zero_based", "official"),  # shading.shadow_mlp.INPUT_BIASES (which imports torch)
 }
 
 
@@ -52,6 +54,12 @@ class SSDGSConfig(ShadingConfig):
     iterations: int = 100_000
     reference_iterations: int = 100_000
     schedule: str = "I"
+    # How the schedule's term thresholds are read: "zero_based", a term is on from step = its (scaled) threshold;
+    # "official", the SSS and specular terms one step earlier, as the authors' 1-based iteration counter tests
+    # `iteration < scatter_warmup_step` and `iteration < specular_freeze_step + fit_linear_step` (train.py:131-132:
+    # on at iteration = threshold, our step threshold - 1). The shadow term (`iteration <= unfreeze_iterations`,
+    # train.py:133) and the freezes (applied after the update of iteration = threshold) agree either way.
+    schedule_counting: str = "zero_based"
     # Composition (ablations A-F) and the shadow-on-SSS variant.
     use_shadow: bool = True
     use_sss: bool = True
@@ -73,6 +81,10 @@ class SSDGSConfig(ShadingConfig):
     sss_last_hidden: int | None = None  # the last hidden layer's width (None: sss_hidden; the official code: 128)
     sss_freqs: int = 4
     shadow_freqs: int = 3
+    # The shadow network's first-layer bias: "vector", one bias vector; "padded_ones", tiny-cuda-nn's layout (the
+    # input padded with ones to a multiple of 16, their weights the bias, each trained on its own: the official
+    # code). `olatbench.methods.shading.shadow_mlp`.
+    shadow_input_bias: str = "vector"
     clamp_output: bool = True
     # Size.
     max_gaussians: int | None = 550_000
@@ -136,8 +148,13 @@ class SSDGSConfig(ShadingConfig):
                              "enable at least one of them")
 
     def resolved_schedule(self) -> Schedule:
-        """The schedule with its thresholds scaled to this run's length."""
-        return get_schedule(self.schedule, self.reference_iterations, self.iterations)
+        """The schedule with its thresholds scaled to this run's length (and read as ``schedule_counting`` says)."""
+        schedule = get_schedule(self.schedule, self.reference_iterations, self.iterations)
+        if self.schedule_counting == "zero_based":
+            return schedule
+        earlier = {term: max(0, step - 1) if term in ("sss", "specular") else step
+                   for term, step in schedule.enable.items()}
+        return replace(schedule, enable=earlier)
 
     def refinement_starts(self) -> dict[str, int]:
         """The first step of camera and light refinement in this run (``{"camera": ..., "light": ...}``):

@@ -80,7 +80,7 @@ class Shader(nn.Module):
                                   config.dipole_eta, config.dipole_virtual_factor, config.network_precision,
                                   config.sss_last_hidden)
         self.shadow_net = ShadowNetwork(config.material_dim, config.shadow_hidden, config.shadow_layers,
-                                        config.shadow_freqs, config.network_precision)
+                                        config.shadow_freqs, config.network_precision, config.shadow_input_bias)
 
     def frames(self, attributes: dict[str, torch.Tensor], quats: torch.Tensor, scales: torch.Tensor,
                wo: torch.Tensor) -> torch.Tensor:
