@@ -325,6 +325,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     if len(comparisons) < args.steps:
         print(f"parity: only {len(comparisons)} of {args.steps} steps were recorded", file=sys.stderr)
         return 1
+    worst = max(comparisons, key=lambda s: s.relative if s.relative == s.relative else float("inf"))
+    print(f"parity: largest relative loss difference {worst.relative:.2e} at step {worst.step}")
     miss = first_miss(comparisons, args.tolerance)
     if miss is not None:
         print(f"parity: missed at step {miss.step}: relative loss difference {miss.relative:.2e} > "

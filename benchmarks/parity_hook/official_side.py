@@ -8,16 +8,16 @@ Usage (in the official environment, the checkout as working folder, olatbench's 
 
 Before ``train.py`` runs, three of the authors' functions are wrapped at import time:
 
-- ``GaussianModel.training_setup`` (``scene/gaussian_model.py:273``): after it, the initial state — every
+- ``GaussianModel.training_setup`` (``scene/gaussian_model.py:295``): after it, the initial state — every
   per-Gaussian tensor, the ASG lobes, the SSS network's and the shadow network's weights — is saved to
   ``OUT/initial.pt`` (`gaussian_state`);
-- ``gaussian_renderer.render``, which ``train.py:139`` calls once per iteration: records the training view's
-  ``image_name`` (the view ``viewpoint_stack.pop(randint(...))`` drew, ``train.py:127``); at call ``STEPS + 1``
+- ``gaussian_renderer.render``, which ``train.py:135`` calls once per iteration: records the training view's
+  ``image_name`` (the view ``viewpoint_stack.pop(randint(...))`` drew, ``train.py:116``); at call ``STEPS + 1``
   (after ``STEPS`` optimizer updates) it saves the state to ``OUT/final.pt`` and ends the process; each
   iteration's render (3, H, W), before ``train.py`` clips it, goes to ``OUT/renders.pt`` (STEPS, 3, H, W), and
   each view's image as the authors' loader made it (``original_image``, (3, H, W)) to ``OUT/targets.pt``;
-- ``torch.utils.tensorboard.SummaryWriter``, which ``train.py:29-31`` imports when present: a recorder of the
-  scalars ``training_report`` logs each iteration (``train.py:256-258``: the loss and its L1 part).
+- ``torch.utils.tensorboard.SummaryWriter``, which ``train.py:27-31`` imports when present: a recorder of the
+  scalars ``training_report`` logs each iteration (``train.py:172, 260-261``: the loss and its L1 part).
 
 ``OUT/steps.json`` holds per iteration (from 1): the view's name, the loss and the L1 loss.
 """
