@@ -1,4 +1,5 @@
-"""Step-by-step parity of native ``ssdgs --variant official`` with the authors' unmodified SSD-GS ``train.py``.
+"""Step-by-step parity of native ``ssdgs --variant official`` with the authors' unmodified SSD-GS ``train.py``
+(and of ``gs3 --variant official`` with GS³'s, ``--method gs3``).
 
 Both codes start from the same initial Gaussians, the same network weights and follow the same order of training
 views, on one mini scene, and the harness prints per step both losses and their relative difference, and at step
@@ -60,6 +61,31 @@ def frequency_columns(dims: int, frequencies: int) -> list[int]:
     return [d * 2 * frequencies + 2 * k + phase for phase in (0, 1) for k in range(frequencies) for d in range(dims)]
 
 
+def tcnn_weights(params: torch.Tensor, in_dim: int, out_dim: int, hidden: int, num_hidden: int, what: str
+                 ) -> list[torch.Tensor]:
+    """The layer matrices [out, in] of a tiny-cuda-nn FullyFusedMLP's flat ``params`` (input padded to a multiple of
+    16, ``num_hidden`` hidden layers of ``hidden``, output padded to 16 rows: `cpu_standins.tcnn.Network`); a
+    `ParityError` names ``what`` when the sizes do not fit."""
+    shapes = [(hidden, -(-in_dim // 16) * 16)] + [(hidden, hidden)] * (num_hidden - 1) + [(-(-out_dim // 16) * 16,
+                                                                                           hidden)]
+    if params.numel() != sum(rows * cols for rows, cols in shapes):
+        raise ParityError(f"the authors' {what} has {params.numel()} parameters, not the "
+                          f"{sum(r * c for r, c in shapes)} of a {in_dim}-input {num_hidden}×{hidden} FullyFusedMLP")
+    weights, start = [], 0
+    for rows, cols in shapes:
+        weights.append(params[start:start + rows * cols].view(rows, cols))
+        start += rows * cols
+    return weights
+
+
+def encoded_columns(in_dim: int, frequencies: int) -> list[int]:
+    """The authors' first-layer columns in olatbench's input order: two frequency-encoded 3-vectors
+    (`frequency_columns`), then the rest (material, and the shadow network's coarse visibility) as they are."""
+    encoded = 3 * 2 * frequencies
+    order = frequency_columns(3, frequencies)
+    return [*order, *(encoded + c for c in order), *range(2 * encoded, in_dim)]
+
+
 def shadow_layers(params: torch.Tensor, in_dim: int, hidden: int, num_hidden: int, frequencies: int,
                   input_bias: str = "padded_ones") -> dict[str, torch.Tensor]:
     """The authors' shadow network (a tiny-cuda-nn FullyFusedMLP: one flat ``params``, input padded with ones to a
@@ -67,21 +93,10 @@ def shadow_layers(params: torch.Tensor, in_dim: int, hidden: int, num_hidden: in
     ``input_bias`` (``layers.<i>.weight``, ``layers.0.bias``): with "padded_ones" the same layout; with "vector"
     the padded columns' weights summed into the first layer's bias (the same function; not the same training,
     `olatbench.methods.shading.shadow_mlp`). The first layer's encoded columns are reordered
-    (`frequency_columns`) for the two encoded 3-vectors (light direction, position); material and coarse
+    (`encoded_columns`) for the two encoded 3-vectors (light direction, position); material and coarse
     visibility follow in both."""
-    padded = -(-in_dim // 16) * 16
-    shapes = [(hidden, padded)] + [(hidden, hidden)] * (num_hidden - 1) + [(16, hidden)]
-    if params.numel() != sum(rows * cols for rows, cols in shapes):
-        raise ParityError(f"the authors' shadow network has {params.numel()} parameters, not the "
-                          f"{sum(r * c for r, c in shapes)} of a {in_dim}-input {num_hidden}×{hidden} FullyFusedMLP")
-    weights, start = [], 0
-    for rows, cols in shapes:
-        weights.append(params[start:start + rows * cols].view(rows, cols))
-        start += rows * cols
-    encoded = 3 * 2 * frequencies
-    order = frequency_columns(3, frequencies)
-    columns = [*order, *(encoded + c for c in order), *range(2 * encoded, in_dim)]
-    first = weights[0]
+    weights = tcnn_weights(params, in_dim, 1, hidden, num_hidden, "shadow network")
+    first, columns = weights[0], encoded_columns(in_dim, frequencies)
     if input_bias == "padded_ones":
         state = {"layers.0.weight": torch.cat([first[:, columns], first[:, in_dim:]], dim=1)}
     else:
@@ -91,32 +106,62 @@ def shadow_layers(params: torch.Tensor, in_dim: int, hidden: int, num_hidden: in
     return state
 
 
-def native_tensors(state: Mapping[str, torch.Tensor], shadow: Mapping[str, object]) -> dict[str, torch.Tensor]:
+def other_layers(params: torch.Tensor, in_dim: int, hidden: int, num_hidden: int, frequencies: int
+                 ) -> dict[str, torch.Tensor]:
+    """GS³'s other-effects network (a FullyFusedMLP like `shadow_layers`', 3 outputs) as the state of olatbench's
+    `OtherEffectsNetwork` (``network.<2i>.weight`` / ``.bias``, a bias in every layer): the padded columns'
+    weights summed into the first bias, the other biases 0 — the same function at the start; olatbench's biases
+    then train, the authors' network has none."""
+    weights = tcnn_weights(params, in_dim, 3, hidden, num_hidden, "other-effects network")
+    first = weights[0]
+    state = {"network.0.weight": first[:, encoded_columns(in_dim, frequencies)],
+             "network.0.bias": first[:, in_dim:].sum(dim=1)}
+    for i, weight in enumerate(weights[1:], start=1):
+        weight = weight[:3] if i == len(weights) - 1 else weight
+        state[f"network.{2 * i}.weight"], state[f"network.{2 * i}.bias"] = weight, weight.new_zeros(len(weight))
+    return state
+
+
+def native_tensors(state: Mapping[str, torch.Tensor], layouts: Mapping[str, Mapping[str, object]]
+                   ) -> dict[str, torch.Tensor]:
     """The authors' model (``official_side.gaussian_state``) under the native names and layouts: per-Gaussian
-    parameters as `GaussianModel.per_gaussian_parameters` names them, ``shader.<key>`` as ``Shader.state_dict``;
-    ``shadow``: the native shadow network's `shadow_layers` arguments (`shadow_layout`)."""
+    parameters as `GaussianModel.per_gaussian_parameters` names them, ``shader.<key>`` as the shader's
+    ``state_dict``; ``layouts``: the native networks' `shadow_layers` / `other_layers` arguments
+    (`network_layouts`)."""
     out = {"means": state["_xyz"], "log_scales": state["_scaling"], "quats": state["_rotation"],
            "opacity_logits": state["_opacity"].reshape(-1), "attributes.diffuse": state["kd"],
-           "attributes.specular": state["ks"], "attributes.sss": state["ksss"],
-           "attributes.asg_weights": state["alpha_asg"], "attributes.shading_quat": state["local_q"],
-           "attributes.material": state["neural_material"], "shader.asg.raw_sigma": state["asg_sigma"],
-           "shader.asg.raw_scales": state["asg_scales"], "shader.asg.rotation": state["asg_rotation"]}
+           "attributes.specular": state["ks"], "attributes.asg_weights": state["alpha_asg"],
+           "attributes.shading_quat": state["local_q"], "attributes.material": state["neural_material"],
+           "shader.asg.raw_sigma": state["asg_sigma"], "shader.asg.raw_scales": state["asg_scales"],
+           "shader.asg.rotation": state["asg_rotation"]}
+    if "ksss" in state:
+        out["attributes.sss"] = state["ksss"]
     linear = sorted({int(k.split(".")[2]) for k in state if k.startswith("scatter.network.")})
     for index in linear:
         weight, bias = state[f"scatter.network.{index}.weight"], state[f"scatter.network.{index}.bias"]
         if index == linear[-1]:
             weight, bias = weight[list(SSS_ROWS)], bias[list(SSS_ROWS)]
         out[f"shader.sss_net.network.{index}.weight"], out[f"shader.sss_net.network.{index}.bias"] = weight, bias
-    layers = shadow_layers(state["phasefunc.params"], **shadow)  # type: ignore[arg-type]
+    layers = shadow_layers(state["phasefunc.params"], **layouts["shadow"])  # type: ignore[arg-type]
     out.update({f"shader.shadow_net.{name}": value for name, value in layers.items()})
+    if "other.params" in state:
+        layers = other_layers(state["other.params"], **layouts["other"])  # type: ignore[arg-type]
+        out.update({f"shader.other_net.{name}": value for name, value in layers.items()})
     return out
 
 
-def shadow_layout(method) -> dict[str, object]:
-    """The `shadow_layers` arguments of the native method's shadow network."""
-    cfg, net = method.config, method.shader.shadow_net
-    return {"in_dim": net.in_dim, "hidden": cfg.shadow_hidden, "num_hidden": cfg.shadow_layers,
-            "frequencies": cfg.shadow_freqs, "input_bias": cfg.shadow_input_bias}
+def network_layouts(method) -> dict[str, dict[str, object]]:
+    """The `shadow_layers` (and, for GS³, `other_layers`) arguments of the native method's networks."""
+    shadow = method.shader.shadow_net
+    layouts: dict[str, dict[str, object]] = {"shadow": {
+        "in_dim": shadow.in_dim, "hidden": shadow.layers[0].out_features, "num_hidden": len(shadow.layers) - 1,
+        "frequencies": shadow.num_freqs, "input_bias": "padded_ones" if shadow.padding else "vector"}}
+    other = getattr(method.shader, "other_net", None)
+    if other is not None:
+        linear = [layer for layer in other.network if isinstance(layer, torch.nn.Linear)]
+        layouts["other"] = {"in_dim": linear[0].in_features, "hidden": linear[0].out_features,
+                            "num_hidden": len(linear) - 1, "frequencies": other.num_freqs}
+    return layouts
 
 
 def method_tensors(method) -> dict[str, torch.Tensor]:
@@ -178,14 +223,17 @@ def largest_differences(official: Mapping[str, torch.Tensor], native: Mapping[st
     return out
 
 
-def plan_jobs(scene: str, iterations: int, checkout: str, python: str, out: Path):
-    """The ``ssdgs --variant official`` and ``ssdgs-official`` (``device=cpu``) jobs of ``scene`` on mini."""
+METHODS = ("ssdgs", "gs3")  # native methods with an official counterpart "<method>-official"
+
+
+def plan_jobs(method: str, scene: str, iterations: int, checkout: str, python: str, out: Path):
+    """The ``<method> --variant official`` and ``<method>-official`` (``device=cpu``) jobs of ``scene`` on mini."""
     from olatbench.bench.plan import PlanOptions, make_plan
 
-    native = make_plan("ssdgs", "mini", out / "runs", scenes=[scene], variants=["official"], iterations=iterations,
+    native = make_plan(method, "mini", out / "runs", scenes=[scene], variants=["official"], iterations=iterations,
                        progress=False)[0]
     code = {"checkout": checkout, "python": python, "device": "cpu"}
-    official = make_plan("ssdgs-official", "mini", out / "runs", scenes=[scene], iterations=iterations,
+    official = make_plan(f"{method}-official", "mini", out / "runs", scenes=[scene], iterations=iterations,
                          progress=False, options=PlanOptions(code=code))[0]
     return native, official
 
@@ -229,7 +277,7 @@ def run_native(job, hook_out: Path, steps: int, authors_images: bool = False
     if authors_images:
         use_authors_images(views, torch.load(hook_out / "targets.pt"))
     method.setup(views, job.device, job.seed)
-    load_native(method, native_tensors(torch.load(hook_out / "initial.pt"), shadow_layout(method)))
+    load_native(method, native_tensors(torch.load(hook_out / "initial.pt"), network_layouts(method)))
     records = json.loads((hook_out / "steps.json").read_text())
     index = {frame_id: i for i, frame_id in enumerate(views.frame_ids)}
     unknown = sorted({r["view"] for r in records} - set(index))
@@ -280,10 +328,16 @@ def report(comparisons: Sequence[StepComparison], differences: Mapping[str, floa
 
 
 def schedule_events(method, steps: int) -> dict[int, str]:
-    """The steps (from 1) at which the native schedule switches a term on, within ``steps``."""
+    """The steps (from 1) at which the native method switches a term on, within ``steps``: SSD-GS's schedule
+    (shadow, SSS, specular), GS³'s shadow phase."""
+    if hasattr(method, "schedule"):
+        terms = {term: (lambda step, term=term: method.schedule.is_enabled(term, step))
+                 for term in ("shadow", "sss", "specular")}
+    else:
+        terms = {"shadow": method.shadow_on}
     events: dict[int, list[str]] = {}
-    for term in ("shadow", "sss", "specular"):
-        on = next((s for s in range(steps) if method.schedule.is_enabled(term, s)), None)
+    for term, enabled in terms.items():
+        on = next((s for s in range(steps) if enabled(s)), None)
         if on is not None and on > 0:
             events.setdefault(on + 1, []).append(f"{term} on")
     return {step: ", ".join(names) for step, names in events.items()}
@@ -291,8 +345,10 @@ def schedule_events(method, steps: int) -> dict[int, str]:
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--method", choices=METHODS, default="ssdgs",
+                        help="the native method; its official counterpart is <method>-official (default ssdgs)")
     parser.add_argument("--scene", default="aniso_metal", help="mini scene (default aniso_metal)")
-    parser.add_argument("--checkout", required=True, help="SSD-GS checkout at 26e4251")
+    parser.add_argument("--checkout", required=True, help="the authors' checkout (SSD-GS 26e4251, GS³ 83c8daa)")
     parser.add_argument("--python", required=True, help="the official environment's interpreter")
     parser.add_argument("--steps", type=int, default=100, help="steps compared (default 100)")
     parser.add_argument("--iterations", type=int, default=600,
@@ -310,7 +366,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         out = Path(args.out or temporary).resolve()
         out.mkdir(parents=True, exist_ok=True)
         try:
-            native_job, official_job = plan_jobs(args.scene, args.iterations, args.checkout, args.python, out)
+            native_job, official_job = plan_jobs(args.method, args.scene, args.iterations, args.checkout,
+                                                 args.python, out)
             hook_out = run_official(official_job, args.steps, out)
             losses, images, native_final, method = run_native(native_job, hook_out, args.steps, args.authors_images)
         except ParityError as error:
@@ -319,7 +376,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         records = json.loads((hook_out / "steps.json").read_text())
         comparisons = [StepComparison(r["iteration"], float(r["loss"]), loss, image)
                        for r, loss, image in zip(records, losses, images, strict=False)]
-        official_final = native_tensors(torch.load(hook_out / "final.pt"), shadow_layout(method))
+        official_final = native_tensors(torch.load(hook_out / "final.pt"), network_layouts(method))
         print(report(comparisons, largest_differences(official_final, native_final), args.tolerance,
                      schedule_events(method, args.steps)))
     if len(comparisons) < args.steps:

@@ -124,7 +124,7 @@ def test_the_authors_sss_network_carried_over_gives_the_same_dipole_parameters(p
     shadow = tcnn.Network(55, 1, {"otype": "FullyFusedMLP", "activation": "LeakyReLU",
                                   "output_activation": "Sigmoid", "n_neurons": 32, "n_hidden_layers": 3})
     layout = {"in_dim": 55, "hidden": 32, "num_hidden": 3, "frequencies": 4, "input_bias": "padded_ones"}
-    tensors = parity.native_tensors(official_state(official, shadow.params.detach(), 5, 8), layout)
+    tensors = parity.native_tensors(official_state(official, shadow.params.detach(), 5, 8), {"shadow": layout})
     with torch.no_grad():
         for name, value in native.network.state_dict().items():
             value.copy_(tensors[f"shader.sss_net.network.{name}"])

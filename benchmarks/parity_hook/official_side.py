@@ -1,5 +1,6 @@
-"""Runs the authors' unmodified SSD-GS ``train.py`` (26e4251) for `benchmarks/parity.py` and records what the
-native side needs to follow it step by step; nothing here changes what ``train.py`` computes.
+"""Runs the authors' unmodified SSD-GS ``train.py`` (26e4251; GS³ 83c8daa the same way) for `benchmarks/parity.py`
+and records what the native side needs to follow it step by step; nothing here changes what ``train.py``
+computes. Line numbers below are SSD-GS's.
 
 Usage (in the official environment, the checkout as working folder, olatbench's CPU stand-in folder first on
 ``PYTHONPATH`` exactly as a ``device=cpu`` job has it)::
@@ -34,19 +35,24 @@ from typing import Any, ClassVar
 import torch
 
 STATE_TENSORS = ("_xyz", "_scaling", "_rotation", "_opacity", "kd", "ks", "ksss", "alpha_asg", "local_q",
-                 "neural_material")
+                 "neural_material")  # those the model has (GS³ has no ksss)
 
 
 def gaussian_state(gaussians: Any) -> dict[str, torch.Tensor]:
     """The authors' model as plain tensors (names as their attributes): per-Gaussian parameters, the ASG lobes
-    (``asg_sigma``, ``asg_scales``, ``asg_rotation``), ``scatter.<state_dict key>`` of the SSS network and
-    ``phasefunc.<key>`` of the shadow network (its flat tiny-cuda-nn ``params``)."""
-    state = {name: getattr(gaussians, name).detach().clone() for name in STATE_TENSORS}
+    (``asg_sigma``, ``asg_scales``, ``asg_rotation``), ``scatter.<state_dict key>`` of SSD-GS's SSS network,
+    ``phasefunc.params`` of the shadow network and (GS³) ``other.params`` of the other-effects network (their flat
+    tiny-cuda-nn ``params``)."""
+    state = {name: getattr(gaussians, name).detach().clone() for name in STATE_TENSORS
+             if isinstance(getattr(gaussians, name, None), torch.Tensor)}
     for name in ("asg_sigma", "asg_scales", "asg_rotation"):
         state[name] = getattr(gaussians.asg_func, name).detach().clone()
-    state.update({f"scatter.{k}": v.detach().clone() for k, v in gaussians.scatter_mlp.state_dict().items()})
-    state.update({f"phasefunc.{k}": v.detach().clone()
-                  for k, v in gaussians.neural_phasefunc.shadow_func.state_dict().items()})
+    if isinstance(getattr(gaussians, "scatter_mlp", None), torch.nn.Module):
+        state.update({f"scatter.{k}": v.detach().clone() for k, v in gaussians.scatter_mlp.state_dict().items()})
+    phase = gaussians.neural_phasefunc
+    state.update({f"phasefunc.{k}": v.detach().clone() for k, v in phase.shadow_func.state_dict().items()})
+    if hasattr(phase, "other_effects_func"):
+        state.update({f"other.{k}": v.detach().clone() for k, v in phase.other_effects_func.state_dict().items()})
     return state
 
 
