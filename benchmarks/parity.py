@@ -110,8 +110,9 @@ def other_layers(params: torch.Tensor, in_dim: int, hidden: int, num_hidden: int
                  ) -> dict[str, torch.Tensor]:
     """GS³'s other-effects network (a FullyFusedMLP like `shadow_layers`', 3 outputs) as the state of olatbench's
     `OtherEffectsNetwork` (``network.<2i>.weight`` / ``.bias``, a bias in every layer): the padded columns'
-    weights summed into the first bias, the other biases 0 — the same function at the start; olatbench's biases
-    then train, the authors' network has none."""
+    weights summed into the first bias, the other biases 0. Not the same function: olatbench's network has ReLU
+    between its layers where tiny-cuda-nn has LeakyReLU(0.01) (`olatbench.methods.shading.mlp`); and its biases
+    train, the authors' network has none."""
     weights = tcnn_weights(params, in_dim, 3, hidden, num_hidden, "other-effects network")
     first = weights[0]
     state = {"network.0.weight": first[:, encoded_columns(in_dim, frequencies)],

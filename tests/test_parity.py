@@ -179,3 +179,27 @@ def test_largest_differences_name_tensors_they_cannot_compare(parity):
 def test_bad_arguments_exit_2(parity, capsys):
     assert parity.main(["--checkout", "x", "--python", "y", "--steps", "700", "--iterations", "600"]) == 2
     assert "--steps" in capsys.readouterr().err
+
+
+def test_gs3s_other_effects_network_carried_over_computes_the_authors_function_but_for_its_activation(parity):
+    from olatbench.methods.baselines.gs3_shading import OtherEffectsNetwork
+
+    torch.manual_seed(2)
+    encoding = tcnn.Encoding(3, {"otype": "Frequency", "n_frequencies": 4})
+    in_dim = 6 + 2 * encoding.n_output_dims
+    network = tcnn.Network(in_dim, 3, {"otype": "FullyFusedMLP", "activation": "LeakyReLU",
+                                       "output_activation": "Sigmoid", "n_neurons": 128, "n_hidden_layers": 3})
+    with torch.no_grad():
+        network.params.mul_(3.0)
+    native = OtherEffectsNetwork(6, 128, 3, 4)
+    native.load_state_dict(parity.other_layers(network.params.detach(), in_dim, 128, 3, 4))
+    wo, pos, material = nn.functional.normalize(torch.randn(40, 3), dim=-1), torch.rand(40, 3) - 0.5, torch.randn(40, 6)
+    # the authors' Neural_phase.forward (GS³ scene/neural_phase_function.py:65 at 83c8daa)
+    expected = network(torch.concat([encoding(wo), encoding(pos), material], dim=-1)) * 2.0
+    assert expected.std() > 0.01
+    # olatbench's network has ReLU between its layers, tiny-cuda-nn LeakyReLU(0.01): a difference of the two GS³s
+    assert not torch.allclose(native(wo, pos, material), expected, atol=1e-3)
+    for index, layer in enumerate(native.network):
+        if isinstance(layer, nn.ReLU):
+            native.network[index] = nn.LeakyReLU(0.01)
+    torch.testing.assert_close(native(wo, pos, material), expected, rtol=1e-5, atol=1e-6)  # the transfer itself
