@@ -106,20 +106,24 @@ def shadow_layers(params: torch.Tensor, in_dim: int, hidden: int, num_hidden: in
     return state
 
 
-def other_layers(params: torch.Tensor, in_dim: int, hidden: int, num_hidden: int, frequencies: int
-                 ) -> dict[str, torch.Tensor]:
+def other_layers(params: torch.Tensor, in_dim: int, hidden: int, num_hidden: int, frequencies: int,
+                 layout: str = "tiny_cuda_nn") -> dict[str, torch.Tensor]:
     """GS³'s other-effects network (a FullyFusedMLP like `shadow_layers`', 3 outputs) as the state of olatbench's
-    `OtherEffectsNetwork` (``network.<2i>.weight`` / ``.bias``, a bias in every layer): the padded columns'
-    weights summed into the first bias, the other biases 0. Not the same function: olatbench's network has ReLU
-    between its layers where tiny-cuda-nn has LeakyReLU(0.01) (`olatbench.methods.shading.mlp`); and its biases
-    train, the authors' network has none."""
+    `OtherEffectsNetwork` (``network.<2i>.weight``, and ``.bias`` in the "torch" layout) with ``layout``:
+    "tiny_cuda_nn", the same layout; "torch", the padded columns' weights summed into the first bias and the
+    other biases 0 — not the same function, since that layout has ReLU between its layers where tiny-cuda-nn has
+    LeakyReLU(0.01), and its biases train where the authors' network has none."""
     weights = tcnn_weights(params, in_dim, 3, hidden, num_hidden, "other-effects network")
-    first = weights[0]
-    state = {"network.0.weight": first[:, encoded_columns(in_dim, frequencies)],
-             "network.0.bias": first[:, in_dim:].sum(dim=1)}
+    first, columns = weights[0], encoded_columns(in_dim, frequencies)
+    if layout == "tiny_cuda_nn":
+        state = {"network.0.weight": torch.cat([first[:, columns], first[:, in_dim:]], dim=1)}
+    else:
+        state = {"network.0.weight": first[:, columns], "network.0.bias": first[:, in_dim:].sum(dim=1)}
     for i, weight in enumerate(weights[1:], start=1):
         weight = weight[:3] if i == len(weights) - 1 else weight
-        state[f"network.{2 * i}.weight"], state[f"network.{2 * i}.bias"] = weight, weight.new_zeros(len(weight))
+        state[f"network.{2 * i}.weight"] = weight
+        if layout != "tiny_cuda_nn":
+            state[f"network.{2 * i}.bias"] = weight.new_zeros(len(weight))
     return state
 
 
@@ -160,8 +164,9 @@ def network_layouts(method) -> dict[str, dict[str, object]]:
     other = getattr(method.shader, "other_net", None)
     if other is not None:
         linear = [layer for layer in other.network if isinstance(layer, torch.nn.Linear)]
-        layouts["other"] = {"in_dim": linear[0].in_features, "hidden": linear[0].out_features,
-                            "num_hidden": len(linear) - 1, "frequencies": other.num_freqs}
+        layouts["other"] = {"in_dim": linear[0].in_features - other.padding, "hidden": linear[0].out_features,
+                            "num_hidden": len(linear) - 1, "frequencies": other.num_freqs,
+                            "layout": "tiny_cuda_nn" if other.padding else "torch"}
     return layouts
 
 
@@ -288,11 +293,13 @@ def run_native(job, hook_out: Path, steps: int, authors_images: bool = False
     method.train_views.load_state_dict({**state, "order": torch.tensor([index[r["view"]] for r in records]),
                                         "cursor": 0})
     renders = torch.load(hook_out / "renders.pt")  # (steps, 3, H, W)
+    composites = torch.load(hook_out / "composites.pt") if (hook_out / "composites.pt").is_file() else None
     losses, images = [], []
     for step in range(min(steps, len(records))):
         with torch.no_grad():  # the forward pass train_step takes next (no state changes, no random numbers)
             image = method.training_forward(index[records[step]["view"]], step)["image"]
-        images.append(float((image.permute(2, 0, 1) - renders[step]).abs().max()))
+        official = composites[step] if composites is not None and method.shadow_on(step) else renders[step]
+        images.append(float((image.permute(2, 0, 1) - official).abs().max()))
         losses.append(float(method.train_step(step)["loss"]))
     return losses, images, method_tensors(method), method
 

@@ -192,7 +192,7 @@ def test_gs3s_other_effects_network_carried_over_computes_the_authors_function_b
     with torch.no_grad():
         network.params.mul_(3.0)
     native = OtherEffectsNetwork(6, 128, 3, 4)
-    native.load_state_dict(parity.other_layers(network.params.detach(), in_dim, 128, 3, 4))
+    native.load_state_dict(parity.other_layers(network.params.detach(), in_dim, 128, 3, 4, "torch"))
     wo, pos, material = nn.functional.normalize(torch.randn(40, 3), dim=-1), torch.rand(40, 3) - 0.5, torch.randn(40, 6)
     # the authors' Neural_phase.forward (GS³ scene/neural_phase_function.py:65 at 83c8daa)
     expected = network(torch.concat([encoding(wo), encoding(pos), material], dim=-1)) * 2.0
@@ -203,3 +203,6 @@ def test_gs3s_other_effects_network_carried_over_computes_the_authors_function_b
         if isinstance(layer, nn.ReLU):
             native.network[index] = nn.LeakyReLU(0.01)
     torch.testing.assert_close(native(wo, pos, material), expected, rtol=1e-5, atol=1e-6)  # the transfer itself
+    tiny = OtherEffectsNetwork(6, 128, 3, 4, layout="tiny_cuda_nn")  # the authors' layout: the same function as is
+    tiny.load_state_dict(parity.other_layers(network.params.detach(), in_dim, 128, 3, 4, "tiny_cuda_nn"))
+    torch.testing.assert_close(tiny(wo, pos, material), expected, rtol=1e-5, atol=1e-6)

@@ -16,7 +16,9 @@ Before ``train.py`` runs, three of the authors' functions are wrapped at import 
   ``image_name`` (the view ``viewpoint_stack.pop(randint(...))`` drew, ``train.py:116``); at call ``STEPS + 1``
   (after ``STEPS`` optimizer updates) it saves the state to ``OUT/final.pt`` and ends the process; each
   iteration's render (3, H, W), before ``train.py`` clips it, goes to ``OUT/renders.pt`` (STEPS, 3, H, W), and
-  each view's image as the authors' loader made it (``original_image``, (3, H, W)) to ``OUT/targets.pt``;
+  each view's image as the authors' loader made it (``original_image``, (3, H, W)) to ``OUT/targets.pt``; GS³'s
+  render is the unshadowed image, so for GS³ also ``render · shadow + other_effects``, the image its ``train.py``
+  trains after the shadow phase starts (GS³ ``train.py:131-135``), to ``OUT/composites.pt``;
 - ``torch.utils.tensorboard.SummaryWriter``, which ``train.py:27-31`` imports when present: a recorder of the
   scalars ``training_report`` logs each iteration (``train.py:172, 260-261``: the loss and its L1 part).
 
@@ -85,6 +87,7 @@ def main(argv: list[str]) -> None:
     held: dict[str, Any] = {}
     views: list[str] = []
     renders: list[torch.Tensor] = []
+    composites: list[torch.Tensor] = []  # GS³: the image train.py trains once the shadow phase is on
     targets: dict[str, torch.Tensor] = {}
     setup, render = GaussianModel.training_setup, gaussian_renderer.render
 
@@ -102,6 +105,8 @@ def main(argv: list[str]) -> None:
             json.dump(records, file)
         torch.save(torch.stack(renders[:steps]) if renders else torch.zeros(0), os.path.join(out, "renders.pt"))
         torch.save(targets, os.path.join(out, "targets.pt"))
+        if composites:
+            torch.save(torch.stack(composites[:steps]), os.path.join(out, "composites.pt"))
 
     def recorded_render(viewpoint_camera: Any, *args: Any, **kwargs: Any) -> Any:
         if len(views) == steps:
@@ -111,6 +116,8 @@ def main(argv: list[str]) -> None:
         targets[viewpoint_camera.image_name] = viewpoint_camera.original_image.detach().clone()
         package = render(viewpoint_camera, *args, **kwargs)
         renders.append(package["render"].detach().clone())
+        if "other_effects" in package:  # GS³ train.py:131-135: image * shadow + other_effects after the shadow phase
+            composites.append((package["render"] * package["shadow"] + package["other_effects"]).detach().clone())
         return package
 
     GaussianModel.training_setup = training_setup

@@ -119,7 +119,7 @@ class GS3(GaussianMethod, spec=SPEC):
         cfg = self.config
         self.shader = GS3Shader(cfg.num_asg, cfg.material_dim, cfg.shadow_hidden, cfg.shadow_layers, cfg.other_hidden,
                                 cfg.other_layers, cfg.num_freqs, cfg.fresnel_f0, cfg.network_precision,
-                                other_effects_scale(self.irradiance, cfg)).to(self.device)
+                                other_effects_scale(self.irradiance, cfg), cfg.network_layout).to(self.device)
 
     def global_groups(self) -> list[ParameterGroup]:
         return [ParameterGroup("asg_lobes", list(self.shader.asg.parameters())),

@@ -37,6 +37,10 @@ class GS3Config(ShadingConfig):
     other_hidden: int = 128
     other_layers: int = 3
     num_freqs: int = 4
+    # The two networks' layout: "torch", plain MLPs (the other-effects network with ReLU and biases, the shadow
+    # network with one bias vector); "tiny_cuda_nn", the authors' FullyFusedMLP for both (LeakyReLU, no biases, the
+    # input padded with ones; gs3_shading.OtherEffectsNetwork, shading.shadow_mlp).
+    network_layout: str = "torch"
     shadow_resolution: int | None = 256
     shadow_framing: str = "scene"
     # The brightest the initial diffuse shading albedo/π · I/d² may be at the initial ball's centre under the median
@@ -47,5 +51,8 @@ class GS3Config(ShadingConfig):
 
     def __post_init__(self) -> None:
         super().__post_init__()
+        if self.network_layout not in ("torch", "tiny_cuda_nn"):  # gs3_shading.NETWORK_LAYOUTS (imports torch)
+            raise ValueError(f"GS³ config: network_layout must be 'torch' or 'tiny_cuda_nn', not "
+                             f"{self.network_layout!r}")
         if not self.shadow_from <= self.mlp_freeze_from <= self.specular_from:
             raise ValueError("GS³ config: need shadow_from <= mlp_freeze_from <= specular_from")

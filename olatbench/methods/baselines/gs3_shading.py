@@ -15,6 +15,7 @@ encodings of ωo and x and the material embedding m (GS³: 3 hidden layers of 12
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
 
@@ -27,25 +28,42 @@ from olatbench.methods.shading.asg import ASGMixture
 from olatbench.methods.shading.encoding import frequency_encoding, frequency_encoding_dim
 from olatbench.methods.shading.mlp import mlp
 from olatbench.methods.shading.precision import run_network
-from olatbench.methods.shading.shadow_mlp import ShadowNetwork
+from olatbench.methods.shading.shadow_mlp import PADDING, ShadowNetwork
 from olatbench.methods.shading.terms import inverse_square_irradiance, lambert_cosine, safe_normalize, schlick_fresnel
+
+NETWORK_LAYOUTS = ("torch", "tiny_cuda_nn")
 
 
 class OtherEffectsNetwork(nn.Module):
-    """Θ_other: ``forward(wo (K,3), positions (K,3), material (K,M)) -> (K, 3)`` in [0, 2]."""
+    """Θ_other: ``forward(wo (K,3), positions (K,3), material (K,M)) -> (K, 3)`` in [0, 2]. ``layout``: "torch", a
+    plain MLP (ReLU, a bias in every layer); "tiny_cuda_nn", the authors' FullyFusedMLP (LeakyReLU(0.01), no
+    biases, the input padded with ones to a multiple of 16 whose weights act as the first layer's bias:
+    `olatbench.methods.shading.shadow_mlp`)."""
 
     def __init__(self, material_dim: int = 6, hidden: int = 128, num_hidden: int = 3, num_freqs: int = 4,
-                 precision: str = "fp32") -> None:
+                 precision: str = "fp32", layout: str = "torch") -> None:
         super().__init__()
+        if layout not in NETWORK_LAYOUTS:
+            raise ValueError(f"other-effects network layout must be one of {NETWORK_LAYOUTS}, not {layout!r}")
         self.num_freqs = num_freqs
         self.precision = precision  # of the MLP (methods.shading.precision); inputs and output are float32
         in_dim = 2 * frequency_encoding_dim(3, num_freqs) + material_dim
-        self.network = mlp(in_dim, hidden, 3, num_hidden + 1)
+        self.padding = -in_dim % PADDING if layout == "tiny_cuda_nn" else 0
+        if layout == "torch":
+            self.network = mlp(in_dim, hidden, 3, num_hidden + 1)
+        else:
+            widths = [in_dim + self.padding] + [hidden] * num_hidden
+            layers: list[nn.Module] = []
+            for width_in, width_out in itertools.pairwise(widths):
+                layers += [nn.Linear(width_in, width_out, bias=False), nn.LeakyReLU(0.01)]
+            layers.append(nn.Linear(hidden, 3, bias=False))
+            self.network = nn.Sequential(*layers)
 
     def forward(self, wo: torch.Tensor, positions: torch.Tensor, material: torch.Tensor) -> torch.Tensor:
-        x = torch.cat([frequency_encoding(wo, self.num_freqs), frequency_encoding(positions, self.num_freqs),
-                       material], dim=-1)
-        return 2.0 * torch.sigmoid(run_network(self.network, x, self.precision))
+        parts = [frequency_encoding(wo, self.num_freqs), frequency_encoding(positions, self.num_freqs), material]
+        if self.padding:
+            parts.append(positions.new_ones(positions.shape[0], self.padding))
+        return 2.0 * torch.sigmoid(run_network(self.network, torch.cat(parts, dim=-1), self.precision))
 
 
 @dataclass
@@ -70,13 +88,15 @@ class GS3Shader(nn.Module):
 
     def __init__(self, num_asg: int = 8, material_dim: int = 6, shadow_hidden: int = 32, shadow_layers: int = 3,
                  other_hidden: int = 128, other_layers: int = 3, num_freqs: int = 4, fresnel_f0: float = 0.04,
-                 precision: str = "fp32", other_scale: float = 1.0) -> None:
+                 precision: str = "fp32", other_scale: float = 1.0, network_layout: str = "torch") -> None:
         super().__init__()
         self.fresnel_f0 = fresnel_f0
         self.other_scale = other_scale  # O = other_net · other_scale · L/d² (1: official; GS3 sets it per scene)
         self.asg = ASGMixture(num_asg, form="official")
-        self.shadow_net = ShadowNetwork(material_dim, shadow_hidden, shadow_layers, num_freqs, precision)
-        self.other_net = OtherEffectsNetwork(material_dim, other_hidden, other_layers, num_freqs, precision)
+        shadow_bias = "padded_ones" if network_layout == "tiny_cuda_nn" else "vector"
+        self.shadow_net = ShadowNetwork(material_dim, shadow_hidden, shadow_layers, num_freqs, precision, shadow_bias)
+        self.other_net = OtherEffectsNetwork(material_dim, other_hidden, other_layers, num_freqs, precision,
+                                             network_layout)
 
     def forward(self, positions: torch.Tensor, attributes: dict[str, torch.Tensor], camera_position: torch.Tensor,
                 light_position: torch.Tensor, intensity: torch.Tensor, specular: bool,
