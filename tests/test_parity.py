@@ -206,3 +206,32 @@ def test_gs3s_other_effects_network_carried_over_computes_the_authors_function_b
     tiny = OtherEffectsNetwork(6, 128, 3, 4, layout="tiny_cuda_nn")  # the authors' layout: the same function as is
     tiny.load_state_dict(parity.other_layers(network.params.detach(), in_dim, 128, 3, 4, "tiny_cuda_nn"))
     torch.testing.assert_close(tiny(wo, pos, material), expected, rtol=1e-5, atol=1e-6)
+
+
+@pytest.mark.parametrize(("layout", "follows"), [("tiny_cuda_nn", True), ("torch", False)])
+def test_only_the_tiny_cuda_nn_layout_trains_like_gs3s_other_effects_network(parity, layout, follows):
+    from olatbench.methods.baselines.gs3_shading import OtherEffectsNetwork
+
+    torch.manual_seed(3)
+    encoding = tcnn.Encoding(3, {"otype": "Frequency", "n_frequencies": 4})
+    in_dim = 6 + 2 * encoding.n_output_dims
+    network = tcnn.Network(in_dim, 3, {"otype": "FullyFusedMLP", "activation": "LeakyReLU",
+                                       "output_activation": "Sigmoid", "n_neurons": 128, "n_hidden_layers": 3})
+    native = OtherEffectsNetwork(6, 128, 3, 4, layout=layout)
+    native.load_state_dict(parity.other_layers(network.params.detach(), in_dim, 128, 3, 4, layout))
+    wo, pos, material = nn.functional.normalize(torch.randn(40, 3), dim=-1), torch.rand(40, 3) - 0.5, torch.randn(40, 6)
+    target = torch.rand(40, 3) * 2
+
+    def official():
+        return network(torch.concat([encoding(wo), encoding(pos), material], dim=-1)) * 2.0
+
+    adams = (torch.optim.Adam(network.parameters(), lr=1e-2, eps=1e-15),
+             torch.optim.Adam(native.parameters(), lr=1e-2, eps=1e-15))
+    for _ in range(5):
+        for adam, output in zip(adams, (official, lambda: native(wo, pos, material)), strict=True):
+            adam.zero_grad()
+            ((output() - target) ** 2).mean().backward()
+            adam.step()
+    with torch.no_grad():
+        gap = float((native(wo, pos, material) - official()).abs().max())
+    assert (gap < 1e-3) == follows, gap
