@@ -38,5 +38,6 @@ def evaluation_results(pred_dir: str | Path, scene_dir: str | Path, split: str =
         "source": scored["source"],
         "evaluation": {"test_time_refinement": None},
         "error": None,
+        "novel_lights": None,  # scores under novel illumination (olatbench.bench.novel_lights), when asked
     }
     return validate_results(results, f"evaluation of {pred_dir}")

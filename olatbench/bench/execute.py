@@ -185,7 +185,10 @@ def _run(job: Job, folder: Path, log: JobLog, progress: bool, position: int, sta
             render_fps, refinement = fps, refined
         log(f"{split}: " + ", ".join(f"{k} {v:.4f}" for k, v in metrics[split]["mean"].items() if v is not None))
 
+    novel = _novel_lights(method, train_views, job, folder, log, progress, position)
     results = _done_results(job, started, metrics, train_seconds, render_fps, method)
+    if novel is not None:
+        results["novel_lights"] = novel
     results["model"]["reused_from"] = reused
     results["files"] = files
     checkpoints = list_checkpoints(folder)
@@ -200,6 +203,22 @@ def _run(job: Job, folder: Path, log: JobLog, progress: bool, position: int, sta
     log("done")
     return JobOutcome(job.id, job.label, str(folder), "done", metrics[job.test_split]["mean"], train_seconds,
                       render_fps)
+
+
+def _novel_lights(method: Method, train_views: Views, job: Job, folder: Path, log: JobLog, progress: bool,
+                  position: int) -> dict[str, Any] | None:
+    """When the job asks (``job.novel_lights``), the ``novel_lights`` block of its results: the trained method,
+    as it is in memory, scored under the scene's novel-light ground truth (`olatbench.bench.novel_lights`)."""
+    if job.novel_lights is None:
+        return None
+    from olatbench.bench.novel_lights import NovelLightsOptions, score_novel_lights
+    from olatbench.bench.relight import Relighter
+
+    block = score_novel_lights(Relighter.for_views(method, train_views), job, folder,
+                               NovelLightsOptions(**job.novel_lights), progress=progress, position=position)
+    log("novel lights: " + ", ".join(f"{name} {scores['mean']['psnr']:.2f} dB" for name, scores in
+                                     block["conditions"].items() if scores["mean"].get("psnr") is not None))
+    return block
 
 
 def prepare_method(job: Job, log: Callable[[str], None] = lambda line: None, progress: bool = False,

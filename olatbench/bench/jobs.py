@@ -15,10 +15,10 @@ A job's id is a content hash of everything that decides its result:
   Gaussian core's sources; for official implementations the ``olatbench/methods/official`` package, which holds
   the pinned commit and the command lines).
 
-Settings that do not change the result (device, output folder, checkpoint cadence, executor, where an official
-implementation's checkout and environment live, why a derived preset chose its values and where each config value
-came from: the values are in the config) are kept out of the id, so a job moved to another machine or
-resumed elsewhere keeps its id.
+Settings that do not change the result (device, output folder, checkpoint cadence, extra evaluations such as the
+novel-light scores, executor, where an official implementation's checkout and environment live, why a derived preset
+chose its values and where each config value came from: the values are in the config) are kept out of the id, so a
+job moved to another machine or resumed elsewhere keeps its id.
 """
 
 from __future__ import annotations
@@ -74,6 +74,9 @@ class Job:
     checkpoint_minutes: float = 10.0
     keep_checkpoints: int = 2
     save_components: bool = False
+    # after the OLAT evaluation, score the test cameras under the scene's novel-light ground truth
+    # (`olatbench.bench.novel_lights.NovelLightsOptions` as a dict: samples, views); None: not asked
+    novel_lights: dict[str, Any] | None = None
     official: dict[str, Any] | None = None  # official code only: where it lives and runs (settings.CodeSettings)
     reuse: bool = True  # start from a finished job of the same experiment under another variant name (bench.reuse)
     init_points: str = ""  # the point PLY the Gaussians start from (bench.init_points), "" for the method's own init

@@ -128,6 +128,7 @@ def base_results(job: Job, status: str, started: str) -> dict[str, Any]:
         "source": None,
         "evaluation": {"test_time_refinement": None, "test_pose_fitting": None},
         "error": None,
+        "novel_lights": None,  # scores under novel illumination (olatbench.bench.novel_lights), when asked
     }
 
 

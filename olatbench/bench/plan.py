@@ -57,6 +57,7 @@ class PlanOptions:
     checkpoint_minutes: float = 10.0
     keep_checkpoints: int = 2
     save_components: bool = False
+    novel_lights: Mapping[str, Any] | None = None  # `Job.novel_lights`: score under novel illumination too
     code: Mapping[str, str] = field(default_factory=dict)  # official methods: --code KEY=VALUE settings
     reuse: bool = True  # reuse a finished job's model for the same experiment under another variant name
 
@@ -444,6 +445,7 @@ def make_plan(method: str, suite: str | Suite, out: str | Path, scenes: Sequence
                           device=options.device, checkpoint_every=options.checkpoint_every,
                           checkpoint_minutes=options.checkpoint_minutes, keep_checkpoints=options.keep_checkpoints,
                           save_components=options.save_components, official=official, reuse=options.reuse,
+                          novel_lights=dict(options.novel_lights) if options.novel_lights is not None else None,
                           init_points=str(points) if points else "",
                           init_points_digest=points_digest(points) if points else None,
                           frame="dataset" if spec.kind == "official" else suite.frame,  # the authors' code: as is

@@ -125,6 +125,26 @@ class Evaluation(TypedDict):
     test_pose_fitting: NotRequired[dict[str, Any] | None]  # {"mode", "split", "frames": {frame id: {...}}}
 
 
+class NovelLightsOptions(TypedDict):
+    samples: int | None  # the environment maps' sample count; None: each lighting file's own
+    views: int | None  # test frames scored per condition; None: all
+
+
+class ConditionMetrics(TypedDict):
+    mean: MetricValues
+    per_image: dict[str, MetricValues]  # frame id -> values
+    lights: int  # the point and directional lights the condition was drawn as (one render each; 3DGS: one)
+
+
+class NovelLights(TypedDict):
+    protocol: ResultsProtocol  # olatbench-v1-novel-lights
+    split: str  # the split whose cameras were rendered (the job's test split)
+    options: NovelLightsOptions
+    conditions: dict[str, ConditionMetrics]  # condition -> block
+    mean: MetricValues  # per metric, the mean of the conditions' means
+    seconds: float
+
+
 class ResultsFailure(TypedDict):
     type: str
     message: str
@@ -173,6 +193,7 @@ class Results(TypedDict):
     error: NotRequired[ResultsFailure | None]
     method_kind: NotRequired[Literal["native", "official", "plugin"]]  # absent: native
     official: NotRequired[OfficialProvenance]  # official implementations only
+    novel_lights: NotRequired[NovelLights | None]  # scores under novel illumination (bench.novel_lights)
 
 
 SCHEMA_VERSION = 2

@@ -198,12 +198,15 @@ def _report_data(runs, suite, methods, metrics, splits, as_json: bool) -> str:
 
 def _report_runs(runs, suite, methods, metrics, splits, layouts, average, fmt, standalone, palette, rules,
                  published, seeds, figure_format, frame_ids, output, fit=False) -> str:
+    from olatbench.reports.novel_lights import novel_lights_table, split_novel
     from olatbench.reports.output import render_tables
     from olatbench.reports.ranking import rank_table
     from olatbench.reports.runs_tables import ablation_table, checked_blocks, overview_table, scene_table, select_runs
 
     frame = _collect(runs)
     metrics, splits = checked_blocks(frame, metrics, splits)
+    everything = frame
+    frame, novel = split_novel(frame)  # the novel-light scores get their own table, below
 
     # one per-scene / overview table per suite holding the selected methods
     suites = [suite] if suite else sorted(set(select_runs(frame, None, methods)["suite"]))
@@ -220,6 +223,11 @@ def _report_runs(runs, suite, methods, metrics, splits, layouts, average, fmt, s
             else:
                 tables.append(overview_table(frame, suite=name, methods=methods, metrics=metrics, splits=splits,
                                              seeds=seeds, published=published))
+    if not novel.empty and "ablation" not in layouts:
+        for name in suites:
+            table = novel_lights_table(everything, suite=name, methods=methods, seeds=seeds)
+            if table is not None:
+                tables.append(table)
     tables = [rank_table(table, min_values=2) for table in tables]
     figures, notes = [], []
     if fmt == "html" and figure_format != "none":

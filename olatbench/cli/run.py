@@ -126,6 +126,17 @@ def _metric(metrics: dict, key: str) -> str:
                                                   "10 minutes).")
 @click.option("--save-components", is_flag=True, help="Also save render components (diffuse, shadow, ...) "
                                                       "of the test split.")
+@click.option("--evaluate", "evaluations", multiple=True, type=click.Choice(("novel-lights",)),
+              help="Also score each job under novel illumination: its test cameras rendered under every condition of "
+                   "the scene's novel_lights/ ground truth (olatbench-v1-novel-lights, into results.json's "
+                   "novel_lights). Finished jobs without these scores get them from their final checkpoint, "
+                   "without retraining. docs/relighting.md.")
+@click.option("--novel-samples", type=click.IntRange(min=1),
+              help="With --evaluate novel-lights: sample environment maps in this many directions (default: each "
+                   "lighting file's count; area lights keep the ground truth's points).")
+@click.option("--novel-views", type=click.IntRange(min=1),
+              help="With --evaluate novel-lights: score only the first N test frames of each condition (default: "
+                   "all).")
 @click.option("--slurm-partition", help="Slurm partition.")
 @click.option("--slurm-time", default="24:00:00", show_default=True, help="Wall-clock limit per task "
                                                                          "(minutes or [D-]H:MM:SS).")
@@ -138,8 +149,9 @@ def _metric(metrics: dict, key: str) -> str:
 @click.option("--json", "as_json", is_flag=True, help="With --dry-run: print the plan as JSON (one object per job).")
 def run(method, suite, data_paths, protocol_name, scenes, variants, ablation, seeds, iterations, overrides,
         code_settings, resolution, stretch, upscale, init_points, data_root, out, device, executor, workers, dry_run,
-        calibrate, force, keep_finished, no_reuse, checkpoint_every, save_components, slurm_partition, slurm_time,
-        slurm_gpus, slurm_cpus, slurm_array_parallelism, wait, quiet, as_json) -> None:
+        calibrate, force, keep_finished, no_reuse, checkpoint_every, save_components, evaluations, novel_samples,
+        novel_views, slurm_partition, slurm_time, slurm_gpus, slurm_cpus, slurm_array_parallelism, wait, quiet,
+        as_json) -> None:
     """Train and evaluate METHOD on every scene of SUITE (or on your own scene folders, --data); rerunning skips
     finished jobs and resumes interrupted ones from their last checkpoint.
 
@@ -162,6 +174,7 @@ def run(method, suite, data_paths, protocol_name, scenes, variants, ablation, se
       olatbench run -m ssdgs -s nrhints --scenes Pixiu --ablation components --dry-run
       olatbench run -m ssdgs -s gs3 --scenes Lego --data-root /data/gs3 --dry-run --calibrate
       olatbench run -m ssdgs -s mini --scenes translucent --set shadow_mode=density --set num_asg=8
+      olatbench run -m ssdgs -s mini --evaluate novel-lights   # + novel-light scores
       olatbench run -m 3dgs --data captures/cup --init-points captures/cup/sparse.ply
       olatbench run -m ssdgs -s gs3 --seeds 3 --executor slurm --slurm-partition gpu --slurm-gpus 1
       olatbench run -m gs3-official -s gs3 --code checkout=~/src/gs-relight --code conda_env=gs3
@@ -199,9 +212,10 @@ def run(method, suite, data_paths, protocol_name, scenes, variants, ablation, se
     # it here, before any job starts (a device this machine lacks is a usage error), except a named device of Slurm
     # jobs, which run on other machines
     remote = executor == "slurm" and device != "auto"
+    novel = _novel_lights_options(evaluations, novel_samples, novel_views)
     options = PlanOptions(device=device if dry_run or remote else resolved_device(device),
                           checkpoint_every=checkpoint_every, save_components=save_components, reuse=not no_reuse,
-                          code=code.get(method, {}))
+                          code=code.get(method, {}), novel_lights=None if novel is None else novel.to_json())
     try:
         jobs = [job for plan_suite in _suites(suite, data_paths, protocol_name, data_root)
                 for job in make_plan(method, plan_suite, out, scenes=name_list(scenes, "--scenes") or (),
@@ -215,6 +229,8 @@ def run(method, suite, data_paths, protocol_name, scenes, variants, ablation, se
     except (PlanError, DatasetError, KeyError, FileNotFoundError) as error:  # what was asked cannot be planned
         raise click.UsageError(str(error.args[0] if isinstance(error, KeyError) else error)) from None
 
+    if novel is not None:
+        _check_novel_lights(jobs)
     states = session.job_states(jobs)
     if dry_run:
         from olatbench.bench.estimate import plan_estimates
@@ -251,6 +267,8 @@ def run(method, suite, data_paths, protocol_name, scenes, variants, ablation, se
                 if decided.damaged else "")
     click.echo(f"{len(jobs)} job(s): {len(decided.skipped)} already done{busy}, {len(to_run)} to run{repaired} "
                f"({executor}, device {options.device}) -> {out}", err=True)
+    if novel is not None:
+        _add_novel_lights(decided.skipped, novel, progress)
     if not to_run:
         _print_summary(jobs, out)
         _exit_with(session.RunSummary([], len(decided.running)))
@@ -281,6 +299,59 @@ def run(method, suite, data_paths, protocol_name, scenes, variants, ablation, se
         return
     _print_summary(jobs, out)
     _exit_with(session.RunSummary(outcomes, len(decided.running)))
+
+
+def _novel_lights_options(evaluations, samples: int | None, views: int | None):
+    """`olatbench.bench.novel_lights.NovelLightsOptions` of ``--evaluate novel-lights`` (None when not asked);
+    ``--novel-samples`` / ``--novel-views`` without it are a usage error."""
+    if "novel-lights" not in evaluations:
+        if samples is not None or views is not None:
+            raise click.UsageError("--novel-samples and --novel-views go with --evaluate novel-lights")
+        return None
+    from olatbench.bench.novel_lights import NovelLightsOptions
+
+    return NovelLightsOptions(samples=samples, views=views)
+
+
+def _check_novel_lights(jobs) -> None:
+    """Before anything runs: every job can be scored under novel illumination (a native method, whose render
+    ``olatbench.bench.relight`` sums over lights, and a scene with novel-light ground truth); a usage error naming
+    the job or the folder otherwise."""
+    from olatbench.datasets.errors import DatasetError
+    from olatbench.datasets.novel_lights import condition_names
+
+    for job in jobs:
+        if job.official is not None:
+            raise click.UsageError(f"--evaluate novel-lights: {job.method} runs the authors' code, which olatbench "
+                                   "cannot render under other lights; leave it out for this method")
+    for scene_path in dict.fromkeys(job.scene_path for job in jobs):
+        try:
+            if not condition_names(scene_path):
+                raise DatasetError("holds no condition (<condition>/lighting.json)", path=Path(scene_path) /
+                                   "novel_lights")
+        except DatasetError as error:
+            raise click.UsageError(f"--evaluate novel-lights: {error}") from None
+
+
+def _add_novel_lights(jobs, options, progress: bool) -> None:
+    """Score the finished jobs that have no novel-light scores (of this protocol version and these options) from
+    their final checkpoints; a job that cannot be rebuilt or relit is named on stderr and the others go on."""
+    from olatbench.bench.novel_lights import NovelLightsError, add_novel_lights, has_novel_lights
+    from olatbench.bench.relight import RelightError
+    from olatbench.bench.restore import RestoreError
+    from olatbench.bench.results import ResultsError, read_results
+    from olatbench.bench.store import RESULTS_FILE
+    from olatbench.datasets.errors import DatasetError
+
+    todo = [job for job in jobs if not has_novel_lights(read_results(Path(job.folder) / RESULTS_FILE), options)]
+    if todo:
+        click.echo(f"scoring {len(todo)} finished job(s) under novel illumination from their final checkpoints",
+                   err=True)
+    for job in todo:
+        try:
+            add_novel_lights(job.folder, options, device=job.device, progress=progress)
+        except (NovelLightsError, RestoreError, RelightError, ResultsError, DatasetError) as error:
+            click.echo(f"novel lights not scored for {job.label}: {error}", err=True)
 
 
 def _exit_with(summary) -> None:

@@ -54,6 +54,8 @@ class Protocol:
     lpips_primary: str = "alex"
     lpips_unit_range_compat: bool = False    # True: feed [0, 1] to the [-1, 1] network (3DGS mistake)
     masked: bool = False
+    object_mask: bool = False                # True: the ground truth's alpha reaches the metrics as batch.alpha
+    #                                          (psnr_si fits there) without weighting psnr, ssim, lpips (masked does)
     ground_truth: str = "frame"              # "frame": Frame.load(data's space, official background);
     #                                          "official": the official loader's image (olatbench.datasets.official)
     steps: tuple[str, ...] = field(default=())
@@ -164,16 +166,16 @@ class Protocol:
 
         pred = torch.from_numpy(np.stack(preds)).permute(0, 3, 1, 2).to(device)
         gt = torch.from_numpy(np.stack(gts)).permute(0, 3, 1, 2).to(device)
-        mask = None
-        if self.masked:
-            mask = torch.from_numpy(np.stack(masks).astype(np.float32))[:, None].to(device)
-        batch = MetricBatch(pred, gt, mask, device)
+        alpha = None
+        if self.masked or self.object_mask:
+            alpha = torch.from_numpy(np.stack(masks).astype(np.float32))[:, None].to(device)
+        batch = MetricBatch(pred, gt, alpha if self.masked else None, device, alpha=alpha)
         with torch.no_grad():
             columns = {name: get_metric(name).load()(batch, self) for name in self.metrics}
         return [{name: columns[name][i] for name in self.metrics} for i in range(len(preds))]
 
     def _mask(self, mask: np.ndarray | torch.Tensor | None, shape: tuple[int, ...], index: int) -> np.ndarray | None:
-        if not self.masked:
+        if not (self.masked or self.object_mask):
             return None
         if mask is None:
             raise ValueError(f"protocol {self.id} needs a mask for every image (image {index} has none)")
@@ -187,7 +189,8 @@ class Protocol:
 
     def evaluate(self, pred: np.ndarray, gt: np.ndarray, mask: np.ndarray | None = None,
                  device: str = "cpu") -> dict[str, float | None]:
-        """Metrics of one image pair: float32 (H, W, 3) in [0, 1] in the data's space; mask (H, W) if masked."""
+        """Metrics of one image pair: float32 (H, W, 3) in [0, 1] in the data's space; mask (H, W) if masked or
+        object_mask."""
         return self.evaluate_many([(pred, gt, mask)], device=device)[0]
 
     def evaluate_many(self, pairs: Iterable[Sequence], progress: bool = False, batch_size: int = 4,
@@ -353,4 +356,26 @@ register_protocol(Protocol(
            "per degree: flip_evaluator.evaluate(gt, pred, 'LDR', inputsRGB=True, parameters={'ppd': 67}), mean "
            "error over pixels (0 = identical, lower is better); None when flip-evaluator is not installed",
            _V1_STEPS[-1]),
+))
+
+register_protocol(Protocol(
+    id="olatbench-v1-novel-lights", version=1,
+    description="Renders under novel illumination (docs/relighting.md): olatbench-v1 and the scale-invariant PSNR "
+                "over the object (Stanford-ORB).",
+    reproduces="olatbench-v1, plus Stanford-ORB's per-channel least-squares scale before PSNR",
+    object_mask=True,
+    metric_names=("psnr", "psnr_object", "psnr_si", "ssim", "lpips", "lpips_alex", "lpips_vgg"),
+    steps=("inputs: the render under the condition (the sum over its lights in linear light, "
+           "olatbench.bench.relight.Relighter) and the ground truth rendered under it (linear RGB, straight alpha), "
+           "each composited on the scene's official background in linear light and encoded to the space the "
+           "suite's OLAT protocol scores in (sRGB for the NRHints-format suites such as mini)",
+           *_V1_STEPS[1:-1],
+           "psnr_object: PSNR over the ground truth's alpha m (object and ground, weights in [0, 1]): "
+           "MSE = Σ m (gt − pred)² / (3 Σ m), floored at 1e-10",
+           "psnr_si: per image and channel c, over the ground truth's alpha m (object and ground, weights in "
+           "[0, 1]), s_c = Σ m·gt·pred / Σ m·pred² on the 8-bit images of the steps above (1 where the render is "
+           "black there); PSNR = 10 log10(1 / MSE), MSE = Σ m (gt − clip(s·pred, 0, 1))² / (3 Σ m), floored at "
+           "1e-10 (olatbench.metrics.scale_invariant)",
+           "split score: arithmetic mean of the per-image values of a condition; the conditions' average is the "
+           "mean of their means"),
 ))

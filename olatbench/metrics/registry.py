@@ -30,13 +30,16 @@ class MetricBatch:
     """One batch of image pairs as a protocol scores them: ``pred`` and ``gt`` (B, 3, H, W) float32 in [0, 1]
     (already clipped and quantised by the protocol), ``mask`` (B, 1, H, W) in [0, 1] for masked protocols (else
     None), on ``device``; ``cache`` holds what several metrics share (e.g. one LPIPS pass for ``lpips`` and
-    ``lpips_<net>``)."""
+    ``lpips_<net>``); ``alpha`` (B, 1, H, W) the ground truth's coverage for protocols with ``object_mask`` or
+    ``masked`` (else None): the object's extent for a metric that needs it (``psnr_si`` fits its scale there)
+    without weighting the others."""
 
     pred: torch.Tensor
     gt: torch.Tensor
     mask: torch.Tensor | None
     device: str
     cache: dict[str, Any] = field(default_factory=dict)
+    alpha: torch.Tensor | None = None
 
     def __len__(self) -> int:
         return int(self.pred.shape[0])
@@ -80,6 +83,10 @@ BUILTIN_METRICS: tuple[Metric, ...] = (
     Metric("lpips_alex", "LPIPS (Alex)", "min", "olatbench.metrics.lpips_metric:protocol_lpips_alex", "LPIPS-AlexNet"),
     Metric("lpips_vgg", "LPIPS (VGG)", "min", "olatbench.metrics.lpips_metric:protocol_lpips_vgg", "LPIPS-VGG16"),
     Metric("flip", "ꟻLIP", "min", "olatbench.metrics.flip:protocol_flip", "LDR-ꟻLIP (NVIDIA), mean error"),
+    Metric("psnr_object", "PSNR (object)", "max", "olatbench.metrics.scale_invariant:protocol_psnr_object",
+           "PSNR over the ground truth's alpha"),
+    Metric("psnr_si", "PSNR (scale-inv.)", "max", "olatbench.metrics.scale_invariant:protocol_psnr_si",
+           "PSNR over the object after a per-channel least-squares scale (Stanford-ORB)"),
 )
 
 _METRICS: dict[str, Metric] = {metric.name: metric for metric in BUILTIN_METRICS}

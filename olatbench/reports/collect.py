@@ -11,7 +11,9 @@ error, path`` and ``test_poses``: how the split's views were posed when they wer
 ``"fitted"`` (the method fitted them during training, ``evaluation.test_pose_fitting``), ``"refined"`` (post-hoc
 test-time refinement, ``evaluation.test_time_refinement``) or ``"fitted+refined"``. A finished job gives one row
 per (split, metric) of its ``metrics.<split>.mean`` (``value`` NaN when the run stored null, e.g. LPIPS without
-weights) and per-job rows with split "-" for ``fps`` (render FPS), ``train_time`` (seconds) and ``num_gaussians``.
+weights) and per-job rows with split "-" for ``fps`` (render FPS), ``train_time`` (seconds) and ``num_gaussians``;
+a job scored under novel illumination (results.json's ``novel_lights``) also gives rows of split
+``novel:<condition>`` per condition and ``novel`` (their mean), with that block's protocol in ``protocol``.
 A failed job gives one row with status "failed", empty split and metric, and its error in ``error``; an unfinished
 one likewise with status ``running``, ``partial``, ``pending`` or ``damaged`` (`olatbench.bench.store.JobState`).
 Files written by ``olatbench evaluate`` (``kind: "evaluate"``, no job) give no rows.
@@ -47,6 +49,8 @@ from olatbench.bench.store import JOB_FILE, RESULTS_FILE, JobState, find_results
 COLUMNS = ("method", "variant", "suite", "scene", "seed", "split", "metric", "value", "status", "protocol",
            "device", "job_id", "error", "path", "test_poses", "config", "resolution", "code", "official_commit",
            "data", "experiment", "ablation_grid", "ablation_reference")
+#: The split of the novel-light scores' rows: ``novel`` (the mean over conditions) and ``novel:<condition>``.
+NOVEL_SPLIT = "novel"
 JOB_FACTS = (("fps", ("timing", "render_fps")), ("train_time", ("timing", "train_seconds")),
              ("num_gaussians", ("model", "num_gaussians")))
 
@@ -110,7 +114,26 @@ def result_rows(data: dict[str, Any], path: Path, job_file: dict[str, Any] | Non
     for metric, keys in JOB_FACTS:
         rows.append({**base, "split": "-", "metric": metric, "value": _number(_nested(data, keys)), "error": "",
                      "test_poses": ""})
-    return rows
+    return rows + novel_light_rows(data, base)
+
+
+def novel_light_rows(data: dict[str, Any], base: dict[str, Any]) -> list[dict[str, Any]]:
+    """The rows of a finished job's ``novel_lights`` block (none without one): split ``novel:<condition>`` per
+    condition and ``novel`` for the mean over conditions, under the block's own protocol."""
+    block = data.get("novel_lights")
+    if not isinstance(block, dict):
+        return []
+    protocol = block.get("protocol") or {}
+    base = {**base, "protocol": f"{protocol.get('id', '?')} v{protocol.get('version', '?')}", "error": "",
+            "test_poses": ""}
+    means = [(f"{NOVEL_SPLIT}:{name}", scores["mean"]) for name, scores in block["conditions"].items()]
+    return [{**base, "split": split, "metric": metric, "value": _number(value)}
+            for split, mean in [*means, (NOVEL_SPLIT, block["mean"])] for metric, value in mean.items()]
+
+
+def is_novel_split(split: str) -> bool:
+    """Whether a frame row's split is a novel-light one (`novel_light_rows`)."""
+    return split == NOVEL_SPLIT or split.startswith(f"{NOVEL_SPLIT}:")
 
 
 def experiment_fields(data: dict[str, Any]) -> dict[str, str]:

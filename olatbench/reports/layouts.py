@@ -23,7 +23,7 @@ CellKey = tuple[str, str, str, str]  # (row, scene, split, metric)
 
 #: Ranked columns that are no image metric (the metrics' directions come from `olatbench.metrics.registry`).
 COLUMN_DIRECTIONS = {"fps": "max"}
-SPLIT_TITLES = {"train": "Train", "test": "Test", "val": "Val"}
+SPLIT_TITLES = {"train": "Train", "test": "Test", "val": "Val", "novel": "Novel lights (mean)"}
 
 
 @dataclass
@@ -48,6 +48,9 @@ def metric_title(metric: str) -> str:
 
 
 def split_title(split: str) -> str:
+    """``Test``, ``Train``, ...; a novel-light condition's split (``novel:<condition>``) as ``under <condition>``."""
+    if split.startswith("novel:"):
+        return f"under {split.partition(':')[2]}"
     return SPLIT_TITLES.get(split, split.capitalize())
 
 
