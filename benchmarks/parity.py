@@ -6,7 +6,8 @@ views, on one mini scene, and the harness prints per step both losses and their 
 N per parameter group the largest difference (issue #53, item 3)::
 
     python benchmarks/parity.py --scene aniso_metal --checkout /work/ext/ssdgs \\
-        --python /work/ext/official-venv/bin/python [--steps 100] [--iterations 600] [--tolerance 1e-3]
+        --python /work/ext/official-venv/bin/python \\
+        [--steps 100] [--iterations 600] [--tolerance 1e-3]
 
 How:
 

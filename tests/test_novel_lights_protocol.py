@@ -70,7 +70,7 @@ def test_pixels_outside_the_mask_do_not_count():
     assert torch.all(scale_invariant_psnr(changed, gt, mask) < 60.0)
 
 
-def test_the_protocol_scores_unmasked_psnr_and_the_scale_invariant_psnr_over_the_ground_truths_alpha():
+def test_the_protocol_scores_unmasked_psnr_and_scale_invariant_psnr_over_the_truths_alpha():
     rng = np.random.default_rng(4)
     gt = (rng.integers(0, 64, (32, 34, 3)) * 2 / 255).astype(np.float32)  # even 8-bit levels: × 0.5 stays exact
     alpha = np.ones((32, 34), np.float32)

@@ -181,7 +181,7 @@ def test_bad_arguments_exit_2(parity, capsys):
     assert "--steps" in capsys.readouterr().err
 
 
-def test_gs3s_other_effects_network_carried_over_computes_the_authors_function_but_for_its_activation(parity):
+def test_gs3s_other_effects_network_carried_over_is_the_authors_function_but_its_activation(parity):
     from olatbench.methods.baselines.gs3_shading import OtherEffectsNetwork
 
     torch.manual_seed(2)
