@@ -2,11 +2,11 @@
 jobs copied and scored under the novel-light ground truth (`olatbench.bench.novel_lights.add_novel_lights`), and the
 figure of ground truth against renders per condition.
 
-    python benchmarks/bench_novel_lights.py truth --out TRUTH --views 3     # only without packaged truth
+    python benchmarks/bench_novel_lights.py truth --out TRUTH --views 3  # no packaged truth
     python benchmarks/bench_novel_lights.py score --runs TRAINED/mini --out RUNS/mini \\
         --truth TRUTH --views 3 --samples 16
     olatbench report RUNS --suite mini --format markdown                      # the tables
-    python benchmarks/bench_novel_lights.py table --runs RUNS/mini          # docs/relighting.md's table
+    python benchmarks/bench_novel_lights.py table --runs RUNS/mini   # docs/relighting.md
     python benchmarks/bench_novel_lights.py figure --runs RUNS/mini --truth TRUTH \\
         --scene aniso_metal -o docs/img/novel_lights_aniso_metal.png
 
