@@ -1,15 +1,17 @@
 """Rasterizer benchmark: C++ CPU backend vs the torch reference, measured in the same run.
 
-Scene: 20 000 Gaussians with 12 feature channels in a ball in front of the camera, rendered at 256² and 512²
-with 2 threads. For each backend and size it reports the median time of ``render()`` forward (no grad) and
-forward + backward (projection, binning, compositing and the backward of all of it), and the peak RSS of a
-separate worker process that ran only that backend. Also times the light-view pass (projection from the
-light, binning by squared distance, ``shadow_gather_cpu``) at 256². Targets: CPU fwd+bwd ≥ 10× faster than
-torch at 256², light pass ≤ 60 ms. Ends with one ``RESULT key=value ...`` line.
+Scene: 20 000 Gaussians with 12 feature channels in a ball in front of the camera, rendered at 256²
+and 512² with 2 threads. For each backend and size it reports the median time of ``render()``
+forward (no grad) and forward + backward (projection, binning, compositing and the backward of all
+of it), and the peak RSS of a separate worker process that ran only that backend. Also times the
+light-view pass (projection from the light, binning by squared distance, ``shadow_gather_cpu``) at
+256². Targets: CPU fwd+bwd ≥ 10× faster than torch at 256², light pass ≤ 60 ms. Ends with one
+``RESULT key=value ...`` line.
 
-Workers run with ``OMP_WAIT_POLICY=PASSIVE`` by default (``--omp-wait-policy ""`` inherits the environment):
-on oversubscribed machines the default spinning OpenMP workers of torch's many small ops (projection,
-binning) burn the shared cores and inflate every timing several-fold; the setting applies to both backends.
+Workers run with ``OMP_WAIT_POLICY=PASSIVE`` by default (``--omp-wait-policy ""`` inherits the
+environment): on oversubscribed machines the default spinning OpenMP workers of torch's many small
+ops (projection, binning) burn the shared cores and inflate every timing several-fold; the setting
+applies to both backends.
 
 Usage: ``python benchmarks/bench_rasterizer.py [--gaussians 20000] [--sizes 256 512] [--threads 2]``
 """
@@ -30,7 +32,8 @@ import torch
 
 
 def make_scene(n: int, channels: int, size: int, seed: int = 0) -> dict:
-    """Gaussians uniformly in a ball of radius 1 at distance 3, seen by a 40°-FoV camera at the origin."""
+    """Gaussians uniformly in a ball of radius 1 at distance 3, seen by a 40°-FoV camera at the
+    origin."""
     g = torch.Generator().manual_seed(seed)
     direction = torch.randn(n, 3, generator=g)
     direction /= direction.norm(dim=-1, keepdim=True)
@@ -40,7 +43,9 @@ def make_scene(n: int, channels: int, size: int, seed: int = 0) -> dict:
     return {
         "means": means,
         "quats": torch.randn(n, 4, generator=g),
-        "scales": torch.exp(torch.empty(n, 3).uniform_(math.log(0.005), math.log(0.04), generator=g)),
+        "scales": torch.exp(
+            torch.empty(n, 3).uniform_(math.log(0.005), math.log(0.04), generator=g)
+        ),
         "opacities": torch.empty(n).uniform_(0.05, 0.95, generator=g),
         "features": torch.rand(n, channels, generator=g),
         "background": torch.zeros(channels),
@@ -65,12 +70,27 @@ def worker(backend: str, size: int, n: int, threads: int, repeats: int) -> dict:
 
     torch.set_num_threads(threads)
     s = make_scene(n, 12, size)
-    params = {k: s[k].clone().requires_grad_() for k in ("means", "quats", "scales", "opacities", "features")}
+    params = {
+        k: s[k].clone().requires_grad_()
+        for k in ("means", "quats", "scales", "opacities", "features")
+    }
 
     def run(grad: bool):
         with torch.set_grad_enabled(grad):
-            out = render(params["means"], params["quats"], params["scales"], params["opacities"], params["features"],
-                         s["w2c"], s["K"], size, size, s["background"], backend=backend, threads=threads)  # fmt: skip
+            out = render(
+                params["means"],
+                params["quats"],
+                params["scales"],
+                params["opacities"],
+                params["features"],
+                s["w2c"],
+                s["K"],
+                size,
+                size,
+                s["background"],
+                backend=backend,
+                threads=threads,
+            )
             if grad:
                 (out["image"].square().mean() + out["alpha"].mean()).backward()
         return out
@@ -82,13 +102,16 @@ def worker(backend: str, size: int, n: int, threads: int, repeats: int) -> dict:
     result["fwd_ms"], result["fwd_cpu_ms"] = median_ms(lambda: run(False), repeats)
     result["fwdbwd_ms"], result["fwdbwd_cpu_ms"] = median_ms(lambda: run(True), repeats)
     if backend == "cpu" and size == 256:
-        result["light_ms"], result["light_cpu_ms"] = median_ms(lambda: light_pass(s, size, threads), max(repeats, 5))
+        result["light_ms"], result["light_cpu_ms"] = median_ms(
+            lambda: light_pass(s, size, threads), max(repeats, 5)
+        )
     result["peak_rss_mb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     return result
 
 
 def light_pass(s: dict, size: int, threads: int) -> None:
-    """Light camera at (2, -2, 0) looking at the ball; projection + binning by squared distance + gather."""
+    """Light camera at (2, -2, 0) looking at the ball; projection + binning by squared distance +
+    gather."""
     from olatbench.gaussians.backends.cpu import shadow_gather_cpu
     from olatbench.gaussians.projection import project
     from olatbench.gaussians.tiles import bin_gaussians
@@ -109,13 +132,19 @@ def light_pass(s: dict, size: int, threads: int) -> None:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     parser.add_argument("--gaussians", type=int, default=20000)
     parser.add_argument("--sizes", type=int, nargs="+", default=[256, 512])
     parser.add_argument("--threads", type=int, default=2)
     parser.add_argument("--repeats", type=int, default=3, help="timed repeats for the cpu backend")
-    parser.add_argument("--torch-repeats", type=int, default=1, help="timed repeats for the (slow) torch backend")
-    parser.add_argument("--omp-wait-policy", default="PASSIVE", help="OMP_WAIT_POLICY for the workers")
+    parser.add_argument(
+        "--torch-repeats", type=int, default=1, help="timed repeats for the (slow) torch backend"
+    )
+    parser.add_argument(
+        "--omp-wait-policy", default="PASSIVE", help="OMP_WAIT_POLICY for the workers"
+    )
     parser.add_argument("--worker", nargs=2, metavar=("BACKEND", "SIZE"), help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.worker:
@@ -127,30 +156,54 @@ def main() -> None:
     env = dict(os.environ)
     if args.omp_wait_policy:
         env["OMP_WAIT_POLICY"] = args.omp_wait_policy
-    print(f"{args.gaussians} Gaussians, 12 channels, {args.threads} threads, median of {args.repeats} (cpu) / "
-          f"{args.torch_repeats} (torch) after a warm-up, OMP_WAIT_POLICY={env.get('OMP_WAIT_POLICY', '')}")
+    print(
+        f"{args.gaussians} Gaussians, 12 channels, {args.threads} threads, median of "
+        f"{args.repeats} (cpu) / {args.torch_repeats} (torch) after a warm-up, "
+        f"OMP_WAIT_POLICY={env.get('OMP_WAIT_POLICY', '')}"
+    )
     print("wall-clock ms, with the process CPU time (all threads) in brackets")
-    print(f"{'size':>5} {'backend':>8} {'fwd ms':>17} {'fwd+bwd ms':>17} {'peak RSS MB':>12} {'coverage':>9}")
+    print(
+        f"{'size':>5} {'backend':>8} {'fwd ms':>17} {'fwd+bwd ms':>17} {'peak RSS MB':>12} "
+        f"{'coverage':>9}"
+    )
     for size in args.sizes:
         for backend in ("cpu", "torch"):
             repeats = args.repeats if backend == "cpu" else args.torch_repeats
-            command = [sys.executable, __file__, "--worker", backend, str(size), "--gaussians", str(args.gaussians),
-                       "--threads", str(args.threads), "--repeats", str(repeats)]  # fmt: skip
+            command = [
+                sys.executable,
+                __file__,
+                "--worker",
+                backend,
+                str(size),
+                "--gaussians",
+                str(args.gaussians),
+                "--threads",
+                str(args.threads),
+                "--repeats",
+                str(repeats),
+            ]
             run = subprocess.run(command, capture_output=True, text=True, env=env)
             if run.returncode != 0:
                 sys.exit(f"worker {backend} {size} failed:\n{run.stderr}")
             r = json.loads(run.stdout)
             fwd = f"{r['fwd_ms']:.1f} [{r['fwd_cpu_ms']:.0f}]"
             fwdbwd = f"{r['fwdbwd_ms']:.1f} [{r['fwdbwd_cpu_ms']:.0f}]"
-            print(f"{size:>5} {backend:>8} {fwd:>17} {fwdbwd:>17} {r['peak_rss_mb']:>12.0f} {r['coverage']:>9.3f}")
+            print(
+                f"{size:>5} {backend:>8} {fwd:>17} {fwdbwd:>17} {r['peak_rss_mb']:>12.0f} "
+                f"{r['coverage']:>9.3f}"
+            )
             summary[f"{backend}_fwd_{size}_ms"] = r["fwd_ms"]
             summary[f"{backend}_fwdbwd_{size}_ms"] = r["fwdbwd_ms"]
             summary[f"{backend}_rss_{size}_mb"] = r["peak_rss_mb"]
             if "light_ms" in r:
                 summary[f"light_{size}_ms"] = r["light_ms"]
                 summary[f"light_{size}_cpu_ms"] = r["light_cpu_ms"]
-        summary[f"speedup_fwd_{size}"] = summary[f"torch_fwd_{size}_ms"] / summary[f"cpu_fwd_{size}_ms"]
-        summary[f"speedup_fwdbwd_{size}"] = summary[f"torch_fwdbwd_{size}_ms"] / summary[f"cpu_fwdbwd_{size}_ms"]
+        summary[f"speedup_fwd_{size}"] = (
+            summary[f"torch_fwd_{size}_ms"] / summary[f"cpu_fwd_{size}_ms"]
+        )
+        summary[f"speedup_fwdbwd_{size}"] = (
+            summary[f"torch_fwdbwd_{size}_ms"] / summary[f"cpu_fwdbwd_{size}_ms"]
+        )
         print(f"{size:>5} cpu/torch speed-up: fwd {summary[f'speedup_fwd_{size}']:.1f}x, "
               f"fwd+bwd {summary[f'speedup_fwdbwd_{size}']:.1f}x")  # fmt: skip
     if "light_256_ms" in summary:
@@ -159,7 +212,9 @@ def main() -> None:
         summary["light_target_met"] = summary["light_256_ms"] <= 60.0
     if "speedup_fwdbwd_256" in summary:
         summary["speedup_target_met"] = summary["speedup_fwdbwd_256"] >= 10.0
-    fields = " ".join(f"{k}={v:.2f}" if isinstance(v, float) else f"{k}={v}" for k, v in summary.items())
+    fields = " ".join(
+        f"{k}={v:.2f}" if isinstance(v, float) else f"{k}={v}" for k, v in summary.items()
+    )
     print(f"RESULT gaussians={args.gaussians} threads={args.threads} {fields}")
 
 

@@ -1,12 +1,15 @@
-"""A trained job relit under lightings against Mitsuba's ground truth of its recipe (docs/relighting.md): PSNR (sRGB)
-and mean brightness ratio over a few test views, for each distance factor at which directional lights are probed.
+"""A trained job relit under lightings against Mitsuba's ground truth of its recipe
+(docs/relighting.md): PSNR (sRGB) and mean brightness ratio over a few test views, for each distance
+factor at which directional lights are probed.
 
-    python benchmarks/bench_relight.py JOB --recipe diffuse_shadow --views 5 --factors 1,2,1000 --samples 32
+    python benchmarks/bench_relight.py JOB --recipe diffuse_shadow --views 5 --factors 1,2,1000
+    --samples 32
 
-The job must have been trained on the recipe's scene (e.g. the mini suite's, whose scenes are the built-in recipes
-at their defaults), so that its test frames are the recipe's test cameras. The ground truth is rendered once per
-lighting into ``--cache`` (`olatbench.datasets.synth.lit.render_lit`) and reused. A check of the relighting choices
-on one model, not a benchmark protocol.
+The job must have been trained on the recipe's scene (e.g. the mini suite's, whose scenes are the
+built-in recipes at their defaults), so that its test frames are the recipe's test cameras. The
+ground truth is rendered once per lighting into ``--cache``
+(`olatbench.datasets.synth.lit.render_lit`) and reused. A check of the relighting choices on one
+model, not a benchmark protocol.
 """
 
 from __future__ import annotations
@@ -25,16 +28,37 @@ from olatbench.datasets.synth.recipe import get_recipe
 
 
 def lightings(centre: np.ndarray, samples: int) -> dict[str, dict]:
-    """The lightings compared (the recipes' vertical is +z; 3.2 is the mini rig's irradiance, 80 / 5²)."""
+    """The lightings compared (the recipes' vertical is +z; 3.2 is the mini rig's irradiance, 80 /
+    5²)."""
     e, a = np.radians(40.0), np.radians(135.0)
     towards = np.array([np.cos(e) * np.cos(a), np.cos(e) * np.sin(a), np.sin(e)])
     return {
-        "directional": {"lights": [{"type": "directional", "direction": towards.tolist(), "irradiance": 3.2}]},
-        "point": {"lights": [{"type": "point", "position": (centre + 5.0 * towards).tolist(), "intensity": 80}]},
-        "two points": {"lights": [
-            {"type": "point", "position": (centre + np.array([3.0, -3.0, 3.5])).tolist(), "intensity": 60},
-            {"type": "point", "position": (centre + np.array([-3.5, 1.0, 2.5])).tolist(), "intensity": [50, 40, 30]}]},
-        "studio": {"samples": samples, "lights": [{"type": "envmap", "map": "studio", "up": [0, 0, 1]}]},
+        "directional": {
+            "lights": [{"type": "directional", "direction": towards.tolist(), "irradiance": 3.2}]
+        },
+        "point": {
+            "lights": [
+                {"type": "point", "position": (centre + 5.0 * towards).tolist(), "intensity": 80}
+            ]
+        },
+        "two points": {
+            "lights": [
+                {
+                    "type": "point",
+                    "position": (centre + np.array([3.0, -3.0, 3.5])).tolist(),
+                    "intensity": 60,
+                },
+                {
+                    "type": "point",
+                    "position": (centre + np.array([-3.5, 1.0, 2.5])).tolist(),
+                    "intensity": [50, 40, 30],
+                },
+            ]
+        },
+        "studio": {
+            "samples": samples,
+            "lights": [{"type": "envmap", "map": "studio", "up": [0, 0, 1]}],
+        },
         "sky": {"samples": samples, "lights": [{"type": "envmap", "map": "sky", "up": [0, 0, 1]}]},
     }
 
@@ -64,7 +88,8 @@ def main() -> None:
         if not (folder / "lit.json").exists():
             render_lit(recipe, lighting, folder, progress=False)
         sampled = lighting.sample(SCENE_UP)
-        factors = [float(f) for f in args.factors.split(",")] if sampled.directions else [1.0]  # points: as they are
+        # points: as they are
+        factors = [float(f) for f in args.factors.split(",")] if sampled.directions else [1.0]
         for factor in factors:
             relighter.distant_factor = factor
             psnrs, ratios = [], []
@@ -74,8 +99,11 @@ def main() -> None:
                 relit = relighter.linear(frame.camera, sampled)
                 psnrs.append(-10.0 * np.log10(np.mean((shown(relit) - shown(truth)) ** 2)))
                 ratios.append(relit.mean() / truth.mean())
-            print(f"{name:12s} × {factor:g}: PSNR {np.mean(psnrs):.2f} dB, brightness ratio {np.mean(ratios):.3f} "
-                  f"({len(test)} views, {len(sampled)} lights)", flush=True)
+            print(
+                f"{name:12s} × {factor:g}: PSNR {np.mean(psnrs):.2f} dB, brightness ratio "
+                f"{np.mean(ratios):.3f} ({len(test)} views, {len(sampled)} lights)",
+                flush=True,
+            )
 
 
 if __name__ == "__main__":

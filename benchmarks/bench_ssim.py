@@ -1,11 +1,13 @@
-"""SSIM training-loss benchmark: the C++ kernel (``backend="cpu"``) vs the torch reference, in one process.
+"""SSIM training-loss benchmark: the C++ kernel (``backend="cpu"``) vs the torch reference, in one
+process.
 
-Times ``ssim_loss(pred, gt, variant="3dgs", channels_last=True)`` on float32 (H, W, 3) images, the call of
-``olatbench.methods.training.photometric_loss``: "fwd" is the loss with its autograd graph recorded (pred
-requires grad), "fwd+bwd" adds ``loss.backward()``. Each timing is the fastest of ``--repeats`` runs after a
-warm-up (which also builds the C++ library on first use), the backends alternating run by run. Also checks
-that both backends give the same loss and gradient. Target: fwd+bwd ≥ 5× faster than torch at every size.
-Ends with one ``SUMMARY bench_ssim key=value ...`` line.
+Times ``ssim_loss(pred, gt, variant="3dgs", channels_last=True)`` on float32 (H, W, 3) images, the
+call of ``olatbench.methods.training.photometric_loss``: "fwd" is the loss with its autograd graph
+recorded (pred requires grad), "fwd+bwd" adds ``loss.backward()``. Each timing is the fastest of
+``--repeats`` runs after a warm-up (which also builds the C++ library on first use), the backends
+alternating run by run. Also checks that both backends give the same loss and gradient. Target:
+fwd+bwd ≥ 5× faster than torch at every size. Ends with one ``SUMMARY bench_ssim key=value ...``
+line.
 
 Usage: ``python benchmarks/bench_ssim.py [--sizes 128 256] [--threads 2] [--repeats 30]``
 """
@@ -55,19 +57,27 @@ def max_differences(pred: torch.Tensor, gt: torch.Tensor) -> tuple[float, float]
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     parser.add_argument("--sizes", type=int, nargs="+", default=[128, 256])
     parser.add_argument("--threads", type=int, default=2)
     parser.add_argument("--repeats", type=int, default=30)
     args = parser.parse_args()
     torch.set_num_threads(args.threads)
 
-    print(f"ssim_loss float32 (H, W, 3), channels_last, {args.threads} threads, fastest of {args.repeats} (ms)")
+    print(
+        f"ssim_loss float32 (H, W, 3), channels_last, {args.threads} threads, fastest of "
+        f"{args.repeats} (ms)"
+    )
     table = SpeedupTable("size")
     for size in args.sizes:
         pred, gt = images(size)
-        speedups = table.measure(size, lambda backend, backward, p=pred, g=gt: step(p, g, backend, backward),
-                                 args.repeats)
+        speedups = table.measure(
+            size,
+            lambda backend, backward, p=pred, g=gt: step(p, g, backend, backward),
+            args.repeats,
+        )
         d_loss, d_grad = max_differences(pred, gt)
         table.agree = table.agree and d_loss < 1e-5 and d_grad < 1e-4
         print(f"{size:>6} {speedups}; |Δ loss| {d_loss:.1e}, relative max |Δ grad| {d_grad:.1e}")

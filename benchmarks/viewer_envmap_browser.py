@@ -1,23 +1,25 @@
-"""The viewer's environment-map mode in a real browser: switch to it the way a user does, watch the refinement, move
-the camera during it, let it converge, and take a screenshot.
+"""The viewer's environment-map mode in a real browser: switch to it the way a user does, watch the
+refinement, move the camera during it, let it converge, and take a screenshot.
 
-What: ``olatbench view JOB`` runs as a subprocess (127.0.0.1, a free port, ``--samples K``), a headless Chromium
-(Debian's ``chromium``, software WebGL; ``--headed`` for a real display) opens it, and the script drives the page
-over the Chrome DevTools Protocol with the helpers of ``bench_viewer_browser.py`` beside it: mouse clicks on the
-*lighting* menu and its *environment map* option (and on the *map* menu for ``--map``; ``--exposure`` is
-typed into the exposure box), then it reads the status
-line (``studio · 28/64 samples · 512×263 (refining) in 812 ms``) every 0.1 s and prints each change with its time
-since the click. With ``--move-after N`` it drags the mouse across the canvas (viser orbits the camera) once N
-samples are averaged, and checks that the refinement starts again (the status goes back to fewer samples, or to
-``(moving)``). It waits for ``(converged)`` at ``K/K`` samples and writes a PNG screenshot of the page (``--out``).
+What: ``olatbench view JOB`` runs as a subprocess (127.0.0.1, a free port, ``--samples K``), a
+headless Chromium (Debian's ``chromium``, software WebGL; ``--headed`` for a real display) opens it,
+and the script drives the page over the Chrome DevTools Protocol with the helpers of
+``bench_viewer_browser.py`` beside it: mouse clicks on the *lighting* menu and its *environment map*
+option (and on the *map* menu for ``--map``; ``--exposure`` is typed into the exposure box), then it
+reads the status line (``studio · 28/64 samples · 512×263 (refining) in 812 ms``) every 0.1 s and
+prints each change with its time since the click. With ``--move-after N`` it drags the mouse across
+the canvas (viser orbits the camera) once N samples are averaged, and checks that the refinement
+starts again (the status goes back to fewer samples, or to ``(moving)``). It waits for
+``(converged)`` at ``K/K`` samples and writes a PNG screenshot of the page (``--out``).
 
-Checks (exit 1 and a line saying which failed): the page switched to the environment map, the sample count grew
-pass by pass, the camera move restarted the refinement, the view converged to K samples, and the converged image
-differs from the point-light image shown before the switch (the JPEGs of the two, as the page received them).
+Checks (exit 1 and a line saying which failed): the page switched to the environment map, the sample
+count grew pass by pass, the camera move restarted the refinement, the view converged to K samples,
+and the converged image differs from the point-light image shown before the switch (the JPEGs of the
+two, as the page received them).
 
-Usage: ``python benchmarks/viewer_envmap_browser.py JOB_FOLDER --out shot.png [--samples 64] [--map studio]
-[--exposure -1] [--zoom-out 3] [--move-after 12] [--window 1100 640]`` (needs Debian's ``chromium``:
-``apt-get install chromium``).
+Usage: ``python benchmarks/viewer_envmap_browser.py JOB_FOLDER --out shot.png [--samples 64]
+[--map studio] [--exposure -1] [--zoom-out 3] [--move-after 12] [--window 1100 640]`` (needs
+Debian's ``chromium``: ``apt-get install chromium``).
 """
 
 from __future__ import annotations
@@ -47,7 +49,8 @@ from bench_viewer_browser import (  # the module beside this one
     wait_for,
 )
 
-# The status line's parts: (map, done, total, width, height, state), or the point light's (width, height, state).
+# The status line's parts: (map, done, total, width, height, state), or the point light's
+# (width, height, state).
 STATUS = r"""
 (() => {
   const text = document.body ? document.body.innerText : '';
@@ -59,10 +62,10 @@ STATUS = r"""
   return JSON.stringify(point ? {width: +point[1], height: +point[2], state: point[3]}
                               : {state: null, message: failed ? failed[0] : null});
 })()
-"""
+"""  # noqa: E501
 
-# The centre of the input of the visible GUI control labelled LABEL (an element whose own text is the label, and the
-# nearest input around it), or null.
+# The centre of the input of the visible GUI control labelled LABEL (an element whose own text is
+# the label, and the nearest input around it), or null.
 CONTROL = r"""
 ((label) => {
   const own = (el) => [...el.childNodes].filter((n) => n.nodeType === 3).map((n) => n.textContent).join('').trim();
@@ -79,7 +82,7 @@ CONTROL = r"""
   }
   return null;
 })
-"""
+"""  # noqa: E501
 
 # The centre of the visible dropdown option whose text is TEXT, or null.
 OPTION = r"""
@@ -90,10 +93,12 @@ OPTION = r"""
   }
   return null;
 })
-"""
+"""  # noqa: E501
 
-CANVAS = "(() => { const r = document.querySelector('canvas').getBoundingClientRect(); " \
-         "return JSON.stringify([r.x, r.y, r.width, r.height]); })()"
+CANVAS = (
+    "(() => { const r = document.querySelector('canvas').getBoundingClientRect(); "
+    "return JSON.stringify([r.x, r.y, r.width, r.height]); })()"
+)
 
 
 async def click(devtools: DevTools, x: float, y: float) -> None:
@@ -105,7 +110,9 @@ async def status(devtools: DevTools) -> dict[str, Any]:
     return json.loads(await devtools.evaluate(STATUS))
 
 
-async def until(devtools: DevTools, predicate: Any, timeout: float, what: str, poll: float = 0.1) -> Any:
+async def until(
+    devtools: DevTools, predicate: Any, timeout: float, what: str, poll: float = 0.1
+) -> Any:
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
         found = await predicate()
@@ -117,6 +124,7 @@ async def until(devtools: DevTools, predicate: Any, timeout: float, what: str, p
 
 async def choose(devtools: DevTools, label: str, option: str, timeout: float) -> None:
     """Open the GUI dropdown ``label`` with a click and click its ``option``."""
+
     async def control() -> Any:
         found = await devtools.evaluate(f"({CONTROL})({json.dumps(label)})")
         return json.loads(found) if found else None
@@ -133,19 +141,37 @@ async def choose(devtools: DevTools, label: str, option: str, timeout: float) ->
 
 
 async def type_number(devtools: DevTools, label: str, value: float, timeout: float) -> None:
-    """Type ``value`` into the number box of the GUI control ``label`` (a slider's box) and press Enter."""
+    """Type ``value`` into the number box of the GUI control ``label`` (a slider's box) and press
+    Enter."""
+
     async def control() -> Any:
         found = await devtools.evaluate(f"({CONTROL})({json.dumps(label)})")
         return json.loads(found) if found else None
 
     x, y = await until(devtools, control, timeout, f"the {label!r} box")
-    await devtools.call("Input.dispatchMouseEvent", type="mousePressed", x=x, y=y, button="left", buttons=1,
-                        clickCount=3)  # a triple click selects the number
-    await devtools.call("Input.dispatchMouseEvent", type="mouseReleased", x=x, y=y, button="left", buttons=0,
-                        clickCount=3)
+    await devtools.call(
+        "Input.dispatchMouseEvent",
+        type="mousePressed",
+        x=x,
+        y=y,
+        button="left",
+        buttons=1,
+        clickCount=3,
+    )  # a triple click selects the number
+    await devtools.call(
+        "Input.dispatchMouseEvent",
+        type="mouseReleased",
+        x=x,
+        y=y,
+        button="left",
+        buttons=0,
+        clickCount=3,
+    )
     await devtools.call("Input.insertText", text=f"{value:g}")
     for kind in ("keyDown", "keyUp"):
-        await devtools.call("Input.dispatchKeyEvent", type=kind, key="Enter", code="Enter", windowsVirtualKeyCode=13)
+        await devtools.call(
+            "Input.dispatchKeyEvent", type=kind, key="Enter", code="Enter", windowsVirtualKeyCode=13
+        )
 
 
 async def newest_jpeg(devtools: DevTools) -> bytes:
@@ -153,11 +179,14 @@ async def newest_jpeg(devtools: DevTools) -> bytes:
     return base64.b64decode(await devtools.evaluate(f"__olatLatency.jpeg({index})"))
 
 
-async def drive(devtools: DevTools, url: str, args: argparse.Namespace) -> tuple[list[dict[str, Any]], list[str]]:
+async def drive(
+    devtools: DevTools, url: str, args: argparse.Namespace
+) -> tuple[list[dict[str, Any]], list[str]]:
     """(the status changes, each with ``t`` seconds since the switch; the failed checks)."""
     await devtools.call("Page.enable")
     await devtools.call("Runtime.enable")
-    await devtools.call("Page.addScriptToEvaluateOnNewDocument", source=INSTRUMENT)  # keeps the received JPEGs
+    # keeps the received JPEGs
+    await devtools.call("Page.addScriptToEvaluateOnNewDocument", source=INSTRUMENT)
     await devtools.call("Page.navigate", url=url)
 
     async def point_full() -> bool:
@@ -168,8 +197,14 @@ async def drive(devtools: DevTools, url: str, args: argparse.Namespace) -> tuple
     if args.zoom_out:  # mouse-wheel steps on the canvas: viser's camera backs off
         x, y, width, height = json.loads(await devtools.evaluate(CANVAS))
         for _ in range(args.zoom_out):
-            await devtools.call("Input.dispatchMouseEvent", type="mouseWheel", x=x + 0.3 * width,
-                                y=y + 0.5 * height, deltaX=0, deltaY=100)
+            await devtools.call(
+                "Input.dispatchMouseEvent",
+                type="mouseWheel",
+                x=x + 0.3 * width,
+                y=y + 0.5 * height,
+                deltaX=0,
+                deltaY=100,
+            )
             await asyncio.sleep(0.05)
         await asyncio.sleep(1.0)
         await until(devtools, point_full, args.timeout, "the zoomed-out point-light image")
@@ -193,20 +228,28 @@ async def drive(devtools: DevTools, url: str, args: argparse.Namespace) -> tuple
     deadline = started + args.timeout
     while time.monotonic() < deadline:
         now = await status(devtools)
-        if not changes or {k: v for k, v in now.items() if k != "t"} != {k: v for k, v in changes[-1].items()
-                                                                          if k != "t"}:
+        if not changes or {k: v for k, v in now.items() if k != "t"} != {
+            k: v for k, v in changes[-1].items() if k != "t"
+        }:
             now["t"] = round(time.monotonic() - started, 2)
             changes.append(now)
             print(json.dumps(now), flush=True)
             if now.get("state") is None and now.get("message"):
                 failures.append(f"the tab says: {now['message']}")
                 break
-        one_pass = bool(changes) and [c.get("state") for c in changes if c.get("map") == args.map][:1] == ["converged"]
+        one_pass = bool(changes) and [c.get("state") for c in changes if c.get("map") == args.map][
+            :1
+        ] == ["converged"]
         if one_pass:  # a method that ignores the light (3DGS): one render stands for every sample
             print("converged in one pass: the method ignores the light", flush=True)
             break
-        if (args.move_after and moved_at is None and now.get("state") == "refining"
-                and now.get("map") == args.map and now["done"] >= args.move_after):
+        if (
+            args.move_after
+            and moved_at is None
+            and now.get("state") == "refining"
+            and now.get("map") == args.map
+            and now["done"] >= args.move_after
+        ):
             x, y, width, height = json.loads(await devtools.evaluate(CANVAS))
             cx, cy = x + 0.3 * width, y + 0.5 * height
             await devtools.mouse("mousePressed", cx, cy, buttons=1)
@@ -216,7 +259,11 @@ async def drive(devtools: DevTools, url: str, args: argparse.Namespace) -> tuple
             await devtools.mouse("mouseReleased", cx + 40, cy, buttons=0)
             moved_at = len(changes)
             print(f"dragged the camera at {now['done']}/{now['total']} samples", flush=True)
-        if now.get("state") == "converged" and now.get("map") == args.map and (moved_at or not args.move_after):
+        if (
+            now.get("state") == "converged"
+            and now.get("map") == args.map
+            and (moved_at or not args.move_after)
+        ):
             break
         await asyncio.sleep(0.1)
     env = [c for c in changes if c.get("map") == args.map]
@@ -233,14 +280,19 @@ async def drive(devtools: DevTools, url: str, args: argparse.Namespace) -> tuple
         after = changes[moved_at:] if moved_at is not None else []
         before = changes[moved_at - 1]["done"] if moved_at else None
         if moved_at is None:
-            failures.append(f"never refining at {args.move_after} samples or more: no camera move made")
+            failures.append(
+                f"never refining at {args.move_after} samples or more: no camera move made"
+            )
         elif not any(c.get("state") == "moving" or (c.get("done") or 0) < before for c in after):
             failures.append("the camera move did not restart the refinement")
     await asyncio.sleep(1.0)  # the converged image painted
     if image_difference(point_jpeg, await newest_jpeg(devtools)) < 1.0:
         failures.append("the converged image is the point-light image")
-    await devtools.evaluate("document.querySelectorAll('.mantine-Notification-closeButton')"
-                            ".forEach((b) => b.click())")  # viser's notice that WebGL runs in software
+    await devtools.evaluate(
+        "document.querySelectorAll('.mantine-Notification-closeButton')"
+        # viser's notice that WebGL runs in software
+        ".forEach((b) => b.click())"
+    )
     await asyncio.sleep(0.5)
     shot = await devtools.call("Page.captureScreenshot", format="png")
     args.out.parent.mkdir(parents=True, exist_ok=True)
@@ -255,16 +307,36 @@ def run(args: argparse.Namespace) -> int:
     procs = Processes()
     try:
         load_before = os.getloadavg()
-        command = [sys.executable, "-m", "olatbench", "view", str(job), "--host", HOST, "--port", "0",
-                   "--samples", str(args.samples)]
+        command = [
+            sys.executable,
+            "-m",
+            "olatbench",
+            "view",
+            str(job),
+            "--host",
+            HOST,
+            "--port",
+            "0",
+            "--samples",
+            str(args.samples),
+        ]
         process = procs.start(command, "viewer.log", env={**os.environ, "PYTHONUNBUFFERED": "1"})
 
         def found_url() -> str | None:
-            match = re.search(r"olatbench view: .* at (http://127\.0\.0\.1:\d+)",
-                              (procs.temp / "viewer.log").read_text())
+            match = re.search(
+                r"olatbench view: .* at (http://127\.0\.0\.1:\d+)",
+                (procs.temp / "viewer.log").read_text(),
+            )
             return match.group(1) if match else None
 
-        url = wait_for(found_url, args.startup_timeout, "olatbench view did not start", process, procs, "viewer.log")
+        url = wait_for(
+            found_url,
+            args.startup_timeout,
+            "olatbench view did not start",
+            process,
+            procs,
+            "viewer.log",
+        )
         page = start_chromium(procs, args)
         from websockets.asyncio.client import connect
 
@@ -273,8 +345,12 @@ def run(args: argparse.Namespace) -> int:
                 devtools = DevTools(socket)
                 try:
                     version = (await devtools.call("Browser.getVersion"))["product"]
-                    print(f"job {job}, viewer {url}, {version}, {'headed' if args.headed else 'headless'}, "
-                          f"K = {args.samples}, map {args.map}", flush=True)
+                    print(
+                        f"job {job}, viewer {url}, {version}, "
+                        f"{'headed' if args.headed else 'headless'}, K = {args.samples}, map "
+                        f"{args.map}",
+                        flush=True,
+                    )
                     changes, failures = await drive(devtools, url, args)
                     return changes, failures, version
                 finally:
@@ -286,35 +362,69 @@ def run(args: argparse.Namespace) -> int:
         procs.close()
     env = [c for c in changes if c.get("map") == args.map]
     converged = next((c for c in env if c["state"] == "converged"), None)
-    print(f"screenshot {args.out}; load average {load_before[0]:.1f} before, {load_after[0]:.1f} after, on "
-          f"{os.cpu_count()} CPUs; {version}")
+    print(
+        f"screenshot {args.out}; load average {load_before[0]:.1f} before, {load_after[0]:.1f} "
+        f"after, on {os.cpu_count()} CPUs; {version}"
+    )
     for failure in failures:
         print(f"FAILED: {failure}")
     size = f"{converged['width']}x{converged['height']}" if converged else "none"
-    print(f"SUMMARY viewer_envmap_browser samples={args.samples} map={args.map} changes={len(changes)} "
-          f"converged_s={converged['t'] if converged else 'none'} size={size} "
-          f"status={'ok' if not failures else 'failed'}")
+    print(
+        f"SUMMARY viewer_envmap_browser samples={args.samples} map={args.map} "
+        f"changes={len(changes)} converged_s={converged['t'] if converged else 'none'} "
+        f"size={size} status={'ok' if not failures else 'failed'}"
+    )
     return 1 if failures else 0
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("job", help="a finished job folder")
-    parser.add_argument("--out", type=Path, required=True, help="the screenshot (PNG) of the converged view")
-    parser.add_argument("--samples", type=int, default=64, help="K, passed to olatbench view (default 64)")
-    parser.add_argument("--map", default="studio", help="the map to choose in the tab's menu (default studio)")
-    parser.add_argument("--exposure", type=float, default=0.0, help="typed into the exposure box (stops)")
-    parser.add_argument("--zoom-out", type=int, default=0,
-                        help="mouse-wheel steps (100 px each) on the canvas before the switch (default 0)")
-    parser.add_argument("--move-after", type=int, default=12,
-                        help="drag the camera once this many samples are averaged (0: never; default 12)")
-    parser.add_argument("--timeout", type=float, default=900.0, help="seconds for the view to converge")
-    parser.add_argument("--startup-timeout", type=float, default=300.0,
-                        help="seconds for the viewer to restore the job and show its first image (default 300)")
-    parser.add_argument("--window", type=int, nargs=2, default=(1100, 640), metavar=("W", "H"),
-                        help="browser window size (default 1100 640)")
+    parser.add_argument(
+        "--out", type=Path, required=True, help="the screenshot (PNG) of the converged view"
+    )
+    parser.add_argument(
+        "--samples", type=int, default=64, help="K, passed to olatbench view (default 64)"
+    )
+    parser.add_argument(
+        "--map", default="studio", help="the map to choose in the tab's menu (default studio)"
+    )
+    parser.add_argument(
+        "--exposure", type=float, default=0.0, help="typed into the exposure box (stops)"
+    )
+    parser.add_argument(
+        "--zoom-out",
+        type=int,
+        default=0,
+        help="mouse-wheel steps (100 px each) on the canvas before the switch (default 0)",
+    )
+    parser.add_argument(
+        "--move-after",
+        type=int,
+        default=12,
+        help="drag the camera once this many samples are averaged (0: never; default 12)",
+    )
+    parser.add_argument(
+        "--timeout", type=float, default=900.0, help="seconds for the view to converge"
+    )
+    parser.add_argument(
+        "--startup-timeout",
+        type=float,
+        default=300.0,
+        help="seconds for the viewer to restore the job and show its first image (default 300)",
+    )
+    parser.add_argument(
+        "--window",
+        type=int,
+        nargs=2,
+        default=(1100, 640),
+        metavar=("W", "H"),
+        help="browser window size (default 1100 640)",
+    )
     parser.add_argument("--chromium", help="the browser executable (default: chromium on PATH)")
-    parser.add_argument("--headed", action="store_true", help="a visible window instead of headless")
+    parser.add_argument(
+        "--headed", action="store_true", help="a visible window instead of headless"
+    )
     parser.add_argument("--chromium-args", default="", help="extra chromium flags, one string")
     args = parser.parse_args()
     signal.signal(signal.SIGTERM, signal.default_int_handler)

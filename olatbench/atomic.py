@@ -1,7 +1,8 @@
 """Atomic file writes: a result is either absent or complete, never half-written.
 
-A write that the file system refuses (a read-only folder, a full disk, no permission) raises `WriteError`: an
-`OSError` whose message names the file and the reason, with the file as it was before (or absent).
+A write that the file system refuses (a read-only folder, a full disk, no permission) raises
+`WriteError`: an `OSError` whose message names the file and the reason, with the file as it was
+before (or absent).
 """
 
 from __future__ import annotations
@@ -16,8 +17,8 @@ from typing import Any
 
 
 class WriteError(OSError):
-    """A file that could not be written: ``str()`` is one line naming the file and the reason; ``errno`` is the
-    cause's (``errno.EROFS``, ``errno.ENOSPC``, ...)."""
+    """A file that could not be written: ``str()`` is one line naming the file and the reason;
+    ``errno`` is the cause's (``errno.EROFS``, ``errno.ENOSPC``, ...)."""
 
     def __init__(self, path: str | Path, cause: OSError) -> None:
         super().__init__(cause.errno, cause.strerror or str(cause), str(path))
@@ -37,13 +38,15 @@ def _umask() -> int:
 def atomic_path(path: str | Path) -> Iterator[Path]:
     """Yield a temporary path beside ``path`` (same suffix); rename it onto ``path`` on success.
 
-    On an exception the temporary file is removed and ``path`` is left as it was; an `OSError` of the file system
-    (read-only, full, not permitted) becomes a `WriteError` naming ``path``.
+    On an exception the temporary file is removed and ``path`` is left as it was; an `OSError` of
+    the file system (read-only, full, not permitted) becomes a `WriteError` naming ``path``.
     """
     path = Path(path)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        handle, temporary = tempfile.mkstemp(prefix=f".{path.name}.", suffix=path.suffix or ".tmp", dir=path.parent)
+        handle, temporary = tempfile.mkstemp(
+            prefix=f".{path.name}.", suffix=path.suffix or ".tmp", dir=path.parent
+        )
         os.close(handle)
     except WriteError:
         raise
@@ -51,7 +54,8 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
         raise WriteError(path, error) from error
     try:
         yield Path(temporary)
-        os.chmod(temporary, 0o666 & ~_umask())  # mkstemp makes owner-only files; results are for everyone
+        # mkstemp makes owner-only files; results are for everyone
+        os.chmod(temporary, 0o666 & ~_umask())
         os.replace(temporary, path)
     except WriteError:
         raise
@@ -78,4 +82,6 @@ def write_text(path: str | Path, text: str) -> Path:
 
 def write_json(path: str | Path, data: Any, indent: int = 2) -> Path:
     """Write ``data`` as JSON atomically; NaN/Inf are refused (they are not JSON)."""
-    return write_text(path, json.dumps(data, indent=indent, allow_nan=False, sort_keys=False) + "\n")
+    return write_text(
+        path, json.dumps(data, indent=indent, allow_nan=False, sort_keys=False) + "\n"
+    )

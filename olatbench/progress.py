@@ -1,13 +1,14 @@
 """The one progress bar every verb uses: tqdm on a terminal, plain lines everywhere else.
 
-On a terminal `progress_bar` is tqdm (``tqdm.auto``), redrawn in place with ``\\r`` and, for nested bars
-(``position`` > 0), cursor-movement codes. Written into a file, a pipe, a Slurm log or a CI log those codes turn
-into clutter, so when the stream is not a terminal `progress_bar` returns a `PlainProgress` instead: it writes
-whole lines only (``desc: 30/100 step (30%) 0:12 elapsed, loss=0.12``): one at the start and a summary at the end;
-in between, for work long enough to need it, a line when another tenth is done and ``interval`` seconds have passed
-since the last line (so at most one per 10 %; a bar without a total: one every ``interval`` seconds). A verb that
-takes seconds (validating 36 frames) writes two lines. `progress_write` prints a message between the bars in
-either mode.
+On a terminal `progress_bar` is tqdm (``tqdm.auto``), redrawn in place with ``\\r`` and, for nested
+bars (``position`` > 0), cursor-movement codes. Written into a file, a pipe, a Slurm log or a CI log
+those codes turn into clutter, so when the stream is not a terminal `progress_bar` returns a
+`PlainProgress` instead: it writes whole lines only (``desc: 30/100 step (30%) 0:12 elapsed,
+loss=0.12``): one at the start and a summary at the end; in between, for work long enough to need
+it, a line when another tenth is done and ``interval`` seconds have passed since the last line (so
+at most one per 10 %; a bar without a total: one every ``interval`` seconds). A verb that takes
+seconds (validating 36 frames) writes two lines. `progress_write` prints a message between the bars
+in either mode.
 """
 
 from __future__ import annotations
@@ -18,7 +19,8 @@ import time
 from collections.abc import Iterable, Iterator, Mapping
 from typing import IO, Any
 
-PLAIN_INTERVAL_SECONDS = 60.0  # between the first and last plain lines, at least this long between two lines
+# between the first and last plain lines, at least this long between two lines
+PLAIN_INTERVAL_SECONDS = 60.0
 
 
 def _is_terminal(stream: IO[str] | None) -> bool:
@@ -36,14 +38,25 @@ def _clock(seconds: float) -> str:
 
 
 class PlainProgress:
-    """A progress bar as plain lines (no ``\\r``, no cursor codes): the part of tqdm's interface the project uses
-    (iteration, ``update``, ``set_postfix``, ``set_postfix_str``, ``close``, context manager).
+    """A progress bar as plain lines (no ``\\r``, no cursor codes): the part of tqdm's interface the
+    project uses (iteration, ``update``, ``set_postfix``, ``set_postfix_str``, ``close``, context
+    manager).
 
     Accepts and ignores tqdm's layout arguments (``position``, ``leave``, ``unit_scale``, …)."""
 
-    def __init__(self, iterable: Iterable[Any] | None = None, *, total: float | None = None, desc: str | None = None,
-                 unit: str = "it", initial: float = 0, disable: bool = False, file: IO[str] | None = None,
-                 interval: float = PLAIN_INTERVAL_SECONDS, **ignored: Any) -> None:
+    def __init__(
+        self,
+        iterable: Iterable[Any] | None = None,
+        *,
+        total: float | None = None,
+        desc: str | None = None,
+        unit: str = "it",
+        initial: float = 0,
+        disable: bool = False,
+        file: IO[str] | None = None,
+        interval: float = PLAIN_INTERVAL_SECONDS,
+        **ignored: Any,
+    ) -> None:
         self.iterable = iterable
         if total is None and iterable is not None and hasattr(iterable, "__len__"):
             total = len(iterable)  # type: ignore[arg-type]
@@ -60,7 +73,8 @@ class PlainProgress:
         if not disable:
             self._write_line()
 
-    # ---------------------------------------------------------------------------------------- tqdm's interface
+    # ----------------------------------------------------------------------------------------
+    # tqdm's interface
     def __iter__(self) -> Iterator[Any]:
         if self.iterable is None:
             raise TypeError("this progress bar has no iterable")
@@ -87,7 +101,9 @@ class PlainProgress:
             if not self.total or int(10 * self.n / self.total) > self._last_tenth:
                 self._write_line()
 
-    def set_postfix(self, values: Mapping[str, Any] | None = None, refresh: bool = True, **kwargs: Any) -> None:
+    def set_postfix(
+        self, values: Mapping[str, Any] | None = None, refresh: bool = True, **kwargs: Any
+    ) -> None:
         items = {**(values or {}), **kwargs}
         self.postfix = ", ".join(f"{key}={value}" for key, value in items.items())
 
@@ -105,13 +121,17 @@ class PlainProgress:
         if not self.disable and self.n != self._written_n:  # the last state, unless already written
             self._write_line()
 
-    # ---------------------------------------------------------------------------------------------- lines
+    # ----------------------------------------------------------------------------------------------
+    # lines
     def line(self) -> str:
-        """The text of the current state, e.g. ``train: 30/100 step (30%) 0:12 elapsed, loss=0.12``."""
+        """The text of the current state, e.g. ``train: 30/100 step (30%) 0:12 elapsed,
+        loss=0.12``."""
         count = f"{self.n:g}/{self.total:g}" if self.total else f"{self.n:g}"
         share = f" ({100 * self.n / self.total:.0f}%)" if self.total else ""
-        text = f"{self.desc + ': ' if self.desc else ''}{count} {self.unit}{share} " \
-               f"{_clock(time.monotonic() - self.started)} elapsed"
+        text = (
+            f"{self.desc + ': ' if self.desc else ''}{count} {self.unit}{share} "
+            f"{_clock(time.monotonic() - self.started)} elapsed"
+        )
         return text + (f", {self.postfix}" if self.postfix else "")
 
     def _write_line(self) -> None:
@@ -123,10 +143,12 @@ class PlainProgress:
         self._written_n = self.n
 
 
-def progress_bar(iterable: Iterable[Any] | None = None, *, file: IO[str] | None = None, **kwargs: Any) -> Any:
-    """A progress bar over ``iterable`` (or updated by hand): tqdm's arguments (``total``, ``desc``, ``unit``,
-    ``position``, ``leave``, ``disable``, …). tqdm when ``file`` (default: standard error) is a terminal, else
-    `PlainProgress`."""
+def progress_bar(
+    iterable: Iterable[Any] | None = None, *, file: IO[str] | None = None, **kwargs: Any
+) -> Any:
+    """A progress bar over ``iterable`` (or updated by hand): tqdm's arguments (``total``, ``desc``,
+    ``unit``, ``position``, ``leave``, ``disable``, …). tqdm when ``file`` (default: standard error)
+    is a terminal, else `PlainProgress`."""
     stream = file if file is not None else sys.stderr
     if _is_terminal(stream):
         from tqdm.auto import tqdm
@@ -136,7 +158,8 @@ def progress_bar(iterable: Iterable[Any] | None = None, *, file: IO[str] | None 
 
 
 def progress_write(text: str, file: IO[str] | None = None) -> None:
-    """Print ``text`` as a line of its own between progress bars (tqdm's ``write`` on a terminal)."""
+    """Print ``text`` as a line of its own between progress bars
+    (tqdm's ``write`` on a terminal)."""
     stream = file if file is not None else sys.stderr
     if _is_terminal(stream):
         from tqdm.auto import tqdm

@@ -1,6 +1,6 @@
-"""A bounded local HTTP server for download tests: range requests, a Hugging Face-like tree API paginated
-like the Hub's (``Link: <...?cursor=N>; rel="next"``), and injectable faults (a connection dropped mid-file).
-Listens on 127.0.0.1 only."""
+"""A bounded local HTTP server for download tests: range requests, a Hugging Face-like tree API
+paginated like the Hub's (``Link: <...?cursor=N>; rel="next"``), and injectable faults
+(a connection dropped mid-file). Listens on 127.0.0.1 only."""
 
 from __future__ import annotations
 
@@ -19,12 +19,16 @@ class ServerState:
     """Files served (URL path -> bytes), the API listings, faults to inject, and a request log."""
 
     files: dict[str, bytes] = field(default_factory=dict)
-    listings: dict[str, list[dict] | dict] = field(default_factory=dict)  # JSON answers; lists are paged
-    drop_after: dict[str, int] = field(default_factory=dict)  # path -> bytes sent before dropping (once)
+    # JSON answers; lists are paged
+    listings: dict[str, list[dict] | dict] = field(default_factory=dict)
+    # path -> bytes sent before dropping (once)
+    drop_after: dict[str, int] = field(default_factory=dict)
     ignore_range: bool = False
-    page_size: int | None = None  # listings longer than this are served in pages linked by a Link header
+    # listings longer than this are served in pages linked by a Link header
+    page_size: int | None = None
     requests: list[tuple[str, str | None]] = field(default_factory=list)
-    authorization: list[tuple[str, str | None]] = field(default_factory=list)  # path, Authorization header
+    # path, Authorization header
+    authorization: list[tuple[str, str | None]] = field(default_factory=list)
 
 
 def _handler(state: ServerState):
@@ -43,7 +47,11 @@ def _handler(state: ServerState):
                 items = state.listings[path]
                 params = urllib.parse.parse_qs(query)
                 start = int(params.get("cursor", ["0"])[0])
-                end = len(items) if state.page_size is None or not isinstance(items, list) else start + state.page_size
+                end = (
+                    len(items)
+                    if state.page_size is None or not isinstance(items, list)
+                    else start + state.page_size
+                )
                 body = json.dumps(items[start:end] if isinstance(items, list) else items).encode()
                 self.send_response(200)
                 if end < len(items):

@@ -1,9 +1,11 @@
-"""A similarity-transformed copy of a NeRF-style scene folder (NRHints, GS³), written with plain numpy and json.
+"""A similarity-transformed copy of a NeRF-style scene folder (NRHints, GS³), written with plain
+numpy and json.
 
-The copy has the same images; every camera pose (``transform_matrix``, camera-to-world in OpenGL axes: the move
-acts on the left, so the axes convention does not matter), light position (``pl_pos``) and near/far distance is
-moved by ``x -> scale · R x + t``, and light intensities (``pl_intensity``) are × scale², so the irradiance at every
-moved point is the original's: the same scene in another world frame and unit of length.
+The copy has the same images; every camera pose (``transform_matrix``, camera-to-world in OpenGL
+axes: the move acts on the left, so the axes convention does not matter), light position
+(``pl_pos``) and near/far distance is moved by ``x -> scale · R x + t``, and light intensities
+(``pl_intensity``) are × scale², so the irradiance at every moved point is the original's: the same
+scene in another world frame and unit of length.
 """
 
 from __future__ import annotations
@@ -22,7 +24,8 @@ def rotation(axis, angle: float) -> np.ndarray:
     return np.eye(3) + np.sin(angle) * cross + (1 - np.cos(angle)) * cross @ cross
 
 
-#: s = 10, a rotation and a translation of ~60 units (the test scenes' objects have radius ≲ 1, cameras at 4).
+#: s = 10, a rotation and a translation of ~60 units (the test scenes' objects have radius ≲ 1,
+#: cameras at 4).
 SCALE, ROTATION, TRANSLATION = 10.0, rotation([1.0, 2.0, 3.0], 1.1), np.array([30.0, -50.0, 20.0])
 
 
@@ -31,7 +34,8 @@ def move_point(point) -> np.ndarray:
 
 
 def move_scene(source: Path, target: Path) -> Path:
-    """Copy the scene folder ``source`` to ``target`` with every ``transforms_*.json`` moved (module docstring)."""
+    """Copy the scene folder ``source`` to ``target`` with every ``transforms_*.json`` moved
+    (module docstring)."""
     shutil.copytree(source, target)
     for path in Path(target).glob("transforms_*.json"):
         meta = json.loads(path.read_text())
@@ -45,6 +49,8 @@ def move_scene(source: Path, target: Path) -> Path:
             frame["transform_matrix"] = c2w.tolist()
             frame["pl_pos"] = move_point(frame["pl_pos"]).tolist()
             if "pl_intensity" in frame:
-                frame["pl_intensity"] = (np.asarray(frame["pl_intensity"], np.float64) * SCALE**2).tolist()
+                frame["pl_intensity"] = (
+                    np.asarray(frame["pl_intensity"], np.float64) * SCALE**2
+                ).tolist()
         path.write_text(json.dumps(meta, indent=1))
     return Path(target)

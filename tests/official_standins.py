@@ -1,20 +1,23 @@
-"""Stand-in checkouts of the official implementations, for tests: tiny script trees that obey the same command
-lines as the real code, read the converted scene exactly where the official loader reads it, and write renders
-where and how the official render script writes them. (Written from the behaviour recorded, with file and line,
-in `olatbench.methods.official.specs`, not copied from the authors' code.) Behaviours that decide whether olatbench
-scores the right images are reproduced: SSD-GS / GS³ ``train.py`` with ``--cam_opt``/``--pl_opt`` shuffles the test
-cameras with ``random`` seeded to 0 (after the train cameras) and saves them in that order to
-``point_cloud/iteration_<it>/transforms_test.json`` (``file_path`` = image stem, ``img_path``, ``R_opt``/``T_opt``),
-which ``render.py --opt_pose`` renders in its order; the NRHints parser takes one camera model (top-level
-intrinsics, ``camera_near``/``camera_far`` defaulting to 3 and 10) from the first split's file and prints it.
+"""Stand-in checkouts of the official implementations, for tests: tiny script trees that obey the
+same command lines as the real code, read the converted scene exactly where the official loader
+reads it, and write renders where and how the official render script writes them. (Written from the
+behaviour recorded, with file and line, in `olatbench.methods.official.specs`, not copied from the
+authors' code.) Behaviours that decide whether olatbench scores the right images are reproduced:
+SSD-GS / GS³ ``train.py`` with ``--cam_opt``/``--pl_opt`` shuffles the test cameras with ``random``
+seeded to 0 (after the train cameras) and saves them in that order to
+``point_cloud/iteration_<it>/transforms_test.json`` (``file_path`` = image stem, ``img_path``,
+``R_opt``/``T_opt``), which ``render.py --opt_pose`` renders in its order; the NRHints parser takes
+one camera model (top-level intrinsics, ``camera_near``/``camera_far`` defaulting to 3 and 10) from
+the first split's file and prints it.
 
-Their "model" is perfect: the render of a test frame is its ground truth composited on the background (as the
-official loaders composite), so a correctly mapped and decoded render scores far above a mismatched one.
+Their "model" is perfect: the render of a test frame is its ground truth composited on the
+background (as the official loaders composite), so a correctly mapped and decoded render scores far
+above a mismatched one.
 
-Control files in the checkout: ``FAIL`` makes the train step print 40 lines and exit 3 (when its text, maybe
-empty, is part of the command line); ``SLOW`` makes it write
-its pid to ``started`` and sleep ``SLOW``'s number of seconds; ``SHIFT`` makes the render step write frame i+1's
-image as render i (a wrong frame mapping).
+Control files in the checkout: ``FAIL`` makes the train step print 40 lines and exit 3 (when its
+text, maybe empty, is part of the command line); ``SLOW`` makes it write its pid to ``started`` and
+sleep ``SLOW``'s number of seconds; ``SHIFT`` makes the render step write frame i+1's image as
+render i (a wrong frame mapping).
 """
 
 from __future__ import annotations
@@ -87,10 +90,11 @@ LIB = textwrap.dedent('''
                              "T_opt": w2c[:3, 3].tolist(), "pl_pos": frame["pl_pos"]})
             random.shuffle(cams)
             (out / f"transforms_{split}.json").write_text(json.dumps({"frames": cams}))
-''')
+''')  # noqa: E501
 
-# GS³ / SSD-GS: 3DGS-style train.py (-s, -m, flags) and render.py (-m, reads the model's stored arguments).
-GAUSSIAN_TRAIN = textwrap.dedent('''
+# GS³ / SSD-GS: 3DGS-style train.py (-s, -m, flags) and render.py (-m, reads the model's stored
+# arguments).
+GAUSSIAN_TRAIN = textwrap.dedent("""
     import argparse, json
     from pathlib import Path
     import standin_lib as lib
@@ -115,9 +119,9 @@ GAUSSIAN_TRAIN = textwrap.dedent('''
     if getattr(args, "cam_opt", False) or getattr(args, "pl_opt", False):  # what render.py --opt_pose reads
         lib.save_refined_cameras(args.source_path, model, args.iterations, ext)
     print(f"trained {{args.iterations}} iterations on {{args.source_path}}")
-''')
+""")  # noqa: E501
 
-GAUSSIAN_RENDER = textwrap.dedent('''
+GAUSSIAN_RENDER = textwrap.dedent("""
     import argparse, json
     from pathlib import Path
     import standin_lib as lib
@@ -138,23 +142,50 @@ GAUSSIAN_RENDER = textwrap.dedent('''
     lib.write_renders(source, out, "{index:05d}.png", ".exr" if trained.get("hdr") else ".png",
                       trained.get("white_background", False), args.gamma)
     print(f"rendered to {out}")
-''')
+""")
 
-GS3_FLAGS = ["--view_num", "--iterations", "--asg_freeze_step", "--spcular_freeze_step", "--fit_linear_step",
-             "--asg_lr_freeze_step", "--asg_lr_max_steps", "--asg_lr_init", "--asg_lr_final",
-             "--local_q_lr_freeze_step", "--local_q_lr_init", "--local_q_lr_final", "--local_q_lr_max_steps",
-             "--neural_phasefunc_lr_init", "--neural_phasefunc_lr_final", "--freeze_phasefunc_steps",
-             "--neural_phasefunc_lr_max_steps", "--unfreeze_iterations", "--save_iterations",
-             "--checkpoint_iterations", "--position_lr_max_steps", "--densify_until_iter", "--data_device",
-             "--densify_grad_threshold"]
-GS3_SWITCHES = ["--use_nerual_phasefunc", "--eval", "--hdr", "--white_background", "--cam_opt", "--pl_opt"]
+GS3_FLAGS = [
+    "--view_num",
+    "--iterations",
+    "--asg_freeze_step",
+    "--spcular_freeze_step",
+    "--fit_linear_step",
+    "--asg_lr_freeze_step",
+    "--asg_lr_max_steps",
+    "--asg_lr_init",
+    "--asg_lr_final",
+    "--local_q_lr_freeze_step",
+    "--local_q_lr_init",
+    "--local_q_lr_final",
+    "--local_q_lr_max_steps",
+    "--neural_phasefunc_lr_init",
+    "--neural_phasefunc_lr_final",
+    "--freeze_phasefunc_steps",
+    "--neural_phasefunc_lr_max_steps",
+    "--unfreeze_iterations",
+    "--save_iterations",
+    "--checkpoint_iterations",
+    "--position_lr_max_steps",
+    "--densify_until_iter",
+    "--data_device",
+    "--densify_grad_threshold",
+]
+GS3_SWITCHES = [
+    "--use_nerual_phasefunc",
+    "--eval",
+    "--hdr",
+    "--white_background",
+    "--cam_opt",
+    "--pl_opt",
+]
 SSDGS_FLAGS = [name.replace("spcular", "specular") for name in GS3_FLAGS]
 SSDGS_SWITCHES = ["--use_nerual_phasefunc", "--eval", "--white_background", "--cam_opt", "--pl_opt"]
 
-# RNG: train.py runs stage 1 (no --load_pc) or stage 2 (--load_pc <model>/chkpnt<it>.pth, which must exist) and
-# saves <model>/chkpnt<iterations>.pth (train.py:186); render.py reads the arguments train.py stored (cfg_args,
-# render.py:335) and renders the test frames in the loader's order. Each call is appended to calls.txt.
-RNG_TRAIN = textwrap.dedent('''
+# RNG: train.py runs stage 1 (no --load_pc) or stage 2 (--load_pc <model>/chkpnt<it>.pth, which must
+# exist) and saves <model>/chkpnt<iterations>.pth (train.py:186); render.py reads the arguments
+# train.py stored (cfg_args, render.py:335) and renders the test frames in the loader's order. Each
+# call is appended to calls.txt.
+RNG_TRAIN = textwrap.dedent("""
     import argparse, json
     from pathlib import Path
     import standin_lib as lib
@@ -180,9 +211,9 @@ RNG_TRAIN = textwrap.dedent('''
     (model / "cfg.json").write_text(json.dumps(vars(args)))
     (model / f"chkpnt{{args.iterations}}.pth").write_text(args.iterations)
     print(f"trained to {{args.iterations}} on {{args.source_path}}")
-''')
+""")  # noqa: E501
 
-RNG_RENDER = textwrap.dedent('''
+RNG_RENDER = textwrap.dedent("""
     import argparse, json
     from pathlib import Path
     import standin_lib as lib
@@ -206,16 +237,37 @@ RNG_RENDER = textwrap.dedent('''
     lib.write_renders(trained["source_path"], out.parent / "gt", "{index:05d}.png", ".png",
                       trained["white_background"])
     print(f"rendered to {out}")
-''')
-RNG_FLAGS = ["--iterations", "--save_iterations", "--densify_until_iter", "--densify_from_iter",
-             "--opacity_reset_interval", "--position_lr_max_steps", "--in_channels", "--max_training_images",
-             "--max_reso", "--loss", "--load_pc", "--depth_mlp_modifier", "--encoding_levels_each",
-             "--encoding_levels_shadow", "--crop_pc"]
-RNG_SWITCHES = ["--eval", "--json", "--color_mlp", "--defer_shading", "--shadow_map", "--shadow_grad", "--depth_mlp",
-                "--white_background"]
+""")  # noqa: E501
+RNG_FLAGS = [
+    "--iterations",
+    "--save_iterations",
+    "--densify_until_iter",
+    "--densify_from_iter",
+    "--opacity_reset_interval",
+    "--position_lr_max_steps",
+    "--in_channels",
+    "--max_training_images",
+    "--max_reso",
+    "--loss",
+    "--load_pc",
+    "--depth_mlp_modifier",
+    "--encoding_levels_each",
+    "--encoding_levels_shadow",
+    "--crop_pc",
+]
+RNG_SWITCHES = [
+    "--eval",
+    "--json",
+    "--color_mlp",
+    "--defer_shading",
+    "--shadow_map",
+    "--shadow_grad",
+    "--depth_mlp",
+    "--white_background",
+]
 
 # NRHints: main.py <tyro sub-command> --config.<a>.<b> VALUE ...; renders after training.
-NRHINTS_MAIN = textwrap.dedent('''
+NRHINTS_MAIN = textwrap.dedent("""
     import json, sys
     from pathlib import Path
     import standin_lib as lib
@@ -241,10 +293,11 @@ NRHINTS_MAIN = textwrap.dedent('''
     log_dir = Path(config["--config.base-dir"]) / config["--config.exp-name"] / config["--config.scene-name"]
     lib.write_renders(scene, log_dir / "test_views" / f"step_{end:07d}", "rgb_{index:03d}.png", ".png", white)
     print(f"trained to {end} and rendered into {log_dir}")
-''')
+""")  # noqa: E501
 
-# A container runtime stub: `<stub> run [options] IMAGE python ARGS...` runs ARGS with this interpreter in -w.
-RUNTIME_STUB = textwrap.dedent('''
+# A container runtime stub: `<stub> run [options] IMAGE python ARGS...` runs ARGS with this
+# interpreter in -w.
+RUNTIME_STUB = textwrap.dedent("""
     import os, sys
     args = sys.argv[1:]
     assert args[0] in ("run", "exec"), args
@@ -256,7 +309,7 @@ RUNTIME_STUB = textwrap.dedent('''
         log.write(" ".join(args) + "\\n")
     os.chdir(workdir)
     os.execv(sys.executable, [sys.executable, *command[1:]])
-''')
+""")  # noqa: E501
 
 
 def _write(path: Path, text: str) -> None:
@@ -265,9 +318,8 @@ def _write(path: Path, text: str) -> None:
 
 
 def write_checkout(root: Path, code: str, git: bool = False) -> Path:
-    """A stand-in checkout of ``code`` ("gs3-official", "ssdgs-official", "nrhints-official" or "rng-official") at
-    ``root``;
-    ``git`` makes it a git repository with one commit."""
+    """A stand-in checkout of ``code`` ("gs3-official", "ssdgs-official", "nrhints-official" or
+    "rng-official") at ``root``; ``git`` makes it a git repository with one commit."""
     root.mkdir(parents=True, exist_ok=True)
     _write(root / "standin_lib.py", LIB)
     if code == "nrhints-official":
@@ -276,19 +328,29 @@ def write_checkout(root: Path, code: str, git: bool = False) -> Path:
         _write(root / "train.py", RNG_TRAIN.format(flags=RNG_FLAGS, switches=RNG_SWITCHES))
         _write(root / "render.py", RNG_RENDER)
     else:
-        flags, switches = ((GS3_FLAGS, GS3_SWITCHES) if code == "gs3-official" else (SSDGS_FLAGS, SSDGS_SWITCHES))
+        flags, switches = (
+            (GS3_FLAGS, GS3_SWITCHES) if code == "gs3-official" else (SSDGS_FLAGS, SSDGS_SWITCHES)
+        )
         _write(root / "train.py", GAUSSIAN_TRAIN.format(flags=flags, switches=switches))
         _write(root / "render.py", GAUSSIAN_RENDER)
     if git:
-        env = {**os.environ, "GIT_AUTHOR_NAME": "t", "GIT_AUTHOR_EMAIL": "t@t", "GIT_COMMITTER_NAME": "t",
-               "GIT_COMMITTER_EMAIL": "t@t"}
+        env = {
+            **os.environ,
+            "GIT_AUTHOR_NAME": "t",
+            "GIT_AUTHOR_EMAIL": "t@t",
+            "GIT_COMMITTER_NAME": "t",
+            "GIT_COMMITTER_EMAIL": "t@t",
+        }
         for argv in (["init", "-q"], ["add", "."], ["commit", "-q", "-m", "stand-in"]):
-            subprocess.run(["git", "-C", str(root), *argv], check=True, env=env, capture_output=True)
+            subprocess.run(
+                ["git", "-C", str(root), *argv], check=True, env=env, capture_output=True
+            )
     return root
 
 
 def write_runtime_stub(path: Path) -> Path:
-    """An executable container-runtime stub (see `RUNTIME_STUB`); its calls are appended to invocations.txt."""
+    """An executable container-runtime stub (see `RUNTIME_STUB`); its calls are appended to
+    invocations.txt."""
     _write(path, f"#!{sys.executable}\n" + RUNTIME_STUB)
     path.chmod(path.stat().st_mode | stat.S_IXUSR)
     return path

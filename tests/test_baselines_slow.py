@@ -1,4 +1,5 @@
-"""3DGS cannot follow a changing light: on a mini scene its novel-light PSNR stays below SSD-GS's (slow)."""
+"""3DGS cannot follow a changing light: on a mini scene its novel-light PSNR stays below SSD-GS's
+(slow)."""
 
 from __future__ import annotations
 
@@ -16,10 +17,18 @@ ITERATIONS = 600
 
 def scene_views(scene, split: str) -> Views:
     frames = scene.split(split)
-    images = np.stack([f.load(colourspace="srgb", background="official").rgb for f in frames]).astype(np.float32)
-    return Views(cameras=[f.camera for f in frames], lights=[f.light for f in frames], images=images,
-                 frame_ids=[f.frame_id for f in frames], colourspace="srgb",
-                 background=np.asarray(scene.background, dtype=np.float32), scene_name=scene.name)
+    images = np.stack(
+        [f.load(colourspace="srgb", background="official").rgb for f in frames]
+    ).astype(np.float32)
+    return Views(
+        cameras=[f.camera for f in frames],
+        lights=[f.light for f in frames],
+        images=images,
+        frame_ids=[f.frame_id for f in frames],
+        colourspace="srgb",
+        background=np.asarray(scene.background, dtype=np.float32),
+        scene_name=scene.name,
+    )
 
 
 def novel_light_psnr(method_class, train: Views, test: Views) -> float:
@@ -27,9 +36,10 @@ def novel_light_psnr(method_class, train: Views, test: Views) -> float:
     method.setup(train, "cpu", 0)
     for step in range(ITERATIONS):
         method.train_step(step)
-    renders = [method.render(c, lt)["rgb"].numpy() for c, lt in zip(test.cameras, test.lights, strict=True)]
+    renders = [
+        method.render(c, lt)["rgb"].numpy() for c, lt in zip(test.cameras, test.lights, strict=True)
+    ]
     return float(np.mean([psnr(r, gt) for r, gt in zip(renders, test.images, strict=True)]))
-
 
 
 @pytest.mark.slow
@@ -40,5 +50,8 @@ def test_3dgs_stays_below_ssdgs_on_novel_lights() -> None:
     train, test = scene_views(scene, "train"), scene_views(scene, "test")
     baseline = novel_light_psnr(GaussianSplatting3D, train, test)
     reference = novel_light_psnr(SSDGS, train, test)
-    print(f"novel-light PSNR after {ITERATIONS} steps: 3DGS {baseline:.2f} dB, SSD-GS {reference:.2f} dB")
+    print(
+        f"novel-light PSNR after {ITERATIONS} steps: 3DGS {baseline:.2f} dB, SSD-GS "
+        f"{reference:.2f} dB"
+    )
     assert baseline < reference - 1.0

@@ -38,18 +38,23 @@ def test_ids_are_stable_and_ignore_location_device_and_cadence(data, tmp_path):
     assert len(set(ids(first))) == 2
     copy = tmp_path / "elsewhere" / "copy"
     shutil.copytree(data, copy)  # new paths and mtimes, same bytes
-    options = PlanOptions(device="meta", checkpoint_every=3, keep_checkpoints=5, save_components=True)
+    options = PlanOptions(
+        device="meta", checkpoint_every=3, keep_checkpoints=5, save_components=True
+    )
     second = plan(copy, tmp_path / "other-runs", options=options)
     assert ids(second) == ids(first)
 
 
 def test_ids_are_stable_across_processes(data, tmp_path):
-    script = (f"import sys; sys.path.insert(0, {str(support.TESTS)!r}); import test_runner_support as s; "
-              f"from olatbench.bench.plan import make_plan; "
-              f"print(' '.join(j.id for j in make_plan('trivial', s.tiny_suite(), 'x', data_root={str(data)!r}, "
-              f"progress=False)))")
+    script = (
+        f"import sys; sys.path.insert(0, {str(support.TESTS)!r}); import test_runner_support as s; "
+        "from olatbench.bench.plan import make_plan; print(' '.join(j.id for j in "
+        f"make_plan('trivial', s.tiny_suite(), 'x', data_root={str(data)!r}, progress=False)))"
+    )
     env = {**os.environ, "PYTHONHASHSEED": "123"}
-    output = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env, check=True)
+    output = subprocess.run(
+        [sys.executable, "-c", script], capture_output=True, text=True, env=env, check=True
+    )
     assert output.stdout.split() == ids(plan(data, tmp_path / "runs"))
 
 
@@ -60,7 +65,9 @@ def test_ids_change_with_every_result_deciding_input(data, tmp_path):
         "variant config": plan(data, tmp_path / "runs", variants=["ablation-B"])[0],
         "iterations": plan(data, tmp_path / "runs", iterations=7)[0],
         "resolution": plan(data, tmp_path / "runs", resolution=(32, 24))[0],
-        "protocol": plan(data, tmp_path / "runs", suite=support.tiny_suite(protocol="olatbench-v1"))[0],
+        "protocol": plan(
+            data, tmp_path / "runs", suite=support.tiny_suite(protocol="olatbench-v1")
+        )[0],
         "colourspace": dataclasses.replace(base, colourspace="linear").with_id(),
         "protocol version": dataclasses.replace(base, protocol_version=2).with_id(),
         "code": dataclasses.replace(base, code="0" * 64).with_id(),
@@ -95,15 +102,20 @@ def test_manifest_cache_matches_a_fresh_hash_and_sees_same_size_edits(data, tmp_
     (scene / "notes.txt").unlink()
     (scene / ".DS_Store").write_bytes(b"hidden files are ignored")
     assert data_manifest_hash(scene) == cached
-    (scene / "novel_lights" / "studio").mkdir(parents=True)  # ground truth under new illumination, installed later
-    (scene / "novel_lights" / "studio" / "r_0000.exr").write_bytes(b"not read by training or the test split")
+    # ground truth under new illumination, installed later
+    (scene / "novel_lights" / "studio").mkdir(parents=True)
+    (scene / "novel_lights" / "studio" / "r_0000.exr").write_bytes(
+        b"not read by training or the test split"
+    )
     assert data_manifest_hash(scene) == cached
 
 
 def test_code_hash_follows_the_method_source(tmp_path, monkeypatch):
     module = tmp_path / "my_method_module.py"
-    source = ("from test_runner_support import TrivialMethod\n"
-              "class MyMethod(TrivialMethod):\n    name = 'mine'\n")
+    source = (
+        "from test_runner_support import TrivialMethod\n"
+        "class MyMethod(TrivialMethod):\n    name = 'mine'\n"
+    )
     module.write_text(source)
     monkeypatch.syspath_prepend(str(tmp_path))
     loaded = importlib.import_module("my_method_module")

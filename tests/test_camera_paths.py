@@ -1,5 +1,5 @@
-"""`olatbench render --camera-path` (nerfstudio camera-path JSON) and `--orbit`, under `--light` / `--light-path`
-(`olatbench.reports.camera_paths`)."""
+"""`olatbench render --camera-path` (nerfstudio camera-path JSON) and `--orbit`, under `--light` /
+`--light-path` (`olatbench.reports.camera_paths`)."""
 
 from __future__ import annotations
 
@@ -27,8 +27,9 @@ from olatbench.reports.video import display_image
 
 
 class RayColour(Method):
-    """Each pixel's colour is its world-space ray direction (from K and c2w, pixel centres at +0.5), tinted by the
-    light's position: any error in a camera's pose or intrinsics, or in the light, changes the image."""
+    """Each pixel's colour is its world-space ray direction (from K and c2w, pixel centres at +0.5),
+    tinted by the light's position: any error in a camera's pose or intrinsics, or in the light,
+    changes the image."""
 
     name = "ray-colour"
 
@@ -60,8 +61,8 @@ class RayColour(Method):
 
 
 def make_job(tmp_path: Path) -> Path:
-    """A finished ray-colour job on an NRHints scene whose cameras have square pixels and centred principal points
-    (``camera_angle_x``: what a nerfstudio camera path can express)."""
+    """A finished ray-colour job on an NRHints scene whose cameras have square pixels and centred
+    principal points (``camera_angle_x``: what a nerfstudio camera path can express)."""
     register("ray-colour", RayColour)
     scene = tmp_path / "data" / "Rays"
     write_nrhints_tree(scene, n_train=5, n_test=2, size=(20, 14), intrinsics=False)
@@ -100,7 +101,8 @@ def eight_bit(png: Path) -> np.ndarray:
 
 
 def nerfstudio_path(cameras, fps: float = 24.0) -> dict:
-    """A camera path as nerfstudio's viewer writes it: OpenGL camera-to-world flattened row-major, vertical fov."""
+    """A camera path as nerfstudio's viewer writes it: OpenGL camera-to-world flattened row-major,
+    vertical fov."""
     width, height = cameras[0].width, cameras[0].height
     frames = [
         {
@@ -138,7 +140,17 @@ def test_render_along_a_camera_path_matches_rendering_the_training_cameras(tmp_p
     file = tmp_path / "path.json"
     file.write_text(json.dumps(nerfstudio_path([frame.camera for frame in train])))
     result = CliRunner().invoke(
-        main, ["render", str(folder), "--camera-path", str(file), "--light", "2", "-o", str(tmp_path / "out")]
+        main,
+        [
+            "render",
+            str(folder),
+            "--camera-path",
+            str(file),
+            "--light",
+            "2",
+            "-o",
+            str(tmp_path / "out"),
+        ],
     )
     assert result.exit_code == 0, result.output
     assert (tmp_path / "out" / "camera-path.mp4").stat().st_size > 0
@@ -147,7 +159,8 @@ def test_render_along_a_camera_path_matches_rendering_the_training_cameras(tmp_p
     method = RayColour(RayColour.Config())
     for png, frame in zip(frames, train, strict=True):
         direct = display_image(method.render(frame.camera, train[2].light)["rgb"], "srgb")
-        np.testing.assert_array_equal(eight_bit(png), colour.quantize_8bit(direct))  # the same 8-bit image
+        # the same 8-bit image
+        np.testing.assert_array_equal(eight_bit(png), colour.quantize_8bit(direct))
 
 
 def test_orbit_cameras_keep_elevation_radius_and_look_at_the_centre():
@@ -155,15 +168,20 @@ def test_orbit_cameras_keep_elevation_radius_and_look_at_the_centre():
     from olatbench.datasets.records import Camera
 
     centre, up = np.array([1.0, -2.0, 0.5]), np.array([0.0, 0.0, 1.0])
-    template = Camera(intrinsics_from_fov(0.8, 16, 12), look_at([5.0, -2.0, 0.5], centre, up), 16, 12)
+    template = Camera(
+        intrinsics_from_fov(0.8, 16, 12), look_at([5.0, -2.0, 0.5], centre, up), 16, 12
+    )
     cameras = orbit_cameras(template, centre, up, elevation=30.0, radius=3.0, count=8)
     assert len(cameras) == 8
     for index, camera in enumerate(cameras):
         offset = camera.position - centre
         assert np.linalg.norm(offset) == pytest.approx(3.0)
         assert math.degrees(math.asin(offset @ up / 3.0)) == pytest.approx(30.0)
-        assert math.degrees(math.atan2(offset[1], offset[0])) % 360 == pytest.approx(45.0 * index, abs=1e-9)
-        np.testing.assert_allclose(camera.c2w[:3, 2], -offset / 3.0, atol=1e-12)  # looks at the centre
+        assert math.degrees(math.atan2(offset[1], offset[0])) % 360 == pytest.approx(
+            45.0 * index, abs=1e-9
+        )
+        # looks at the centre
+        np.testing.assert_allclose(camera.c2w[:3, 2], -offset / 3.0, atol=1e-12)
         np.testing.assert_array_equal(camera.K, template.K)
     with pytest.raises(CameraPathError, match="elevation"):
         orbit_cameras(template, centre, up, elevation=90.0, radius=3.0, count=8)
@@ -173,7 +191,9 @@ def test_cli_orbit_under_a_light_path(tmp_path):
     folder = make_job(tmp_path)
     scene = JobFolder.open(folder).load_scene()
     lights = tmp_path / "lights.json"
-    lights.write_text(json.dumps({"lights": [{"position": [4.0, 0.0, float(z)]} for z in range(6)]}))
+    lights.write_text(
+        json.dumps({"lights": [{"position": [4.0, 0.0, float(z)]} for z in range(6)]})
+    )
     result = CliRunner().invoke(
         main,
         [
@@ -196,10 +216,14 @@ def test_cli_orbit_under_a_light_path(tmp_path):
     frames = sorted((tmp_path / "out" / "orbit_frames").glob("*.png"))
     assert len(frames) == 6
     centre, up = orbit_frame([frame.camera for frame in scene.split("train")])
-    radius = np.mean([np.linalg.norm(frame.camera.position - centre) for frame in scene.split("train")])
+    radius = np.mean(
+        [np.linalg.norm(frame.camera.position - centre) for frame in scene.split("train")]
+    )
     camera = orbit_cameras(scene.split("test")[0].camera, centre, up, 10.0, radius, 6)[3]
     light = scene.split("train")[0].light.__class__(np.array([4.0, 0.0, 3.0]))
-    expected = colour.quantize_8bit(display_image(RayColour(RayColour.Config()).render(camera, light)["rgb"], "srgb"))
+    expected = colour.quantize_8bit(
+        display_image(RayColour(RayColour.Config()).render(camera, light)["rgb"], "srgb")
+    )
     np.testing.assert_array_equal(eight_bit(frames[3]), expected)
 
 
@@ -208,7 +232,10 @@ def test_cli_orbit_under_a_light_path(tmp_path):
     [
         (["--camera-path", "{bad}"], "camera_path[1].fov: must be positive"),
         (["--camera-path", "{good}", "--light", "99"], "light 99: the training split has 5 frames"),
-        (["--camera-path", "{good}", "--light", "1,2"], "expected a training light index (0 … 4) or a position x,y,z"),
+        (
+            ["--camera-path", "{good}", "--light", "1,2"],
+            "expected a training light index (0 … 4) or a position x,y,z",
+        ),
         (["--orbit", "--frames", "3", "--light-path", "{lights}"], "2 lights for 3 cameras"),
         (["--orbit", "--camera-path", "{good}"], "not both"),
         (["--light", "0"], "--light and --light-path go with --camera-path or --orbit"),
@@ -220,7 +247,11 @@ def test_cli_camera_path_errors_name_the_file_and_field(tmp_path, args, message)
     good = nerfstudio_path([camera, camera])
     bad = json.loads(json.dumps(good))
     bad["camera_path"][1]["fov"] = -3
-    files = {"good": good, "bad": bad, "lights": {"lights": [{"position": [1, 2, 3]}, {"position": [3, 2, 1]}]}}
+    files = {
+        "good": good,
+        "bad": bad,
+        "lights": {"lights": [{"position": [1, 2, 3]}, {"position": [3, 2, 1]}]},
+    }
     for name, content in files.items():
         (tmp_path / f"{name}.json").write_text(json.dumps(content))
     args = [arg.format(**{name: tmp_path / f"{name}.json" for name in files}) for arg in args]

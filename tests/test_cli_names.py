@@ -1,5 +1,6 @@
-"""Names typed on the command line (`olatbench.names`): case does not matter where one name matches, and a miss
-offers the close names ("did you mean") for methods, suites, scenes, variants and ablation grids."""
+"""Names typed on the command line (`olatbench.names`): case does not matter where one name matches,
+and a miss offers the close names ("did you mean") for methods, suites, scenes, variants and
+ablation grids."""
 
 from __future__ import annotations
 
@@ -32,7 +33,10 @@ def test_match_name_ignores_case_only_when_one_name_matches():
 
 
 def test_did_you_mean_offers_close_names_best_first():
-    assert did_you_mean("ssgds", ["3dgs", "gs3", "ssdgs", "ssdgs-official"]) == " (did you mean 'ssdgs'?)"
+    assert (
+        did_you_mean("ssgds", ["3dgs", "gs3", "ssdgs", "ssdgs-official"])
+        == " (did you mean 'ssdgs'?)"
+    )
     assert close_names("MNII", ["nrhints", "gs3", "sssgs", "mini"]) == ["mini"]
     assert did_you_mean("zzzz", ["mini"]) == ""
     assert did_you_mean("abce", ["abcd", "abcf", "xyz"]) in (
@@ -52,9 +56,13 @@ def test_method_and_suite_names_ignore_case():
     upper = dry_run("-m", "SSDGS", "-s", "MINI", "--scenes", "Translucent")
     assert upper.exit_code == 0, upper.output
     jobs = json.loads(upper.output)
-    assert [(job["method"], job["suite"], job["scene"]) for job in jobs] == [("ssdgs", "mini", "translucent")]
+    assert [(job["method"], job["suite"], job["scene"]) for job in jobs] == [
+        ("ssdgs", "mini", "translucent")
+    ]
     assert jobs[0]["folder"].startswith("mini/ssdgs/default/translucent")
-    assert jobs == json.loads(dry_run("-m", "ssdgs", "-s", "mini", "--scenes", "translucent").output)
+    assert jobs == json.loads(
+        dry_run("-m", "ssdgs", "-s", "mini", "--scenes", "translucent").output
+    )
 
 
 @pytest.mark.parametrize(
@@ -65,7 +73,10 @@ def test_method_and_suite_names_ignore_case():
             ("-m", "ssdgs", "-s", "mini", "--scenes", "translucnet"),
             "no scene 'translucnet' (did you mean 'translucent'?)",
         ),
-        (("-m", "ssdgs", "-s", "mini", "--variant", "ablaton-B"), "no preset ablaton-B (did you mean 'ablation-B'"),
+        (
+            ("-m", "ssdgs", "-s", "mini", "--variant", "ablaton-B"),
+            "no preset ablaton-B (did you mean 'ablation-B'",
+        ),
         (
             ("-m", "ssdgs", "-s", "mini", "--ablation", "component"),
             "no ablation grid 'component' (did you mean 'components'?)",

@@ -1,5 +1,6 @@
-"""The contribution pass (each Gaussian's largest blending weight) against a per-pixel brute force, C++ against
-the torch reference, and the property culling relies on: a Gaussian of weight 0 leaves image and gradients alone."""
+"""The contribution pass (each Gaussian's largest blending weight) against a per-pixel brute force,
+C++ against the torch reference, and the property culling relies on: a Gaussian of weight 0 leaves
+image and gradients alone."""
 
 from __future__ import annotations
 
@@ -23,8 +24,11 @@ needs_cpp = pytest.mark.skipif(not _STATUS[0], reason=f"C++ backend unavailable:
 SCENES = ("normal", "dense", "offscreen_and_behind", "degenerate_scales")
 
 
-def brute_force_max_weights(means2d, conics, opacities, radii, depths, width, height) -> torch.Tensor:
-    """Per-pixel Python loop over all Gaussians front to back (no tiles, no vectorisation): max of T·α."""
+def brute_force_max_weights(
+    means2d, conics, opacities, radii, depths, width, height
+) -> torch.Tensor:
+    """Per-pixel Python loop over all Gaussians front to back (no tiles, no vectorisation): max of
+    T·α."""
     n = len(opacities)
     best = [0.0] * n
     order = sorted(range(n), key=lambda i: (float(depths[i].float()), i))
@@ -86,18 +90,23 @@ def scene_tensors(name: str):
 def test_cpp_matches_torch_reference(name):
     means2d, conics, opacities, bins, _ = inputs(name)
     ref = max_weights_torch(means2d, conics, opacities, bins)
-    torch.testing.assert_close(max_weights_cpu(means2d, conics, opacities, bins), ref, rtol=1e-12, atol=1e-14)
+    torch.testing.assert_close(
+        max_weights_cpu(means2d, conics, opacities, bins), ref, rtol=1e-12, atol=1e-14
+    )
     got32 = max_weights_cpu(means2d.float(), conics.float(), opacities.float(), bins)
     assert got32.dtype == torch.float32
     torch.testing.assert_close(got32.double(), ref, rtol=1e-4, atol=1e-5)
-    runs = [max_weights_cpu(means2d.float(), conics.float(), opacities.float(), bins, threads=t) for t in (1, 3)]
+    runs = [
+        max_weights_cpu(means2d.float(), conics.float(), opacities.float(), bins, threads=t)
+        for t in (1, 3)
+    ]
     assert torch.equal(runs[0], got32) and torch.equal(runs[1], got32)
 
 
 @pytest.mark.parametrize("backend", ["torch", pytest.param("cpu", marks=needs_cpp)])
 def test_weight_zero_gaussians_do_not_touch_image_or_gradients(backend):
-    """Changing the features of every Gaussian of largest weight 0 changes neither the image nor any gradient,
-    and their feature gradients are exactly 0: what makes culling at ε = 0 exact."""
+    """Changing the features of every Gaussian of largest weight 0 changes neither the image nor any
+    gradient, and their feature gradients are exactly 0: what makes culling at ε = 0 exact."""
     means2d, conics, opacities, bins, _ = inputs("dense")
     features = torch.rand(means2d.shape[0], 3, dtype=D, generator=torch.Generator().manual_seed(2))
     composite = rasterize_torch if backend == "torch" else rasterize_cpu

@@ -1,8 +1,10 @@
-"""The stand-ins of nrhints-official's device=cpu jobs: ``lpips`` (olatbench.methods.official.cpu_standins.lpips)
-against independent references — the ``lpips`` package's own numbers (lpips 0.1.4, recorded in tests/test_lpips.py:
-seeded random weights, and the real weights) and olatbench's `lpips` on the same images in its channel-last layout —
-and its refusals; ``Tensor.to`` under no_grad (cpu_standins.device_copy) against a real device move; and the job
-environment of nrhints-official (only these on the path, not the other stand-ins nor the CUDA device shim)."""
+"""The stand-ins of nrhints-official's device=cpu jobs: ``lpips``
+(olatbench.methods.official.cpu_standins.lpips) against independent references — the ``lpips``
+package's own numbers (lpips 0.1.4, recorded in tests/test_lpips.py: seeded random weights, and the
+real weights) and olatbench's `lpips` on the same images in its channel-last layout — and its
+refusals; ``Tensor.to`` under no_grad (cpu_standins.device_copy) against a real device move; and the
+job environment of nrhints-official (only these on the path, not the other stand-ins nor the CUDA
+device shim)."""
 
 from __future__ import annotations
 
@@ -17,7 +19,13 @@ import torch
 from test_cpu_standins import run_cpu_job
 from test_lpips import EXPECTED, EXPECTED_REAL, SEED, images, needs_weights, seeded_state
 
-from olatbench.methods.official.cpu_standins import NRHINTS_SITE, OLATBENCH_ROOT, SITE, job_environment, standins_for
+from olatbench.methods.official.cpu_standins import (
+    NRHINTS_SITE,
+    OLATBENCH_ROOT,
+    SITE,
+    job_environment,
+    standins_for,
+)
 from olatbench.methods.official.cpu_standins.lpips import LPIPS
 from olatbench.metrics.lpips import clear_caches, lpips
 from olatbench.metrics.weights import save_state
@@ -28,7 +36,9 @@ def seeded_alex(monkeypatch, tmp_path) -> Path:
     """The seeded random LPIPS-Alex weights of tests/test_lpips.py installed as the only weights
     (``OLATBENCH_WEIGHTS_DIR``); the LPIPS caches cleared before and after."""
     folder = tmp_path / "weights"
-    save_state(seeded_state("alex", SEED, None), folder, "alex", {"source": "test_lpips.seeded_state"})
+    save_state(
+        seeded_state("alex", SEED, None), folder, "alex", {"source": "test_lpips.seeded_state"}
+    )
     monkeypatch.setenv("OLATBENCH_WEIGHTS_DIR", str(folder))
     clear_caches()
     yield folder
@@ -36,7 +46,8 @@ def seeded_alex(monkeypatch, tmp_path) -> Path:
 
 
 def nrhints_call(rgb: torch.Tensor, rgb_gt: torch.Tensor) -> float:
-    """NRHints' utils/metrics.py:18-24 with the stand-in: [H, W, 3] images in [0, 1] -> one float."""
+    """NRHints' utils/metrics.py:18-24 with the stand-in: [H, W, 3] images in [0, 1] -> one
+    float."""
     rgb = torch.moveaxis(rgb, -1, 0)[None, ...]
     rgb_gt = torch.moveaxis(rgb_gt, -1, 0)[None, ...]
     model = LPIPS(net="alex", verbose=False).cpu()
@@ -44,13 +55,17 @@ def nrhints_call(rgb: torch.Tensor, rgb_gt: torch.Tensor) -> float:
 
 
 def test_standin_is_the_lpips_package_on_nchw_unit_images(seeded_alex):
-    # (3, 64, 48, 3) images: H != W, so a stand-in reading the layout wrong gives other numbers (or fails)
+    # (3, 64, 48, 3) images: H != W, so a stand-in reading the layout wrong gives other numbers
+    # (or fails)
     a, b = images(SEED + 1, 3, 64, 48)
-    x, y = (torch.from_numpy(v).permute(0, 3, 1, 2) for v in (a, b))  # NHWC -> NCHW, as NRHints' moveaxis
+    # NHWC -> NCHW, as NRHints' moveaxis
+    x, y = (torch.from_numpy(v).permute(0, 3, 1, 2) for v in (a, b))
     out = LPIPS(net="alex", verbose=False).cpu()(x, y, normalize=True)
     assert out.shape == (3, 1, 1, 1)  # lpips' [N, 1, 1, 1]
     # the lpips package's values (normalize=True: 2x - 1), and not those of the [0, 1] mistake
-    np.testing.assert_allclose(out.flatten().numpy(), EXPECTED[("alex", "random", "unit")], rtol=1e-5, atol=1e-8)
+    np.testing.assert_allclose(
+        out.flatten().numpy(), EXPECTED[("alex", "random", "unit")], rtol=1e-5, atol=1e-8
+    )
     assert not np.allclose(out.flatten().numpy(), EXPECTED[("alex", "random", "raw01")], rtol=1e-2)
     # olatbench's lpips() on the same images in its own channel-last layout
     np.testing.assert_allclose(out.flatten().numpy(), lpips(a, b, net="alex"), rtol=1e-5, atol=1e-8)
@@ -61,15 +76,19 @@ def test_standin_is_the_lpips_package_on_nchw_unit_images(seeded_alex):
 
 def test_standin_as_nrhints_calls_it(seeded_alex):
     a, b = images(SEED + 1, 3, 64, 48)
-    for index in range(3):  # one [H, W, 3] view at a time, a new LPIPS each call, as utils/metrics.py
+    # one [H, W, 3] view at a time, a new LPIPS each call, as utils/metrics.py
+    for index in range(3):
         value = nrhints_call(torch.from_numpy(a[index]), torch.from_numpy(b[index]))
         assert value == pytest.approx(EXPECTED[("alex", "random", "unit")][index], rel=1e-5)
-    assert nrhints_call(torch.from_numpy(a[0]), torch.from_numpy(a[0])) == pytest.approx(0.0, abs=1e-7)
+    assert nrhints_call(torch.from_numpy(a[0]), torch.from_numpy(a[0])) == pytest.approx(
+        0.0, abs=1e-7
+    )
     # no range guard, as lpips: a NeuS blend a rounding error above 1 is scored, not refused
     over = torch.from_numpy(a[0]).clone()
     over[0, 0] = 1 + 1e-5
-    assert nrhints_call(over, torch.from_numpy(b[0])) == pytest.approx(EXPECTED[("alex", "random", "unit")][0],
-                                                                       rel=1e-4)
+    assert nrhints_call(over, torch.from_numpy(b[0])) == pytest.approx(
+        EXPECTED[("alex", "random", "unit")][0], rel=1e-4
+    )
 
 
 @needs_weights
@@ -82,13 +101,25 @@ def test_standin_with_the_installed_weights_is_the_lpips_package():
     np.testing.assert_allclose(out, lpips(a, b, net="alex"), rtol=1e-5)
 
 
-@pytest.mark.parametrize(("kwargs", "named"), [
-    ({"net": "vgg"}, "net='vgg'"), ({"net": "squeeze"}, "net='squeeze'"), ({"spatial": True}, "spatial=True"),
-    ({"pretrained": False}, "pretrained=False"), ({"version": "0.0"}, "version='0.0'"),
-    ({"lpips": False}, "lpips=False"), ({"pnet_rand": True}, "pnet_rand=True"), ({"pnet_tune": True}, "pnet_tune=True"),
-    ({"model_path": "x.pth"}, "model_path='x.pth'"), ({"eval_mode": False}, "eval_mode=False")])
+@pytest.mark.parametrize(
+    ("kwargs", "named"),
+    [
+        ({"net": "vgg"}, "net='vgg'"),
+        ({"net": "squeeze"}, "net='squeeze'"),
+        ({"spatial": True}, "spatial=True"),
+        ({"pretrained": False}, "pretrained=False"),
+        ({"version": "0.0"}, "version='0.0'"),
+        ({"lpips": False}, "lpips=False"),
+        ({"pnet_rand": True}, "pnet_rand=True"),
+        ({"pnet_tune": True}, "pnet_tune=True"),
+        ({"model_path": "x.pth"}, "model_path='x.pth'"),
+        ({"eval_mode": False}, "eval_mode=False"),
+    ],
+)
 def test_standin_refuses_what_nrhints_does_not_use(kwargs, named):
-    with pytest.raises(NotImplementedError, match=rf"lpips stand-in .*LPIPS\({named}\) is not implemented"):
+    with pytest.raises(
+        NotImplementedError, match=rf"lpips stand-in .*LPIPS\({named}\) is not implemented"
+    ):
         LPIPS(**kwargs)
 
 
@@ -107,7 +138,8 @@ def test_standin_refuses_other_calls_and_layouts():
         model(x, torch.rand(1, 3, 40, 48), normalize=True)
 
 
-# ------------------------------------------------------------------------------- Tensor.to under no_grad
+# ------------------------------------------------------------------------------- Tensor.to under
+# no_grad
 @pytest.fixture()
 def device_copy():
     from olatbench.methods.official.cpu_standins import device_copy as module
@@ -118,12 +150,17 @@ def device_copy():
 
 
 def nrhints_normals(x: torch.Tensor) -> torch.Tensor:
-    """fields/sdf_field.py:136-147 under get_eval_dicts' no_grad: d sdf / d x with create_graph=True."""
-    net = torch.nn.Sequential(torch.nn.Linear(3, 16), torch.nn.Softplus(beta=100), torch.nn.Linear(16, 1))
+    """fields/sdf_field.py:136-147 under get_eval_dicts' no_grad: d sdf / d x with
+    create_graph=True."""
+    net = torch.nn.Sequential(
+        torch.nn.Linear(3, 16), torch.nn.Softplus(beta=100), torch.nn.Linear(16, 1)
+    )
     x.requires_grad_(True)
     with torch.inference_mode(False), torch.enable_grad():
         y = net(x)
-    return torch.autograd.grad(y, x, torch.ones_like(y), create_graph=True, retain_graph=True, only_inputs=True)[0]
+    return torch.autograd.grad(
+        y, x, torch.ones_like(y), create_graph=True, retain_graph=True, only_inputs=True
+    )[0]
 
 
 def test_device_move_under_no_grad_drops_the_graph_as_a_real_copy(device_copy):
@@ -131,10 +168,12 @@ def test_device_move_under_no_grad_drops_the_graph_as_a_real_copy(device_copy):
         normals = nrhints_normals(torch.rand(8, 3))
         assert normals.grad_fn is not None  # the graph the CPU kept for every chunk
         kept = normals.to("cpu")
-        real_copy = normals.to("meta")  # a real device move under no_grad (what .to('cpu') is on a GPU)
+        # a real device move under no_grad (what .to('cpu') is on a GPU)
+        real_copy = normals.to("meta")
         assert kept.grad_fn is None and real_copy.grad_fn is None and not kept.requires_grad
         assert kept.data_ptr() == normals.data_ptr() and torch.equal(kept, normals)
-        assert normals.to(torch.float64).grad_fn is None  # conversions: unchanged (no graph under no_grad)
+        # conversions: unchanged (no graph under no_grad)
+        assert normals.to(torch.float64).grad_fn is None
         plain = torch.rand(3)
         assert plain.to("cpu") is plain  # nothing to detach: the tensor itself, as torch
     graph = nrhints_normals(torch.rand(8, 3))
@@ -144,7 +183,8 @@ def test_device_move_under_no_grad_drops_the_graph_as_a_real_copy(device_copy):
         assert normals.to("cpu") is normals  # torch's own behaviour, which kept every chunk's graph
 
 
-# ----------------------------------------------------------------------------------------- the job environment
+# ----------------------------------------------------------------------------------------- the job
+# environment
 NRHINTS_PROBE = """
 import importlib.util, sys, torch
 import lpips
@@ -171,32 +211,53 @@ else:
     raise AssertionError("lpips.pretrained_networks must not exist")
 a = torch.rand(1, 3, 40, 40, generator=torch.Generator().manual_seed(0))
 print("lpips", float(lpips.LPIPS(net="alex", verbose=False).cpu()(a, a, normalize=True).item()))
-"""
+"""  # noqa: E501
 
 
 def test_nrhints_job_environment_puts_only_lpips_on_the_path(seeded_alex):
     assert standins_for("nrhints-official") == ("lpips", "sitecustomize")
-    assert "lpips" not in standins_for("ssdgs-official") and "tinycudann" not in standins_for("nrhints-official")
+    assert "lpips" not in standins_for("ssdgs-official") and "tinycudann" not in standins_for(
+        "nrhints-official"
+    )
     env = job_environment("nrhints-official", {"PYTHONPATH": "/somewhere"})
     assert env["CUDA_VISIBLE_DEVICES"] == "" and "OLATBENCH_STANDIN_LIGHT" not in env
-    assert env["PYTHONPATH"].split(os.pathsep) == [str(NRHINTS_SITE), str(OLATBENCH_ROOT), "/somewhere"]
-    assert NRHINTS_SITE != SITE and sorted(p.name for p in NRHINTS_SITE.iterdir() if p.name != "__pycache__") == [
-        "lpips", "sitecustomize.py"]
-    done = subprocess.run([sys.executable, "-c", NRHINTS_PROBE, str(NRHINTS_SITE)], env={**os.environ, **env},
-                          capture_output=True, text=True, timeout=600)
+    assert env["PYTHONPATH"].split(os.pathsep) == [
+        str(NRHINTS_SITE),
+        str(OLATBENCH_ROOT),
+        "/somewhere",
+    ]
+    assert NRHINTS_SITE != SITE and sorted(
+        p.name for p in NRHINTS_SITE.iterdir() if p.name != "__pycache__"
+    ) == ["lpips", "sitecustomize.py"]
+    done = subprocess.run(
+        [sys.executable, "-c", NRHINTS_PROBE, str(NRHINTS_SITE)],
+        env={**os.environ, **env},
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert done.returncode == 0, done.stderr
     assert float(done.stdout.split()[-1]) == pytest.approx(0.0, abs=1e-7)
     # outside such a job the name lpips is never the stand-in
-    plain = subprocess.run([sys.executable, "-c", "import lpips; print(lpips.__file__)"], capture_output=True,
-                           text=True, timeout=600)
+    plain = subprocess.run(
+        [sys.executable, "-c", "import lpips; print(lpips.__file__)"],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert "cpu_standins" not in plain.stdout
 
 
 def test_a_nrhints_cpu_job_imports_the_lpips_standin_and_records_it(tmp_path):
-    log, official, checkout = run_cpu_job(tmp_path, "nrhints-official", "main.py",
-                                          "import importlib.util, lpips\nprint('lpips from', lpips.__file__)\n"
-                                          "print('tinycudann', importlib.util.find_spec('tinycudann'))\n")
-    assert f"lpips from {NRHINTS_SITE / 'lpips' / '__init__.py'}" in log and "tinycudann None" in log
+    log, official, checkout = run_cpu_job(
+        tmp_path,
+        "nrhints-official",
+        "main.py",
+        "import importlib.util, lpips\nprint('lpips from', lpips.__file__)\n"
+        "print('tinycudann', importlib.util.find_spec('tinycudann'))\n",
+    )
+    assert (
+        f"lpips from {NRHINTS_SITE / 'lpips' / '__init__.py'}" in log and "tinycudann None" in log
+    )
     assert official["device"] == "cpu" and official["standins"] == ["lpips", "sitecustomize"]
     assert not (checkout / "lpips").exists()
-

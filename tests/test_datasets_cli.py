@@ -28,7 +28,9 @@ def test_info_on_one_scene_and_on_a_folder_of_scenes(tmp_path):
     write_gs3_tree(tmp_path / "Lego")
     write_sssgs_tree(tmp_path / "bunny_small", share_first=True)
     one = run("info", tmp_path / "Lego")
-    assert one.exit_code == 0 and "Lego  (gs3" in one.output and "linear, premultiplied" in one.output
+    assert (
+        one.exit_code == 0 and "Lego  (gs3" in one.output and "linear, premultiplied" in one.output
+    )
     everything = run("info", tmp_path, "--json")
     assert everything.exit_code == 0
     summaries = json.loads(everything.output)
@@ -67,13 +69,17 @@ def test_convert(tmp_path):
     assert "dropping the 2 camera-path frames" in result.output
     assert load_scene(tmp_path / "out").format == "sssgs"
     again = run("convert", tmp_path / "Lego", tmp_path / "out", "--to", "sssgs")
-    assert again.exit_code == 2 and "already exists" in again.output  # a usage error: --overwrite or elsewhere
+    # a usage error: --overwrite or elsewhere
+    assert again.exit_code == 2 and "already exists" in again.output
 
 
 def test_dataset_errors_are_one_line_without_traceback(tmp_path):
     write_nrhints_tree(tmp_path / "a")
     (tmp_path / "a/transforms_train.json").write_text("{broken")
-    for args in (("info", tmp_path / "a"), ("convert", tmp_path / "a", tmp_path / "b", "--to", "gs3")):
+    for args in (
+        ("info", tmp_path / "a"),
+        ("convert", tmp_path / "a", tmp_path / "b", "--to", "gs3"),
+    ):
         result = run(*args)
         assert result.exit_code == 1
         assert "Traceback" not in result.output
@@ -90,7 +96,10 @@ def test_info_keeps_going_past_a_broken_scene(tmp_path):
     (tmp_path / "Fish/transforms_test.json").write_text("{")
     result = run("info", tmp_path)
     assert result.exit_code == 1 and "Pixiu  (nrhints" in result.output
-    assert "Fish/transforms_test.json: malformed JSON" in result.output and "Traceback" not in result.output
+    assert (
+        "Fish/transforms_test.json: malformed JSON" in result.output
+        and "Traceback" not in result.output
+    )
 
 
 def test_validate_reports_unreadable_json_as_an_error(tmp_path):

@@ -42,17 +42,24 @@ def test_round_trip(tmp_path, source, target):
     out = write_scene(scene, tmp_path / "out", target)
     back = load_scene(out)
     assert back.format == target
-    assert {s: len(f) for s, f in back.frames.items()} == {s: len(f) for s, f in scene.frames.items()}
+    assert {s: len(f) for s, f in back.frames.items()} == {
+        s: len(f) for s, f in scene.frames.items()
+    }
     for split in scene.splits:
         for a, b in zip(scene.split(split), back.split(split), strict=True):
             _assert_same_geometry(a, b)
             rgb_a, alpha_a = _straight_srgb(a)
             rgb_b, alpha_b = _straight_srgb(b)
-            # 8-bit targets: half a code value; half-float EXR: relative 2^-11, amplified by 1/alpha on unpremultiply
-            np.testing.assert_allclose(alpha_b, alpha_a, atol=0.5 / 255 + 1e-6 if target != "gs3" else 1e-3)
+            # 8-bit targets: half a code value; half-float EXR: relative 2^-11, amplified by 1/alpha
+            # on unpremultiply
+            np.testing.assert_allclose(
+                alpha_b, alpha_a, atol=0.5 / 255 + 1e-6 if target != "gs3" else 1e-3
+            )
             seen = alpha_a > 0.1
             if "gs3" in (source, target):
-                np.testing.assert_allclose(rgb_b[seen], rgb_a[seen], atol=0.5 / 255 + 1e-5, rtol=1e-2)
+                np.testing.assert_allclose(
+                    rgb_b[seen], rgb_a[seen], atol=0.5 / 255 + 1e-5, rtol=1e-2
+                )
             else:
                 np.testing.assert_allclose(rgb_b[seen], rgb_a[seen], atol=0.5 / 255 + 1e-5)
 
@@ -102,16 +109,34 @@ def test_off_centre_intrinsics_are_written_as_camera_intrinsics(tmp_path):
     out = write_scene(load_scene(tmp_path / "src"), tmp_path / "out", "gs3")
     import json
 
-    assert json.loads((out / "transforms_train.json").read_text())["camera_intrinsics"] == [8.75, 5.5, 19.2, 17.6]
+    assert json.loads((out / "transforms_train.json").read_text())["camera_intrinsics"] == [
+        8.75,
+        5.5,
+        19.2,
+        17.6,
+    ]
 
 
 def _generated_scene(root, n=3, size=(10, 8)) -> Scene:
     width, height = size
     K = intrinsics_matrix(12.0, 12.0, width / 2, height / 2)
-    frames = [Frame(scene="gen", split="train", frame_id=f"g{i}", image_path=None,
-                    camera=Camera(K=K, c2w=look_at([3.0, float(i), 1.0], [0, 0, 0]), width=width, height=height),
-                    light=PointLight(position=np.array([0.0, 4.0, float(i)]), intensity=np.full(3, 9.0),
-                                     intensity_known=True)) for i in range(n)]
+    frames = [
+        Frame(
+            scene="gen",
+            split="train",
+            frame_id=f"g{i}",
+            image_path=None,
+            camera=Camera(
+                K=K, c2w=look_at([3.0, float(i), 1.0], [0, 0, 0]), width=width, height=height
+            ),
+            light=PointLight(
+                position=np.array([0.0, 4.0, float(i)]),
+                intensity=np.full(3, 9.0),
+                intensity_known=True,
+            ),
+        )
+        for i in range(n)
+    ]
     return Scene(name="gen", format="synthetic", root=root, frames={"train": frames})
 
 
@@ -120,14 +145,18 @@ def test_generated_frames_with_pixels_callable(tmp_path, target):
     """The scene generator's path: frames without files, pixels as linear straight RGBA."""
     scene = _generated_scene(tmp_path / "nowhere")
     rng = np.random.default_rng(1)
-    images = {f.frame_id: rng.uniform(0, 1, (8, 10, 4)).astype(np.float32) for f in scene.split("train")}
+    images = {
+        f.frame_id: rng.uniform(0, 1, (8, 10, 4)).astype(np.float32) for f in scene.split("train")
+    }
     back = load_scene(write_scene(scene, tmp_path / "out", target, lambda f: images[f.frame_id]))
     for frame in back.split("train"):
         loaded = frame.load(colourspace="linear", background=None)
         expected = images[frame.frame_id]
         tolerance = 2e-3 if target == "gs3" else 0.01  # 8-bit sRGB steps are ≤ 0.0085 in linear
         mask = expected[..., 3] > 0.05 if target == "gs3" else np.ones(expected.shape[:2], bool)
-        np.testing.assert_allclose(loaded.rgb[mask], expected[..., :3][mask], atol=tolerance, rtol=0.02)
+        np.testing.assert_allclose(
+            loaded.rgb[mask], expected[..., :3][mask], atol=tolerance, rtol=0.02
+        )
         np.testing.assert_allclose(loaded.alpha, expected[..., 3], atol=2e-3)
 
 
@@ -136,7 +165,9 @@ def test_frames_without_images_need_pixels(tmp_path):
         write_scene(_generated_scene(tmp_path), tmp_path / "out", "nrhints")
 
 
-@pytest.mark.parametrize(("bad", "message"), [(np.zeros((8, 10, 3)), "expected"), (np.full((8, 10, 4), np.nan), "NaN")])
+@pytest.mark.parametrize(
+    ("bad", "message"), [(np.zeros((8, 10, 3)), "expected"), (np.full((8, 10, 4), np.nan), "NaN")]
+)
 def test_bad_pixels_are_refused(tmp_path, bad, message):
     with pytest.raises(DatasetError, match=message):
         write_scene(_generated_scene(tmp_path), tmp_path / "out", "nrhints", lambda f: bad)
@@ -176,6 +207,7 @@ def test_named_channels_round_trip(tmp_path):
     planes = np.random.default_rng(0).random((5, 7, 3)).astype(np.float32)
     write_image(tmp_path / "aov.exr", planes, "float", channel_names=["A", "N.X", "Z"])
     channels = read_channels(tmp_path / "aov.exr")
-    assert sorted(channels) == ["A", "N.X", "Z"]  # EXR stores channels in its own order: names are the contract
+    # EXR stores channels in its own order: names are the contract
+    assert sorted(channels) == ["A", "N.X", "Z"]
     for index, name in enumerate(["A", "N.X", "Z"]):
         np.testing.assert_array_equal(channels[name], planes[..., index])

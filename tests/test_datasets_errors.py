@@ -46,13 +46,21 @@ def test_missing_transform_matrix_names_frame_and_key(nrhints):
     _edit(nrhints / "transforms_test.json", lambda m: m["frames"][1].pop("transform_matrix"))
     with pytest.raises(DatasetError) as error:
         load_scene(nrhints)
-    assert (error.value.frame, error.value.key, error.value.path.name) == ("001", "transform_matrix",
-                                                                          "transforms_test.json")
+    assert (error.value.frame, error.value.key, error.value.path.name) == (
+        "001",
+        "transform_matrix",
+        "transforms_test.json",
+    )
 
 
-@pytest.mark.parametrize(("key", "value"), [("pl_pos", [0.0, float("nan"), 1.0]),
-                                            ("pl_intensity", [1.0, float("inf"), 1.0]),
-                                            ("transform_matrix", [[float("nan")] * 4] * 4)])
+@pytest.mark.parametrize(
+    ("key", "value"),
+    [
+        ("pl_pos", [0.0, float("nan"), 1.0]),
+        ("pl_intensity", [1.0, float("inf"), 1.0]),
+        ("transform_matrix", [[float("nan")] * 4] * 4),
+    ],
+)
 def test_nan_and_inf_are_refused(nrhints, key, value):
     _edit(nrhints / "transforms_train.json", lambda m: m["frames"][2].update({key: value}))
     with pytest.raises(DatasetError, match="NaN or Inf") as error:
@@ -87,15 +95,18 @@ def test_file_path_escaping_the_root(nrhints, escape):
 
 
 def test_a_folder_the_user_linked_elsewhere_is_followed(nrhints, tmp_path):
-    """#38 item 14: ``train/`` moved to another disk and linked back is the user's to make; only a path written in
-    a transforms file must not leave the root."""
+    """#38 item 14: ``train/`` moved to another disk and linked back is the user's to make; only a
+    path written in a transforms file must not leave the root."""
     other_disk = tmp_path / "other_disk"
     (nrhints / "train").rename(other_disk)
     os.symlink(other_disk, nrhints / "train")
     scene = load_scene(nrhints)
     assert scene.split("train")[0].load().rgb.shape[:2] == (12, 16)
     assert validate_folder(nrhints).ok
-    _edit(nrhints / "transforms_test.json", lambda m: m["frames"][0].update(file_path="train/../../other_disk/000"))
+    _edit(
+        nrhints / "transforms_test.json",
+        lambda m: m["frames"][0].update(file_path="train/../../other_disk/000"),
+    )
     with pytest.raises(DatasetError, match="leaves the dataset root"):
         load_scene(nrhints)
 
@@ -103,14 +114,19 @@ def test_a_folder_the_user_linked_elsewhere_is_followed(nrhints, tmp_path):
 @pytest.mark.parametrize("split_file", ["transforms_train.json", "transforms_test.json"])
 @pytest.mark.parametrize("damage", ["folder", "loop", "dangling"])
 def test_a_split_file_that_is_no_file_is_an_error_not_a_missing_split(nrhints, split_file, damage):
-    """#38 item 10: a transforms file replaced by a folder, a link loop or a dangling link fails the scene."""
+    """#38 item 10: a transforms file replaced by a folder, a link loop or a dangling link fails the
+    scene."""
     path = nrhints / split_file
     path.unlink()
     if damage == "folder":
         path.mkdir()
     else:
         os.symlink(path.name if damage == "loop" else "gone.json", path)
-    expected = {"folder": "is a folder", "loop": "symbolic link loop", "dangling": "link to a missing file"}[damage]
+    expected = {
+        "folder": "is a folder",
+        "loop": "symbolic link loop",
+        "dangling": "link to a missing file",
+    }[damage]
     with pytest.raises(DatasetError, match=expected) as error:
         load_scene(nrhints)
     assert error.value.path == path
@@ -136,11 +152,15 @@ def test_an_image_that_is_a_link_loop_is_one_error(nrhints):
         load_scene(nrhints).split("test")[1].load()
     assert (error.value.path, error.value.frame) == (image, "001")
     (issue,) = validate_folder(nrhints).errors
-    assert (issue.path, issue.frame) == (str(image), "001") and "symbolic link loop" in issue.message
+    assert (issue.path, issue.frame) == (
+        str(image),
+        "001",
+    ) and "symbolic link loop" in issue.message
 
 
 def test_a_name_that_is_not_utf8_is_one_error(tmp_path):
-    """#38 item 9: OpenImageIO takes UTF-8 names only (it raised TypeError); the error shows the byte as \\xff."""
+    """#38 item 9: OpenImageIO takes UTF-8 names only (it raised TypeError); the error shows the
+    byte as \\xff."""
     write_nrhints_tree(tmp_path / "s")
     root = Path(os.fsdecode(os.fsencode(tmp_path / "s") + b"\xff"))
     (tmp_path / "s").rename(root)
@@ -157,7 +177,9 @@ def test_missing_image(nrhints):
         scene.split("test")[1].load()
     assert error.value.path.name == "001.png"
     report = validate_folder(nrhints)
-    assert not report.ok and any("not found" in issue.message and issue.frame == "001" for issue in report.issues)
+    assert not report.ok and any(
+        "not found" in issue.message and issue.frame == "001" for issue in report.issues
+    )
 
 
 def test_missing_first_image_needed_for_size(nrhints):
@@ -170,7 +192,9 @@ def test_missing_first_image_needed_for_size(nrhints):
 def test_corrupt_or_truncated_image(nrhints, damage):
     image = nrhints / "test/000.png"
     data = image.read_bytes()
-    image.write_bytes(data[: len(data) // 2] if damage == "truncate" else b"\x89PNG not really" + bytes(100))
+    image.write_bytes(
+        data[: len(data) // 2] if damage == "truncate" else b"\x89PNG not really" + bytes(100)
+    )
     frame = load_scene(nrhints).split("test")[0]
     with pytest.raises(DatasetError) as error:
         frame.load()
@@ -218,7 +242,9 @@ def test_sssgs_missing_width(tmp_path):
 
 
 def test_validate_collects_every_bad_frame(nrhints):
-    _edit(nrhints / "transforms_train.json", lambda m: [m["frames"][i].pop("pl_pos") for i in (1, 3)])
+    _edit(
+        nrhints / "transforms_train.json", lambda m: [m["frames"][i].pop("pl_pos") for i in (1, 3)]
+    )
     (nrhints / "test/000.png").write_bytes(b"broken")
     report = validate_folder(nrhints)
     frames = sorted(issue.frame for issue in report.errors)

@@ -32,7 +32,9 @@ def test_gs3_ground_truth_with_and_without_the_alpha_quirk(tmp_path):
     correct = np.clip((premultiplied + 1 - alpha) ** (1 / 2.2), 0, 1)
     quirk = np.clip((premultiplied * alpha + 1 - alpha) ** (1 / 2.2), 0, 1)
     np.testing.assert_allclose(gs3_ground_truth(frame, quantize=None), quirk, atol=1e-5)
-    np.testing.assert_allclose(gs3_ground_truth(frame, alpha_quirk=False, quantize=None), correct, atol=1e-5)
+    np.testing.assert_allclose(
+        gs3_ground_truth(frame, alpha_quirk=False, quantize=None), correct, atol=1e-5
+    )
     np.testing.assert_allclose(gs3_ground_truth(frame), np.rint(quirk * 255) / 255, atol=1e-6)
     # Frame.load composites correctly; it agrees with the quirk wherever alpha is 0 or 1
     loaded = np.clip(frame.load(colourspace="gamma22").rgb, 0, 1)
@@ -40,7 +42,8 @@ def test_gs3_ground_truth_with_and_without_the_alpha_quirk(tmp_path):
     binary = (alpha[..., 0] == 0) | (alpha[..., 0] == 1)
     fractional = ~binary & (premultiplied.sum(axis=2) > 0.05)
     np.testing.assert_allclose(loaded[binary], quirk[binary], atol=1e-5)
-    # the quirk multiplies by alpha twice: edge pixels come out darker (or equal once clipped to white)
+    # the quirk multiplies by alpha twice: edge pixels come out darker (or equal once clipped to
+    # white)
     darker = quirk[fractional].sum(-1) - loaded[fractional].sum(-1)
     assert fractional.any() and np.all(darker <= 1e-5) and np.any(darker < -0.01)
 
@@ -49,15 +52,21 @@ def test_sssgs_ground_truth_is_colour_times_mask(tmp_path):
     tree = write_sssgs_tree(tmp_path / "s")
     frame = load_scene(tmp_path / "s").split("train")[2]
     stored = tree.frames["train"][2]["stored"]
-    np.testing.assert_allclose(sssgs_ground_truth(frame), stored[..., :3] * stored[..., 3:], atol=1e-6)
-    np.testing.assert_allclose(frame.load(colourspace="srgb").rgb, sssgs_ground_truth(frame), atol=1e-6)
+    np.testing.assert_allclose(
+        sssgs_ground_truth(frame), stored[..., :3] * stored[..., 3:], atol=1e-6
+    )
+    np.testing.assert_allclose(
+        frame.load(colourspace="srgb").rgb, sssgs_ground_truth(frame), atol=1e-6
+    )
 
 
 def test_dispatch_and_path_frames(tmp_path):
     write_nrhints_tree(tmp_path / "s", n_path=1)
     scene = load_scene(tmp_path / "s")
     frame = scene.split("test")[0]
-    np.testing.assert_array_equal(official_ground_truth(frame, "nrhints"), nrhints_ground_truth(frame))
+    np.testing.assert_array_equal(
+        official_ground_truth(frame, "nrhints"), nrhints_ground_truth(frame)
+    )
     with pytest.raises(DatasetError, match="no official ground truth"):
         official_ground_truth(frame, "colmap")
     with pytest.raises(DatasetError, match="no image"):

@@ -10,8 +10,10 @@ import pytest
 from olatbench.datasets import DatasetError
 from olatbench.datasets.suites import canonical_scene_name, get_suite, suite_names
 
-CSV_CANDIDATES = [Path(__file__).parents[1] / "olatbench/reports/data/ssdgs_iclr2026.csv",
-                  Path("/work/shared/published/ssdgs_iclr2026.csv")]
+CSV_CANDIDATES = [
+    Path(__file__).parents[1] / "olatbench/reports/data/ssdgs_iclr2026.csv",
+    Path("/work/shared/published/ssdgs_iclr2026.csv"),
+]
 
 
 def test_suite_settings_follow_the_paper():
@@ -27,7 +29,12 @@ def test_mini_suite_is_generated():
     mini = get_suite("mini")
     assert mini.scenes == ("diffuse_shadow", "aniso_metal", "translucent")
     assert (mini.format, mini.generator, mini.iterations, mini.protocol, mini.resolution) == (
-        "nrhints", "olatbench.datasets.synth.mini:ensure_mini_suite", 3000, "olatbench-v1", None)
+        "nrhints",
+        "olatbench.datasets.synth.mini:ensure_mini_suite",
+        3000,
+        "olatbench-v1",
+        None,
+    )
 
 
 def test_scene_lists_match_the_published_csv():

@@ -19,7 +19,11 @@ def test_frame_dataset_items(tmp_path):
     data = FrameDataset(frames, colourspace="linear", resolution=(8, 6))
     item = data[1]
     assert len(data) == 4 and item["frame_id"] == "001"
-    assert item["image"].shape == (6, 8, 3) and item["alpha"].shape == (6, 8) and item["image"].dtype == torch.float32
+    assert (
+        item["image"].shape == (6, 8, 3)
+        and item["alpha"].shape == (6, 8)
+        and item["image"].dtype == torch.float32
+    )
     np.testing.assert_allclose(item["K"].numpy(), frames[1].camera.resized(8, 6).K, rtol=1e-6)
     np.testing.assert_allclose((item["w2c"] @ item["c2w"]).numpy(), np.eye(4), atol=1e-5)
     np.testing.assert_allclose(item["light_pos"].numpy(), frames[1].light.position, rtol=1e-6)

@@ -1,4 +1,5 @@
-"""Adaptive density control: clone/split/prune/cap semantics and optimizer state following its Gaussians."""
+"""Adaptive density control: clone/split/prune/cap semantics and optimizer state following its
+Gaussians."""
 
 from __future__ import annotations
 
@@ -25,15 +26,26 @@ def _tagged_model(n: int = 8) -> tuple[GaussianModel, torch.optim.Adam]:
         torch.zeros(n),  # opacity 0.5
         {"tag": torch.arange(n, dtype=torch.float32)[:, None], "feat": torch.zeros(n, 2, 3)},
     )
-    optimizer = torch.optim.Adam([{"params": [p], "lr": 1e-3} for p in model.parameters()], eps=1e-15)
+    optimizer = torch.optim.Adam(
+        [{"params": [p], "lr": 1e-3} for p in model.parameters()], eps=1e-15
+    )
     for p in model.parameters():
-        tag = torch.arange(n, dtype=torch.float32).reshape((n,) + (1,) * (p.ndim - 1)).expand(p.shape)
-        optimizer.state[p] = {"step": torch.tensor(7.0), "exp_avg": tag + 0.5, "exp_avg_sq": 2 * tag + 1}
+        tag = (
+            torch.arange(n, dtype=torch.float32).reshape((n,) + (1,) * (p.ndim - 1)).expand(p.shape)
+        )
+        optimizer.state[p] = {
+            "step": torch.tensor(7.0),
+            "exp_avg": tag + 0.5,
+            "exp_avg_sq": 2 * tag + 1,
+        }
     return model, optimizer
 
 
-def _check_moments_follow_tags(model: GaussianModel, optimizer: torch.optim.Adam, fresh: torch.Tensor) -> None:
-    """Rows with ``fresh`` have zero moments; every other row has the moments of its tag; step is unchanged."""
+def _check_moments_follow_tags(
+    model: GaussianModel, optimizer: torch.optim.Adam, fresh: torch.Tensor
+) -> None:
+    """Rows with ``fresh`` have zero moments; every other row has the moments of its tag; step is
+    unchanged."""
     tags = model.attributes["tag"].detach()[:, 0]
     for p in model.parameters():
         state = optimizer.state[p]
@@ -46,7 +58,9 @@ def _check_moments_follow_tags(model: GaussianModel, optimizer: torch.optim.Adam
         assert torch.equal(state["exp_avg_sq"], expected_sq)
 
 
-def _accumulate(densifier: Densifier, grads_px: torch.Tensor, radii: torch.Tensor | None = None) -> None:
+def _accumulate(
+    densifier: Densifier, grads_px: torch.Tensor, radii: torch.Tensor | None = None
+) -> None:
     n = grads_px.shape[0]
     radii = radii if radii is not None else torch.full((n,), 3)
     densifier.accumulate(grads_px, radii, torch.ones(n, dtype=torch.bool), width=200, height=100)
@@ -64,7 +78,8 @@ def test_clone_split_prune_keep_optimizer_state_aligned():
     grads[[1, 3], 0] = 1e-6  # 1e-4: cold
     _accumulate(densifier, grads)
     report = densifier.densify_and_prune(model, optimizer, EXTENT, max_screen_size=None)
-    assert report == {"cloned": 2, "split": 1, "pruned": 2, "capped": 0}  # clones of 0 and 5; 5 and its clone pruned
+    # clones of 0 and 5; 5 and its clone pruned
+    assert report == {"cloned": 2, "split": 1, "pruned": 2, "capped": 0}
 
     tags = model.attributes["tag"][:, 0].tolist()
     # survivors in order (0,1,3,4,6,7), then clone of 0, then the 2 children of 2
@@ -109,7 +124,8 @@ def test_cap_keeps_highest_priority_and_new_gaussians():
     densifier.accumulate_priority(torch.tensor([5.0, 1.0, 4.0, 0.5, 2.0, 3.0]))
     report = densifier.densify_and_prune(model, optimizer, EXTENT, max_screen_size=None)
     assert report["cloned"] == 1 and report["capped"] == 3
-    # 7 candidates: priorities 5,1,4,0.5,2,3 and the clone (max = 5): keep 0, 2, 5 and the clone of 4
+    # 7 candidates: priorities 5,1,4,0.5,2,3 and the clone (max = 5): keep 0, 2, 5 and the clone of
+    # 4
     assert model.attributes["tag"][:, 0].tolist() == [0, 2, 5, 4]
     _check_moments_follow_tags(model, optimizer, torch.tensor([False, False, False, True]))
 
@@ -120,7 +136,8 @@ def test_schedule_and_opacity_reset():
     _accumulate(densifier, torch.zeros(4, 2))
     assert densifier.step(model, optimizer, 550, EXTENT)["densified"] is False
     assert densifier.step(model, optimizer, 600, EXTENT)["densified"] is True
-    assert densifier.step(model, optimizer, 500, EXTENT)["densified"] is False  # densify_from is exclusive
+    # densify_from is exclusive
+    assert densifier.step(model, optimizer, 500, EXTENT)["densified"] is False
     report = densifier.step(model, optimizer, 3000, EXTENT)
     assert report["densified"] and report["opacity_reset"]
     assert float(model.opacities.detach().max()) <= 0.01 + 1e-7
@@ -129,14 +146,23 @@ def test_schedule_and_opacity_reset():
     # other parameters keep their moments through the reset
     assert float(optimizer.state[model.means]["exp_avg"].abs().sum()) > 0
     assert densifier.step(model, optimizer, 15_000, EXTENT) == {
-        "densified": False, "cloned": 0, "split": 0, "pruned": 0, "capped": 0, "opacity_reset": False,
+        "densified": False,
+        "cloned": 0,
+        "split": 0,
+        "pruned": 0,
+        "capped": 0,
+        "opacity_reset": False,
         "num_gaussians": model.num_gaussians,
     }
 
 
 def test_config_scaling_and_validation():
     scaled = DensifyConfig().scaled(100_000 / 30_000)
-    assert scaled.densify_until == 50_000 and scaled.densify_from == 1667 and scaled.grad_threshold == 0.0002
+    assert (
+        scaled.densify_until == 50_000
+        and scaled.densify_from == 1667
+        and scaled.grad_threshold == 0.0002
+    )
     with pytest.raises(ValueError, match="split_count"):
         DensifyConfig(split_count=1)
 
@@ -150,7 +176,10 @@ def test_surgery_with_multi_tensor_groups_and_no_state():
     (a.sum() + b.sum()).backward()
     optimizer.step()
     append_rows([a, b], optimizer, [torch.ones(1, 2), torch.ones(1)])
-    assert optimizer.state[a]["exp_avg"].shape == (3, 2) and float(optimizer.state[b]["exp_avg"][-1]) == 0.0
+    assert (
+        optimizer.state[a]["exp_avg"].shape == (3, 2)
+        and float(optimizer.state[b]["exp_avg"][-1]) == 0.0
+    )
     with pytest.raises(ValueError, match="cannot append rows"):
         append_rows([a], optimizer, [torch.ones(1, 3)])
 
@@ -160,13 +189,20 @@ def test_exponential_lr_closed_form():
 
     assert exponential_lr(0, 1.6e-4, 1.6e-6, 30_000) == pytest.approx(1.6e-4, rel=1e-12)
     assert exponential_lr(30_000, 1.6e-4, 1.6e-6, 30_000) == pytest.approx(1.6e-6, rel=1e-12)
-    assert exponential_lr(90_000, 1.6e-4, 1.6e-6, 30_000) == pytest.approx(1.6e-6, rel=1e-12)  # held after
-    assert exponential_lr(15_000, 1.6e-4, 1.6e-6, 30_000) == pytest.approx(math.sqrt(1.6e-4 * 1.6e-6), rel=1e-12)
+    # held after
+    assert exponential_lr(90_000, 1.6e-4, 1.6e-6, 30_000) == pytest.approx(1.6e-6, rel=1e-12)
+    assert exponential_lr(15_000, 1.6e-4, 1.6e-6, 30_000) == pytest.approx(
+        math.sqrt(1.6e-4 * 1.6e-6), rel=1e-12
+    )
     assert exponential_lr(-1, 1.0, 0.1, 10) == 0.0 and exponential_lr(5, 0.0, 0.0, 10) == 0.0
     # delayed warm-up: delay_mult + (1 - delay_mult) sin(π/2 · step/delay_steps)
     expected = (0.01 + 0.99 * math.sin(math.pi / 4)) * 1.0 * (0.1 / 1.0) ** (50 / 1000)
-    assert exponential_lr(50, 1.0, 0.1, 1000, delay_steps=100, delay_mult=0.01) == pytest.approx(expected, rel=1e-12)
-    assert exponential_lr(0, 1.0, 0.1, 1000, delay_steps=100, delay_mult=0.01) == pytest.approx(0.01, rel=1e-12)
+    assert exponential_lr(50, 1.0, 0.1, 1000, delay_steps=100, delay_mult=0.01) == pytest.approx(
+        expected, rel=1e-12
+    )
+    assert exponential_lr(0, 1.0, 0.1, 1000, delay_steps=100, delay_mult=0.01) == pytest.approx(
+        0.01, rel=1e-12
+    )
     schedule = exponential_lr_schedule(1.0, 0.1, 1000)
     assert schedule(500) == exponential_lr(500, 1.0, 0.1, 1000)
     with pytest.raises(ValueError, match="lr_final > 0"):
@@ -204,9 +240,9 @@ def test_accumulate_updates_only_the_visible_gaussians():
 
 
 def test_observe_and_step_counts_iterations_from_one_so_step_0_resets_nothing():
-    """The runner's step 0 is the official code's iteration 1: no opacity reset there (0 % 3000 == 0 used to
-    fire one, making every Gaussian nearly transparent before the first update); the first reset is at the
-    runner's step 2999 (iteration 3000)."""
+    """The runner's step 0 is the official code's iteration 1: no opacity reset there (0 % 3000 == 0
+    used to fire one, making every Gaussian nearly transparent before the first update); the first
+    reset is at the runner's step 2999 (iteration 3000)."""
     from types import SimpleNamespace
 
     model, optimizer = _tagged_model(4)
@@ -215,5 +251,11 @@ def test_observe_and_step_counts_iterations_from_one_so_step_0_resets_nothing():
     projected = SimpleNamespace(means2d=SimpleNamespace(grad=None))
     report = densifier.observe_and_step(model, optimizer, projected, 0, EXTENT)
     assert report["opacity_reset"] is False and torch.equal(model.opacities.detach(), before)
-    assert densifier.observe_and_step(model, optimizer, projected, 2998, EXTENT)["opacity_reset"] is False
-    assert densifier.observe_and_step(model, optimizer, projected, 2999, EXTENT)["opacity_reset"] is True
+    assert (
+        densifier.observe_and_step(model, optimizer, projected, 2998, EXTENT)["opacity_reset"]
+        is False
+    )
+    assert (
+        densifier.observe_and_step(model, optimizer, projected, 2999, EXTENT)["opacity_reset"]
+        is True
+    )

@@ -1,7 +1,7 @@
-"""`olatbench datasets download`/`verify` against a local HTTP server on 127.0.0.1 standing in for the
-official hosts (a Hugging Face-like tree API, the NRHints project's plain URLs): exact and pattern-matched
-files, a two-part archive, fallback between sources, a path-escaping member, a dropped connection, a
-corrupted byte. Nothing here touches the network."""
+"""`olatbench datasets download`/`verify` against a local HTTP server on 127.0.0.1 standing in for
+the official hosts (a Hugging Face-like tree API, the NRHints project's plain URLs): exact and
+pattern-matched files, a two-part archive, fallback between sources, a path-escaping member, a
+dropped connection, a corrupted byte. Nothing here touches the network."""
 
 from __future__ import annotations
 
@@ -32,7 +32,8 @@ from olatbench.datasets.download.sources import (
     sources_for,
 )
 
-SSSGS_COMMIT = SSSGS_REVISION + "0" * (40 - len(SSSGS_REVISION))  # the full id the stand-in Hub knows
+# the full id the stand-in Hub knows
+SSSGS_COMMIT = SSSGS_REVISION + "0" * (40 - len(SSSGS_REVISION))
 
 
 def _zip_folder(folder: Path, arcname: str) -> bytes:
@@ -64,9 +65,16 @@ def scene_zip(nrhints_tree) -> bytes:
     return _zip_folder(nrhints_tree, "Cat_on_Decor")
 
 
-def _hub_state(files: dict[str, bytes], *, repo: str = GS3_REPO, revision: str = GS3_REVISION,
-               with_hashes: bool = True, state: ServerState | None = None) -> ServerState:
-    """A Hub stand-in: ``files`` (repository path -> bytes) under resolve/, listed by the tree API."""
+def _hub_state(
+    files: dict[str, bytes],
+    *,
+    repo: str = GS3_REPO,
+    revision: str = GS3_REVISION,
+    with_hashes: bool = True,
+    state: ServerState | None = None,
+) -> ServerState:
+    """A Hub stand-in: ``files`` (repository path -> bytes) under resolve/, listed by the tree
+    API."""
     state = state or ServerState()
     listing = []
     for name, data in files.items():
@@ -81,21 +89,34 @@ def _hub_state(files: dict[str, bytes], *, repo: str = GS3_REPO, revision: str =
 
 
 def _sssgs_hub(files: dict[str, bytes], state: ServerState | None = None) -> ServerState:
-    """The SSS-GS stand-in: files at the full commit of the pinned revision, found in main's commit listing."""
+    """The SSS-GS stand-in: files at the full commit of the pinned revision, found in main's commit
+    listing."""
     state = _hub_state(files, repo=SSSGS_REPO, revision=SSSGS_COMMIT, state=state)
     later = [{"id": f"{index:040x}", "title": "README"} for index in range(1, 4)]
-    state.listings[f"/api/datasets/{SSSGS_REPO}/commits/main"] = [*later, {"id": SSSGS_COMMIT, "title": "card"}]
+    state.listings[f"/api/datasets/{SSSGS_REPO}/commits/main"] = [
+        *later,
+        {"id": SSSGS_COMMIT, "title": "card"},
+    ]
     return state
 
 
-def test_hub_source_fetches_the_exact_file_validates_and_normalises_the_alias(tmp_path, scene_zip, nrhints_tree):
+def test_hub_source_fetches_the_exact_file_validates_and_normalises_the_alias(
+    tmp_path, scene_zip, nrhints_tree
+):
     other = _zip_folder(nrhints_tree, "Cat")
     state = _hub_state({"NRHints/Cat_on_Decor.zip": scene_zip, "NRHints/Cat.zip": other})
     with LocalServer(state) as server:
-        folder = fetch.download_scene("nrhints", "CatSmall", tmp_path / "data", source="gs3-hf",
-                                      mirror=server.url, progress=False)
-        cat = fetch.download_scene("nrhints", "Cat", tmp_path / "data", source="gs3-hf", mirror=server.url,
-                                   progress=False)
+        folder = fetch.download_scene(
+            "nrhints",
+            "CatSmall",
+            tmp_path / "data",
+            source="gs3-hf",
+            mirror=server.url,
+            progress=False,
+        )
+        cat = fetch.download_scene(
+            "nrhints", "Cat", tmp_path / "data", source="gs3-hf", mirror=server.url, progress=False
+        )
     assert folder == tmp_path / "data" / "CatSmall" and cat == tmp_path / "data" / "Cat"
     assert len(load_scene(folder).split("train")) == 3
     assert manifest.verify_folder(folder) == []
@@ -103,7 +124,8 @@ def test_hub_source_fetches_the_exact_file_validates_and_normalises_the_alias(tm
     fetched = [path.rsplit("/", 1)[-1] for path, _ in state.requests if "/resolve/" in path]
     assert sorted(fetched) == ["Cat.zip", "Cat_on_Decor.zip"]
     assert json.loads((cat / manifest.MANIFEST_NAME).read_text())["archives"] == {
-        "Cat.zip": hashlib.sha256(other).hexdigest()}
+        "Cat.zip": hashlib.sha256(other).hexdigest()
+    }
     assert not [p for p in (tmp_path / "data").iterdir() if p.name.startswith(".unpack")]
 
 
@@ -114,33 +136,59 @@ def test_url_source_downloads_unpacks_aliases_and_validates(tmp_path, nrhints_tr
     runner = CliRunner()
     root = tmp_path / "data"
     with LocalServer(state) as server:
-        result = runner.invoke(main, ["datasets", "download", "nrhints", "--scenes", "FurScene", "--root", str(root),
-                                      "--source", "nrhints-project", "--mirror", server.url])
+        result = runner.invoke(
+            main,
+            [
+                "datasets",
+                "download",
+                "nrhints",
+                "--scenes",
+                "FurScene",
+                "--root",
+                str(root),
+                "--source",
+                "nrhints-project",
+                "--mirror",
+                server.url,
+            ],
+        )
     assert result.exit_code == 0, result.output
     assert [path for path, _ in state.requests] == ["/FurScene.zip"]
     assert len(load_scene(root / "FurScene").split("train")) == 3
-    assert json.loads((root / "FurScene" / manifest.MANIFEST_NAME).read_text())["source"] == "nrhints-project"
+    assert (
+        json.loads((root / "FurScene" / manifest.MANIFEST_NAME).read_text())["source"]
+        == "nrhints-project"
+    )
     assert runner.invoke(main, ["datasets", "verify", str(root)]).exit_code == 0
 
 
 def test_url_sources_default_to_the_official_locations():
-    """Without --mirror the NRHints files resolve to the project's host (no network needed to resolve)."""
+    """Without --mirror the NRHints files resolve to the project's host
+    (no network needed to resolve)."""
     for scene in ("Cat", "CatSmall", "Pikachu"):
         (source,) = sources_for("nrhints", scene, "nrhints-project")
         assert [f.url for f in fetch.resolve_files(source)] == [f"{NRHINTS_BASE_URL}/{scene}.zip"]
 
 
 def test_nrhints_defaults_to_the_papers_copy_then_the_authors_zips():
-    """SSD-GS trains on the GS³ re-pack of NRHints: it is tried first; the SSD-GS authors' copy is listed last."""
+    """SSD-GS trains on the GS³ re-pack of NRHints: it is tried first; the SSD-GS authors' copy is
+    listed last."""
     for scene in SOURCES["nrhints"]:
-        assert [s.name for s in sources_for("nrhints", scene)] == ["gs3-hf", "nrhints-project", "ssdgs-release"]
+        assert [s.name for s in sources_for("nrhints", scene)] == [
+            "gs3-hf",
+            "nrhints-project",
+            "ssdgs-release",
+        ]
 
 
 def test_unusable_source_falls_back_to_the_next(tmp_path, nrhints_tree):
-    """The (stand-in) Hub answers 404 for the GS³ re-pack, so the NRHints project's zip is used instead."""
+    """The (stand-in) Hub answers 404 for the GS³ re-pack, so the NRHints project's zip is used
+    instead."""
     state = ServerState(files={"/CatSmall.zip": _zip_folder(nrhints_tree, "CatSmall")})
     with LocalServer(state) as server:
-        folder = fetch.download_scene("nrhints", "CatSmall", tmp_path, mirror=server.url, progress=False)
+        folder = fetch.download_scene(
+            "nrhints", "CatSmall", tmp_path, mirror=server.url, progress=False
+        )
     assert json.loads((folder / manifest.MANIFEST_NAME).read_text())["source"] == "nrhints-project"
     assert state.requests[0] == (f"/api/datasets/{GS3_REPO}/tree/{GS3_REVISION}", None)
     assert state.requests[-1] == ("/CatSmall.zip", None)
@@ -150,30 +198,48 @@ def test_missing_hub_file_names_what_the_repository_holds(tmp_path):
     state = _hub_state({"Synthetic/Lego_v2.zip": b"x"})
     with LocalServer(state) as server, pytest.raises(transfer.DownloadError) as error:
         fetch.download_scene("gs3", "Lego", tmp_path, mirror=server.url, progress=False)
-    assert "Synthetic/Lego.zip not found" in str(error.value) and "Synthetic/Lego_v2.zip" in str(error.value)
+    assert "Synthetic/Lego.zip not found" in str(error.value) and "Synthetic/Lego_v2.zip" in str(
+        error.value
+    )
 
 
 def test_pattern_matched_two_part_archive_is_joined_and_aliased(tmp_path):
-    """SSS-GS archives are matched by pattern (exact names unpublished); numbered parts are joined in order."""
+    """SSS-GS archives are matched by pattern (exact names unpublished); numbered parts are joined
+    in order."""
     write_sssgs_tree(tmp_path / "src")
     data = _tar_folder(tmp_path / "src", "bunny_small")
     half = len(data) // 2
-    parts = {"synthetic/bunny_small.tar.002": data[half:], "synthetic/bunny_small.tar.001": data[:half],
-             "synthetic/bunny_small/transforms_train.json": b"{}", "real_world/bunny.tar": b"x"}
+    parts = {
+        "synthetic/bunny_small.tar.002": data[half:],
+        "synthetic/bunny_small.tar.001": data[:half],
+        "synthetic/bunny_small/transforms_train.json": b"{}",
+        "real_world/bunny.tar": b"x",
+    }
     state = _sssgs_hub(parts)
     with LocalServer(state) as server:
-        folder = fetch.download_scene("sssgs", "Bunny", tmp_path / "data", source="sssgs-hf", mirror=server.url,
-                                      progress=False)
+        folder = fetch.download_scene(
+            "sssgs",
+            "Bunny",
+            tmp_path / "data",
+            source="sssgs-hf",
+            mirror=server.url,
+            progress=False,
+        )
     assert folder == tmp_path / "data" / "Bunny"
     assert len(load_scene(folder).split("test")) == 3
     assert sorted(json.loads((folder / manifest.MANIFEST_NAME).read_text())["archives"]) == [
-        "bunny_small.tar.001", "bunny_small.tar.002"]
+        "bunny_small.tar.001",
+        "bunny_small.tar.002",
+    ]
 
 
 def test_several_matching_archives_are_refused(tmp_path):
     state = _sssgs_hub({"synthetic/bunny_small.tar": b"a", "synthetic/bunny_small_hdr.zip": b"b"})
     (source,) = sources_for("sssgs", "Bunny", "sssgs-hf")
-    with LocalServer(state) as server, pytest.raises(transfer.DownloadError, match="several archives match"):
+    with (
+        LocalServer(state) as server,
+        pytest.raises(transfer.DownloadError, match="several archives match"),
+    ):
         fetch.resolve_files(source, server.url)
 
 
@@ -182,7 +248,9 @@ def test_dropped_connection_resumes_with_a_range_request(tmp_path, scene_zip):
     path = f"/datasets/{GS3_REPO}/resolve/{GS3_REVISION}/NRHints/Cat_on_Decor.zip"
     state.drop_after[path] = len(scene_zip) // 3
     with LocalServer(state) as server:
-        fetch.download_scene("nrhints", "CatSmall", tmp_path, source="gs3-hf", mirror=server.url, progress=False)
+        fetch.download_scene(
+            "nrhints", "CatSmall", tmp_path, source="gs3-hf", mirror=server.url, progress=False
+        )
     ranges = [rng for p, rng in state.requests if p == path]
     assert ranges[0] is None and ranges[1] == f"bytes={len(scene_zip) // 3}-"
 
@@ -191,7 +259,9 @@ def test_corrupted_byte_stops_with_both_hashes_and_installs_nothing(tmp_path, sc
     state = _hub_state({"NRHints/Cat_on_Decor.zip": scene_zip})
     corrupted = bytearray(scene_zip)
     corrupted[len(corrupted) // 2] ^= 0xFF
-    state.files[f"/datasets/{GS3_REPO}/resolve/{GS3_REVISION}/NRHints/Cat_on_Decor.zip"] = bytes(corrupted)
+    state.files[f"/datasets/{GS3_REPO}/resolve/{GS3_REVISION}/NRHints/Cat_on_Decor.zip"] = bytes(
+        corrupted
+    )
     with LocalServer(state) as server, pytest.raises(manifest.IntegrityError) as error:
         fetch.download_scene("nrhints", "CatSmall", tmp_path, mirror=server.url, progress=False)
     message = str(error.value)
@@ -207,8 +277,14 @@ def test_mirror_hash_recorded_first_time_and_checked_later(tmp_path, nrhints_tre
     mirror.mkdir()
     (mirror / "CatSmall.zip").write_bytes(data)
     root = tmp_path / "data"
-    fetch.download_scene("nrhints", "CatSmall", root, source="nrhints-project", mirror=mirror.as_uri(),
-                         progress=False)
+    fetch.download_scene(
+        "nrhints",
+        "CatSmall",
+        root,
+        source="nrhints-project",
+        mirror=mirror.as_uri(),
+        progress=False,
+    )
     recorded = json.loads((root / fetch.KNOWN_HASHES).read_text())
     assert recorded == {"nrhints-project/CatSmall.zip": hashlib.sha256(data).hexdigest()}
     # the mirror changes under us: the next fresh download refuses it
@@ -216,8 +292,14 @@ def test_mirror_hash_recorded_first_time_and_checked_later(tmp_path, nrhints_tre
     shutil.rmtree(root / "CatSmall")
     shutil.rmtree(root / fetch.DOWNLOADS)
     with pytest.raises(manifest.IntegrityError):
-        fetch.download_scene("nrhints", "CatSmall", root, source="nrhints-project", mirror=mirror.as_uri(),
-                             progress=False)
+        fetch.download_scene(
+            "nrhints",
+            "CatSmall",
+            root,
+            source="nrhints-project",
+            mirror=mirror.as_uri(),
+            progress=False,
+        )
 
 
 def test_path_escaping_members_are_refused_before_writing(tmp_path):
@@ -229,7 +311,10 @@ def test_path_escaping_members_are_refused_before_writing(tmp_path):
     archive.write_bytes(buffer.getvalue())
     with pytest.raises(archives.UnsafeArchiveError, match=r"\.\./evil\.txt"):
         archives.extract(archive, tmp_path / "out")
-    assert not (tmp_path / "evil.txt").exists() and not (tmp_path / "out" / "scene" / "ok.txt").exists()
+    assert (
+        not (tmp_path / "evil.txt").exists()
+        and not (tmp_path / "out" / "scene" / "ok.txt").exists()
+    )
 
 
 @pytest.mark.parametrize("member", ["/etc/passwd-copy", "link"])
@@ -248,27 +333,50 @@ def test_tar_absolute_paths_and_links_are_refused(tmp_path, member):
 
 
 def test_server_error_is_reported_with_the_url(tmp_path):
-    with LocalServer(ServerState()) as server, pytest.raises(transfer.DownloadError, match="HTTP 404"):
-        transfer.download(f"{server.url}/missing.zip", tmp_path / "missing.zip", retries=1, backoff=0)
+    with (
+        LocalServer(ServerState()) as server,
+        pytest.raises(transfer.DownloadError, match="HTTP 404"),
+    ):
+        transfer.download(
+            f"{server.url}/missing.zip", tmp_path / "missing.zip", retries=1, backoff=0
+        )
 
 
 def test_unreachable_hub_then_manual_sources_fail_cleanly_with_instructions(tmp_path, monkeypatch):
-    """SSS-GS: the Hub (a local stand-in answering 404) fails, the mirror-only source prints how to use it."""
+    """SSS-GS: the Hub (a local stand-in answering 404) fails, the mirror-only source prints how to
+    use it."""
     with LocalServer(ServerState()) as server:
-        monkeypatch.setenv("HF_ENDPOINT", server.url)  # the Hub's own variable points olatbench at the stand-in
-        result = CliRunner().invoke(main, ["datasets", "download", "sssgs", "--scenes", "Bunny",
-                                           "--root", str(tmp_path)])
+        # the Hub's own variable points olatbench at the stand-in
+        monkeypatch.setenv("HF_ENDPOINT", server.url)
+        result = CliRunner().invoke(
+            main, ["datasets", "download", "sssgs", "--scenes", "Bunny", "--root", str(tmp_path)]
+        )
     assert result.exit_code != 0 and "Traceback" not in result.output
     assert "[sssgs-hf]" in result.output and "404" in result.output and server.url in result.output
     assert "--mirror" in result.output and "[ssdgs-release]" in result.output
-    assert "rerun the same command to resume" in result.output  # the Hub failure was a download error
+    # the Hub failure was a download error
+    assert "rerun the same command to resume" in result.output
 
 
 def test_manual_only_sources_say_so_instead_of_suggesting_a_rerun(tmp_path):
-    result = CliRunner().invoke(main, ["datasets", "download", "sssgs", "--scenes", "Bunny", "--root", str(tmp_path),
-                                       "--source", "ssdgs-release"])
+    result = CliRunner().invoke(
+        main,
+        [
+            "datasets",
+            "download",
+            "sssgs",
+            "--scenes",
+            "Bunny",
+            "--root",
+            str(tmp_path),
+            "--source",
+            "ssdgs-release",
+        ],
+    )
     assert result.exit_code != 0 and "Traceback" not in result.output
-    assert "NEEDS A MANUAL STEP" in result.output and "follow the instructions above" in result.output
+    assert (
+        "NEEDS A MANUAL STEP" in result.output and "follow the instructions above" in result.output
+    )
     assert SSDGS_DATASET_URL in result.output.replace("\n", "").replace(" ", "")
     assert "Synthetic_SSS-GS" in result.output
     assert "resume" not in result.output
@@ -280,8 +388,22 @@ def test_verify_reports_a_damaged_file(tmp_path, nrhints_tree):
     (mirror / "CatSmall.zip").write_bytes(_zip_folder(nrhints_tree, "CatSmall"))
     root = tmp_path / "data"
     runner = CliRunner()
-    result = runner.invoke(main, ["datasets", "download", "nrhints", "--scenes", "CatSmall", "--root", str(root),
-                                  "--source", "nrhints-project", "--mirror", mirror.as_uri()])
+    result = runner.invoke(
+        main,
+        [
+            "datasets",
+            "download",
+            "nrhints",
+            "--scenes",
+            "CatSmall",
+            "--root",
+            str(root),
+            "--source",
+            "nrhints-project",
+            "--mirror",
+            mirror.as_uri(),
+        ],
+    )
     assert result.exit_code == 0, result.output
     assert runner.invoke(main, ["datasets", "verify", str(root)]).exit_code == 0
     victim = next((root / "CatSmall").rglob("*.png"))
@@ -291,7 +413,11 @@ def test_verify_reports_a_damaged_file(tmp_path, nrhints_tree):
 
 
 def test_ssdgs_release_is_offered_for_every_suite_with_its_folder():
-    for suite, folder in (("nrhints", "Real_NRHints"), ("gs3", "Synthetic_GS3"), ("sssgs", "Synthetic_SSS-GS")):
+    for suite, folder in (
+        ("nrhints", "Real_NRHints"),
+        ("gs3", "Synthetic_GS3"),
+        ("sssgs", "Synthetic_SSS-GS"),
+    ):
         for scene in SOURCES[suite]:
             (source,) = sources_for(suite, scene, "ssdgs-release")
             assert source.kind == "manual" and SSDGS_DATASET_URL in source.instructions
@@ -299,8 +425,9 @@ def test_ssdgs_release_is_offered_for_every_suite_with_its_folder():
 
 
 def test_hub_listings_are_followed_page_by_page_and_the_revision_is_resolved(tmp_path):
-    """The Hub pages its tree and commit listings (Link: rel="next"); the archive is on the last tree page and
-    the pinned commit on the last commit page, so a reader of the first page only would find neither."""
+    """The Hub pages its tree and commit listings (Link: rel="next"); the archive is on the last
+    tree page and the pinned commit on the last commit page, so a reader of the first page only
+    would find neither."""
     write_sssgs_tree(tmp_path / "src")
     data = _tar_folder(tmp_path / "src", "bunny_small")
     files = {f"synthetic/other_{index}.json": b"{}" for index in range(5)}
@@ -310,33 +437,55 @@ def test_hub_listings_are_followed_page_by_page_and_the_revision_is_resolved(tmp
     (source,) = sources_for("sssgs", "Bunny", "sssgs-hf")
     with LocalServer(state) as server:
         (remote,) = fetch.resolve_files(source, server.url)
-    assert remote.url == f"{server.url}/datasets/{SSSGS_REPO}/resolve/{SSSGS_COMMIT}/synthetic/bunny_small.tar"
+    assert (
+        remote.url
+        == f"{server.url}/datasets/{SSSGS_REPO}/resolve/{SSSGS_COMMIT}/synthetic/bunny_small.tar"
+    )
     assert remote.sha256 == hashlib.sha256(data).hexdigest()
     pages = [path for path, _ in state.requests]
     assert pages.count(f"/api/datasets/{SSSGS_REPO}/commits/main") == 2
-    assert pages.count(f"/api/datasets/{SSSGS_REPO}/tree/{SSSGS_COMMIT}") == 4  # 7 entries, 2 per page
+    # 7 entries, 2 per page
+    assert pages.count(f"/api/datasets/{SSSGS_REPO}/tree/{SSSGS_COMMIT}") == 4
 
 
 def test_a_pinned_revision_missing_from_the_history_stops(tmp_path):
     state = _sssgs_hub({"synthetic/bunny_small.tar": b"a"})
     state.listings[f"/api/datasets/{SSSGS_REPO}/commits/main"] = [{"id": "f" * 40}]
     (source,) = sources_for("sssgs", "Bunny", "sssgs-hf")
-    with LocalServer(state) as server, pytest.raises(transfer.DownloadError, match=f"revision {SSSGS_REVISION}"):
+    with (
+        LocalServer(state) as server,
+        pytest.raises(transfer.DownloadError, match=f"revision {SSSGS_REVISION}"),
+    ):
         fetch.resolve_files(source, server.url)
 
 
 def test_hf_token_is_sent_to_the_hub_only(tmp_path, monkeypatch, scene_zip):
-    """$HF_TOKEN goes to every Hub request (listing and download) as a Bearer token; never to a URL source."""
+    """$HF_TOKEN goes to every Hub request (listing and download) as a Bearer token; never to a URL
+    source."""
     monkeypatch.setenv("HF_TOKEN", "hf_test_token")
     state = _hub_state({"NRHints/Cat_on_Decor.zip": scene_zip})
     with LocalServer(state) as server:
-        fetch.download_scene("nrhints", "CatSmall", tmp_path / "hub", source="gs3-hf", mirror=server.url,
-                             progress=False)
-    assert state.authorization and all(value == "Bearer hf_test_token" for _, value in state.authorization)
+        fetch.download_scene(
+            "nrhints",
+            "CatSmall",
+            tmp_path / "hub",
+            source="gs3-hf",
+            mirror=server.url,
+            progress=False,
+        )
+    assert state.authorization and all(
+        value == "Bearer hf_test_token" for _, value in state.authorization
+    )
     plain = ServerState(files={"/CatSmall.zip": scene_zip})
     with LocalServer(plain) as server:
-        fetch.download_scene("nrhints", "CatSmall", tmp_path / "url", source="nrhints-project", mirror=server.url,
-                             progress=False)
+        fetch.download_scene(
+            "nrhints",
+            "CatSmall",
+            tmp_path / "url",
+            source="nrhints-project",
+            mirror=server.url,
+            progress=False,
+        )
     assert plain.authorization == [("/CatSmall.zip", None)]
     monkeypatch.delenv("HF_TOKEN")
     assert fetch.hub_headers() == {}
@@ -351,13 +500,20 @@ def test_hub_endpoint_order(monkeypatch):
 
 
 def test_link_header_parsing():
-    assert transfer.next_link('<https://huggingface.co/api/x?cursor=abc>; rel="next"') == \
-        "https://huggingface.co/api/x?cursor=abc"
-    assert transfer.next_link('<https://a/prev>; rel="prev", <https://a/next>; rel="next"') == "https://a/next"
-    assert transfer.next_link(None) is None and transfer.next_link('<https://a/p>; rel="prev"') is None
+    assert (
+        transfer.next_link('<https://huggingface.co/api/x?cursor=abc>; rel="next"')
+        == "https://huggingface.co/api/x?cursor=abc"
+    )
+    assert (
+        transfer.next_link('<https://a/prev>; rel="prev", <https://a/next>; rel="next"')
+        == "https://a/next"
+    )
+    assert (
+        transfer.next_link(None) is None and transfer.next_link('<https://a/p>; rel="prev"') is None
+    )
 
 
-# --- #38: nothing deleted that olatbench did not write; damaged archives never poison the cache ---------------
+# --- #38: nothing deleted that olatbench did not write; damaged archives never poison the cache
 
 
 def _mirror(tmp_path: Path, name: str, data: bytes) -> Path:
@@ -368,31 +524,51 @@ def _mirror(tmp_path: Path, name: str, data: bytes) -> Path:
 
 
 def _download(root: Path, mirror: Path, scene: str = "CatSmall"):
-    return CliRunner().invoke(main, ["datasets", "download", "nrhints", "--scenes", scene, "--data-root", str(root),
-                                     "--source", "nrhints-project", "--mirror", mirror.as_uri()])
+    return CliRunner().invoke(
+        main,
+        [
+            "datasets",
+            "download",
+            "nrhints",
+            "--scenes",
+            scene,
+            "--data-root",
+            str(root),
+            "--source",
+            "nrhints-project",
+            "--mirror",
+            mirror.as_uri(),
+        ],
+    )
 
 
 def test_a_scene_folder_olatbench_did_not_write_is_left_untouched(tmp_path, nrhints_tree):
-    """#38 item 1: ROOT/Cat without olatbench's manifest was removed with shutil.rmtree; now it stays, and the
-    error gives the command that replaces it."""
+    """#38 item 1: ROOT/Cat without olatbench's manifest was removed with shutil.rmtree; now it
+    stays, and the error gives the command that replaces it."""
     mirror = _mirror(tmp_path, "Cat.zip", _zip_folder(nrhints_tree, "Cat"))
     root = tmp_path / "data"
     (root / "Cat").mkdir(parents=True)
     (root / "Cat" / "NOTES.txt").write_text("mine")
     result = _download(root, mirror, "Cat")
     assert result.exit_code == 1 and "Traceback" not in result.output
-    assert (root / "Cat" / "NOTES.txt").read_text() == "mine" and sorted(p.name for p in root.iterdir()) == ["Cat"]
+    assert (root / "Cat" / "NOTES.txt").read_text() == "mine" and sorted(
+        p.name for p in root.iterdir()
+    ) == ["Cat"]
     assert "was not downloaded by olatbench" in result.output and "left untouched" in result.output
-    assert f"mv {root / 'Cat'} {root / 'Cat'}.mine && olatbench datasets download nrhints --scenes Cat" in \
-        result.output
+    assert (
+        f"mv {root / 'Cat'} {root / 'Cat'}.mine && olatbench datasets download nrhints --scenes Cat"
+        in result.output
+    )
     # the command it prints does replace it
     (root / "Cat").rename(root / "Cat.mine")
-    assert _download(root, mirror, "Cat").exit_code == 0 and manifest.verify_folder(root / "Cat") == []
+    assert (
+        _download(root, mirror, "Cat").exit_code == 0 and manifest.verify_folder(root / "Cat") == []
+    )
 
 
 def test_a_downloaded_scene_edited_afterwards_is_moved_aside_not_deleted(tmp_path, nrhints_tree):
-    """#38 item 1: a folder that differs from its manifest is renamed beside the new copy, and the output says
-    where; every file of it survives."""
+    """#38 item 1: a folder that differs from its manifest is renamed beside the new copy, and the
+    output says where; every file of it survives."""
     mirror = _mirror(tmp_path, "CatSmall.zip", _zip_folder(nrhints_tree, "CatSmall"))
     root = tmp_path / "data"
     assert _download(root, mirror).exit_code == 0
@@ -409,10 +585,12 @@ def test_a_downloaded_scene_edited_afterwards_is_moved_aside_not_deleted(tmp_pat
 
 
 def test_a_truncated_archive_does_not_poison_the_cache(tmp_path, nrhints_tree):
-    """#38 item 2: a truncated mirror file recorded its hash before unpacking and stayed cached, so every rerun
-    repeated a tarfile traceback and the repaired archive was then refused as a sha256 mismatch."""
+    """#38 item 2: a truncated mirror file recorded its hash before unpacking and stayed cached, so
+    every rerun repeated a tarfile traceback and the repaired archive was then refused as a sha256
+    mismatch."""
     good = _tar_folder(nrhints_tree, "CatSmall")
-    mirror = _mirror(tmp_path, "CatSmall.zip", good[: len(good) // 2])  # the source's name; tar content
+    # the source's name; tar content
+    mirror = _mirror(tmp_path, "CatSmall.zip", good[: len(good) // 2])
     root = tmp_path / "data"
     result = _download(root, mirror)
     assert result.exit_code == 1 and "Traceback" not in result.output
@@ -425,11 +603,13 @@ def test_a_truncated_archive_does_not_poison_the_cache(tmp_path, nrhints_tree):
     result = _download(root, mirror)
     assert result.exit_code == 0, result.output
     assert json.loads((root / fetch.KNOWN_HASHES).read_text()) == {
-        "nrhints-project/CatSmall.zip": hashlib.sha256(good).hexdigest()}
+        "nrhints-project/CatSmall.zip": hashlib.sha256(good).hexdigest()
+    }
 
 
 def test_a_recorded_hash_mismatch_says_how_to_accept_a_changed_source(tmp_path, nrhints_tree):
-    """#38 item 2: "rerun" alone looped; a mismatch with a recorded hash names the entry to delete."""
+    """#38 item 2: "rerun" alone looped; a mismatch with a recorded hash names the entry to
+    delete."""
     data = _zip_folder(nrhints_tree, "CatSmall")
     mirror = _mirror(tmp_path, "CatSmall.zip", data)
     root = tmp_path / "data"
@@ -440,7 +620,10 @@ def test_a_recorded_hash_mismatch_says_how_to_accept_a_changed_source(tmp_path, 
     shutil.move(root / "CatSmall", tmp_path / "elsewhere")
     result = _download(root, mirror)
     assert result.exit_code == 1 and "Traceback" not in result.output
-    assert "entry 'nrhints-project/CatSmall.zip'" in result.output and "delete that entry and rerun" in result.output
+    assert (
+        "entry 'nrhints-project/CatSmall.zip'" in result.output
+        and "delete that entry and rerun" in result.output
+    )
 
 
 def _tgz(members: dict[str, bytes], mode: str = "w:gz") -> bytes:
@@ -460,17 +643,24 @@ def test_an_unreadable_record_of_hashes_is_one_error(tmp_path, nrhints_tree):
     (root / fetch.KNOWN_HASHES).write_text("{truncated")
     result = _download(root, mirror)
     assert result.exit_code == 1 and "Traceback" not in result.output
-    assert fetch.KNOWN_HASHES in result.output and "unreadable record of archive hashes" in result.output
+    assert (
+        fetch.KNOWN_HASHES in result.output
+        and "unreadable record of archive hashes" in result.output
+    )
 
 
 def test_a_decompression_bomb_is_refused_while_unpacking(tmp_path):
-    """#38 item 3: 96 MiB of zeros in a ~100 kB tar.gz goes over the limit (20 × the archive, at least 64 MiB)."""
+    """#38 item 3: 96 MiB of zeros in a ~100 kB tar.gz goes over the limit (20 × the archive, at
+    least 64 MiB)."""
     archive = tmp_path / "bomb.tar.gz"
     archive.write_bytes(_tgz({"scene/zeros.bin": bytes(96 << 20)}))
     assert archive.stat().st_size < 1 << 20
     with pytest.raises(archives.UnsafeArchiveError, match="decompression bomb"):
         archives.extract(archive, tmp_path / "out")
-    assert sum(p.stat().st_size for p in (tmp_path / "out").rglob("*") if p.is_file()) <= archives.UNPACK_FLOOR
+    assert (
+        sum(p.stat().st_size for p in (tmp_path / "out").rglob("*") if p.is_file())
+        <= archives.UNPACK_FLOOR
+    )
 
 
 def test_a_tar_member_named_dot_is_refused(tmp_path):
@@ -482,8 +672,8 @@ def test_a_tar_member_named_dot_is_refused(tmp_path):
 
 
 def test_an_archive_that_is_no_scene_leaves_the_cache_too(tmp_path, nrhints_tree):
-    """A mirror serving the wrong file: the readable archive that holds no scene does not stay cached to fail
-    again; a rerun after the mirror is fixed installs the scene."""
+    """A mirror serving the wrong file: the readable archive that holds no scene does not stay
+    cached to fail again; a rerun after the mirror is fixed installs the scene."""
     buffer = io.BytesIO()
     with zipfile.ZipFile(buffer, "w") as bundle:
         bundle.writestr("CatSmall/README.txt", "the scene is elsewhere")

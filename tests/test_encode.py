@@ -1,5 +1,6 @@
-"""Sweep videos: H.264 through PyAV or imageio-ffmpeg (checked by decoding the file with PyAV), the stated mp4v
-fallback, `olatbench render` writing H.264, and the HTML report embedding a video a browser plays."""
+"""Sweep videos: H.264 through PyAV or imageio-ffmpeg (checked by decoding the file with PyAV), the
+stated mp4v fallback, `olatbench render` writing H.264, and the HTML report embedding a video a
+browser plays."""
 
 from __future__ import annotations
 
@@ -25,8 +26,17 @@ CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 def gradient_frames(count: int, width: int, height: int) -> list[np.ndarray]:
     """Smooth colour ramps that move from frame to frame (uint8 RGB)."""
     y, x = np.mgrid[0:height, 0:width]
-    return [np.stack([(x * 255 // max(width - 1, 1) + 20 * t) % 256, y * 255 // max(height - 1, 1),
-                      np.full_like(x, 40 * t % 256)], axis=2).astype(np.uint8) for t in range(count)]
+    return [
+        np.stack(
+            [
+                (x * 255 // max(width - 1, 1) + 20 * t) % 256,
+                y * 255 // max(height - 1, 1),
+                np.full_like(x, 40 * t % 256),
+            ],
+            axis=2,
+        ).astype(np.uint8)
+        for t in range(count)
+    ]
 
 
 def decode(path) -> tuple[str, str, list[np.ndarray]]:
@@ -39,7 +49,8 @@ def decode(path) -> tuple[str, str, list[np.ndarray]]:
 
 @pytest.mark.parametrize("encoder", ["av", "imageio-ffmpeg"])
 def test_h264_encoders_write_a_playable_stream(tmp_path, encoder):
-    """Odd sizes are padded to even (yuv420p); the decoded frames match the input up to compression."""
+    """Odd sizes are padded to even (yuv420p); the decoded frames match the input up to
+    compression."""
     if encoder not in encode.available_encoders():
         pytest.skip(f"{encoder} is not installed")
     frames = gradient_frames(5, 17, 13)
@@ -51,7 +62,8 @@ def test_h264_encoders_write_a_playable_stream(tmp_path, encoder):
     assert (codec, pix_fmt, writer.encoder) == ("h264", "yuv420p", encoder)
     assert len(decoded) == 5 and decoded[0].shape == (14, 18, 3)
     error = np.abs(decoded[2][:13, :17].astype(float) - frames[2]).mean()
-    assert error < 6.0, error  # chroma subsampling of a 17×13 ramp; a wrong channel order would be ~80
+    # chroma subsampling of a 17×13 ramp; a wrong channel order would be ~80
+    assert error < 6.0, error
 
 
 def test_without_an_h264_encoder_mp4v_is_written_and_logged(tmp_path, monkeypatch, caplog):
@@ -73,7 +85,9 @@ def test_unknown_encoder_is_refused(tmp_path):
 
 def test_cli_render_writes_h264(tmp_path):
     folder = make_job(tmp_path)
-    result = CliRunner().invoke(main, ["render", str(folder), "--frames", "4", "-o", str(tmp_path / "video")])
+    result = CliRunner().invoke(
+        main, ["render", str(folder), "--frames", "4", "-o", str(tmp_path / "video")]
+    )
     assert result.exit_code == 0, result.output
     assert "H.264" in result.output
     codec, _, decoded = decode(tmp_path / "video" / "light-orbit.mp4")
@@ -96,7 +110,11 @@ def _report_with_video(tmp_path, encoder: str = "av"):
 
 def test_html_report_embeds_h264_sweeps_and_notes_mp4v(tmp_path):
     html = _report_with_video(tmp_path / "h264").read_text()
-    assert html.count("<video") == 1 and 'src="data:video/mp4;base64,' in html and "light-orbit sweep" in html
+    assert (
+        html.count("<video") == 1
+        and 'src="data:video/mp4;base64,' in html
+        and "light-orbit sweep" in html
+    )
     html = _report_with_video(tmp_path / "mp4v", encoder="opencv").read_text()
     assert "<video" not in html and "light-orbit.mp4 is not H.264" in html
 
@@ -107,19 +125,27 @@ const report = (text) => { document.body.setAttribute("data-probe", text); };
 video.addEventListener("loadeddata", () => report(`played ${video.videoWidth}x${video.videoHeight}`));
 video.addEventListener("error", () => report(`error ${video.error && video.error.code}`));
 video.load();
-</script>"""
+</script>"""  # noqa: E501
 
 
 @pytest.mark.slow
 @pytest.mark.skipif(CHROMIUM is None, reason="needs Debian's chromium (apt-get install chromium)")
 def test_chromium_plays_the_embedded_video(tmp_path):
-    """Headless Chromium decodes the report's video (`loadeddata` with the right size); the same page with an mp4v
-    file embedded fails to decode, which is what the fallback note warns about."""
+    """Headless Chromium decodes the report's video (`loadeddata` with the right size); the same
+    page with an mp4v file embedded fails to decode, which is what the fallback note warns about."""
     page = _report_with_video(tmp_path)
     probe = tmp_path / "probe.html"
     probe.write_text(page.read_text().replace("</body>", PROBE + "</body>"))
-    flags = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
-             "--autoplay-policy=no-user-gesture-required", "--virtual-time-budget=10000", "--dump-dom"]
-    dom = subprocess.run([CHROMIUM, *flags, probe.as_uri()], capture_output=True, text=True,
-                         timeout=BACKSTOP_SECONDS).stdout
+    flags = [
+        "--headless",
+        "--no-sandbox",
+        "--disable-gpu",
+        "--disable-background-networking",
+        "--autoplay-policy=no-user-gesture-required",
+        "--virtual-time-budget=10000",
+        "--dump-dom",
+    ]
+    dom = subprocess.run(
+        [CHROMIUM, *flags, probe.as_uri()], capture_output=True, text=True, timeout=BACKSTOP_SECONDS
+    ).stdout
     assert re.search(r'data-probe="played 32x24"', dom), dom[-2000:]

@@ -1,6 +1,7 @@
-"""``olatbench export --under-light``: the colours under a light baked into the PLY's spherical harmonics, checked by
-rendering the file through gsplat's own projection and rasterizer (torch twins, on the CPU) against olatbench's
-render under that light, and the SH fit against a closed form."""
+"""``olatbench export --under-light``: the colours under a light baked into the PLY's spherical
+harmonics, checked by rendering the file through gsplat's own projection and rasterizer
+(torch twins, on the CPU) against olatbench's render under that light, and the SH fit against a
+closed form."""
 
 from __future__ import annotations
 
@@ -26,12 +27,17 @@ gsplat_cpu = pytest.importorskip("gsplat_cpu")
 @pytest.fixture(scope="module")
 def ssdgs_job(tmp_path_factory):
     return train_tiny(
-        "ssdgs", tmp_path_factory.mktemp("bake_ssdgs"), iterations=8, shadow_resolution=32, init_opacity=0.6
+        "ssdgs",
+        tmp_path_factory.mktemp("bake_ssdgs"),
+        iterations=8,
+        shadow_resolution=32,
+        init_opacity=0.6,
     )
 
 
 def gsplat_render(table: np.ndarray, camera, background: torch.Tensor, monkeypatch) -> torch.Tensor:
-    """The PLY's Gaussians (degree-0 colours) rendered by gsplat's torch code: projection, tiles, compositing."""
+    """The PLY's Gaussians (degree-0 colours) rendered by gsplat's torch code: projection, tiles,
+    compositing."""
     gsplat_cpu.cpu_gsplat(monkeypatch)
     impl = gsplat_cpu.gsplat_torch
     f64 = dict(dtype=torch.float64)
@@ -39,7 +45,9 @@ def gsplat_render(table: np.ndarray, camera, background: torch.Tensor, monkeypat
     quats = torch.nn.functional.normalize(torch.tensor(columns(table, "rot_", 4), **f64), dim=-1)
     scales = torch.exp(torch.tensor(columns(table, "scale_", 3), **f64))
     opacities = torch.sigmoid(torch.tensor(table["opacity"], **f64))
-    colours = (0.5 + (0.5 / math.sqrt(math.pi)) * torch.tensor(columns(table, "f_dc_", 3), **f64)).clamp_min(0.0)
+    colours = (
+        0.5 + (0.5 / math.sqrt(math.pi)) * torch.tensor(columns(table, "f_dc_", 3), **f64)
+    ).clamp_min(0.0)
     covars, _ = impl._quat_scale_to_covar_preci(quats, scales, compute_preci=False)
     viewmat = torch.tensor(np.linalg.inv(camera.c2w), **f64)[None]
     K = torch.tensor(camera.K, **f64)[None]
@@ -64,12 +72,15 @@ def gsplat_render(table: np.ndarray, camera, background: torch.Tensor, monkeypat
     return image[0]
 
 
-def test_a_bake_from_one_camera_renders_through_gsplat_as_olatbench_renders_it(ssdgs_job, tmp_path, monkeypatch):
+def test_a_bake_from_one_camera_renders_through_gsplat_as_olatbench_renders_it(
+    ssdgs_job, tmp_path, monkeypatch
+):
     method, job = restore(ssdgs_job)
     test_frame = load_scene(job.scene_path, format=job.scene_format).split(job.test_split)[0]
     camera = view_camera(test_frame, job)
-    # a light near the camera (the tiny scene's own lights leave the barely trained model dark), in world units as
-    # the export command takes it: the method's training views are in its canonical frame
+    # a light near the camera (the tiny scene's own lights leave the barely trained model dark), in
+    # world units as the export command takes it: the method's training views are in its canonical
+    # frame
     world_light = method.frame.inverse().light(method.train_views.views.lights[0])
     light = dataclasses.replace(world_light, position=0.6 * camera.position)
     out = tmp_path / "lit.ply"
@@ -91,22 +102,29 @@ def test_a_bake_from_one_camera_renders_through_gsplat_as_olatbench_renders_it(s
     comments, _, table = parse_ply(out)
     assert any("a bake, not relightable" in line for line in comments)
     assert not np.any(columns(table, "f_rest_", 45))  # degree 0
-    # the alpha clamp differs (olatbench 0.99, gsplat 0.999): the comparison holds where neither clamps
+    # the alpha clamp differs (olatbench 0.99, gsplat 0.999): the comparison holds where neither
+    # clamps
     assert float(torch.sigmoid(torch.tensor(table["opacity"])).max()) < 0.99
-    expected = method.render(camera, light)["rgb"].double()  # sRGB job: no colour conversion between them
+    # sRGB job: no colour conversion between them
+    expected = method.render(camera, light)["rgb"].double()
     assert job.colourspace == "srgb"
-    got = gsplat_render(table, camera, method.train_views.background.double(), monkeypatch).clamp(0.0, 1.0)
+    got = gsplat_render(table, camera, method.train_views.background.double(), monkeypatch).clamp(
+        0.0, 1.0
+    )
     assert float(expected.std()) > 0.01  # not a blank image
-    # the same per-Gaussian colours composited by olatbench in float32 in the canonical frame and by gsplat's torch
-    # code in float64 from the PLY's world units (the Gaussians moved back and stored as float32): they differ by
-    # float32 rounding (measured 3e-8 without a frame, 1.7e-6 on 2 of 9216 values with the fitted one), far below
-    # an 8-bit step (3.9e-3)
+    # the same per-Gaussian colours composited by olatbench in float32 in the canonical frame and by
+    # gsplat's torch code in float64 from the PLY's world units (the Gaussians moved back and stored
+    # as float32): they differ by float32 rounding (measured 3e-8 without a frame, 1.7e-6 on 2 of
+    # 9216 values with the fitted one), far below an 8-bit step (3.9e-3)
     torch.testing.assert_close(got, expected, rtol=0, atol=1e-5)
 
 
 def test_a_bake_differs_from_the_albedo_export_and_follows_the_light(ssdgs_job, tmp_path):
     paths = {name: tmp_path / f"{name}.ply" for name in ("albedo", "light0", "light1")}
-    assert CliRunner().invoke(main, ["export", str(ssdgs_job), "-o", str(paths["albedo"])]).exit_code == 0
+    assert (
+        CliRunner().invoke(main, ["export", str(ssdgs_job), "-o", str(paths["albedo"])]).exit_code
+        == 0
+    )
     for index in (0, 1):
         result = CliRunner().invoke(
             main,
@@ -132,14 +150,18 @@ def test_sh_fit_recovers_a_degree_3_colour_and_degree_0_is_the_mean():
     generator = torch.Generator().manual_seed(0)
     n, views = 5, 200
     truth = torch.randn(n, 16, 3, generator=generator, dtype=torch.float64) * 0.2
-    dirs = torch.nn.functional.normalize(torch.randn(views, n, 3, generator=generator, dtype=torch.float64), dim=-1)
+    dirs = torch.nn.functional.normalize(
+        torch.randn(views, n, 3, generator=generator, dtype=torch.float64), dim=-1
+    )
     colours = eval_sh(3, truth[None].expand(views, -1, -1, -1), dirs) + 0.5
     exact, mean = SHFit(n, 3, ridge=0.0), SHFit(n, 0)
     for view in range(views):
         exact.add(dirs[view], colours[view])
         mean.add(dirs[view], colours[view])
     torch.testing.assert_close(exact.solve().double(), truth, rtol=0, atol=1e-5)
-    torch.testing.assert_close(eval_sh(0, mean.solve().double(), dirs[0]) + 0.5, colours.mean(0), rtol=0, atol=1e-6)
+    torch.testing.assert_close(
+        eval_sh(0, mean.solve().double(), dirs[0]) + 0.5, colours.mean(0), rtol=0, atol=1e-6
+    )
 
 
 @pytest.mark.parametrize(
@@ -152,7 +174,9 @@ def test_sh_fit_recovers_a_degree_3_colour_and_degree_0_is_the_mean():
     ],
 )
 def test_bake_requests_the_job_cannot_give_are_usage_errors(ssdgs_job, tmp_path, args, message):
-    result = CliRunner().invoke(main, ["export", str(ssdgs_job), *args, "-o", str(tmp_path / "x.ply")])
+    result = CliRunner().invoke(
+        main, ["export", str(ssdgs_job), *args, "-o", str(tmp_path / "x.ply")]
+    )
     assert result.exit_code == 2 and message in result.output, result.output
     assert not (tmp_path / "x.ply").exists()
 
@@ -160,11 +184,29 @@ def test_bake_requests_the_job_cannot_give_are_usage_errors(ssdgs_job, tmp_path,
 def test_gs3_bakes_and_3dgs_which_is_not_relightable_is_refused(tmp_path_factory, tmp_path):
     gs3 = train_tiny("gs3", tmp_path_factory.mktemp("bake_gs3"), iterations=4)
     result = CliRunner().invoke(
-        main, ["export", str(gs3), "--under-light", "0", "--max-views", "2", "-q", "-o", str(tmp_path / "gs3.ply")]
+        main,
+        [
+            "export",
+            str(gs3),
+            "--under-light",
+            "0",
+            "--max-views",
+            "2",
+            "-q",
+            "-o",
+            str(tmp_path / "gs3.ply"),
+        ],
     )
     assert result.exit_code == 0, result.output
     comments, _, table = parse_ply(tmp_path / "gs3.ply")
-    assert any("a bake, not relightable" in line for line in comments) and np.isfinite(columns(table, "f_dc_", 3)).all()
+    assert (
+        any("a bake, not relightable" in line for line in comments)
+        and np.isfinite(columns(table, "f_dc_", 3)).all()
+    )
     plain = train_tiny("3dgs", tmp_path_factory.mktemp("bake_3dgs"), iterations=4)
-    refused = CliRunner().invoke(main, ["export", str(plain), "--under-light", "0", "-o", str(tmp_path / "x.ply")])
-    assert refused.exit_code == 2 and "export it without --under-light" in refused.output, refused.output
+    refused = CliRunner().invoke(
+        main, ["export", str(plain), "--under-light", "0", "-o", str(tmp_path / "x.ply")]
+    )
+    assert refused.exit_code == 2 and "export it without --under-light" in refused.output, (
+        refused.output
+    )

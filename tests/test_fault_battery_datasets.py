@@ -1,20 +1,21 @@
-"""The fault battery for datasets and downloads (#38): every corruption below, written into a small tree of each
-official format (`datasets_trees`), meets each entry point — ``olatbench datasets validate``, ``olatbench
-datasets info`` and ``load_scene``/``Frame.load`` — and must end in one error naming the file (and the field
-where there is one), the documented exit code, and no traceback. Damaged and malicious archives meet
-``olatbench datasets download`` through a ``file://`` mirror: one error naming the archive, nothing written
-outside the data root's temporary folder, no hash recorded, the archive set aside so that the rerun after the
-mirror is fixed installs the scene. A ``file://`` copy cut off half-way leaves nothing under the cache's name.
-Damaged scene manifests meet ``datasets verify`` and ``datasets download``; damaged Hub listings meet ``datasets
-download``: one error naming the file (or listing entry) and the field.
+"""The fault battery for datasets and downloads (#38): every corruption below, written into a small
+tree of each official format (`datasets_trees`), meets each entry point —
+``olatbench datasets validate``, ``olatbench datasets info`` and ``load_scene``/``Frame.load`` — and
+must end in one error naming the file (and the field where there is one), the documented exit code,
+and no traceback. Damaged and malicious archives meet ``olatbench datasets download`` through a
+``file://`` mirror: one error naming the archive, nothing written outside the data root's temporary
+folder, no hash recorded, the archive set aside so that the rerun after the mirror is fixed installs
+the scene. A ``file://`` copy cut off half-way leaves nothing under the cache's name. Damaged scene
+manifests meet ``datasets verify`` and ``datasets download``; damaged Hub listings meet
+``datasets download``: one error naming the file (or listing entry) and the field.
 
-Counts (kept true by `test_the_counts_in_this_docstring_are_true`, quoted in docs/guarantees.md):
-34 corruptions give 99 broken scenes over the three formats, met by 3 entry points: 297 dataset cases;
+Counts (kept true by `test_the_counts_in_this_docstring_are_true`, quoted in docs/guarantees.md): 34
+corruptions give 99 broken scenes over the three formats, met by 3 entry points: 297 dataset cases;
 22 archives, 1 cut-off copy, 7 damaged manifests, 4 damaged Hub listings: 331 cases in all.
 
-Exit codes checked: ``validate`` 1 on any error; ``info`` 1 when a scene cannot be read; both 0 otherwise
-(``info`` reads the transforms files and at most one image header, so a broken image elsewhere is for
-``validate`` and ``Frame.load`` to find); ``download`` 1 when a scene failed.
+Exit codes checked: ``validate`` 1 on any error; ``info`` 1 when a scene cannot be read; both 0
+otherwise (``info`` reads the transforms files and at most one image header, so a broken image
+elsewhere is for ``validate`` and ``Frame.load`` to find); ``download`` 1 when a scene failed.
 """
 
 from __future__ import annotations
@@ -51,8 +52,9 @@ ENTRY_POINTS = ("validate", "info", "load")
 
 @dataclass(frozen=True)
 class Layout:
-    """Where things are in the small tree of one format: the test split's file, the frame broken by the cases
-    (``frame``: index in its ``frames`` list), that frame's image and the JSON keys naming it and its light."""
+    """Where things are in the small tree of one format: the test split's file, the frame broken by
+    the cases (``frame``: index in its ``frames`` list), that frame's image and the JSON keys naming
+    it and its light."""
 
     split_file: str
     frame: int
@@ -60,24 +62,46 @@ class Layout:
     image_key: str  # the key a bad image path is reported under
     light_key: str
     intrinsics: tuple[str, object]  # (key, a bad value)
-    size_image: str | None  # the image whose header gives the scene's size (read by load_scene), if any
+    # the image whose header gives the scene's size (read by load_scene), if any
+    size_image: str | None
 
 
 LAYOUTS = {
-    "nrhints": Layout("transforms_test.json", 1, "test/001.png", "file_path", "pl_pos",
-                      ("camera_intrinsics", [1.0, 2.0, 3.0]), "train/000.png"),
-    "gs3": Layout("transforms_test.json", 1, "test/r_1.exr", "file_path", "pl_pos", ("camera_angle_x", -1.0),
-                  "train/r_0.exr"),
-    "sssgs": Layout("transforms_test.json", 0, "test/r_0_l_1.png", "file_paths[1]", "light_positions[1]",
-                    ("fl_x", "wide"), None),
+    "nrhints": Layout(
+        "transforms_test.json",
+        1,
+        "test/001.png",
+        "file_path",
+        "pl_pos",
+        ("camera_intrinsics", [1.0, 2.0, 3.0]),
+        "train/000.png",
+    ),
+    "gs3": Layout(
+        "transforms_test.json",
+        1,
+        "test/r_1.exr",
+        "file_path",
+        "pl_pos",
+        ("camera_angle_x", -1.0),
+        "train/r_0.exr",
+    ),
+    "sssgs": Layout(
+        "transforms_test.json",
+        0,
+        "test/r_0_l_1.png",
+        "file_paths[1]",
+        "light_positions[1]",
+        ("fl_x", "wide"),
+        None,
+    ),
 }
 
 
 @dataclass(frozen=True)
 class Expected:
-    """What the one error must say: the file (relative to the scene folder), the key (or None) and a phrase of
-    the message; ``scene`` is True when reading the scene fails (``load_scene``, ``info``), False when only the
-    frame's image does (``Frame.load``)."""
+    """What the one error must say: the file (relative to the scene folder), the key (or None) and a
+    phrase of the message; ``scene`` is True when reading the scene fails
+    (``load_scene``, ``info``), False when only the frame's image does (``Frame.load``)."""
 
     file: str
     key: str | None
@@ -121,9 +145,12 @@ def _nan_exr(path: Path) -> None:
 
 
 def _non_utf8_name(root: Path, layout: Layout, fmt: str) -> str:
-    """Rename the frame's image to a name holding the byte 0xff and point the JSON at it; the new name."""
+    """Rename the frame's image to a name holding the byte 0xff and point the JSON at it; the new
+    name."""
     image = root / layout.image
-    renamed = Path(os.fsdecode(os.fsencode(image.with_suffix("")) + b"\xff" + os.fsencode(image.suffix)))
+    renamed = Path(
+        os.fsdecode(os.fsencode(image.with_suffix("")) + b"\xff" + os.fsencode(image.suffix))
+    )
     image.rename(renamed)
     stem = str(Path(layout.image).with_suffix("")) + os.fsdecode(b"\xff")
 
@@ -137,7 +164,8 @@ def _non_utf8_name(root: Path, layout: Layout, fmt: str) -> str:
     return str(renamed.relative_to(root))
 
 
-# --- the corruptions: each writes one fault into a fresh tree and says what the error must name --------------
+# --- the corruptions: each writes one fault into a fresh tree and says what the error must name
+
 
 def _image_cases() -> dict[str, Callable[[Path, Layout, str], Expected | None]]:
     def truncated(root, layout, fmt):
@@ -154,7 +182,9 @@ def _image_cases() -> dict[str, Callable[[Path, Layout, str], Expected | None]]:
         return Expected(layout.image, None, "", scene=False)
 
     def wrong_depth(root, layout, fmt):
-        _replace_image(root, layout, np.full((16 if fmt == "sssgs" else 12, 16, 2), 0.5, dtype=np.float32))
+        _replace_image(
+            root, layout, np.full((16 if fmt == "sssgs" else 12, 16, 2), 0.5, dtype=np.float32)
+        )
         return Expected(layout.image, None, "expected 1, 3 or 4 channels, found 2", scene=False)
 
     def wrong_size(root, layout, fmt):
@@ -190,8 +220,22 @@ def _image_cases() -> dict[str, Callable[[Path, Layout, str], Expected | None]]:
         (root / layout.size_image).write_bytes(b"")
         return Expected(layout.size_image, None, "needed for the image size")
 
-    return {f.__name__: f for f in (truncated, zero_byte, not_an_image, wrong_depth, wrong_size, nan_pixels,
-                                    missing, link_loop, folder_instead, non_utf8_name, size_image_empty)}
+    return {
+        f.__name__: f
+        for f in (
+            truncated,
+            zero_byte,
+            not_an_image,
+            wrong_depth,
+            wrong_size,
+            nan_pixels,
+            missing,
+            link_loop,
+            folder_instead,
+            non_utf8_name,
+            size_image_empty,
+        )
+    }
 
 
 def _json_cases() -> dict[str, Callable[[Path, Layout, str], Expected | None]]:
@@ -265,7 +309,8 @@ def _json_cases() -> dict[str, Callable[[Path, Layout, str], Expected | None]]:
 
     def bad_intrinsics(root, layout, fmt):
         key, value = layout.intrinsics
-        target = _frame_edit if fmt == "sssgs" else _edit  # the NeRF-style trees keep intrinsics at the top level
+        # the NeRF-style trees keep intrinsics at the top level
+        target = _frame_edit if fmt == "sssgs" else _edit
         target(root, layout, lambda entry: entry.update({key: value}))
         return Expected(layout.split_file, key, "")
 
@@ -295,13 +340,16 @@ def _json_cases() -> dict[str, Callable[[Path, Layout, str], Expected | None]]:
 
     def json_integer_too_long(root, layout, fmt):
         path = root / layout.split_file
-        path.write_text(path.read_text().replace('"frames"', '"scale": ' + "7" * 5000 + ', "frames"', 1))
+        path.write_text(
+            path.read_text().replace('"frames"', '"scale": ' + "7" * 5000 + ', "frames"', 1)
+        )
         return Expected(layout.split_file, None, "an integer with more digits")
 
     def matrix_reflection(root, layout, fmt):
         def mirror(frame):
-            frame["transform_matrix"] = [[-row[0], *row[1:]] for row in frame["transform_matrix"][:3]] + \
-                frame["transform_matrix"][3:]
+            frame["transform_matrix"] = [
+                [-row[0], *row[1:]] for row in frame["transform_matrix"][:3]
+            ] + frame["transform_matrix"][3:]
 
         _frame_edit(root, layout, mirror)
         return Expected(layout.split_file, "transform_matrix", "reflection")
@@ -310,18 +358,44 @@ def _json_cases() -> dict[str, Callable[[Path, Layout, str], Expected | None]]:
         _frame_edit(root, layout, lambda frame: _set_light(frame, fmt, [1e308, 0.0, 1.0]))
         return Expected(layout.split_file, layout.light_key, "magnitude above")
 
-    return {f.__name__: f for f in (json_truncated, json_zero_byte, json_not_utf8, json_not_an_object,
-                                    json_folder_instead, json_link_loop, json_dangling_link, json_nested_too_deep,
-                                    json_integer_too_long, frames_missing, frames_not_a_list, frame_not_an_object,
-                                    frames_empty, matrix_missing, matrix_nan, matrix_wrong_shape, matrix_reflection,
-                                    light_inf, light_huge, light_wrong_shape, bad_intrinsics, path_escapes,
-                                    path_not_a_string)}
+    return {
+        f.__name__: f
+        for f in (
+            json_truncated,
+            json_zero_byte,
+            json_not_utf8,
+            json_not_an_object,
+            json_folder_instead,
+            json_link_loop,
+            json_dangling_link,
+            json_nested_too_deep,
+            json_integer_too_long,
+            frames_missing,
+            frames_not_a_list,
+            frame_not_an_object,
+            frames_empty,
+            matrix_missing,
+            matrix_nan,
+            matrix_wrong_shape,
+            matrix_reflection,
+            light_inf,
+            light_huge,
+            light_wrong_shape,
+            bad_intrinsics,
+            path_escapes,
+            path_not_a_string,
+        )
+    }
 
 
 CORRUPTIONS = {**_image_cases(), **_json_cases()}
-WRITERS = {"nrhints": lambda root: write_nrhints_tree(root, n_train=3, n_test=2),
-           "gs3": lambda root: write_gs3_tree(root, n_train=3, n_test=2),
-           "sssgs": lambda root: write_sssgs_tree(root, n_train_cameras=2, n_test_cameras=1, lights_per_camera=2)}
+WRITERS = {
+    "nrhints": lambda root: write_nrhints_tree(root, n_train=3, n_test=2),
+    "gs3": lambda root: write_gs3_tree(root, n_train=3, n_test=2),
+    "sssgs": lambda root: write_sssgs_tree(
+        root, n_train_cameras=2, n_test_cameras=1, lights_per_camera=2
+    ),
+}
 
 
 @pytest.fixture(scope="module")
@@ -331,7 +405,8 @@ def clean_trees(tmp_path_factory) -> dict[str, Path]:
 
 
 def _applicable() -> list[tuple[str, str]]:
-    """(corruption, format) pairs that exist (a NaN pixel needs an EXR; a size image needs a NeRF-style tree)."""
+    """(corruption, format) pairs that exist (a NaN pixel needs an EXR; a size image needs a
+    NeRF-style tree)."""
     pairs = []
     for name in CORRUPTIONS:
         for fmt in FORMATS:
@@ -355,8 +430,9 @@ def _broken(clean_trees, tmp_path: Path, name: str, fmt: str) -> tuple[Path, Exp
 
 
 def _no_traceback(result) -> None:
-    assert result.exception is None or isinstance(result.exception, SystemExit), \
+    assert result.exception is None or isinstance(result.exception, SystemExit), (
         f"{type(result.exception).__name__}: {result.exception}"
+    )
     assert "Traceback" not in result.output
 
 
@@ -402,7 +478,8 @@ def test_broken_scene(clean_trees, tmp_path, name, fmt, entry):
         assert expected.phrase in error.value.message
 
 
-# --- archives ------------------------------------------------------------------------------------------------
+# --- archives -------------------------------------------------------------------------------------
+
 
 def _tar(members: list[tarfile.TarInfo | tuple[str, bytes]], mode: str = "w") -> bytes:
     buffer = io.BytesIO()
@@ -439,39 +516,73 @@ def _corrupt_middle(data: bytes) -> bytes:
 
 
 def _archives(scene_tar: bytes, scene_zip_deflated: bytes) -> dict[str, tuple[bytes, str]]:
-    """{case: (archive bytes, phrase of the expected error)}: damaged archives, bombs, escaping members."""
+    """{case: (archive bytes, phrase of the expected error)}: damaged archives, bombs, escaping
+    members."""
     zeros = bytes(80 << 20)  # 80 MiB of zeros: a few hundred kB compressed, over the 64 MiB floor
     symlink_zip = io.BytesIO()
     with zipfile.ZipFile(symlink_zip, "w") as bundle:
         info = zipfile.ZipInfo("scene/link")
-        info.external_attr = (0o120777 << 16)
+        info.external_attr = 0o120777 << 16
         bundle.writestr(info, "/etc/passwd")
     return {
-        "zip_truncated": (scene_zip_deflated[: len(scene_zip_deflated) // 2], "damaged or truncated archive"),
-        "zip_corrupt_deflate": (_corrupt_middle(scene_zip_deflated), "damaged or truncated archive"),
+        "zip_truncated": (
+            scene_zip_deflated[: len(scene_zip_deflated) // 2],
+            "damaged or truncated archive",
+        ),
+        "zip_corrupt_deflate": (
+            _corrupt_middle(scene_zip_deflated),
+            "damaged or truncated archive",
+        ),
         "tar_truncated": (scene_tar[: len(scene_tar) // 2 + 100], "damaged or truncated archive"),
         "tar_gz_truncated": (gzip.compress(scene_tar)[:-200], "damaged or truncated archive"),
-        "tar_gz_corrupt": (_corrupt_middle(gzip.compress(scene_tar)), "damaged or truncated archive"),
+        "tar_gz_corrupt": (
+            _corrupt_middle(gzip.compress(scene_tar)),
+            "damaged or truncated archive",
+        ),
         "tar_bz2_truncated": (bz2.compress(scene_tar)[:-200], "damaged or truncated archive"),
         "tar_xz_truncated": (lzma.compress(scene_tar)[:-200], "damaged or truncated archive"),
         "zero_byte": (b"", "damaged or truncated archive"),
         "not_an_archive": (b"<html>404 Not Found</html>", "damaged or truncated archive"),
-        "bomb_zip": (_zip([("scene/zeros.bin", zeros)], zipfile.ZIP_DEFLATED), "decompression bomb"),
-        "bomb_tar_gz": (gzip.compress(_tar([("scene/zeros.bin", zeros)]), compresslevel=1), "decompression bomb"),
-        "traversal_dotdot": (_zip([("scene/ok.txt", b"x"), ("../evil.txt", b"x")]), "escapes the destination"),
+        "bomb_zip": (
+            _zip([("scene/zeros.bin", zeros)], zipfile.ZIP_DEFLATED),
+            "decompression bomb",
+        ),
+        "bomb_tar_gz": (
+            gzip.compress(_tar([("scene/zeros.bin", zeros)]), compresslevel=1),
+            "decompression bomb",
+        ),
+        "traversal_dotdot": (
+            _zip([("scene/ok.txt", b"x"), ("../evil.txt", b"x")]),
+            "escapes the destination",
+        ),
         "traversal_absolute": (_tar([("/tmp/evil.txt", b"x")]), "escapes the destination"),
         "traversal_drive": (_zip([("C:/evil.txt", b"x")]), "escapes the destination"),
-        "symlink_member": (_tar([_special("scene/link", tarfile.SYMTYPE, "/etc/passwd")]), "link or device"),
+        "symlink_member": (
+            _tar([_special("scene/link", tarfile.SYMTYPE, "/etc/passwd")]),
+            "link or device",
+        ),
         "symlink_member_zip": (symlink_zip.getvalue(), "link or device"),
-        "hardlink_member": (_tar([_special("scene/link", tarfile.LNKTYPE, "/etc/passwd")]), "link or device"),
+        "hardlink_member": (
+            _tar([_special("scene/link", tarfile.LNKTYPE, "/etc/passwd")]),
+            "link or device",
+        ),
         "dot_member": (_tar([(".", b"x")]), "without a file name"),
-        "file_and_folder_of_one_name": (_tar([("CatSmall/a", b"x"), ("CatSmall/a/b", b"y")]),
-                                        "folder of the same name"),
-        "file_and_folder_of_one_name_zip": (_zip([("CatSmall/a.png/b", b"y"), ("CatSmall/a.png", b"x")]),
-                                            "folder of the same name"),
-        "member_name_too_long": (_zip([("CatSmall/" + "n" * 300 + ".png", b"x")]), "cannot be unpacked as a file"),
-        "member_path_too_long": (_tar([("CatSmall/" + "/".join(["d" * 200] * 25) + "/x.png", b"x")]),
-                                 "cannot be unpacked as a file"),
+        "file_and_folder_of_one_name": (
+            _tar([("CatSmall/a", b"x"), ("CatSmall/a/b", b"y")]),
+            "folder of the same name",
+        ),
+        "file_and_folder_of_one_name_zip": (
+            _zip([("CatSmall/a.png/b", b"y"), ("CatSmall/a.png", b"x")]),
+            "folder of the same name",
+        ),
+        "member_name_too_long": (
+            _zip([("CatSmall/" + "n" * 300 + ".png", b"x")]),
+            "cannot be unpacked as a file",
+        ),
+        "member_path_too_long": (
+            _tar([("CatSmall/" + "/".join(["d" * 200] * 25) + "/x.png", b"x")]),
+            "cannot be unpacked as a file",
+        ),
     }
 
 
@@ -501,16 +612,50 @@ def good_archive(clean_trees) -> bytes:
     return buffer.getvalue()
 
 
-ARCHIVE_CASES = ("zip_truncated", "zip_corrupt_deflate", "tar_truncated", "tar_gz_truncated", "tar_gz_corrupt",
-                 "tar_bz2_truncated", "tar_xz_truncated", "zero_byte", "not_an_archive", "bomb_zip", "bomb_tar_gz",
-                 "traversal_dotdot", "traversal_absolute", "traversal_drive", "symlink_member", "symlink_member_zip",
-                 "hardlink_member", "dot_member", "file_and_folder_of_one_name", "file_and_folder_of_one_name_zip",
-                 "member_name_too_long", "member_path_too_long")
+ARCHIVE_CASES = (
+    "zip_truncated",
+    "zip_corrupt_deflate",
+    "tar_truncated",
+    "tar_gz_truncated",
+    "tar_gz_corrupt",
+    "tar_bz2_truncated",
+    "tar_xz_truncated",
+    "zero_byte",
+    "not_an_archive",
+    "bomb_zip",
+    "bomb_tar_gz",
+    "traversal_dotdot",
+    "traversal_absolute",
+    "traversal_drive",
+    "symlink_member",
+    "symlink_member_zip",
+    "hardlink_member",
+    "dot_member",
+    "file_and_folder_of_one_name",
+    "file_and_folder_of_one_name_zip",
+    "member_name_too_long",
+    "member_path_too_long",
+)
 
 
 def _download(root: Path, mirror: Path):
-    return CliRunner().invoke(main, ["datasets", "download", "nrhints", "--scenes", "CatSmall", "--data-root",
-                                     str(root), "--source", "nrhints-project", "--mirror", mirror.as_uri(), "--quiet"])
+    return CliRunner().invoke(
+        main,
+        [
+            "datasets",
+            "download",
+            "nrhints",
+            "--scenes",
+            "CatSmall",
+            "--data-root",
+            str(root),
+            "--source",
+            "nrhints-project",
+            "--mirror",
+            mirror.as_uri(),
+            "--quiet",
+        ],
+    )
 
 
 @pytest.mark.parametrize("case", ARCHIVE_CASES)
@@ -525,21 +670,27 @@ def test_broken_archive(archive_cases, good_archive, tmp_path, case):
     _no_traceback(result)
     assert result.exit_code == 1, result.output
     assert re.search(rf"CatSmall\.zip: .*{re.escape(phrase)}", result.output), result.output
-    assert ".unpack-" not in result.output  # the archive is named, not the temporary folder it was unpacked in
+    # the archive is named, not the temporary folder it was unpacked in
+    assert ".unpack-" not in result.output
     assert len(re.findall(r"FAILED", result.output)) == 1
-    assert sorted(p.name for p in (tmp_path / "box").iterdir()) == ["data"]  # nothing escaped the root
-    assert sorted(p.name for p in root.iterdir()) == [fetch.DOWNLOADS]  # no scene, no recorded hash, no temp
+    # nothing escaped the root
+    assert sorted(p.name for p in (tmp_path / "box").iterdir()) == ["data"]
+    # no scene, no recorded hash, no temp
+    assert sorted(p.name for p in root.iterdir()) == [fetch.DOWNLOADS]
     cached = sorted(p.name for p in (root / fetch.DOWNLOADS / "nrhints-project").iterdir())
     assert cached == ["CatSmall.zip.damaged"]  # set aside: a rerun downloads it again
-    (mirror / "CatSmall.zip").write_bytes(good_archive)  # the mirror is fixed: the plain rerun installs the scene
+    # the mirror is fixed: the plain rerun installs the scene
+    (mirror / "CatSmall.zip").write_bytes(good_archive)
     rerun = _download(root, mirror)
     assert rerun.exit_code == 0, rerun.output
     assert load_scene(root / "CatSmall").name == "CatSmall"
 
 
-def test_a_local_copy_cut_off_mid_way_leaves_nothing_under_the_cache_name(good_archive, tmp_path, monkeypatch):
-    """A ``file://`` copy interrupted half-way (Ctrl-C, a killed process) leaves at most a ``.part`` file: the
-    next run copies it afresh and installs the scene at once (#48)."""
+def test_a_local_copy_cut_off_mid_way_leaves_nothing_under_the_cache_name(
+    good_archive, tmp_path, monkeypatch
+):
+    """A ``file://`` copy interrupted half-way (Ctrl-C, a killed process) leaves at most a ``.part``
+    file: the next run copies it afresh and installs the scene at once (#48)."""
     mirror = tmp_path / "mirror"
     mirror.mkdir()
     (mirror / "CatSmall.zip").write_bytes(good_archive)
@@ -552,8 +703,14 @@ def test_a_local_copy_cut_off_mid_way_leaves_nothing_under_the_cache_name(good_a
 
     monkeypatch.setattr(shutil, "copyfile", cut_off)
     with pytest.raises(KeyboardInterrupt):
-        fetch.download_scene("nrhints", "CatSmall", root, source="nrhints-project", mirror=mirror.as_uri(),
-                             progress=False)
+        fetch.download_scene(
+            "nrhints",
+            "CatSmall",
+            root,
+            source="nrhints-project",
+            mirror=mirror.as_uri(),
+            progress=False,
+        )
     monkeypatch.setattr(shutil, "copyfile", real_copyfile)
     assert not (root / fetch.DOWNLOADS / "nrhints-project" / "CatSmall.zip").exists()
     rerun = _download(root, mirror)
@@ -561,17 +718,29 @@ def test_a_local_copy_cut_off_mid_way_leaves_nothing_under_the_cache_name(good_a
     assert load_scene(root / "CatSmall").name == "CatSmall"
 
 
-# --- damaged scene manifests: `datasets verify` names the file and the field; `datasets download` replaces the scene
+# --- damaged scene manifests: `datasets verify` names the file and the field; `datasets download`
+# replaces the scene
 
 MANIFEST_DAMAGE = {
     "a list": (lambda path: path.write_text("[]"), "expected a JSON object"),
-    "files not an object": (lambda path: path.write_text('{"source": "x", "files": ["a.png"]}'), "key 'files'"),
+    "files not an object": (
+        lambda path: path.write_text('{"source": "x", "files": ["a.png"]}'),
+        "key 'files'",
+    ),
     "files missing": (lambda path: path.write_text('{"source": "x"}'), "key 'files'"),
-    "a hash that is no text": (lambda path: path.write_text('{"files": {"test/000.png": 5}}'),
-                               "key 'files.test/000.png'"),
+    "a hash that is no text": (
+        lambda path: path.write_text('{"files": {"test/000.png": 5}}'),
+        "key 'files.test/000.png'",
+    ),
     "not UTF-8": (lambda path: path.write_bytes(b'{"files": {"\xff\xfe": "0"}}'), "not UTF-8"),
-    "truncated": (lambda path: path.write_bytes(path.read_bytes()[: path.stat().st_size // 2]), "malformed JSON"),
-    "nested too deep": (lambda path: path.write_text("[" * 100_000 + "]" * 100_000), "nested too deeply"),
+    "truncated": (
+        lambda path: path.write_bytes(path.read_bytes()[: path.stat().st_size // 2]),
+        "malformed JSON",
+    ),
+    "nested too deep": (
+        lambda path: path.write_text("[" * 100_000 + "]" * 100_000),
+        "nested too deeply",
+    ),
 }
 
 
@@ -590,14 +759,15 @@ def test_a_damaged_scene_manifest(good_archive, tmp_path, damage):
     assert verify.exit_code == 1 and "CatSmall: DAMAGED" in verify.output, verify.output
     (line,) = [line for line in verify.output.splitlines() if line.startswith("Error:")]
     assert f"{printable(path)}: malformed manifest" in line and phrase in line, line
-    rerun = _download(root, mirror)  # a scene whose manifest is damaged is set aside and downloaded again
+    # a scene whose manifest is damaged is set aside and downloaded again
+    rerun = _download(root, mirror)
     _no_traceback(rerun)
     assert rerun.exit_code == 0, rerun.output
     assert manifest.verify_folder(root / "CatSmall") == []
     assert len(list(root.glob("CatSmall.replaced-*"))) == 1
 
 
-# --- damaged Hub listings: one error naming the listing, the entry and the field -------------------------------
+# --- damaged Hub listings: one error naming the listing, the entry and the field ------------------
 
 HUB_DAMAGE = {
     "size that is text": ({"size": "big"}, "key 'size'"),
@@ -618,27 +788,56 @@ def test_a_damaged_hub_listing(good_archive, tmp_path, damage):
     state.files[f"/datasets/{GS3_REPO}/resolve/{GS3_REVISION}/{name}"] = good_archive
     change, phrase = HUB_DAMAGE[damage]
     state.listings[f"/api/datasets/{GS3_REPO}/tree/{GS3_REVISION}"] = [
-        {"type": "file", "path": name, "size": len(good_archive), **change}]
+        {"type": "file", "path": name, "size": len(good_archive), **change}
+    ]
     root = tmp_path / "data"
     with LocalServer(state) as server:
-        result = CliRunner().invoke(main, ["datasets", "download", "nrhints", "--scenes", "CatSmall", "--data-root",
-                                           str(root), "--source", "gs3-hf", "--mirror", server.url, "--quiet"])
+        result = CliRunner().invoke(
+            main,
+            [
+                "datasets",
+                "download",
+                "nrhints",
+                "--scenes",
+                "CatSmall",
+                "--data-root",
+                str(root),
+                "--source",
+                "gs3-hf",
+                "--mirror",
+                server.url,
+                "--quiet",
+            ],
+        )
     _no_traceback(result)
     assert result.exit_code == 1, result.output
-    assert re.search(rf"tree/{GS3_REVISION}\?recursive=true: entry 0 \('{name}'\): {re.escape(phrase)}",
-                     result.output), result.output
+    assert re.search(
+        rf"tree/{GS3_REVISION}\?recursive=true: entry 0 \('{name}'\): {re.escape(phrase)}",
+        result.output,
+    ), result.output
     assert not (root / "CatSmall").exists()
 
 
 def test_the_counts_in_this_docstring_are_true(archive_cases):
     assert tuple(archive_cases) == ARCHIVE_CASES
     scenes, dataset_cases = len(BROKEN_SCENES), len(BROKEN_SCENES) * len(ENTRY_POINTS)
-    stated = re.search(r"(\d+) corruptions give (\d+) broken scenes over the three formats, met by (\d+) entry "
-                       r"points: (\d+) dataset cases;\s+(\d+) archives, 1 cut-off copy, (\d+) damaged manifests, "
-                       r"(\d+) damaged Hub listings: (\d+) cases in all", " ".join(__doc__.split()))
+    stated = re.search(
+        r"(\d+) corruptions give (\d+) broken scenes over the three formats, met by (\d+) entry "
+        r"points: (\d+) dataset cases;\s+(\d+) archives, 1 cut-off copy, (\d+) damaged manifests, "
+        r"(\d+) damaged Hub listings: (\d+) cases in all",
+        " ".join(__doc__.split()),
+    )
     assert stated is not None
     others = len(ARCHIVE_CASES) + 1 + len(MANIFEST_DAMAGE) + len(HUB_DAMAGE)
-    assert tuple(map(int, stated.groups())) == (len(CORRUPTIONS), scenes, len(ENTRY_POINTS), dataset_cases,
-                                                len(ARCHIVE_CASES), len(MANIFEST_DAMAGE), len(HUB_DAMAGE),
-                                                dataset_cases + others)
-    assert archives.UNPACK_FLOOR < 80 << 20  # the bombs above exceed the limit whatever the archive's size
+    assert tuple(map(int, stated.groups())) == (
+        len(CORRUPTIONS),
+        scenes,
+        len(ENTRY_POINTS),
+        dataset_cases,
+        len(ARCHIVE_CASES),
+        len(MANIFEST_DAMAGE),
+        len(HUB_DAMAGE),
+        dataset_cases + others,
+    )
+    # the bombs above exceed the limit whatever the archive's size
+    assert archives.UNPACK_FLOOR < 80 << 20

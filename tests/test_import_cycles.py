@@ -1,8 +1,9 @@
-"""The package's static import graph has no cycle (built as tests/test_layers.py builds it: every ``import``,
-inside functions and under ``TYPE_CHECKING`` too, so an import moved into a function does not hide one).
+"""The package's static import graph has no cycle (built as tests/test_layers.py builds it: every
+``import``, inside functions and under ``TYPE_CHECKING`` too, so an import moved into a function
+does not hide one).
 
-A cycle means neither module can be read, tested or replaced without the other; the usual way out is a leaf
-module both import (as `olatbench.gaussians.screen`, `olatbench.metrics.lpips_networks` and
+A cycle means neither module can be read, tested or replaced without the other; the usual way out is
+a leaf module both import (as `olatbench.gaussians.screen`, `olatbench.metrics.lpips_networks` and
 `olatbench.datasets.formats._suite` are).
 """
 
@@ -22,7 +23,8 @@ def package_graph() -> dict[str, set[str]]:
 
 
 def cycles(graph: dict[str, set[str]]) -> list[list[str]]:
-    """The strongly connected components of more than one module (Tarjan's algorithm, iterative), sorted."""
+    """The strongly connected components of more than one module (Tarjan's algorithm, iterative),
+    sorted."""
     index: dict[str, int] = {}
     low: dict[str, int] = {}
     stack: list[str] = []
@@ -64,7 +66,15 @@ def cycles(graph: dict[str, set[str]]) -> list[list[str]]:
 
 
 def test_the_cycle_finder_finds_cycles():
-    graph = {"a": {"b"}, "b": {"c"}, "c": {"a", "d"}, "d": set(), "e": {"f"}, "f": {"e"}, "g": {"a"}}
+    graph = {
+        "a": {"b"},
+        "b": {"c"},
+        "c": {"a", "d"},
+        "d": set(),
+        "e": {"f"},
+        "f": {"e"},
+        "g": {"a"},
+    }
     assert cycles(graph) == [["a", "b", "c"], ["e", "f"]]
     assert cycles({"a": {"b"}, "b": set()}) == []
 

@@ -1,5 +1,6 @@
-"""Initialisation from a point cloud (`olatbench.bench.init_points`): a scene folder's ``points3d.ply`` or
-``run --init-points FILE``, for the methods with the ``init_points`` capability (ssdgs, gs3, 3dgs)."""
+"""Initialisation from a point cloud (`olatbench.bench.init_points`): a scene folder's
+``points3d.ply`` or ``run --init-points FILE``, for the methods with the ``init_points`` capability
+(ssdgs, gs3, 3dgs)."""
 
 from __future__ import annotations
 
@@ -37,7 +38,14 @@ def plan(tmp_path: Path, method: str = "3dgs", **options):
     if not data.exists():
         support.write_tiny_data(data, scenes=("Alpha",))
     return make_plan(
-        method, "tiny", tmp_path / "runs", variants=["mini"], iterations=2, data_root=data, progress=False, **options
+        method,
+        "tiny",
+        tmp_path / "runs",
+        variants=["mini"],
+        iterations=2,
+        data_root=data,
+        progress=False,
+        **options,
     )[0]
 
 
@@ -54,7 +62,8 @@ def test_the_initial_centres_are_the_files_points(tmp_path, method):
     cls = load_method_class(job)
     instance = cls(cls.resolve_config(None, **job.config))
     instance.setup(views, "cpu", job.seed)
-    assert not views.frame.is_identity  # a suite of one's own: the method works in the fitted canonical frame
+    # a suite of one's own: the method works in the fitted canonical frame
+    assert not views.frame.is_identity
     centres = instance.model.means.detach().numpy()
     # the points, moved into the frame with the cameras
     np.testing.assert_allclose(centres, views.frame.points(points), rtol=0, atol=1e-5)
@@ -65,13 +74,15 @@ def test_the_initial_centres_are_the_files_points(tmp_path, method):
 def test_a_scene_folders_points3d_ply_is_used_and_enters_the_job_id(tmp_path):
     without = plan(tmp_path)
     assert without.init_points == "" and without.init_points_digest is None
-    assert "init_points" not in without.identity()  # ids of jobs without a point cloud are unchanged
+    # ids of jobs without a point cloud are unchanged
+    assert "init_points" not in without.identity()
     points = cloud()
     write_ply_points(tmp_path / "data" / "Alpha" / "points3d.ply", points)
     job = plan(tmp_path)
     assert Path(job.init_points) == (tmp_path / "data" / "Alpha" / "points3d.ply").resolve()
     assert job.identity()["init_points"] == job.init_points_digest and job.id != without.id
-    assert job.variant == without.variant  # the scene's own cloud: the scene's default, no label of its own
+    # the scene's own cloud: the scene's default, no label of its own
+    assert job.variant == without.variant
     outcome = run_job(job, progress=False)
     assert outcome.status == "done", (Path(job.folder) / "error.txt").read_text()
     log = (Path(job.folder) / "log.txt").read_text()
@@ -82,14 +93,28 @@ def test_a_scene_folders_points3d_ply_is_used_and_enters_the_job_id(tmp_path):
     assert plan(tmp_path).id != job.id
 
 
-def test_cli_init_points_names_the_file_in_the_label_and_refuses_methods_that_cannot(tmp_path, monkeypatch):
+def test_cli_init_points_names_the_file_in_the_label_and_refuses_methods_that_cannot(
+    tmp_path, monkeypatch
+):
     data = support.write_tiny_data(tmp_path / "data", scenes=("Alpha",))
     write_ply_points(tmp_path / "sparse.ply", cloud())
     monkeypatch.chdir(tmp_path)
-    args = ["run", "-s", "tiny", "--data-root", str(data), "--init-points", "sparse.ply", "--dry-run", "--json"]
+    args = [
+        "run",
+        "-s",
+        "tiny",
+        "--data-root",
+        str(data),
+        "--init-points",
+        "sparse.ply",
+        "--dry-run",
+        "--json",
+    ]
     result = CliRunner().invoke(main, [args[0], "-m", "3dgs", *args[1:]])
     assert result.exit_code == 0, result.output
     (job,) = json.loads(result.output)
     assert job["variant"] == "default~init_points=sparse"
     refused = CliRunner().invoke(main, [args[0], "-m", "ssdgs-official", *args[1:]])
-    assert refused.exit_code == 2 and "cannot start from a point cloud" in refused.output, refused.output
+    assert refused.exit_code == 2 and "cannot start from a point cloud" in refused.output, (
+        refused.output
+    )

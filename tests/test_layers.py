@@ -1,9 +1,10 @@
 """The layering rules of docs/architecture.md, checked over the package's static import graph.
 
-Every ``import`` / ``from ... import`` in ``olatbench/**.py`` counts, wherever it is written (module level, inside
-functions, under ``TYPE_CHECKING``): a lazy import is still a dependency. Layers, top to bottom:
-cli → viewer → reports → bench → methods → metrics → gaussians → datasets → _native; ``olatbench.atomic`` (stdlib
-only) and the root package (``__version__``) may be imported by every layer.
+Every ``import`` / ``from ... import`` in ``olatbench/**.py`` counts, wherever it is written (module
+level, inside functions, under ``TYPE_CHECKING``): a lazy import is still a dependency. Layers, top
+to bottom: cli → viewer → reports → bench → methods → metrics → gaussians → datasets → _native;
+``olatbench.atomic`` (stdlib only) and the root package (``__version__``) may be imported by every
+layer.
 """
 
 from __future__ import annotations
@@ -20,7 +21,8 @@ PACKAGE = Path(__file__).resolve().parents[1] / "olatbench"
 
 @dataclass(frozen=True)
 class Edge:
-    """``source`` (a module of the package) imports ``target`` (a dotted module name) at ``line``."""
+    """``source`` (a module of the package) imports ``target`` (a dotted module name) at
+    ``line``."""
 
     source: str
     target: str
@@ -36,8 +38,8 @@ def module_name(path: Path, root: Path) -> str:
 
 
 def import_edges(root: Path = PACKAGE) -> list[Edge]:
-    """Every import of every module below ``root`` (relative imports resolved; ``from a import b`` gives
-    ``a.b`` when ``b`` is a module of the package, ``a`` otherwise)."""
+    """Every import of every module below ``root`` (relative imports resolved; ``from a import b``
+    gives ``a.b`` when ``b`` is a module of the package, ``a`` otherwise)."""
     modules = {module_name(path, root): path for path in root.rglob("*.py")}
     edges = []
     for source, path in sorted(modules.items()):
@@ -49,11 +51,13 @@ def import_edges(root: Path = PACKAGE) -> list[Edge]:
                 base = node.module or ""
                 if node.level:
                     anchor = source.split(".")
-                    anchor = anchor[:len(anchor) - node.level + (1 if is_package else 0)]
+                    anchor = anchor[: len(anchor) - node.level + (1 if is_package else 0)]
                     base = ".".join([*anchor, base] if base else anchor)
                 for alias in node.names:
                     candidate = f"{base}.{alias.name}"
-                    edges.append(Edge(source, candidate if candidate in modules else base, node.lineno))
+                    edges.append(
+                        Edge(source, candidate if candidate in modules else base, node.lineno)
+                    )
     return list(dict.fromkeys(edges))
 
 
@@ -65,8 +69,9 @@ def layer(module: str) -> str | None:
     return parts[1] if len(parts) > 1 else "olatbench"
 
 
-# the root package (__version__) and the stdlib-only leaf helpers every layer may use: atomic writes, progress
-# lines, the olatbench.toml reader, matching typed names (each imports nothing of olatbench: the leaf rules below)
+# the root package (__version__) and the stdlib-only leaf helpers every layer may use: atomic
+# writes, progress lines, the olatbench.toml reader, matching typed names (each imports nothing of
+# olatbench: the leaf rules below)
 SHARED = {"olatbench", "atomic", "progress", "project_file", "names"}
 
 
@@ -76,9 +81,12 @@ class Rule:
     source_layer: str
     forbidden: frozenset[str] = frozenset()  # layers of olatbench it must not import
     only: frozenset[str] | None = None  # when set: the only layers of olatbench it may import
-    forbidden_external: frozenset[str] = frozenset()  # top-level third-party packages it must not import
-    allowed_modules: frozenset[str] = frozenset()  # exact modules exempt from ``forbidden`` (named exceptions)
-    exempt_sources: frozenset[str] = frozenset()  # modules of the layer the rule does not cover (with a reason)
+    # top-level third-party packages it must not import
+    forbidden_external: frozenset[str] = frozenset()
+    # exact modules exempt from ``forbidden`` (named exceptions)
+    allowed_modules: frozenset[str] = frozenset()
+    # modules of the layer the rule does not cover (with a reason)
+    exempt_sources: frozenset[str] = frozenset()
     leaf: bool = False  # imports nothing of olatbench at all, not even the shared modules
 
     def violations(self, edges: Iterable[Edge]) -> list[str]:
@@ -100,32 +108,57 @@ class Rule:
 
 
 RULES = [
-    # The data layer is imported alone by other projects: numpy only. `torch_adapter` is the one opt-in module that
-    # hands records to a torch DataLoader; nothing in the layer imports it (a separate rule below checks that).
-    Rule("datasets import only atomic and themselves, never torch", "datasets", only=frozenset(),
-         forbidden_external=frozenset({"torch", "click"}),
-         exempt_sources=frozenset({"olatbench.datasets.torch_adapter"})),
+    # The data layer is imported alone by other projects: numpy only. `torch_adapter` is the one
+    # opt-in module that hands records to a torch DataLoader; nothing in the layer imports it (a
+    # separate rule below checks that).
+    Rule(
+        "datasets import only atomic and themselves, never torch",
+        "datasets",
+        only=frozenset(),
+        forbidden_external=frozenset({"torch", "click"}),
+        exempt_sources=frozenset({"olatbench.datasets.torch_adapter"}),
+    ),
     Rule("_native imports nothing of olatbench", "_native", leaf=True),
     Rule("atomic imports nothing of olatbench", "atomic", leaf=True),
     Rule("progress imports nothing of olatbench", "progress", leaf=True),
     Rule("project_file imports nothing of olatbench", "project_file", leaf=True),
     Rule("names imports nothing of olatbench", "names", leaf=True),
-    Rule("gaussians import no methods, bench, reports or cli", "gaussians",
-         forbidden=frozenset({"methods", "bench", "reports", "cli"})),
-    Rule("metrics import no gaussians, methods, bench, reports or cli", "metrics",
-         forbidden=frozenset({"gaussians", "methods", "bench", "reports", "cli"})),
-    Rule("methods import no bench, reports, viewer or cli", "methods",
-         forbidden=frozenset({"bench", "reports", "viewer", "cli"})),
-    Rule("bench imports no reports, viewer or cli", "bench", forbidden=frozenset({"reports", "viewer", "cli"})),
-    Rule("reports import no methods (a report that renders goes through bench.restore), no viewer and no cli",
-         "reports", forbidden=frozenset({"methods", "viewer", "cli"})),
-    Rule("the viewer imports no methods (it renders through bench.restore) and no cli", "viewer",
-         forbidden=frozenset({"methods", "cli"})),
+    Rule(
+        "gaussians import no methods, bench, reports or cli",
+        "gaussians",
+        forbidden=frozenset({"methods", "bench", "reports", "cli"}),
+    ),
+    Rule(
+        "metrics import no gaussians, methods, bench, reports or cli",
+        "metrics",
+        forbidden=frozenset({"gaussians", "methods", "bench", "reports", "cli"}),
+    ),
+    Rule(
+        "methods import no bench, reports, viewer or cli",
+        "methods",
+        forbidden=frozenset({"bench", "reports", "viewer", "cli"}),
+    ),
+    Rule(
+        "bench imports no reports, viewer or cli",
+        "bench",
+        forbidden=frozenset({"reports", "viewer", "cli"}),
+    ),
+    Rule(
+        "reports import no methods (a report that renders goes through bench.restore), no viewer "
+        "and no cli",
+        "reports",
+        forbidden=frozenset({"methods", "viewer", "cli"}),
+    ),
+    Rule(
+        "the viewer imports no methods (it renders through bench.restore) and no cli",
+        "viewer",
+        forbidden=frozenset({"methods", "cli"}),
+    ),
 ]
 
 
-#: Rules the code still breaks on this commit, each with the work that removes it. strict: once that work lands,
-#: the test passes, the xfail fails, and the entry must go.
+#: Rules the code still breaks on this commit, each with the work that removes it. strict: once that
+#: work lands, the test passes, the xfail fails, and the entry must go.
 KNOWN_BREAKS: dict[str, str] = {}
 
 
@@ -142,29 +175,42 @@ def test_layer_rule(rule: Rule):
 
 
 def test_only_cli_imports_click():
-    violations = [str(edge) for edge in import_edges()
-                  if edge.target.split(".")[0] == "click" and layer(edge.source) != "cli"]
+    violations = [
+        str(edge)
+        for edge in import_edges()
+        if edge.target.split(".")[0] == "click" and layer(edge.source) != "cli"
+    ]
     assert not violations, "\n  ".join(violations)
 
 
 def test_nothing_in_the_data_layer_imports_its_torch_adapter():
     adapter = "olatbench.datasets.torch_adapter"
-    violations = [str(edge) for edge in import_edges() if edge.target == adapter and edge.source != adapter
-                  and layer(edge.source) == "datasets"]
+    violations = [
+        str(edge)
+        for edge in import_edges()
+        if edge.target == adapter and edge.source != adapter and layer(edge.source) == "datasets"
+    ]
     assert not violations, "\n  ".join(violations)
 
 
 def test_the_graph_sees_every_kind_of_import(tmp_path):
-    """The checker itself: a broken rule is found whether the import is relative, lazy or under TYPE_CHECKING."""
+    """The checker itself: a broken rule is found whether the import is relative, lazy or under
+    TYPE_CHECKING."""
     root = tmp_path / "olatbench"
     for package in ("", "datasets", "gaussians", "methods", "reports", "bench"):
         (root / package / "__init__.py").parent.mkdir(parents=True, exist_ok=True)
         (root / package / "__init__.py").write_text("")
-    (root / "datasets" / "records.py").write_text("def load():\n    import torch\n    return torch\n")
+    (root / "datasets" / "records.py").write_text(
+        "def load():\n    import torch\n    return torch\n"
+    )
     (root / "gaussians" / "model.py").write_text("from ..methods import base\n")
-    (root / "methods" / "base.py").write_text("from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n"
-                                              "    from olatbench.bench.jobs import Job\n")
-    (root / "reports" / "video.py").write_text("from olatbench.bench import restore\nfrom . import tables\n")
+    (root / "methods" / "base.py").write_text(
+        "from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n"
+        "    from olatbench.bench.jobs import Job\n"
+    )
+    (root / "reports" / "video.py").write_text(
+        "from olatbench.bench import restore\nfrom . import tables\n"
+    )
     (root / "reports" / "tables.py").write_text("")
     edges = import_edges(root)
     by_rule = {rule.source_layer: rule.violations(edges) for rule in RULES}

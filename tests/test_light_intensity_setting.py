@@ -1,6 +1,7 @@
-"""The native methods' ``light_intensity`` setting: "ignored" (the authors' SSD-GS / GS³ convention) trains and
-scores exactly as the default does on a copy of the scene with every ``pl_intensity`` removed (which olatbench reads
-as intensity 1, unknown), seed for seed; "recorded" (the default) differs on a scene whose intensity varies."""
+"""The native methods' ``light_intensity`` setting: "ignored" (the authors' SSD-GS / GS³ convention)
+trains and scores exactly as the default does on a copy of the scene with every ``pl_intensity``
+removed (which olatbench reads as intensity 1, unknown), seed for seed; "recorded" (the default)
+differs on a scene whose intensity varies."""
 
 from __future__ import annotations
 
@@ -55,7 +56,8 @@ def test_ignored_intensity_trains_as_the_scene_without_pl_intensity(method, tmp_
     data = support.write_tiny_data(tmp_path / "data", scenes=("Alpha",), size=(24, 16))
     bare = strip_intensity(data / "Alpha", tmp_path / "bare" / "Alpha").parent
     recorded = {f.light.intensity[0] for f in load_scene(data / "Alpha", "nrhints").split("train")}
-    assert len(recorded) > 1  # the intensity varies over the frames: ignoring it changes the images' meaning
+    # the intensity varies over the frames: ignoring it changes the images' meaning
+    assert len(recorded) > 1
     assert all(
         not f.light.intensity_known and list(f.light.intensity) == [1.0, 1.0, 1.0]
         for f in load_scene(bare / "Alpha", "nrhints").split("train")
@@ -73,5 +75,7 @@ def test_ignored_intensity_trains_as_the_scene_without_pl_intensity(method, tmp_
 
 def test_light_intensity_is_checked_by_name():
     cls = get_method("ssdgs")
-    with pytest.raises(ValueError, match=r"light_intensity must be one of \('recorded', 'ignored'\), not 'off'"):
+    with pytest.raises(
+        ValueError, match=r"light_intensity must be one of \('recorded', 'ignored'\), not 'off'"
+    ):
         cls.resolve_config(None, light_intensity="off")

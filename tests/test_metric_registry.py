@@ -1,6 +1,6 @@
-"""Metrics registered as data (`olatbench.metrics.registry`): a protocol lists metric names and computes each with the
-metric's function; the reports title and rank a metric's column from the registry. A toy metric is added here
-through the registry alone: no file of the package changes."""
+"""Metrics registered as data (`olatbench.metrics.registry`): a protocol lists metric names and
+computes each with the metric's function; the reports title and rank a metric's column from the
+registry. A toy metric is added here through the registry alone: no file of the package changes."""
 
 from __future__ import annotations
 
@@ -13,13 +13,25 @@ from test_report_runs import write_run
 
 from olatbench.bench.results import ResultsError, read_results, write_results
 from olatbench.metrics.protocols import Protocol, get_protocol, register_protocol
-from olatbench.metrics.registry import Metric, MetricBatch, get_metric, metric_names, register_metric
+from olatbench.metrics.registry import (
+    Metric,
+    MetricBatch,
+    get_metric,
+    metric_names,
+    register_metric,
+)
 from olatbench.reports.collect import collect
 from olatbench.reports.layouts import metric_title
 from olatbench.reports.ranking import rank_table
 from olatbench.reports.runs_tables import scene_table
 
-TOY = Metric("toy_red_gap", "Red gap", "min", "test_metric_registry:red_gap", "mean |pred - gt| of the red channel")
+TOY = Metric(
+    "toy_red_gap",
+    "Red gap",
+    "min",
+    "test_metric_registry:red_gap",
+    "mean |pred - gt| of the red channel",
+)
 
 
 def red_gap(batch: MetricBatch, protocol: Protocol) -> list[float]:
@@ -32,8 +44,16 @@ def toy_protocol() -> Protocol:
     if "toy_red_gap" not in metric_names():
         register_metric(TOY)
     if "toy-v1" not in [name for name in _protocol_ids()]:
-        register_protocol(Protocol(id="toy-v1", version=1, description="PSNR and the red gap", reproduces="nothing",
-                                   quantize=None, metric_names=("psnr", "toy_red_gap")))
+        register_protocol(
+            Protocol(
+                id="toy-v1",
+                version=1,
+                description="PSNR and the red gap",
+                reproduces="nothing",
+                quantize=None,
+                metric_names=("psnr", "toy_red_gap"),
+            )
+        )
     return get_protocol("toy-v1")
 
 
@@ -54,9 +74,17 @@ def test_a_toy_metric_is_scored_titled_and_ranked_through_the_registry(toy_proto
     assert toy_protocol.definition()["metrics"] == ["psnr", "toy_red_gap"]
     assert metric_title("toy_red_gap") == "Red gap ↓"
     root = tmp_path / "runs"  # lower is better: the smaller gap ranks first
-    for method, gap in (("a", 0.3), ("b", 0.1)):  # results of olatbench-v1 (write_run's), plus the toy metric
-        write_run(root, method, "default", "mini", "diffuse_shadow", 0,
-                  {"test": {"psnr": 30.0, "ssim": 0.9, "lpips": 0.1, "toy_red_gap": gap}})
+    # results of olatbench-v1 (write_run's), plus the toy metric
+    for method, gap in (("a", 0.3), ("b", 0.1)):
+        write_run(
+            root,
+            method,
+            "default",
+            "mini",
+            "diffuse_shadow",
+            0,
+            {"test": {"psnr": 30.0, "ssim": 0.9, "lpips": 0.1, "toy_red_gap": gap}},
+        )
     table = rank_table(scene_table(collect(root), metrics=["toy_red_gap"], splits=["test"]))
     assert table.blocks[0].title == "Red gap ↓"
     ranks = {row.labels[0]: row.cells[0].rank for row in table.blocks[0].rows}
@@ -64,9 +92,17 @@ def test_a_toy_metric_is_scored_titled_and_ranked_through_the_registry(toy_proto
 
 
 def test_results_of_a_protocol_without_ssim_and_lpips_are_read(toy_protocol, tmp_path):
-    """results.json's check of a finished job's metrics asks its protocol which of psnr, ssim, lpips it lists."""
-    path = write_run(tmp_path / "runs", "a", "default", "mini", "diffuse_shadow", 0,
-                     {"test": {"psnr": 30.0, "ssim": 0.9, "lpips": 0.1}})
+    """results.json's check of a finished job's metrics asks its protocol which of psnr, ssim, lpips
+    it lists."""
+    path = write_run(
+        tmp_path / "runs",
+        "a",
+        "default",
+        "mini",
+        "diffuse_shadow",
+        0,
+        {"test": {"psnr": 30.0, "ssim": 0.9, "lpips": 0.1}},
+    )
     data = json.loads(path.read_text())
     data["protocol"] = {"id": "toy-v1", "version": 1}
     data["metrics"]["test"]["mean"] = {"psnr": 30.0, "toy_red_gap": 0.2}
@@ -79,8 +115,15 @@ def test_results_of_a_protocol_without_ssim_and_lpips_are_read(toy_protocol, tmp
 
 def test_a_protocol_listing_an_unregistered_metric_is_refused():
     with pytest.raises(ValueError, match=r"lists unregistered metrics \['nope'\]"):
-        register_protocol(Protocol(id="broken-v1", version=1, description="", reproduces="",
-                                   metric_names=("psnr", "nope")))
+        register_protocol(
+            Protocol(
+                id="broken-v1",
+                version=1,
+                description="",
+                reproduces="",
+                metric_names=("psnr", "nope"),
+            )
+        )
     with pytest.raises(KeyError, match="unknown metric 'nope'"):
         get_metric("nope")
 
@@ -88,8 +131,18 @@ def test_a_protocol_listing_an_unregistered_metric_is_refused():
 def test_the_built_in_metrics_and_protocols_report_what_they_did():
     assert metric_names()[:6] == ["psnr", "ssim", "lpips", "lpips_alex", "lpips_vgg", "flip"]
     assert [metric_title(name) for name in ("psnr", "ssim", "lpips", "lpips_vgg")] == [
-        "PSNR ↑", "SSIM ↑", "LPIPS ↓", "LPIPS (VGG) ↓"]
-    assert get_protocol("olatbench-v1").metrics == ("psnr", "ssim", "lpips", "lpips_alex", "lpips_vgg")
+        "PSNR ↑",
+        "SSIM ↑",
+        "LPIPS ↓",
+        "LPIPS (VGG) ↓",
+    ]
+    assert get_protocol("olatbench-v1").metrics == (
+        "psnr",
+        "ssim",
+        "lpips",
+        "lpips_alex",
+        "lpips_vgg",
+    )
     assert get_protocol("ssdgs").metrics == ("psnr", "ssim", "lpips")
     definition = get_protocol("olatbench-v1").definition()
     assert "metric_names" not in definition and definition["metrics"][-1] == "lpips_vgg"
@@ -97,7 +150,8 @@ def test_the_built_in_metrics_and_protocols_report_what_they_did():
 
 
 def test_flip_is_reachable_through_its_own_protocol(recwarn):
-    """olatbench-v1-flip: olatbench-v1's numbers and LDR-FLIP (None, with a warning, without flip-evaluator)."""
+    """olatbench-v1-flip: olatbench-v1's numbers and LDR-FLIP (None, with a warning, without
+    flip-evaluator)."""
     protocol = get_protocol("olatbench-v1-flip")
     assert (protocol.version, protocol.metrics[-1]) == (1, "flip")
     assert "flip" not in get_protocol("olatbench-v1").metrics
@@ -106,7 +160,8 @@ def test_flip_is_reachable_through_its_own_protocol(recwarn):
     pred = np.clip(gt + 0.05, 0.0, 1.0)
     reference = get_protocol("olatbench-v1").evaluate(pred, gt)
     values = protocol.evaluate(pred, gt)
-    assert {key: values[key] for key in reference} == reference  # the v1 part is olatbench-v1, to the bit
+    # the v1 part is olatbench-v1, to the bit
+    assert {key: values[key] for key in reference} == reference
     if importlib.util.find_spec("flip_evaluator") is None:
         assert values["flip"] is None
         assert any("pip install flip-evaluator" in str(warning.message) for warning in recwarn)

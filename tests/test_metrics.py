@@ -24,8 +24,15 @@ def pair(shape, seed=0, noise=0.1, dtype=np.float32):
 
 
 def skimage_ssim(a, b):
-    return structural_similarity(a, b, gaussian_weights=True, sigma=1.5, use_sample_covariance=False,
-                                 data_range=1, channel_axis=-1)
+    return structural_similarity(
+        a,
+        b,
+        gaussian_weights=True,
+        sigma=1.5,
+        use_sample_covariance=False,
+        data_range=1,
+        channel_axis=-1,
+    )
 
 
 @pytest.mark.parametrize("shape", [(11, 11, 3), (23, 40, 3), (64, 80, 3), (97, 61, 1)])
@@ -53,9 +60,12 @@ def test_ssim_batch_equals_singles_and_accepts_torch():
 
 
 def reference_3dgs_ssim(img1, img2):
-    """3DGS utils/loss_utils.ssim written out: 2D window, conv2d with zero padding 5, mean of the map."""
+    """3DGS utils/loss_utils.ssim written out: 2D window, conv2d with zero padding 5, mean of the
+    map."""
     channels = img1.shape[0]
-    g = torch.tensor([math.exp(-((x - 5) ** 2) / (2 * 1.5**2)) for x in range(11)], dtype=torch.float64)
+    g = torch.tensor(
+        [math.exp(-((x - 5) ** 2) / (2 * 1.5**2)) for x in range(11)], dtype=torch.float64
+    )
     g = g / g.sum()
     window = (g[:, None] @ g[None, :]).expand(channels, 1, 11, 11).contiguous()
     mu1 = F.conv2d(img1, window, padding=5, groups=channels)
@@ -64,7 +74,9 @@ def reference_3dgs_ssim(img1, img2):
     s22 = F.conv2d(img2 * img2, window, padding=5, groups=channels) - mu2**2
     s12 = F.conv2d(img1 * img2, window, padding=5, groups=channels) - mu1 * mu2
     c1, c2 = 0.01**2, 0.03**2
-    return (((2 * mu1 * mu2 + c1) * (2 * s12 + c2)) / ((mu1**2 + mu2**2 + c1) * (s11 + s22 + c2))).mean()
+    return (
+        ((2 * mu1 * mu2 + c1) * (2 * s12 + c2)) / ((mu1**2 + mu2**2 + c1) * (s11 + s22 + c2))
+    ).mean()
 
 
 def test_3dgs_ssim_matches_zero_padded_reference():
@@ -90,9 +102,13 @@ def test_ssim_torch_gradient_matches_finite_differences():
         leaf = x.clone().requires_grad_(True)
         ssim_torch(leaf, y, variant=variant).backward()
         eps = 1e-6
-        numeric = (ssim_torch(x + eps * direction, y, variant=variant)
-                   - ssim_torch(x - eps * direction, y, variant=variant)) / (2 * eps)
-        assert float((leaf.grad * direction).sum()) == pytest.approx(float(numeric), rel=1e-6, abs=1e-9)
+        numeric = (
+            ssim_torch(x + eps * direction, y, variant=variant)
+            - ssim_torch(x - eps * direction, y, variant=variant)
+        ) / (2 * eps)
+        assert float((leaf.grad * direction).sum()) == pytest.approx(
+            float(numeric), rel=1e-6, abs=1e-9
+        )
 
 
 def test_ssim_loss_is_one_minus_ssim_channels_last():
@@ -100,7 +116,9 @@ def test_ssim_loss_is_one_minus_ssim_channels_last():
     pred = torch.from_numpy(a).requires_grad_(True)
     loss = ssim_loss(pred, torch.from_numpy(b), channels_last=True)
     loss.backward()
-    assert float(loss.detach()) == pytest.approx(1 - float(np.mean(ssim(a, b, variant="3dgs"))), abs=1e-6)
+    assert float(loss.detach()) == pytest.approx(
+        1 - float(np.mean(ssim(a, b, variant="3dgs"))), abs=1e-6
+    )
     assert pred.grad is not None and torch.isfinite(pred.grad).all()
 
 
@@ -136,7 +154,8 @@ def test_input_errors_are_clear():
         ssim(a[:8, :8], b[:8, :8])
 
 
-# --- protocols ---------------------------------------------------------------------------------------------------
+# --- protocols ------------------------------------------------------------------------------------
+
 
 def test_registry_and_definition_round_trip():
     builtin = {"olatbench-v1", "olatbench-v1-masked", "ssdgs", "nrhints"}
@@ -156,20 +175,31 @@ def test_protocol_recipes_differ_where_they_should():
     v1, nr, sd = (get_protocol(n).evaluate(a, b) for n in ("olatbench-v1", "nrhints", "ssdgs"))
     qa, qb = (np.rint(x * 255) / 255 for x in (a, b))
     assert v1["psnr"] == pytest.approx(peak_signal_noise_ratio(qa, qb, data_range=1), abs=1e-6)
-    assert v1["ssim"] == pytest.approx(skimage_ssim(qa.astype(np.float32), qb.astype(np.float32)), abs=1e-5)
+    assert v1["ssim"] == pytest.approx(
+        skimage_ssim(qa.astype(np.float32), qb.astype(np.float32)), abs=1e-5
+    )
     assert nr["psnr"] == pytest.approx(peak_signal_noise_ratio(a, b, data_range=1), abs=1e-5)
     assert nr["ssim"] == pytest.approx(skimage_ssim(a, b), abs=1e-5)
     assert sd["psnr"] == pytest.approx(v1["psnr"], abs=1e-9)
-    assert sd["ssim"] == pytest.approx(ssim(qa.astype(np.float32), qb.astype(np.float32), variant="3dgs"), abs=1e-6)
+    assert sd["ssim"] == pytest.approx(
+        ssim(qa.astype(np.float32), qb.astype(np.float32), variant="3dgs"), abs=1e-6
+    )
     # 8-bit inputs: quantisation changes nothing, so v1 and nrhints agree on PSNR/SSIM
-    v1q, nrq = get_protocol("olatbench-v1").evaluate(qa, qb), get_protocol("nrhints").evaluate(qa, qb)
-    assert v1q["psnr"] == pytest.approx(nrq["psnr"], abs=1e-6) and v1q["ssim"] == pytest.approx(nrq["ssim"], abs=1e-6)
+    v1q, nrq = (
+        get_protocol("olatbench-v1").evaluate(qa, qb),
+        get_protocol("nrhints").evaluate(qa, qb),
+    )
+    assert v1q["psnr"] == pytest.approx(nrq["psnr"], abs=1e-6) and v1q["ssim"] == pytest.approx(
+        nrq["ssim"], abs=1e-6
+    )
 
 
 def test_protocol_clips_and_rejects_bad_input():
     a, b = pair((32, 32, 3))
     v1 = get_protocol("nrhints")
-    assert v1.evaluate(a * 2 - 0.5, b)["psnr"] == pytest.approx(v1.evaluate(np.clip(a * 2 - 0.5, 0, 1), b)["psnr"])
+    assert v1.evaluate(a * 2 - 0.5, b)["psnr"] == pytest.approx(
+        v1.evaluate(np.clip(a * 2 - 0.5, 0, 1), b)["psnr"]
+    )
     with pytest.raises(ValueError, match="pred 0"):
         v1.evaluate(a[..., :2], b)
     with pytest.raises(ValueError, match="NaN"):
@@ -195,8 +225,12 @@ def test_evaluate_many_batches_like_singles_and_mean():
             assert row[key] == pytest.approx(single[key], abs=1e-6)
     mean = protocol.mean(many)
     assert mean["psnr"] == pytest.approx(np.mean([r["psnr"] for r in many]))
-    assert protocol.mean([{"psnr": 1.0, "ssim": 0.5, "lpips": None}, {"psnr": 3.0, "ssim": 0.7, "lpips": 0.1}]) \
-        ["lpips"] is None
+    assert (
+        protocol.mean(
+            [{"psnr": 1.0, "ssim": 0.5, "lpips": None}, {"psnr": 3.0, "ssim": 0.7, "lpips": 0.1}]
+        )["lpips"]
+        is None
+    )
 
 
 def test_missing_weights_give_none_with_one_warning(no_lpips_weights):
@@ -224,9 +258,12 @@ def test_hdr_flip_fixed_exposure_range():
     assert hdr_flip(gt, gt) == 0.0
     small, large = hdr_flip(gt * 1.2, gt), hdr_flip(gt * 2.0, gt)
     assert 0 < small < large
-    _, mean, used = flip_evaluator.evaluate(gt, gt * 2.0, "HDR", inputsRGB=False, applyMagma=False,
-                                            parameters=dict(HDR_PARAMETERS))
-    assert used["startExposure"] == -3.0 and used["stopExposure"] == 3.0 and used["numExposures"] == 7
+    _, mean, used = flip_evaluator.evaluate(
+        gt, gt * 2.0, "HDR", inputsRGB=False, applyMagma=False, parameters=dict(HDR_PARAMETERS)
+    )
+    assert (
+        used["startExposure"] == -3.0 and used["stopExposure"] == 3.0 and used["numExposures"] == 7
+    )
     assert large == pytest.approx(float(mean))
     with pytest.raises(ValueError, match="non-negative"):
         hdr_flip(gt - 1, gt)

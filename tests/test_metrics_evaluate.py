@@ -14,7 +14,12 @@ from olatbench.cli.metrics import evaluate, explain, list_protocols, where
 from olatbench.datasets import load_scene
 from olatbench.datasets.images import write_image
 from olatbench.datasets.official import official_ground_truth
-from olatbench.metrics.evaluate import EvaluationError, evaluate_folder, match_predictions, sha256_file
+from olatbench.metrics.evaluate import (
+    EvaluationError,
+    evaluate_folder,
+    match_predictions,
+    sha256_file,
+)
 from olatbench.metrics.protocols import get_protocol
 
 SIZE = (40, 36)
@@ -27,12 +32,16 @@ def scene(tmp_path) -> Path:
 
 
 def write_predictions(scene: Path, out: Path, noise: float = 0.0) -> list[str]:
-    """Ground truth as the benchmark sees it (composited sRGB), optionally perturbed, as 8-bit PNGs."""
+    """Ground truth as the benchmark sees it (composited sRGB), optionally perturbed, as 8-bit
+    PNGs."""
     rng = np.random.default_rng(0)
     ids = []
     for frame in load_scene(scene).split("test"):
         rgb = frame.load(colourspace="srgb").rgb
-        write_image(out / f"{frame.frame_id}.png", np.clip(rgb + noise * rng.standard_normal(rgb.shape), 0, 1))
+        write_image(
+            out / f"{frame.frame_id}.png",
+            np.clip(rgb + noise * rng.standard_normal(rgb.shape), 0, 1),
+        )
         ids.append(frame.frame_id)
     return ids
 
@@ -45,9 +54,13 @@ def test_match_predictions_reports_missing_extra_and_ambiguous(tmp_path):
     message = str(info.value)
     assert "missing predictions for frames (1): c" in message
     assert "several files for one frame (1): b (b.exr, b.png)" in message
-    assert "files matching no ground-truth frame (1): zz.png" in message and "notes.txt" not in message
-    assert match_predictions(tmp_path, ["a", "zz"], allow_extra=True) == {"a": tmp_path / "a.png",
-                                                                           "zz": tmp_path / "zz.png"}
+    assert (
+        "files matching no ground-truth frame (1): zz.png" in message and "notes.txt" not in message
+    )
+    assert match_predictions(tmp_path, ["a", "zz"], allow_extra=True) == {
+        "a": tmp_path / "a.png",
+        "zz": tmp_path / "zz.png",
+    }
 
 
 def test_perfect_predictions_and_result_json(scene, tmp_path):
@@ -73,7 +86,9 @@ def test_noisy_predictions_match_direct_protocol_call(scene, tmp_path):
 
     pred = read_image(tmp_path / "pred" / f"{frame.frame_id}.png")
     direct = protocol.evaluate(pred, frame.load(colourspace="srgb").rgb)
-    assert result["metrics"]["test"]["per_image"][frame.frame_id]["psnr"] == pytest.approx(direct["psnr"])
+    assert result["metrics"]["test"]["per_image"][frame.frame_id]["psnr"] == pytest.approx(
+        direct["psnr"]
+    )
     assert 15 < direct["psnr"] < 40
 
 
@@ -112,18 +127,28 @@ def test_cli_refuses_missing_extra_corrupt_and_overwrite(scene, tmp_path):
     (pred / "999.png").unlink()
     (pred / f"{ids[1]}.png").write_bytes(b"\x89PNG not really")
     corrupt = runner.invoke(evaluate, [*args, "--overwrite"])
-    assert corrupt.exit_code != 0 and f"frame {ids[1]}" in corrupt.output and f"{ids[1]}.png" in corrupt.output
+    assert (
+        corrupt.exit_code != 0
+        and f"frame {ids[1]}" in corrupt.output
+        and f"{ids[1]}.png" in corrupt.output
+    )
     (pred / f"{ids[1]}.png").unlink()
     missing = runner.invoke(evaluate, [*args, "--overwrite"])
-    assert missing.exit_code != 0 and f"missing predictions for frames (1): {ids[1]}" in missing.output
+    assert (
+        missing.exit_code != 0 and f"missing predictions for frames (1): {ids[1]}" in missing.output
+    )
     assert out.read_bytes() == first  # failed runs leave the result untouched
 
 
 def test_cli_require_lpips_without_weights(scene, tmp_path, no_lpips_weights):
     write_predictions(scene, tmp_path / "pred")
-    result = CliRunner().invoke(evaluate, [str(tmp_path / "pred"), "--gt", str(scene), "--require", "lpips"])
+    result = CliRunner().invoke(
+        evaluate, [str(tmp_path / "pred"), "--gt", str(scene), "--require", "lpips"]
+    )
     assert result.exit_code != 0 and "olatbench weights install" in result.output
-    soft = CliRunner().invoke(evaluate, [str(tmp_path / "pred"), "--gt", str(scene), "--protocol", "nrhints"])
+    soft = CliRunner().invoke(
+        evaluate, [str(tmp_path / "pred"), "--gt", str(scene), "--protocol", "nrhints"]
+    )
     assert soft.exit_code == 0 and "lpips=None" in soft.output
     assert soft.output.count("warning: LPIPS-alex is reported as None") == 1
     shown = CliRunner().invoke(where, [])
@@ -147,33 +172,52 @@ def test_ssdgs_on_gs3_scores_in_the_official_gamma22_space(tmp_path):
     write_gs3_tree(tmp_path / "Lego", n_train=1, n_test=2, size=SIZE)
     scene = load_scene(tmp_path / "Lego")
     for frame in scene.split("test"):
-        write_image(tmp_path / "pred" / f"{frame.frame_id}.png", official_ground_truth(frame, "gs3"))
-    result = evaluate_folder(tmp_path / "pred", tmp_path / "Lego", "test", get_protocol("ssdgs"), png_space="gamma22")
+        write_image(
+            tmp_path / "pred" / f"{frame.frame_id}.png", official_ground_truth(frame, "gs3")
+        )
+    result = evaluate_folder(
+        tmp_path / "pred", tmp_path / "Lego", "test", get_protocol("ssdgs"), png_space="gamma22"
+    )
     assert result["source"]["colourspace"] == "gamma22"
     assert result["metrics"]["test"]["mean"]["psnr"] == 100.0
     as_srgb = evaluate_folder(tmp_path / "pred", tmp_path / "Lego", "test", get_protocol("ssdgs"))
-    assert as_srgb["metrics"]["test"]["mean"]["psnr"] < 60  # the same files read as sRGB are other values
-    # every protocol scores GS³ data in its display space (the runner does too); olatbench-v1's ground truth is
-    # the float composite without the official loader's alpha quirk and 8-bit rounding: close, not equal
-    v1 = evaluate_folder(tmp_path / "pred", tmp_path / "Lego", "test", get_protocol("olatbench-v1"),
-                         png_space="gamma22")
+    # the same files read as sRGB are other values
+    assert as_srgb["metrics"]["test"]["mean"]["psnr"] < 60
+    # every protocol scores GS³ data in its display space (the runner does too); olatbench-v1's
+    # ground truth is the float composite without the official loader's alpha quirk and 8-bit
+    # rounding: close, not equal
+    v1 = evaluate_folder(
+        tmp_path / "pred",
+        tmp_path / "Lego",
+        "test",
+        get_protocol("olatbench-v1"),
+        png_space="gamma22",
+    )
     assert v1["source"]["colourspace"] == "gamma22"
     assert 30 < v1["metrics"]["test"]["mean"]["psnr"] < 100, v1["metrics"]["test"]["mean"]
 
 
 def test_cli_writes_the_runners_results_schema(scene, tmp_path):
-    """`olatbench evaluate` writes a results.json of the current schema (kind "evaluate") with the runner's
-    provenance keys: the same version and library key names, timestamps, hardware and per-file sha256."""
+    """`olatbench evaluate` writes a results.json of the current schema (kind "evaluate") with the
+    runner's provenance keys: the same version and library key names, timestamps, hardware and
+    per-file sha256."""
     from olatbench.bench.provenance import library_versions
     from olatbench.bench.results import SCHEMA_VERSION, Results, read_results
 
     ids = write_predictions(scene, tmp_path / "pred")
     out = tmp_path / "scored.json"
-    result = CliRunner().invoke(evaluate, [str(tmp_path / "pred"), "--gt", str(scene), "-o", str(out)])
+    result = CliRunner().invoke(
+        evaluate, [str(tmp_path / "pred"), "--gt", str(scene), "-o", str(out)]
+    )
     assert result.exit_code == 0, result.output
     data = read_results(out)
-    assert data["schema_version"] == SCHEMA_VERSION and data["kind"] == "evaluate" and data["job"] is None
-    assert set(Results.__annotations__) - {"method_kind", "official"} <= set(data)  # all but official's
+    assert (
+        data["schema_version"] == SCHEMA_VERSION
+        and data["kind"] == "evaluate"
+        and data["job"] is None
+    )
+    # all but official's
+    assert set(Results.__annotations__) - {"method_kind", "official"} <= set(data)
     assert set(data["versions"]) == set(library_versions())
     assert data["timing"]["started"] <= data["timing"]["finished"]
     assert data["hardware"]["cpu"]["threads"] >= 1

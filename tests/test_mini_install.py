@@ -1,4 +1,5 @@
-"""The mini suite is the packaged reference renders: installed without rendering, every byte checked."""
+"""The mini suite is the packaged reference renders: installed without rendering, every byte
+checked."""
 
 from __future__ import annotations
 
@@ -15,7 +16,12 @@ import olatbench.datasets.synth.mini as mini
 import olatbench.datasets.synth.reference as reference_module
 from olatbench.cli import main
 from olatbench.datasets.errors import DatasetError
-from olatbench.datasets.synth.mini import MANIFEST, MINI_SCENES, data_matches_reference, ensure_mini_suite
+from olatbench.datasets.synth.mini import (
+    MANIFEST,
+    MINI_SCENES,
+    data_matches_reference,
+    ensure_mini_suite,
+)
 from olatbench.datasets.synth.reference import archive_path, load_reference
 
 
@@ -28,30 +34,43 @@ def _no_rendering(monkeypatch):
 
 
 def _hashes(folder):
-    """sha256 of every file below a scene ``folder`` but the manifest and its ground truth under new illumination
-    (``novel_lights/``, installed apart: tests/test_novel_lights.py), computed here (not by the code under test)."""
-    return {path.relative_to(folder).as_posix(): hashlib.sha256(path.read_bytes()).hexdigest()
-            for path in folder.rglob("*") if path.is_file() and path.name != MANIFEST
-            and path.relative_to(folder).parts[0] != "novel_lights"}
+    """sha256 of every file below a scene ``folder`` but the manifest and its ground truth under new
+    illumination (``novel_lights/``, installed apart: tests/test_novel_lights.py), computed here
+    (not by the code under test)."""
+    return {
+        path.relative_to(folder).as_posix(): hashlib.sha256(path.read_bytes()).hexdigest()
+        for path in folder.rglob("*")
+        if path.is_file()
+        and path.name != MANIFEST
+        and path.relative_to(folder).parts[0] != "novel_lights"
+    }
 
 
 def test_datasets_synth_mini_installs_the_reference_bytes_and_says_so(tmp_path, monkeypatch):
     _no_rendering(monkeypatch)
-    result = CliRunner().invoke(main, ["datasets", "synth", "--mini", "-o", str(tmp_path / "mini"), "-q"])
+    result = CliRunner().invoke(
+        main, ["datasets", "synth", "--mini", "-o", str(tmp_path / "mini"), "-q"]
+    )
     assert result.exit_code == 0, result.output
     lines = result.output.splitlines()
-    assert lines[:3] == [f"mini/{scene}: identical to the reference (Mitsuba 3.9.1 scalar_rgb)"
-                         for scene in MINI_SCENES]
+    assert lines[:3] == [
+        f"mini/{scene}: identical to the reference (Mitsuba 3.9.1 scalar_rgb)"
+        for scene in MINI_SCENES
+    ]
     reference = load_reference()
     for scene in MINI_SCENES:
         installed = _hashes(tmp_path / "mini" / scene)
         assert installed == reference["scenes"][scene]["files"] and len(installed) == 243
         assert data_matches_reference(tmp_path / "mini" / scene) is True
-    again = CliRunner().invoke(main, ["datasets", "synth", "--mini", "-o", str(tmp_path / "mini"), "-q"])
+    again = CliRunner().invoke(
+        main, ["datasets", "synth", "--mini", "-o", str(tmp_path / "mini"), "-q"]
+    )
     assert again.output == result.output  # verified, not installed again
 
 
-def test_a_damaged_or_locally_rendered_scene_is_replaced_by_the_reference(tmp_path, monkeypatch, caplog):
+def test_a_damaged_or_locally_rendered_scene_is_replaced_by_the_reference(
+    tmp_path, monkeypatch, caplog
+):
     _no_rendering(monkeypatch)
     root = ensure_mini_suite(tmp_path / "mini", progress=False, scenes=["aniso_metal"])
     scene = root / "aniso_metal"
@@ -86,6 +105,9 @@ def test_an_archive_whose_bytes_differ_from_the_hashes_is_refused(tmp_path, monk
         for name in names:
             bundle.add(unpacked / name, arcname=name)
     monkeypatch.setattr(reference_module, "reference_root", lambda: packaged)
-    with pytest.raises(DatasetError, match=r"translucent\.tar\.xz: .*does not match the hashes.*test/r_0002\.png"):
+    with pytest.raises(
+        DatasetError, match=r"translucent\.tar\.xz: .*does not match the hashes.*test/r_0002\.png"
+    ):
         ensure_mini_suite(tmp_path / "mini", progress=False, scenes=["translucent"])
-    assert [path.name for path in (tmp_path / "mini").iterdir()] == [".lock"]  # no scene, no partial folder
+    # no scene, no partial folder
+    assert [path.name for path in (tmp_path / "mini").iterdir()] == [".lock"]

@@ -1,11 +1,13 @@
-"""Every module of the package explains itself in a module docstring, and only that: the rest is in docs/."""
+"""Every module of the package explains itself in a module docstring, and only that: the rest is in
+docs/."""
 
 import ast
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGE = ROOT / "olatbench"
-# docs/architecture.md, "Code style": what the module is for and where its detail lives, in at most 40 lines.
+# docs/architecture.md, "Code style": what the module is for and where its detail lives, in at most
+# 40 lines.
 MAX_LINES = 40
 
 
@@ -22,5 +24,11 @@ def test_every_module_has_a_docstring() -> None:
 
 
 def test_module_docstrings_are_short() -> None:
-    long = {path: doc.count("\n") + 1 for path, doc in _docstrings().items() if doc and doc.count("\n") + 1 > MAX_LINES}
-    assert not long, f"module docstrings longer than {MAX_LINES} lines (move the detail to docs/): {long}"
+    long = {
+        path: doc.count("\n") + 1
+        for path, doc in _docstrings().items()
+        if doc and doc.count("\n") + 1 > MAX_LINES
+    }
+    assert not long, (
+        f"module docstrings longer than {MAX_LINES} lines (move the detail to docs/): {long}"
+    )

@@ -1,4 +1,5 @@
-"""EWA projection: closed forms, an autograd Jacobian of the pinhole map, culling, and finite differences."""
+"""EWA projection: closed forms, an autograd Jacobian of the pinhole map, culling, and finite
+differences."""
 
 from __future__ import annotations
 
@@ -52,7 +53,9 @@ def test_isotropic_gaussian_closed_form():
         40,
         30,
     )
-    torch.testing.assert_close(p.means2d[0], torch.tensor([fx * x / z + cx, fy * y / z + cy], dtype=D))
+    torch.testing.assert_close(
+        p.means2d[0], torch.tensor([fx * x / z + cx, fy * y / z + cy], dtype=D)
+    )
     # J Jᵀ s² for the pinhole Jacobian, plus the 0.3 px² low-pass.
     a = s * s * fx * fx / z**2 * (1 + x * x / z**2) + 0.3
     c = s * s * fy * fy / z**2 * (1 + y * y / z**2) + 0.3
@@ -65,7 +68,8 @@ def test_isotropic_gaussian_closed_form():
 
 
 def test_covariance_matches_autograd_jacobian_of_pinhole():
-    """Inside the frustum (no clamping) the 2D covariance is Jπ W Σ Wᵀ Jπᵀ + 0.3 I with Jπ from autograd."""
+    """Inside the frustum (no clamping) the 2D covariance is Jπ W Σ Wᵀ Jπᵀ + 0.3 I with Jπ from
+    autograd."""
     W, H = 64, 48
     w2c, K = camera(W, H)
     s = scene(10, spread=0.4)
@@ -86,15 +90,22 @@ def test_covariance_matches_autograd_jacobian_of_pinhole():
 
 
 def test_jacobian_clamped_outside_frustum():
-    """Far off-axis Gaussians use x/z clamped to 1.3 × the half-FoV tangent (centred principal point)."""
+    """Far off-axis Gaussians use x/z clamped to 1.3 × the half-FoV tangent
+    (centred principal point)."""
     W, H, f = 40, 40, 40.0
     K = torch.tensor([[f, 0, W / 2], [0, f, H / 2], [0, 0, 1]], dtype=D)
     z, s = 2.0, 2.0
-    x = 3.0 * z  # x/z = 3, far beyond 1.3 × tan(fov/2) = 0.65; the huge Gaussian still reaches the image
+    # x/z = 3, far beyond 1.3 × tan(fov/2) = 0.65; the huge Gaussian still reaches the image
+    x = 3.0 * z
     p = project(
-        torch.tensor([[x, 0.0, z]], dtype=D), torch.tensor([[1.0, 0, 0, 0]], dtype=D), torch.full((1, 3), s, dtype=D),
-        torch.eye(4, dtype=D), K, W, H,
-    )  # fmt: skip
+        torch.tensor([[x, 0.0, z]], dtype=D),
+        torch.tensor([[1.0, 0, 0, 0]], dtype=D),
+        torch.full((1, 3), s, dtype=D),
+        torch.eye(4, dtype=D),
+        K,
+        W,
+        H,
+    )
     u = 1.3 * 0.5 * W / f
     a = s * s * f * f / z**2 * (1 + u * u) + 0.3
     c = s * s * f * f / z**2 + 0.3
@@ -106,17 +117,26 @@ def test_culling_and_finite_gradients():
     W, H = 32, 32
     K = torch.tensor([[30.0, 0, 16], [0, 30.0, 16], [0, 0, 1]], dtype=D)
     means = torch.tensor(
-        [[0.0, 0.0, 2.0], [0.0, 0.0, -2.0], [0.0, 0.0, 0.005], [0.0, 0.0, 1e11], [50.0, 0.0, 2.0], [0.0, 0, 0]],
+        [
+            [0.0, 0.0, 2.0],
+            [0.0, 0.0, -2.0],
+            [0.0, 0.0, 0.005],
+            [0.0, 0.0, 1e11],
+            [50.0, 0.0, 2.0],
+            [0.0, 0, 0],
+        ],
         dtype=D,
         requires_grad=True,
     )
     n = means.shape[0]
     quats = torch.tensor([[1.0, 0, 0, 0]] * n, dtype=D, requires_grad=True)
     scales = torch.full((n, 3), 0.05, dtype=D)
-    scales[-1] = 1e-12  # degenerate: still a valid (low-pass) 2D Gaussian, but behind the near plane here
+    # degenerate: still a valid (low-pass) 2D Gaussian, but behind the near plane here
+    scales[-1] = 1e-12
     scales.requires_grad_()
     p = project(means, quats, scales, torch.eye(4, dtype=D), K, W, H)
-    assert p.radii[0] > 0 and (p.radii[1:] == 0).all()  # behind, too near, too far, off-screen, at z = 0
+    # behind, too near, too far, off-screen, at z = 0
+    assert p.radii[0] > 0 and (p.radii[1:] == 0).all()
     assert torch.isfinite(p.means2d).all() and torch.isfinite(p.conics).all()
     (p.means2d.sum() + p.conics.sum() + p.depths.sum()).backward()
     for t in (means, quats, scales):
@@ -158,4 +178,6 @@ def test_projection_gradients_match_finite_differences():
         return sum((o * w).sum() for o, w in zip(outs, weights, strict=True))
 
     inputs = [s["means"], s["quats"], s["scales"], w2c]
-    assert torch.autograd.gradcheck(f, [t.clone().requires_grad_() for t in inputs], eps=1e-6, atol=1e-7, rtol=1e-5)
+    assert torch.autograd.gradcheck(
+        f, [t.clone().requires_grad_() for t in inputs], eps=1e-6, atol=1e-7, rtol=1e-5
+    )

@@ -1,4 +1,5 @@
-"""The paper's tables regenerated from the packaged CSV equal the paper's LaTeX, number by number and colour by colour.
+"""The paper's tables regenerated from the packaged CSV equal the paper's LaTeX, number by number
+and colour by colour.
 
 The paper's tabulars (tests/snapshots/paper_tables.tex, a verbatim copy of the paper's table
 environments) and the LaTeX olatbench writes are parsed by the same small parser below, which
@@ -31,9 +32,18 @@ SNAPSHOTS = Path(__file__).parent / "snapshots"
 PAPER_TEX = SNAPSHOTS / "paper_tables.tex"
 SHARED_PAPER = Path("/work/shared/paper/ssdgs_iclr2026.tex")
 COLOURS = {"1,0.8,0.8": 1, "1,0.9,0.8": 2}
-LABEL_COLUMNS = {"real": 1, "gs3": 1, "sssgs": 1, "sssgs-overview": 1, "ablation": 1, "ablation-scenes": 2,
-                 "shadow-on-sss": 2, "relighting-baselines": 2}
-# The paper colours F (33.6715) second best and leaves E (33.9633) plain in Bunny Test; the numbers say otherwise.
+LABEL_COLUMNS = {
+    "real": 1,
+    "gs3": 1,
+    "sssgs": 1,
+    "sssgs-overview": 1,
+    "ablation": 1,
+    "ablation-scenes": 2,
+    "shadow-on-sss": 2,
+    "relighting-baselines": 2,
+}
+# The paper colours F (33.6715) second best and leaves E (33.9633) plain in Bunny Test; the numbers
+# say otherwise.
 KNOWN_DISAGREEMENTS = {"ablation-scenes": {("efulls", "test", 6), ("ffullsss", "test", 6)}}
 
 
@@ -51,7 +61,9 @@ def _clean_label(text: str) -> str:
     return re.sub(r"[^a-z0-9]", "", text.lower())
 
 
-def parse_rows(body: str, labels: int) -> list[tuple[tuple[str, ...], list[tuple[tuple[float, ...], int | None]]]]:
+def parse_rows(
+    body: str, labels: int
+) -> list[tuple[tuple[str, ...], list[tuple[tuple[float, ...], int | None]]]]:
     """Data rows of a tabular: (normalised labels, [(numbers in the cell, colour rank)])."""
     body = re.sub(r"\\begin\{tabular\}\{[^}]*\}", "", body)
     body = re.sub(r"\\(hline|midrule|toprule|bottomrule)|\\cline\{[^}]*\}", "", body)
@@ -85,17 +97,21 @@ def test_packaged_csv_is_the_shared_csv_and_has_the_schema():
     assert len(frame) == 900
     assert set(frame["table"]) == set(PAPER_TABLES.values())
     shared = Path("/work/shared/published/ssdgs_iclr2026.csv")
-    if shared.is_file():  # the same rows; the shared copy lost the paper's trailing zeros ("0.04") and its "≈"
+    # the same rows; the shared copy lost the paper's trailing zeros ("0.04") and its "≈"
+    if shared.is_file():
         theirs = pd.read_csv(shared, dtype=str, keep_default_na=False)
         ours = pd.read_csv(data_path(), dtype=str, keep_default_na=False)
         assert (theirs.drop(columns="value") == ours.drop(columns="value")).all().all()
         numbers = pd.to_numeric(ours["value"], errors="coerce")
-        assert (numbers.fillna(-1) == pd.to_numeric(theirs["value"], errors="coerce").fillna(-1)).all()
+        assert (
+            numbers.fillna(-1) == pd.to_numeric(theirs["value"], errors="coerce").fillna(-1)
+        ).all()
         assert set(ours["value"][numbers.isna()]) - set(theirs["value"]) == {"≈ 2.5 h"}
 
 
 def test_csv_keeps_the_numbers_as_the_paper_prints_them(paper_tex):
-    """Every value and std of the CSV is a string the paper prints (trailing zeros kept: 0.040, 61.50)."""
+    """Every value and std of the CSV is a string the paper prints (trailing zeros kept: 0.040,
+    61.50)."""
     frame = pd.read_csv(data_path(), dtype=str, keep_default_na=False)
     for column in ("value", "std"):
         for text in frame[column]:
@@ -110,13 +126,25 @@ def test_published_only_output_keeps_the_papers_strings_and_rules():
     assert sssgs.exit_code == 0 and "| 0.040 ± 0.01 |" in sssgs.output
     overview = CliRunner().invoke(main, ["report", "--published-only", "--table", "sssgs-overview"])
     assert "61.50 ± 16.23" in overview.output and "≈ 2.5 h" in overview.output
-    latex = {name: CliRunner().invoke(main, ["report", "--published-only", "--table", name, "--format", "latex"])
-             .output for name in ("sssgs-overview", "ablation-scenes", "shadow-on-sss", "ablation")}
-    assert r"$61.50 \pm 16.23$" in latex["sssgs-overview"] and r"$\approx$ 2.5 h" in latex["sssgs-overview"]
+    latex = {
+        name: CliRunner()
+        .invoke(main, ["report", "--published-only", "--table", name, "--format", "latex"])
+        .output
+        for name in ("sssgs-overview", "ablation-scenes", "shadow-on-sss", "ablation")
+    }
+    assert (
+        r"$61.50 \pm 16.23$" in latex["sssgs-overview"]
+        and r"$\approx$ 2.5 h" in latex["sssgs-overview"]
+    )
     for name in ("ablation-scenes", "shadow-on-sss"):  # typeset with booktabs in the paper
-        assert r"\toprule" in latex[name] and r"\bottomrule" in latex[name] and r"\hline" not in latex[name]
+        assert (
+            r"\toprule" in latex[name]
+            and r"\bottomrule" in latex[name]
+            and r"\hline" not in latex[name]
+        )
     assert r"\hline" in latex["ablation"] and r"\toprule" not in latex["ablation"]
-    assert "E: Full – S" in latex["ablation"] and "Full --" not in latex["ablation"]  # the paper's en-dash
+    # the paper's en-dash
+    assert "E: Full – S" in latex["ablation"] and "Full --" not in latex["ablation"]
 
 
 def test_snapshot_is_a_verbatim_copy_of_the_paper(paper_tex):
@@ -136,8 +164,12 @@ def test_regenerated_table_equals_the_paper(name, paper_tex):
     disagreements = set()
     for (our_labels, our_cells), (paper_labels, paper_cells) in zip(ours, paper, strict=True):
         assert our_labels == paper_labels
-        assert [numbers for numbers, _ in our_cells] == [numbers for numbers, _ in paper_cells], our_labels
-        for column, ((_, our_rank), (_, paper_rank)) in enumerate(zip(our_cells, paper_cells, strict=True)):
+        assert [numbers for numbers, _ in our_cells] == [numbers for numbers, _ in paper_cells], (
+            our_labels
+        )
+        for column, ((_, our_rank), (_, paper_rank)) in enumerate(
+            zip(our_cells, paper_cells, strict=True)
+        ):
             if our_rank != paper_rank:
                 disagreements.add((our_labels[0], our_labels[-1], column))
     assert disagreements == KNOWN_DISAGREEMENTS.get(name, set())
@@ -153,14 +185,20 @@ def test_table_1a_cells_by_name():
     gs3 = table.cell("PSNR ↑", ("GS3",), "Cat/Train")
     assert gs3.number == 30.0755 and gs3.rank == 2
     # a tie as printed: GS3 and Ours both 0.0506 in CupFabric Test LPIPS, both second best after RNG
-    assert [table.cell("LPIPS ↓", (m,), "CupFabric/Test").rank for m in ("RNG", "GS3", "Ours")] == [1, 2, 2]
-    assert table.cell("LPIPS ↓", ("Ours",), "CupFabric/Train").rank is None  # 0.0503 > 0.0501 > 0.0373
+    assert [table.cell("LPIPS ↓", (m,), "CupFabric/Test").rank for m in ("RNG", "GS3", "Ours")] == [
+        1,
+        2,
+        2,
+    ]
+    # 0.0503 > 0.0501 > 0.0373
+    assert table.cell("LPIPS ↓", ("Ours",), "CupFabric/Train").rank is None
 
 
 def test_table_2_rank_sets_are_compositions_and_schedules():
     table = paper_table("ablation")
     assert table.cell(None, ("D: Full (Ours)",), "Train Set/PSNR ↑").rank == 1
-    assert table.cell(None, ("I: Prog. Phys (Ours)",), "Train Set/PSNR ↑").rank == 1  # same numbers, other set
+    # same numbers, other set
+    assert table.cell(None, ("I: Prog. Phys (Ours)",), "Train Set/PSNR ↑").rank == 1
     assert table.cell(None, ("J: Prog. NonPhys",), "Test Set/PSNR ↑").rank == 2
     assert table.cell(None, ("K: Prog. Merge",), "Test Set/PSNR ↑").rank is None
 
@@ -175,10 +213,12 @@ def test_published_table_and_lookup():
     assert paper_method("ssdgs", "default", "nrhints") == "Ours"
     assert paper_method("ssdgs", "default", "sssgs") == "Ours (w/ Opt)"
     assert paper_method("ssdgs", "sssgs-no-opt", "sssgs") == "Ours (w/o Opt)"
-    # the authors' code runs batch_script_synthetic_sssgs.py's flags: no --cam_opt / --pl_opt, "w/o Opt"
+    # the authors' code runs batch_script_synthetic_sssgs.py's flags: no --cam_opt / --pl_opt, "w/o
+    # Opt"
     assert paper_method("ssdgs-official", None, "sssgs") == "Ours (w/o Opt)"
     assert paper_method("ssdgs-official", "default", "sssgs") == "Ours (w/o Opt)"
-    assert paper_method("ssdgs-official", "opt", "sssgs", fitted=True) == "Ours (w/ Opt)"  # results.json says so
+    # results.json says so
+    assert paper_method("ssdgs-official", "opt", "sssgs", fitted=True) == "Ours (w/ Opt)"
     assert paper_method("ssdgs-official", "default", "nrhints") == "Ours"
     assert paper_method("ssdgs", "ablation-E") == "E: Full - S"
     assert paper_method("gs3", "default") == "GS3"

@@ -1,4 +1,5 @@
-"""Torch reference rasterizer: brute-force per-pixel compositing, tile binning, and finite differences."""
+"""Torch reference rasterizer: brute-force per-pixel compositing, tile binning, and finite
+differences."""
 
 from __future__ import annotations
 
@@ -18,8 +19,11 @@ D = torch.float64
 NAMES = ("means", "quats", "scales", "opacities", "features", "background")
 
 
-def covers_tile(mean: list[float], radius: int, tx: int, ty: int, width: int, height: int, tile: int = 16) -> bool:
-    """Documented binning rule: the pixels whose centres lie within mean ± radius touch tile (tx, ty)."""
+def covers_tile(
+    mean: list[float], radius: int, tx: int, ty: int, width: int, height: int, tile: int = 16
+) -> bool:
+    """Documented binning rule: the pixels whose centres lie within mean ± radius touch tile
+    (tx, ty)."""
     x_lo, x_hi = math.ceil(mean[0] - radius - 0.5), math.floor(mean[0] + radius - 0.5)
     y_lo, y_hi = math.ceil(mean[1] - radius - 0.5), math.floor(mean[1] + radius - 0.5)
     x_lo, x_hi = max(x_lo, tx * tile, 0), min(x_hi, (tx + 1) * tile - 1, width - 1)
@@ -30,7 +34,8 @@ def covers_tile(mean: list[float], radius: int, tx: int, ty: int, width: int, he
 def brute_force(p, opacities, features, background, return_depth=False):
     """Per-pixel Python loop over the depth-sorted Gaussians of the pixel's tile (no vectorisation).
 
-    Returns image, alpha, depth and the number of pixels that terminated early (T would drop below 1e-4)."""
+    Returns image, alpha, depth and the number of pixels that terminated early
+    (T would drop below 1e-4)."""
     H, W = p.height, p.width
     C = features.shape[1]
     image = torch.zeros(H, W, C, dtype=D)
@@ -69,7 +74,8 @@ def brute_force(p, opacities, features, background, return_depth=False):
     ("n", "size", "kwargs"),
     [
         (25, (37, 23), {}),
-        (150, (20, 18), {"opacity": (0.6, 0.99), "scale": (0.05, 0.2)}),  # dense: pixels terminate early
+        # dense: pixels terminate early
+        (150, (20, 18), {"opacity": (0.6, 0.99), "scale": (0.05, 0.2)}),
         (30, (33, 17), {"spread": 1.5, "depth": 1.0}),  # partly off-screen and behind the camera
     ],
 )
@@ -78,7 +84,9 @@ def test_reference_matches_brute_force(n, size, kwargs):
     w2c, K = camera(W, H)
     s = scene(n, **kwargs)
     p = project(s["means"], s["quats"], s["scales"], w2c, K, W, H)
-    out = rasterize(p, s["opacities"], s["features"], s["background"], backend="torch", return_depth=True)
+    out = rasterize(
+        p, s["opacities"], s["features"], s["background"], backend="torch", return_depth=True
+    )
     image, alpha, depth, stopped = brute_force(p, s["opacities"], s["features"], s["background"])
     torch.testing.assert_close(out.image, image, rtol=1e-10, atol=1e-12)
     torch.testing.assert_close(out.alpha, alpha, rtol=1e-10, atol=1e-12)
@@ -130,29 +138,57 @@ def render_loss(backend: str, W: int, H: int, K: torch.Tensor, seed: int = 1):
     wi, wa, wd = (torch.rand(H, W, *shape, generator=g, dtype=D) for shape in ((3,), (), ()))
 
     def loss(means, quats, scales, opacities, features, background, w2c):
-        out = render(means, quats, scales, opacities, features, w2c, K, W, H, background, backend=backend,
-                     return_depth=True)  # fmt: skip
-        return (out["image"] * wi).sum() + (out["alpha"] * wa).sum() + 0.1 * (out["depth"] * wd).sum()
+        out = render(
+            means,
+            quats,
+            scales,
+            opacities,
+            features,
+            w2c,
+            K,
+            W,
+            H,
+            background,
+            backend=backend,
+            return_depth=True,
+        )
+        return (
+            (out["image"] * wi).sum() + (out["alpha"] * wa).sum() + 0.1 * (out["depth"] * wd).sum()
+        )
 
     return loss
 
 
 @pytest.mark.parametrize("backend", ["torch", "cpu"])
 def test_render_gradients_match_finite_differences(backend):
-    """Central differences in float64 for every input: means, quats, scales, opacities, features, background, pose."""
+    """Central differences in float64 for every input: means, quats, scales, opacities, features,
+    background, pose."""
     W, H = 20, 14
     w2c, K = camera(W, H)
     s = scene(6, spread=0.3)
     inputs = [s[k].clone().requires_grad_() for k in NAMES] + [w2c.clone().requires_grad_()]
-    assert torch.autograd.gradcheck(render_loss(backend, W, H, K), inputs, eps=1e-6, atol=1e-6, rtol=1e-5)
+    assert torch.autograd.gradcheck(
+        render_loss(backend, W, H, K), inputs, eps=1e-6, atol=1e-6, rtol=1e-5
+    )
 
 
 def test_gradients_reach_every_input_and_retained_means2d():
     W, H = 24, 20
     w2c, K = camera(W, H)
     s = {k: v.float().requires_grad_() for k, v in scene(6, spread=0.3).items()}
-    out = render(s["means"], s["quats"], s["scales"], s["opacities"], s["features"], w2c.float(), K.float(), W, H,
-                 s["background"], backend="torch")  # fmt: skip
+    out = render(
+        s["means"],
+        s["quats"],
+        s["scales"],
+        s["opacities"],
+        s["features"],
+        w2c.float(),
+        K.float(),
+        W,
+        H,
+        s["background"],
+        backend="torch",
+    )
     out["means2d"].retain_grad()
     out["image"].sum().backward()
     assert out["means2d"].grad.abs().sum() > 0

@@ -1,5 +1,5 @@
-"""Rasterizer backend selection: auto, environment override, the fallback warning when the C++ build fails,
-the build variants and the cache (the build machinery itself: tests/test_native.py)."""
+"""Rasterizer backend selection: auto, environment override, the fallback warning when the C++ build
+fails, the build variants and the cache (the build machinery itself: tests/test_native.py)."""
 
 from __future__ import annotations
 
@@ -41,7 +41,10 @@ def test_broken_compiler_falls_back_to_torch_with_one_warning(fresh_build, monke
     monkeypatch.setenv("OLATBENCH_CXX", str(fresh_build / "no-such-compiler"))
     ok, detail = cpu_backend_status()
     assert not ok and "no-such-compiler" in detail
-    with pytest.warns(RuntimeWarning, match="rasterizer backend 'cpu' is unavailable, falling back.*no-such-compiler"):
+    with pytest.warns(
+        RuntimeWarning,
+        match="rasterizer backend 'cpu' is unavailable, falling back.*no-such-compiler",
+    ):
         assert resolve_backend("auto", "cpu") == "torch"
     with warnings.catch_warnings():
         warnings.simplefilter("error")
@@ -68,11 +71,15 @@ def test_failing_compilation_reports_the_compiler_output(fresh_build, monkeypatc
 
 def test_single_threaded_build_when_openmp_is_missing(fresh_build, monkeypatch):
     fake = fresh_build / "cxx-without-openmp"
-    fake.write_text('#!/bin/sh\nfor a in "$@"; do [ "$a" = -fopenmp ] && { echo "no OpenMP here" >&2; exit 1; }; done\n'
-                    'exec g++ "$@"\n')  # fmt: skip
+    fake.write_text(
+        '#!/bin/sh\nfor a in "$@"; do [ "$a" = -fopenmp ] && { echo "no OpenMP here" >&2; exit 1; '
+        '}; done\nexec g++ "$@"\n'
+    )
     fake.chmod(0o755)
     monkeypatch.setenv("OLATBENCH_CXX", str(fake))
-    with pytest.warns(RuntimeWarning, match="(?s)olatbench_gaussians is a single-threaded build.*no OpenMP here"):
+    with pytest.warns(
+        RuntimeWarning, match="(?s)olatbench_gaussians is a single-threaded build.*no OpenMP here"
+    ):
         ok, detail = cpu_backend_status()  # slower than it could be: said once, like a fallback
     assert ok and "single-threaded" in detail and "no OpenMP here" in detail
     assert LIBRARY.load().path == LIBRARY.path("serial")
@@ -86,7 +93,9 @@ def test_fresh_build_lands_in_the_hashed_cache(fresh_build):
     path = LIBRARY.path()
     assert path.exists() and str(path) == detail
     assert path.parent.parent == fresh_build / "olatbench" / "ext"
-    assert path.parent.name == f"olatbench_gaussians-{build.build_key(LIBRARY.name, LIBRARY.sources)}"
+    assert (
+        path.parent.name == f"olatbench_gaussians-{build.build_key(LIBRARY.name, LIBRARY.sources)}"
+    )
     assert not list(path.parent.glob(".build-*"))  # the temporary file was renamed into place
     assert resolve_backend("auto", "cpu") == "cpu"
 
@@ -111,7 +120,9 @@ def test_cuda_selection_logic(monkeypatch):
     assert resolve_backend("cuda", "cuda") == "cuda"
     monkeypatch.setattr(backends, "gsplat_available", lambda: False)
     _native.reset_fallback_warnings()
-    with pytest.warns(RuntimeWarning, match="backend 'cuda' is unavailable, falling back to 'torch'.*gsplat"):
+    with pytest.warns(
+        RuntimeWarning, match="backend 'cuda' is unavailable, falling back to 'torch'.*gsplat"
+    ):
         assert resolve_backend("auto", "cuda") == "torch"  # never a silent fallback
     _native.reset_fallback_warnings()
     with pytest.raises(RuntimeError, match="gsplat"):

@@ -1,4 +1,5 @@
-"""C++ CPU backend against the torch reference (values and gradients), determinism, and the light-view pass."""
+"""C++ CPU backend against the torch reference (values and gradients), determinism, and the
+light-view pass."""
 
 from __future__ import annotations
 
@@ -57,22 +58,31 @@ def test_cpu_float64_matches_reference(name):
     leaves, bins, _ = projected_inputs(name)
     ref = values_and_grads(rasterize_torch, leaves, bins)
     got = values_and_grads(rasterize_cpu, leaves, bins)
-    for label, r, c in zip(["colour", "T", "means2d", "conics", "opacities", "features"], ref, got, strict=True):
-        torch.testing.assert_close(c, r, rtol=1e-9, atol=1e-11, msg=lambda m, label=label: f"{name}/{label}: {m}")
+    for label, r, c in zip(
+        ["colour", "T", "means2d", "conics", "opacities", "features"], ref, got, strict=True
+    ):
+        torch.testing.assert_close(
+            c, r, rtol=1e-9, atol=1e-11, msg=lambda m, label=label: f"{name}/{label}: {m}"
+        )
     if name == "dense":
         assert float(got[1].min()) < 2e-3  # some pixels composited to (near) opacity 1
 
 
 @pytest.mark.parametrize("name", ["dense", "normal"])
 def test_cpu_float64_matches_reference_under_gsplats_rules(name):
-    """The C++ backend with gsplat's compositing rules (clamp 0.999, stop at T <= 1e-4; the gsplat stand-in's)
-    against the torch reference with the same rules, values and gradients, opacities up to 1 (the clamp active)."""
+    """The C++ backend with gsplat's compositing rules (clamp 0.999, stop at T <= 1e-4; the gsplat
+    stand-in's) against the torch reference with the same rules, values and gradients, opacities up
+    to 1 (the clamp active)."""
     leaves, bins, _ = projected_inputs(name)
     leaves[2] = 1.0 - 0.1 * (1.0 - leaves[2])
     ref = values_and_grads(functools.partial(rasterize_torch, rules=GSPLAT), leaves, bins)
     got = values_and_grads(functools.partial(rasterize_cpu, rules=GSPLAT), leaves, bins)
-    for label, r, c in zip(["colour", "T", "means2d", "conics", "opacities", "features"], ref, got, strict=True):
-        torch.testing.assert_close(c, r, rtol=1e-9, atol=1e-11, msg=lambda m, label=label: f"{name}/{label}: {m}")
+    for label, r, c in zip(
+        ["colour", "T", "means2d", "conics", "opacities", "features"], ref, got, strict=True
+    ):
+        torch.testing.assert_close(
+            c, r, rtol=1e-9, atol=1e-11, msg=lambda m, label=label: f"{name}/{label}: {m}"
+        )
     three_dgs = values_and_grads(rasterize_cpu, leaves, bins)
     if name == "dense":  # the rules matter: 3DGS's give other transmittances
         assert float((got[1] - three_dgs[1]).abs().max()) > 1e-4
@@ -80,14 +90,21 @@ def test_cpu_float64_matches_reference_under_gsplats_rules(name):
 
 @pytest.mark.parametrize("name", sorted(SCENES))
 def test_cpu_float32_matches_float64_reference(name):
-    """float32 kernel vs float64 reference: relative 1e-5 of each tensor's scale (plus 1e-5 elementwise)."""
+    """float32 kernel vs float64 reference: relative 1e-5 of each tensor's scale
+    (plus 1e-5 elementwise)."""
     leaves, bins, _ = projected_inputs(name)
     ref = values_and_grads(rasterize_torch, leaves, bins)
     got = values_and_grads(rasterize_cpu, [t.float() for t in leaves], bins)
-    for label, r, c in zip(["colour", "T", "means2d", "conics", "opacities", "features"], ref, got, strict=True):
+    for label, r, c in zip(
+        ["colour", "T", "means2d", "conics", "opacities", "features"], ref, got, strict=True
+    ):
         scale = float(r.abs().max()) or 1.0
         torch.testing.assert_close(
-            c.double(), r, rtol=1e-5, atol=1e-5 * scale, msg=lambda m, label=label: f"{name}/{label}: {m}"
+            c.double(),
+            r,
+            rtol=1e-5,
+            atol=1e-5 * scale,
+            msg=lambda m, label=label: f"{name}/{label}: {m}",
         )
 
 
@@ -111,8 +128,12 @@ def test_rasterize_cpu_and_torch_agree_through_public_api_with_depth():
     w2c, K = camera(W, H)
     s = scene(80, channels=12, spread=1.2)
     p = project(s["means"], s["quats"], s["scales"], w2c, K, W, H)
-    a = rasterize(p, s["opacities"], s["features"], s["background"], backend="torch", return_depth=True)
-    b = rasterize(p, s["opacities"], s["features"], s["background"], backend="cpu", return_depth=True)
+    a = rasterize(
+        p, s["opacities"], s["features"], s["background"], backend="torch", return_depth=True
+    )
+    b = rasterize(
+        p, s["opacities"], s["features"], s["background"], backend="cpu", return_depth=True
+    )
     assert (a.backend, b.backend) == ("torch", "cpu")
     for x, y in ((a.image, b.image), (a.alpha, b.alpha), (a.depth, b.depth)):
         torch.testing.assert_close(y, x, rtol=1e-10, atol=1e-12)
@@ -145,13 +166,18 @@ def shadow_brute_force(means2d, conics, opacities, bins, radius):
                         continue
                     wsum[g] += T * alpha
                     T *= 1 - alpha
-    return torch.tensor(vis, dtype=D), torch.tensor(cnt, dtype=torch.int32), torch.tensor(wsum, dtype=D)
+    return (
+        torch.tensor(vis, dtype=D),
+        torch.tensor(cnt, dtype=torch.int32),
+        torch.tensor(wsum, dtype=D),
+    )
 
 
 @pytest.mark.parametrize("name", ["normal", "dense", "offscreen_and_behind"])
 def test_shadow_gather_matches_brute_force(name):
     (means2d, conics, opacities, _), depth_bins, radii = projected_inputs(name)
-    # Sort by a key other than depth (as the light pass does with squared distance) to exercise sort_keys.
+    # Sort by a key other than depth (as the light pass does with squared distance) to exercise
+    # sort_keys.
     keys = (means2d - torch.tensor([3.0, 2.0], dtype=D)).square().sum(-1)
     bins = bin_gaussians(means2d, radii, keys, depth_bins.width, depth_bins.height)
     opacities = opacities.clone()
@@ -162,13 +188,15 @@ def test_shadow_gather_matches_brute_force(name):
     torch.testing.assert_close(got.vis_sum, vis, rtol=1e-10, atol=1e-12)
     torch.testing.assert_close(got.weight, wsum, rtol=1e-10, atol=1e-12)
     assert (cnt > 0).sum() >= 3
-    got32 = shadow_gather_cpu(means2d.float(), conics.float(), opacities.float(), bins, radius_px=2.0)
+    got32 = shadow_gather_cpu(
+        means2d.float(), conics.float(), opacities.float(), bins, radius_px=2.0
+    )
     torch.testing.assert_close(got32.vis_sum.double(), vis, rtol=1e-4, atol=1e-4)
 
 
-
 def test_torch_reference_is_chunk_independent(monkeypatch):
-    """Many small chunks (and the checkpointed backward) give the same values and gradients as the C++ kernel."""
+    """Many small chunks (and the checkpointed backward) give the same values and gradients as the
+    C++ kernel."""
     import olatbench.gaussians.backends.torch_ref as torch_ref
 
     leaves, bins, _ = projected_inputs("twelve_channels")
@@ -180,7 +208,8 @@ def test_torch_reference_is_chunk_independent(monkeypatch):
 
 
 def _binning_inputs(n: int, width: int, height: int, dtype: torch.dtype, seed: int):
-    """Means partly off-image (and a few non-finite), radii 0..11, sort keys with ties, negatives, -0 and NaN."""
+    """Means partly off-image (and a few non-finite), radii 0..11, sort keys with ties, negatives,
+    -0 and NaN."""
     g = torch.Generator().manual_seed(seed)
     size = torch.tensor([width, height], dtype=torch.float64)
     means = (torch.rand(n, 2, generator=g, dtype=torch.float64) * 1.4 - 0.2) * size
@@ -192,7 +221,9 @@ def _binning_inputs(n: int, width: int, height: int, dtype: torch.dtype, seed: i
 
 
 @pytest.mark.parametrize("dtype", [torch.float32, torch.float64])
-@pytest.mark.parametrize(("n", "width", "height"), [(0, 8, 8), (1, 8, 8), (300, 37, 23), (5000, 128, 96)])
+@pytest.mark.parametrize(
+    ("n", "width", "height"), [(0, 8, 8), (1, 8, 8), (300, 37, 23), (5000, 128, 96)]
+)
 def test_cpp_binning_is_identical_to_torch(dtype, n, width, height):
     means, radii, keys = _binning_inputs(n, width, height, dtype, seed=n)
     ref = bin_gaussians(means, radii, keys, width, height, backend="torch")
@@ -204,56 +235,92 @@ def test_cpp_binning_is_identical_to_torch(dtype, n, width, height):
 
 def test_cpp_binning_handles_huge_and_fractional_coordinates():
     """Coordinates beyond 2^23 (float32 integers) and just around pixel-centre boundaries."""
-    means = torch.tensor([[3e9, 4.0], [-3e9, 4.0], [7.5, 7.5], [8.4999, 0.5], [15.5000, 15.5], [-0.49, 2.0]])
+    means = torch.tensor(
+        [[3e9, 4.0], [-3e9, 4.0], [7.5, 7.5], [8.4999, 0.5], [15.5000, 15.5], [-0.49, 2.0]]
+    )
     radii = torch.tensor([5, 5, 1, 1, 1, 1])
     keys = torch.arange(6, dtype=torch.float32)
     for dtype in (torch.float32, torch.float64):
         ref = bin_gaussians(means.to(dtype), radii, keys, 32, 16, backend="torch")
         got = bin_gaussians(means.to(dtype), radii, keys, 32, 16, backend="cpu")
-        assert torch.equal(got.offsets, ref.offsets) and torch.equal(got.gaussian_ids, ref.gaussian_ids)
+        assert torch.equal(got.offsets, ref.offsets) and torch.equal(
+            got.gaussian_ids, ref.gaussian_ids
+        )
 
 
-def _projection_outputs(backend: str, dtype: torch.dtype, name: str, quat_scale: float = 1.7, seed: int = 3):
-    """project() values and the gradients of a random linear loss w.r.t. means, quats, scales and w2c."""
+def _projection_outputs(
+    backend: str, dtype: torch.dtype, name: str, quat_scale: float = 1.7, seed: int = 3
+):
+    """project() values and the gradients of a random linear loss w.r.t. means, quats, scales and
+    w2c."""
     cfg = dict(SCENES[name])
     n, (W, H) = cfg.pop("n"), cfg.pop("size")
     cfg.pop("channels", None)
     cfg.pop("opacity", None)
     w2c, K = camera(W, H)
     s = scene(n, **cfg)
-    leaves = [t.to(dtype).clone().requires_grad_() for t in (s["means"], s["quats"] * quat_scale, s["scales"], w2c)]
+    leaves = [
+        t.to(dtype).clone().requires_grad_()
+        for t in (s["means"], s["quats"] * quat_scale, s["scales"], w2c)
+    ]
     p = project(*leaves, K.to(dtype), W, H, backend=backend)
     g = torch.Generator().manual_seed(seed)
     outputs = (p.means2d, p.conics, p.depths)
     loss = sum((t * torch.randn(t.shape, generator=g, dtype=D).to(dtype)).sum() for t in outputs)
     loss.backward()
-    return {"means2d": p.means2d.detach(), "conics": p.conics.detach(), "radii": p.radii, "depths": p.depths.detach(),
-            **{f"grad_{k}": t.grad for k, t in zip(("means", "quats", "scales", "w2c"), leaves, strict=True)}}
+    return {
+        "means2d": p.means2d.detach(),
+        "conics": p.conics.detach(),
+        "radii": p.radii,
+        "depths": p.depths.detach(),
+        **{
+            f"grad_{k}": t.grad
+            for k, t in zip(("means", "quats", "scales", "w2c"), leaves, strict=True)
+        },
+    }
 
 
 @pytest.mark.parametrize("name", ["normal", "dense", "offscreen_and_behind", "degenerate_scales"])
 def test_cpp_projection_matches_torch_in_float64(name):
-    """Values, radii and every gradient (unnormalised quaternions, culled and off-screen Gaussians included)."""
+    """Values, radii and every gradient (unnormalised quaternions, culled and off-screen Gaussians
+    included)."""
     ref = _projection_outputs("torch", D, name)
     got = _projection_outputs("cpu", D, name)
     assert torch.equal(got["radii"], ref["radii"])
     for key in ref:
-        torch.testing.assert_close(got[key], ref[key], rtol=1e-9, atol=1e-12, msg=lambda m, key=key: f"{key}: {m}")
+        torch.testing.assert_close(
+            got[key], ref[key], rtol=1e-9, atol=1e-12, msg=lambda m, key=key: f"{key}: {m}"
+        )
 
 
 def test_cpp_projection_matches_torch_in_float32():
     ref = _projection_outputs("torch", torch.float32, "dense")
     got = _projection_outputs("cpu", torch.float32, "dense")
-    assert (got["radii"] - ref["radii"]).abs().max() <= 1  # a ceil within float32 rounding of an integer
+    # a ceil within float32 rounding of an integer
+    assert (got["radii"] - ref["radii"]).abs().max() <= 1
     assert (got["radii"] != ref["radii"]).float().mean() < 0.02
-    for key in ("means2d", "conics", "depths", "grad_means", "grad_quats", "grad_scales", "grad_w2c"):
+    for key in (
+        "means2d",
+        "conics",
+        "depths",
+        "grad_means",
+        "grad_quats",
+        "grad_scales",
+        "grad_w2c",
+    ):
         scale = ref[key].abs().max()
-        torch.testing.assert_close(got[key], ref[key], rtol=1e-4, atol=1e-5 * float(scale),
-                                   msg=lambda m, key=key: f"{key}: {m}")
+        torch.testing.assert_close(
+            got[key],
+            ref[key],
+            rtol=1e-4,
+            atol=1e-5 * float(scale),
+            msg=lambda m, key=key: f"{key}: {m}",
+        )
 
 
 def test_projection_auto_backend_choice():
-    """auto = C++ on CPU tensors; a K that needs a gradient (unsupported in C++) takes the torch path."""
+    """auto = C++ on CPU tensors; a K that needs a gradient (unsupported in C++) takes the torch
+    path."""
     W, H = 37, 23
     w2c, K = camera(W, H)
     s = scene(20)

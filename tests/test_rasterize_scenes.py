@@ -1,4 +1,5 @@
-"""Small random Gaussian scenes shared by the rasterizer and projection tests (helpers only, no tests)."""
+"""Small random Gaussian scenes shared by the rasterizer and projection tests
+(helpers only, no tests)."""
 
 from __future__ import annotations
 
@@ -7,7 +8,9 @@ import torch
 
 def camera(width: int, height: int, focal: float = 40.0, dtype: torch.dtype = torch.float64):
     """A camera at the origin looking down +z (OpenCV axes): (w2c, K)."""
-    K = torch.tensor([[focal, 0.0, width / 2.0], [0.0, focal * 1.05, height / 2.0], [0.0, 0.0, 1.0]], dtype=dtype)
+    K = torch.tensor(
+        [[focal, 0.0, width / 2.0], [0.0, focal * 1.05, height / 2.0], [0.0, 0.0, 1.0]], dtype=dtype
+    )
     angle = torch.tensor(0.05, dtype=dtype)
     w2c = torch.eye(4, dtype=dtype)
     w2c[0, 0], w2c[0, 2], w2c[2, 0], w2c[2, 2] = angle.cos(), angle.sin(), -angle.sin(), angle.cos()
@@ -25,7 +28,8 @@ def scene(
     depth: float = 3.0,
     dtype: torch.dtype = torch.float64,
 ) -> dict[str, torch.Tensor]:
-    """Random Gaussians in front of ``camera``: means, quats, scales, opacities, features, background."""
+    """Random Gaussians in front of ``camera``: means, quats, scales, opacities, features,
+    background."""
     g = torch.Generator().manual_seed(seed)
     means = (torch.rand(n, 3, generator=g, dtype=dtype) * 2 - 1) * spread
     means[:, 2] += depth
@@ -33,7 +37,8 @@ def scene(
         "means": means,
         "quats": torch.randn(n, 4, generator=g, dtype=dtype) * 1.7,
         "scales": scale[0] + torch.rand(n, 3, generator=g, dtype=dtype) * (scale[1] - scale[0]),
-        "opacities": opacity[0] + torch.rand(n, generator=g, dtype=dtype) * (opacity[1] - opacity[0]),
+        "opacities": opacity[0]
+        + torch.rand(n, generator=g, dtype=dtype) * (opacity[1] - opacity[0]),
         "features": torch.rand(n, channels, generator=g, dtype=dtype),
         "background": torch.rand(channels, generator=g, dtype=dtype),
     }

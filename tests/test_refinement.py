@@ -14,9 +14,14 @@ def _random_w2c(seed: int) -> torch.Tensor:
     q = torch.randn(4, generator=g, dtype=torch.float64)
     q /= q.norm()
     w, x, y, z = q
-    rot = torch.tensor([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-                        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-                        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]], dtype=torch.float64)
+    rot = torch.tensor(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+        ],
+        dtype=torch.float64,
+    )
     w2c = torch.eye(4, dtype=torch.float64)
     w2c[:3, :3], w2c[:3, 3] = rot, torch.randn(3, generator=g, dtype=torch.float64)
     return w2c
@@ -39,7 +44,9 @@ def test_so3_exp_matches_axis_angle_closed_form():
     torch.testing.assert_close(rot, expected, atol=1e-12, rtol=0)
     omega = torch.randn(10, 3, dtype=torch.float64) * 2
     r = so3_exp(omega)
-    torch.testing.assert_close(r @ r.transpose(-1, -2), torch.eye(3, dtype=torch.float64).expand(10, 3, 3))
+    torch.testing.assert_close(
+        r @ r.transpose(-1, -2), torch.eye(3, dtype=torch.float64).expand(10, 3, 3)
+    )
     torch.testing.assert_close(torch.linalg.det(r), torch.ones(10, dtype=torch.float64))
     # rotation axis is fixed, and the matrix exponential agrees
     torch.testing.assert_close((r @ omega[..., None]).squeeze(-1), omega)
@@ -66,7 +73,10 @@ def test_pose_gradient_matches_finite_differences_at_zero_and_away():
             poses.tangents.copy_(tangent[None])
         return poses, poses.apply(0, w2c) @ point
 
-    for tangent in (torch.zeros(6, dtype=torch.float64), torch.tensor([0.1, -0.3, 0.2, 0.4, -0.7, 0.25]).double()):
+    for tangent in (
+        torch.zeros(6, dtype=torch.float64),
+        torch.tensor([0.1, -0.3, 0.2, 0.4, -0.7, 0.25]).double(),
+    ):
         poses, out = camera_point(tangent)
         (out[:3] ** 2).sum().backward()
         analytic = poses.tangents.grad[0]

@@ -1,6 +1,6 @@
-"""Rendering a trained method under a lighting (#57, `olatbench.bench.relight`): light adds up in linear light, a far
-point light is the directional light, and an environment relight of a Lambertian sphere converges to its closed form
-as the samples grow."""
+"""Rendering a trained method under a lighting (#57, `olatbench.bench.relight`): light adds up in
+linear light, a far point light is the directional light, and an environment relight of a Lambertian
+sphere converges to its closed form as the samples grow."""
 
 from __future__ import annotations
 
@@ -24,8 +24,8 @@ from olatbench.methods.base import Method, Views
 
 
 class AnalyticSphere(Method):
-    """The closed-form Lambertian sphere (`olatbench.datasets.synth.analytic`) as a method: linear radiance,
-    clipped to [0, 1] as the methods clip theirs, on ``background``, with its coverage."""
+    """The closed-form Lambertian sphere (`olatbench.datasets.synth.analytic`) as a method: linear
+    radiance, clipped to [0, 1] as the methods clip theirs, on ``background``, with its coverage."""
 
     name = "analytic-sphere"
     capabilities = frozenset({"relight"})
@@ -45,8 +45,10 @@ class AnalyticSphere(Method):
 
     def render(self, camera, light):
         hit = sphere_hits(camera)[1]
-        return {"rgb": torch.from_numpy(render_sphere(camera, light, self.config.background)),
-                "alpha": torch.from_numpy(hit.astype(np.float32))[..., None]}
+        return {
+            "rgb": torch.from_numpy(render_sphere(camera, light, self.config.background)),
+            "alpha": torch.from_numpy(hit.astype(np.float32))[..., None],
+        }
 
     def state_dict(self):
         return {}
@@ -56,16 +58,21 @@ class AnalyticSphere(Method):
 
 
 def analytic(background: float = 0.0, size: int = 24) -> tuple[Relighter, Views]:
-    views = dataclasses.replace(sphere_views(6, size=size), colourspace="linear",
-                                background=np.full(3, background, dtype=np.float32))
+    views = dataclasses.replace(
+        sphere_views(6, size=size),
+        colourspace="linear",
+        background=np.full(3, background, dtype=np.float32),
+    )
     method = AnalyticSphere(AnalyticSphere.Config(background=background))
     relighter = Relighter.for_views(method, views)
-    relighter.distant_factor = 1000.0  # an exact renderer: directional lights as point lights far away
+    # an exact renderer: directional lights as point lights far away
+    relighter.distant_factor = 1000.0
     return relighter, views
 
 
 def gaussian(name: str, background: float = 0.0) -> tuple[Relighter, Views]:
-    """An untrained SSD-GS / GS³ / 3DGS on the sphere's views (sRGB, as the mini suite), every term switched on."""
+    """An untrained SSD-GS / GS³ / 3DGS on the sphere's views (sRGB, as the mini suite), every term
+    switched on."""
     from olatbench.methods.registry import get_spec
 
     module, attribute = get_spec(name).implementation.split(":")
@@ -79,15 +86,18 @@ def gaussian(name: str, background: float = 0.0) -> tuple[Relighter, Views]:
 
 
 def reference_light(relighter: Relighter, direction, scale: float = 1.0) -> PointLight:
-    """A point light at the training lights' distance whose irradiance at the centre is ``scale`` × theirs, so
-    that it is its own probe (rendered as it is, weighted by ``scale``)."""
+    """A point light at the training lights' distance whose irradiance at the centre is ``scale`` ×
+    theirs, so that it is its own probe (rendered as it is, weighted by ``scale``)."""
     ref = relighter.reference
     unit = np.asarray(direction, dtype=np.float64) / np.linalg.norm(direction)
-    return PointLight(ref.centre + ref.distance * unit, scale * ref.irradiance * ref.distance**2, True)
+    return PointLight(
+        ref.centre + ref.distance * unit, scale * ref.irradiance * ref.distance**2, True
+    )
 
 
 def decoded(relighter: Relighter, camera: Camera, light: PointLight) -> np.ndarray:
-    """The method's own render under ``light``, decoded from the job's colour space to linear light."""
+    """The method's own render under ``light``, decoded from the job's colour space to linear
+    light."""
     rgb = relighter.method.render(camera, light)["rgb"].numpy()
     return colour.convert_colourspace(rgb, relighter.colourspace, "linear")
 
@@ -96,9 +106,11 @@ def decoded(relighter: Relighter, camera: Camera, light: PointLight) -> np.ndarr
 def test_a_two_light_render_is_the_sum_of_the_single_light_renders(name):
     relighter, views = gaussian(name)
     camera = views.cameras[0]
-    towards = camera.position / np.linalg.norm(camera.position)  # lights beside the camera: the lit side
+    # lights beside the camera: the lit side
+    towards = camera.position / np.linalg.norm(camera.position)
     a = reference_light(relighter, towards + np.array([0.4, 0.0, 0.2]))
-    b = reference_light(relighter, towards + np.array([-0.3, 0.4, 0.0]), scale=3.0)  # 3 × the training irradiance
+    # 3 × the training irradiance
+    b = reference_light(relighter, towards + np.array([-0.3, 0.4, 0.0]), scale=3.0)
     together = relighter.linear(camera, SampledLights((a, b)))
     one = decoded(relighter, camera, a)
     other = decoded(relighter, camera, dataclasses.replace(b, intensity=a.intensity))
@@ -115,9 +127,12 @@ def test_a_two_light_render_is_the_sum_of_the_single_light_renders(name):
 def test_the_background_counts_once_however_many_lights(name):
     relighter, views = gaussian(name, background=1.0)
     c2w = views.cameras[0].c2w.copy()
-    c2w[:3, 3] *= 4.0  # four times as far: the model's initial ball leaves the image's corners empty
+    # four times as far: the model's initial ball leaves the image's corners empty
+    c2w[:3, 3] *= 4.0
     camera = dataclasses.replace(views.cameras[0], c2w=c2w)
-    lights = SampledLights(tuple(reference_light(relighter, d) for d in ([1, 0, 1], [0, 1, 1], [-1, 0, 1])))
+    lights = SampledLights(
+        tuple(reference_light(relighter, d) for d in ([1, 0, 1], [0, 1, 1], [-1, 0, 1]))
+    )
     image = relighter.linear(camera, lights)
     empty = relighter.method.render(camera, lights.points[0])["alpha"].numpy()[..., 0] < 1e-4
     assert empty.any() and (~empty).any()
@@ -136,19 +151,23 @@ def test_background_removal_is_exact_on_the_analytic_sphere():
 
 
 def far_light_errors(relighter: Relighter, camera: Camera, factors) -> list[float]:
-    """Largest linear difference, over the directional light's brightest pixel, between point lights at ``factors``
-    × the training lights' distance (intensity E d²) and the directional light E along the same direction (from
-    the camera's side: the lit side)."""
+    """Largest linear difference, over the directional light's brightest pixel, between point lights
+    at ``factors`` × the training lights' distance (intensity E d²) and the directional light E
+    along the same direction (from the camera's side: the lit side)."""
     direction = camera.position / np.linalg.norm(camera.position) + np.array([0.3, -0.2, 0.3])
     direction, irradiance = direction / np.linalg.norm(direction), np.array([1.5, 1.2, 0.9])
-    distant = relighter.linear(camera, SampledLights(directions=(DirectionalLight(direction, irradiance),)))
+    distant = relighter.linear(
+        camera, SampledLights(directions=(DirectionalLight(direction, irradiance),))
+    )
     peak = float(distant.max())
     assert peak > 1e-3
     errors = []
     for factor in factors:
         d = factor * relighter.reference.distance
         point = PointLight(relighter.reference.centre + d * direction, irradiance * d**2, True)
-        errors.append(float(np.abs(relighter.linear(camera, SampledLights((point,))) - distant).max()) / peak)
+        errors.append(
+            float(np.abs(relighter.linear(camera, SampledLights((point,))) - distant).max()) / peak
+        )
     return errors
 
 
@@ -161,9 +180,9 @@ def test_a_far_point_light_converges_to_the_directional_light_on_the_analytic_sp
 
 @pytest.mark.parametrize("name", ["ssdgs", "gs3"])
 def test_a_far_point_light_converges_to_the_directional_light_for_the_gaussian_methods(name):
-    """Through each method's own shading and light-view shadow pass: no blow-up far away, and the d² scaling
-    (directional lights probed far away here; by default at the training distance, where trained models are in
-    their training regime: `olatbench.bench.relight`)."""
+    """Through each method's own shading and light-view shadow pass: no blow-up far away, and the d²
+    scaling (directional lights probed far away here; by default at the training distance, where
+    trained models are in their training regime: `olatbench.bench.relight`)."""
     relighter, views = gaussian(name)
     relighter.distant_factor = 1000.0
     errors = far_light_errors(relighter, views.cameras[0], (1.5, 15.0, 150.0))
@@ -178,11 +197,13 @@ def gradient_map(height: int, a: float, b: float) -> np.ndarray:
 
 
 def test_an_environment_relight_of_the_lambertian_sphere_converges_to_the_closed_form(tmp_path):
-    """L(ω) = a + b ω_z gives a Lambertian point of normal n the irradiance ∫ L max(n·ω, 0) dω = aπ + (2π/3) b n_z:
-    the relight through an .exr map and the relighter approaches ALBEDO × that, its error falling with the sample
-    count at least as K^-1/2 (stratified importance sampling)."""
+    """L(ω) = a + b ω_z gives a Lambertian point of normal n the irradiance ∫ L max(n·ω, 0) dω = aπ
+    + (2π/3) b n_z: the relight through an .exr map and the relighter approaches ALBEDO × that, its
+    error falling with the sample count at least as K^-1/2 (stratified importance sampling)."""
     a, b = 0.3, 0.2
-    write_image(tmp_path / "gradient.exr", gradient_map(256, a, b).astype(np.float32), bit_depth="float")
+    write_image(
+        tmp_path / "gradient.exr", gradient_map(256, a, b).astype(np.float32), bit_depth="float"
+    )
     relighter, views = analytic(size=20)
     camera = views.cameras[2]
     normals, hit = sphere_hits(camera)
@@ -192,8 +213,21 @@ def test_an_environment_relight_of_the_lambertian_sphere_converges_to_the_closed
     for count in counts:
         rms = []
         for seed in seeds:
-            (tmp_path / "env.json").write_text(json.dumps({"seed": seed, "lights": [
-                {"type": "envmap", "map": "gradient.exr", "up": [0, 0, 1], "samples": count}]}))
+            (tmp_path / "env.json").write_text(
+                json.dumps(
+                    {
+                        "seed": seed,
+                        "lights": [
+                            {
+                                "type": "envmap",
+                                "map": "gradient.exr",
+                                "up": [0, 0, 1],
+                                "samples": count,
+                            }
+                        ],
+                    }
+                )
+            )
             lights = read_lighting(tmp_path / "env.json").sample()
             assert len(lights.directions) == count
             rms.append(np.sqrt(np.mean((relighter.linear(camera, lights)[hit] - exact) ** 2)))
@@ -206,15 +240,18 @@ def test_an_environment_relight_of_the_lambertian_sphere_converges_to_the_closed
 def test_probes_render_at_the_training_irradiance():
     cameras, lights = sphere_views(6, size=16).cameras, sphere_views(6, size=16).lights
     reference = LightingReference.of(cameras, lights)
-    np.testing.assert_allclose(reference.irradiance, 16.0 / 25.0)  # the analytic rig: I = 16 at distance 5
+    # the analytic rig: I = 16 at distance 5
+    np.testing.assert_allclose(reference.irradiance, 16.0 / 25.0)
     np.testing.assert_allclose(reference.centre, 0.0, atol=1e-9)
     near = PointLight(np.array([0.0, 0.0, 2.0]), np.array([8.0, 4.0, 2.0]), True)
     far = DirectionalLight(np.array([1.0, 0.0, 0.0]), np.array([0.2, 0.2, 0.2]))
-    point_probe, distant_probe = probes(SampledLights((near,), (far,)), reference)  # at the training distance
+    # at the training distance
+    point_probe, distant_probe = probes(SampledLights((near,), (far,)), reference)
     np.testing.assert_allclose(point_probe.light.intensity / 4.0, reference.irradiance)  # at d = 2
     np.testing.assert_allclose(point_probe.weight, np.array([8.0, 4.0, 2.0]) / 4.0 / 0.64)
     np.testing.assert_allclose(distant_probe.light.position, [5.0, 0, 0], atol=1e-9)
-    np.testing.assert_allclose(distant_probe.light.intensity, 0.64 * 25.0)  # the training irradiance there
+    # the training irradiance there
+    np.testing.assert_allclose(distant_probe.light.intensity, 0.64 * 25.0)
     np.testing.assert_allclose(distant_probe.weight, 0.2 / 0.64)
     far_probe = probes(SampledLights(directions=(far,)), reference, distant_factor=1000.0)[0]
     np.testing.assert_allclose(far_probe.light.position, [5000.0, 0, 0], atol=1e-9)

@@ -1,4 +1,5 @@
-"""Relighting sweeps: trajectory geometry, frame counts, and `olatbench render` end to end with a trivial method."""
+"""Relighting sweeps: trajectory geometry, frame counts, and `olatbench render` end to end with a
+trivial method."""
 
 from __future__ import annotations
 
@@ -28,7 +29,9 @@ from olatbench.reports.sweeps import (
 )
 
 
-def ring_camera(azimuth_deg: float, centre=(1.0, -2.0, 0.5), radius: float = 4.0, height: float = 1.0) -> Camera:
+def ring_camera(
+    azimuth_deg: float, centre=(1.0, -2.0, 0.5), radius: float = 4.0, height: float = 1.0
+) -> Camera:
     angle = np.deg2rad(azimuth_deg)
     eye = np.array(centre) + np.array([radius * np.cos(angle), radius * np.sin(angle), height])
     K = np.array([[20.0, 0, 8], [0, 20.0, 6], [0, 0, 1]])
@@ -40,7 +43,9 @@ def test_rotation_matrix_closed_form():
     rotation = rotation_matrix([1, 2, 3], 37.0)
     np.testing.assert_allclose(rotation @ rotation.T, np.eye(3), atol=1e-12)
     assert np.linalg.det(rotation) == pytest.approx(1.0)
-    np.testing.assert_allclose(rotation @ (np.array([1, 2, 3]) / np.sqrt(14)), np.array([1, 2, 3]) / np.sqrt(14))
+    np.testing.assert_allclose(
+        rotation @ (np.array([1, 2, 3]) / np.sqrt(14)), np.array([1, 2, 3]) / np.sqrt(14)
+    )
 
 
 def test_orbit_frame_recovers_centre_and_up():
@@ -59,10 +64,14 @@ def test_light_orbit_keeps_distance_and_height_and_closes_the_loop():
     frames = trajectory("light-orbit", camera, light, centre, up)
     assert len(frames) == 150  # 360° / 2.4°
     positions = np.array([f.light.position for f in frames])
-    np.testing.assert_allclose(np.linalg.norm(positions - centre, axis=1), np.linalg.norm(light.position - centre))
+    np.testing.assert_allclose(
+        np.linalg.norm(positions - centre, axis=1), np.linalg.norm(light.position - centre)
+    )
     np.testing.assert_allclose(positions[:, 2], 3.0)
     np.testing.assert_allclose(positions[0], light.position)
-    azimuths = np.degrees(np.unwrap(np.arctan2(positions[:, 1] - centre[1], positions[:, 0] - centre[0])))
+    azimuths = np.degrees(
+        np.unwrap(np.arctan2(positions[:, 1] - centre[1], positions[:, 0] - centre[0]))
+    )
     np.testing.assert_allclose(np.diff(azimuths), 2.4)
     assert all(f.camera is camera for f in frames)
 
@@ -79,8 +88,15 @@ def test_view_orbit_and_paper_trajectory_counts_and_back_view():
     np.testing.assert_allclose(back.c2w[:3, :3], ring_camera(180).c2w[:3, :3], atol=1e-9)
     np.testing.assert_allclose(paper[-1].camera.position, camera.position, atol=1e-9)
     assert [paper[i].phase for i in (0, 149, 150, 239, 240, 389, 390, 479)] == [
-        "light (front)", "light (front)", "camera to back", "camera to back", "light (back)", "light (back)",
-        "camera to front", "camera to front"]
+        "light (front)",
+        "light (front)",
+        "camera to back",
+        "camera to back",
+        "light (back)",
+        "light (back)",
+        "camera to front",
+        "camera to front",
+    ]
     with pytest.raises(ValueError, match="unknown sweep"):
         trajectory("spiral", camera, light, centre, up)
     assert len(subsample(paper, 7)) == 7 and subsample(paper, 7)[0] is paper[0]
@@ -112,8 +128,10 @@ class ToyRelight(Method):
     def render(self, camera, light):
         azimuth = float(np.arctan2(light.position[1], light.position[0]))
         value = float(self.gain) * (0.5 + 0.4 * np.cos(azimuth))
-        return {"rgb": torch.full((camera.height, camera.width, 3), value),
-                "shadow": torch.full((camera.height, camera.width), 0.25)}
+        return {
+            "rgb": torch.full((camera.height, camera.width, 3), value),
+            "shadow": torch.full((camera.height, camera.width), 0.25),
+        }
 
     def state_dict(self):
         return {"gain": self.gain.clone()}
@@ -128,11 +146,28 @@ def make_job(tmp_path: Path) -> Path:
     write_nrhints_tree(scene, n_train=6, n_test=2, size=(16, 12))
     folder = tmp_path / "runs" / "nrhints" / "toy-relight" / "default" / "Toy" / "seed0"
     folder.mkdir(parents=True)
-    job = {"id": "job123", "method": "toy-relight", "method_ref": "test_render_sweep:ToyRelight", "variant": "default",
-           "suite": "nrhints", "scene": "Toy", "seed": 0, "config": {"iterations": 1}, "scene_path": str(scene),
-           "scene_format": "nrhints", "colourspace": "srgb", "resolution": None, "train_split": "train",
-           "test_split": "test", "protocol": "olatbench-v1", "protocol_version": 1, "data_manifest": None,
-           "code": "x", "folder": "", "device": "cpu"}
+    job = {
+        "id": "job123",
+        "method": "toy-relight",
+        "method_ref": "test_render_sweep:ToyRelight",
+        "variant": "default",
+        "suite": "nrhints",
+        "scene": "Toy",
+        "seed": 0,
+        "config": {"iterations": 1},
+        "scene_path": str(scene),
+        "scene_format": "nrhints",
+        "colourspace": "srgb",
+        "resolution": None,
+        "train_split": "train",
+        "test_split": "test",
+        "protocol": "olatbench-v1",
+        "protocol_version": 1,
+        "data_manifest": None,
+        "code": "x",
+        "folder": "",
+        "device": "cpu",
+    }
     (folder / "job.json").write_text(json.dumps(job))
     (folder / "config.json").write_text(json.dumps(job["config"]))
     save_checkpoint(folder, 1, {"gain": torch.tensor(1.0)}, "job123", train_seconds=1.0)
@@ -141,8 +176,19 @@ def make_job(tmp_path: Path) -> Path:
 
 def test_cli_render_writes_the_requested_frames_and_video(tmp_path):
     folder = make_job(tmp_path)
-    result = CliRunner().invoke(main, ["render", str(folder), "--sweep", "light-orbit", "--frames", "6",
-                                       "-o", str(tmp_path / "video")])
+    result = CliRunner().invoke(
+        main,
+        [
+            "render",
+            str(folder),
+            "--sweep",
+            "light-orbit",
+            "--frames",
+            "6",
+            "-o",
+            str(tmp_path / "video"),
+        ],
+    )
     assert result.exit_code == 0, result.output
     frames = sorted((tmp_path / "video" / "light-orbit_frames").glob("*.png"))
     assert [f.name for f in frames] == [f"{i:05d}.png" for i in range(6)]
@@ -152,7 +198,8 @@ def test_cli_render_writes_the_requested_frames_and_video(tmp_path):
         count += 1
     capture.release()
     assert count == 6
-    # the first frame is the method's render for the test frame's own light; the light moves, the image changes
+    # the first frame is the method's render for the test frame's own light; the light moves, the
+    # image changes
     job = JobFolder.open(folder)
     start = job.load_scene().split("test")[0]
     azimuth = np.arctan2(start.light.position[1], start.light.position[0])
@@ -165,20 +212,55 @@ def test_cli_render_writes_the_requested_frames_and_video(tmp_path):
 
 def test_cli_render_component_and_errors(tmp_path):
     folder = make_job(tmp_path)
-    result = CliRunner().invoke(main, ["render", str(folder), "--sweep", "paper", "--frames", "3", "--component",
-                                       "shadow", "-o", str(tmp_path / "v")])
+    result = CliRunner().invoke(
+        main,
+        [
+            "render",
+            str(folder),
+            "--sweep",
+            "paper",
+            "--frames",
+            "3",
+            "--component",
+            "shadow",
+            "-o",
+            str(tmp_path / "v"),
+        ],
+    )
     assert result.exit_code == 0, result.output
-    assert np.allclose(read_png(tmp_path / "v" / "paper_frames" / "00002.png"), 64 / 255, atol=1 / 255)
-    missing = CliRunner().invoke(main, ["render", str(folder), "--frames", "2", "--component", "specular",
-                                        "-o", str(tmp_path / "w")])
+    assert np.allclose(
+        read_png(tmp_path / "v" / "paper_frames" / "00002.png"), 64 / 255, atol=1 / 255
+    )
+    missing = CliRunner().invoke(
+        main,
+        [
+            "render",
+            str(folder),
+            "--frames",
+            "2",
+            "--component",
+            "specular",
+            "-o",
+            str(tmp_path / "w"),
+        ],
+    )
     assert missing.exit_code == 2 and "renders no component 'specular'" in missing.output
     assert "it renders rgb, shadow (choose one with --component)" in missing.output
-    assert "olatbench status" not in missing.output  # the job is fine: the advice is about the option
-    near = CliRunner().invoke(main, ["render", str(folder), "--frames", "2", "--component", "shadw",
-                                     "-o", str(tmp_path / "w")])
+    # the job is fine: the advice is about the option
+    assert "olatbench status" not in missing.output
+    near = CliRunner().invoke(
+        main,
+        ["render", str(folder), "--frames", "2", "--component", "shadw", "-o", str(tmp_path / "w")],
+    )
     assert near.exit_code == 2 and "(did you mean 'shadow'?)" in near.output
-    frame = CliRunner().invoke(main, ["render", str(folder), "--start-frame", "r_9999", "-o", str(tmp_path / "w")])
-    assert frame.exit_code == 2 and "no frame 'r_9999'" in frame.output and "olatbench status" not in frame.output
+    frame = CliRunner().invoke(
+        main, ["render", str(folder), "--start-frame", "r_9999", "-o", str(tmp_path / "w")]
+    )
+    assert (
+        frame.exit_code == 2
+        and "no frame 'r_9999'" in frame.output
+        and "olatbench status" not in frame.output
+    )
     assert "the test frames are" in frame.output and "leave --start-frame out" in frame.output
     not_a_job = CliRunner().invoke(main, ["render", str(tmp_path)])
     assert not_a_job.exit_code == 2 and "job.json: not found" in not_a_job.output

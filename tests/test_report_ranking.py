@@ -1,4 +1,5 @@
-"""Best / second-best ranking: ties, missing values, lower-is-better metrics, rank sets, printed precision."""
+"""Best / second-best ranking: ties, missing values, lower-is-better metrics, rank sets, printed
+precision."""
 
 from __future__ import annotations
 
@@ -12,7 +13,8 @@ from olatbench.reports.ranking import competition_ranks, rank_table
 
 
 def brute_force_ranks(values, direction):
-    """Rank = 1 + number of others strictly better, by pairwise comparison (independent of the implementation)."""
+    """Rank = 1 + number of others strictly better, by pairwise comparison
+    (independent of the implementation)."""
     sign = 1 if direction == "max" else -1
     ranks = []
     for i, value in enumerate(values):
@@ -49,43 +51,82 @@ def test_bad_direction_is_refused():
 def test_competition_ranks_match_brute_force_on_random_inputs():
     generator = random.Random(0)
     for _ in range(200):
-        values = [generator.choice([None, 0.1, 0.2, 0.3, generator.random()]) for _ in range(generator.randint(1, 7))]
+        values = [
+            generator.choice([None, 0.1, 0.2, 0.3, generator.random()])
+            for _ in range(generator.randint(1, 7))
+        ]
         for direction in ("max", "min"):
             assert competition_ranks(values, direction) == brute_force_ranks(values, direction)
 
 
 def _table(rows: list[tuple[str, list[Cell], str | None]], directions: list[str | None]) -> Table:
     columns = [f"c{i}" for i in range(len(directions))]
-    return Table("t", "caption", "protocol", ("Method",), [[(c, 1) for c in columns]], columns,
-                 [Block("PSNR ↑", [Row((label,), cells, rank_set) for label, cells, rank_set in rows], directions)])
+    return Table(
+        "t",
+        "caption",
+        "protocol",
+        ("Method",),
+        [[(c, 1) for c in columns]],
+        columns,
+        [
+            Block(
+                "PSNR ↑",
+                [Row((label,), cells, rank_set) for label, cells, rank_set in rows],
+                directions,
+            )
+        ],
+    )
 
 
 def test_rank_table_keeps_top_two_and_respects_direction_per_column():
-    table = _table([("a", [Cell(30.0), Cell(0.10)], "all"), ("b", [Cell(31.0), Cell(0.20)], "all"),
-                    ("c", [Cell(29.0), Cell(0.05)], "all")], ["max", "min"])
+    table = _table(
+        [
+            ("a", [Cell(30.0), Cell(0.10)], "all"),
+            ("b", [Cell(31.0), Cell(0.20)], "all"),
+            ("c", [Cell(29.0), Cell(0.05)], "all"),
+        ],
+        ["max", "min"],
+    )
     rank_table(table)
     ranks = [[cell.rank for cell in row.cells] for row in table.blocks[0].rows]
     assert ranks == [[2, 2], [1, None], [None, 1]]
 
 
 def test_rank_sets_are_ranked_separately_and_none_is_never_ranked():
-    table = _table([("A", [Cell(1.0)], "comp"), ("B", [Cell(2.0)], "comp"), ("H", [Cell(0.5)], "sched"),
-                    ("I", [Cell(0.7)], "sched"), ("paper", [Cell(99.0)], None)], ["max"])
+    table = _table(
+        [
+            ("A", [Cell(1.0)], "comp"),
+            ("B", [Cell(2.0)], "comp"),
+            ("H", [Cell(0.5)], "sched"),
+            ("I", [Cell(0.7)], "sched"),
+            ("paper", [Cell(99.0)], None),
+        ],
+        ["max"],
+    )
     rank_table(table, top=1)
     assert [row.cells[0].rank for row in table.blocks[0].rows] == [None, 1, None, 1, None]
 
 
 def test_values_compare_as_printed():
     """0.05061 and 0.05059 both print as 0.0506: they tie."""
-    table = _table([("a", [Cell(0.05061)], "all"), ("b", [Cell(0.05059)], "all"), ("c", [Cell(0.04)], "all")],
-                   ["min"])
+    table = _table(
+        [("a", [Cell(0.05061)], "all"), ("b", [Cell(0.05059)], "all"), ("c", [Cell(0.04)], "all")],
+        ["min"],
+    )
     rank_table(table)
     assert [row.cells[0].rank for row in table.blocks[0].rows] == [2, 2, 1]
 
 
 def test_missing_text_and_nan_cells_are_skipped_and_min_values_applies():
-    table = _table([("a", [Cell(None)], "all"), ("b", [Cell("RTX 4090")], "all"), ("c", [Cell(float("nan"))], "all"),
-                    ("d", [Cell(3.0)], "all")], ["max"])
+    table = _table(
+        [
+            ("a", [Cell(None)], "all"),
+            ("b", [Cell("RTX 4090")], "all"),
+            ("c", [Cell(float("nan"))], "all"),
+            ("d", [Cell(3.0)], "all"),
+        ],
+        ["max"],
+    )
     rank_table(table, min_values=2)  # one number only: not ranked
     assert all(row.cells[0].rank is None for row in table.blocks[0].rows)
     rank_table(table, min_values=1)
@@ -93,7 +134,9 @@ def test_missing_text_and_nan_cells_are_skipped_and_min_values_applies():
 
 
 def test_columns_filter_and_unranked_directions():
-    table = _table([("a", [Cell(1.0), Cell(1.0)], "all"), ("b", [Cell(2.0), Cell(2.0)], "all")], ["max", None])
+    table = _table(
+        [("a", [Cell(1.0), Cell(1.0)], "all"), ("b", [Cell(2.0), Cell(2.0)], "all")], ["max", None]
+    )
     rank_table(table, columns=lambda name: name == "c1")
     assert all(cell.rank is None for row in table.blocks[0].rows for cell in row.cells)
 

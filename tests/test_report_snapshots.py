@@ -23,7 +23,13 @@ from olatbench.cli import main
 from olatbench.datasets import load_scene
 from olatbench.datasets.images import write_image
 from olatbench.reports.collect import collect
-from olatbench.reports.figures import ComparisonRow, comparison_figure, encode, error_map, training_curves_figure
+from olatbench.reports.figures import (
+    ComparisonRow,
+    comparison_figure,
+    encode,
+    error_map,
+    training_curves_figure,
+)
 from olatbench.reports.gallery import report_figures
 from olatbench.reports.html import to_html
 from olatbench.reports.ranking import rank_table
@@ -67,7 +73,12 @@ def _png_from_data_uri(page: str) -> list[np.ndarray]:
 def test_error_map_matches_brute_force():
     rng = np.random.default_rng(0)
     a, b = rng.random((4, 5, 3), dtype=np.float32), rng.random((4, 5, 3), dtype=np.float32)
-    expected = np.array([[sum(abs(a[y, x, c] - b[y, x, c]) for c in range(3)) / 3 for x in range(5)] for y in range(4)])
+    expected = np.array(
+        [
+            [sum(abs(a[y, x, c] - b[y, x, c]) for c in range(3)) / 3 for x in range(5)]
+            for y in range(4)
+        ]
+    )
     np.testing.assert_allclose(error_map(a, b), expected, rtol=1e-6)
     with pytest.raises(ValueError, match="differ in shape"):
         error_map(a, b[:2])
@@ -77,33 +88,64 @@ def test_figures_are_pngs():
     gt = np.full((12, 16, 3), 0.5, np.float32)
     grid = encode(comparison_figure([ComparisonRow("f0", gt, [("a", gt * 0.9), ("b", gt)])]))
     image = cv2.imdecode(np.frombuffer(grid, np.uint8), cv2.IMREAD_COLOR)
-    assert image is not None and image.shape[1] > image.shape[0]  # GT and 2 renders side by side, error maps below
-    curves = encode(training_curves_figure({"run": [{"step": 1, "loss": 0.5, "psnr": 20.0},
-                                                    {"step": 2, "loss": 0.2, "psnr": 24.0}]}))
+    # GT and 2 renders side by side, error maps below
+    assert image is not None and image.shape[1] > image.shape[0]
+    curves = encode(
+        training_curves_figure(
+            {
+                "run": [
+                    {"step": 1, "loss": 0.5, "psnr": 20.0},
+                    {"step": 2, "loss": 0.2, "psnr": 24.0},
+                ]
+            }
+        )
+    )
     assert curves[:4] == b"\x89PNG"
 
 
-def _job_folder(root: Path, scene_root: Path, method: str, variant: str, seed: int, brightness: float) -> Path:
+def _job_folder(
+    root: Path, scene_root: Path, method: str, variant: str, seed: int, brightness: float
+) -> Path:
     """A finished job folder: results.json, job.json, renders, components and a training log."""
     results = write_run(root, method, variant, "nrhints", "Toy", seed, metric_values(30.0))
     folder = results.parent
-    job = {"id": f"{method}{seed}", "method": method, "variant": variant, "suite": "nrhints", "scene": "Toy",
-           "seed": seed, "config": {"iterations": 2}, "scene_path": str(scene_root), "scene_format": "nrhints",
-           "colourspace": "srgb", "resolution": None, "train_split": "train", "test_split": "test"}
+    job = {
+        "id": f"{method}{seed}",
+        "method": method,
+        "variant": variant,
+        "suite": "nrhints",
+        "scene": "Toy",
+        "seed": seed,
+        "config": {"iterations": 2},
+        "scene_path": str(scene_root),
+        "scene_format": "nrhints",
+        "colourspace": "srgb",
+        "resolution": None,
+        "train_split": "train",
+        "test_split": "test",
+    }
     (folder / "job.json").write_text(json.dumps(job))
     scene = load_scene(scene_root)
     for frame in scene.split("test"):
         rgb = frame.load(colourspace="srgb", background="official").rgb
-        write_image(folder / "renders" / "test" / f"{frame.frame_id}.png", np.clip(rgb * brightness, 0, 1))
+        write_image(
+            folder / "renders" / "test" / f"{frame.frame_id}.png", np.clip(rgb * brightness, 0, 1)
+        )
         for name in ("diffuse", "shadow"):
-            write_image(folder / "components" / "test" / name / f"{frame.frame_id}.png", rgb[..., :1])
-    (folder / "train_log.jsonl").write_text("".join(json.dumps({"step": s, "loss": 1.0 / s, "psnr": 20.0 + s}) + "\n"
-                                                    for s in range(1, 4)))
+            write_image(
+                folder / "components" / "test" / name / f"{frame.frame_id}.png", rgb[..., :1]
+            )
+    (folder / "train_log.jsonl").write_text(
+        "".join(
+            json.dumps({"step": s, "loss": 1.0 / s, "psnr": 20.0 + s}) + "\n" for s in range(1, 4)
+        )
+    )
     return folder
 
 
 def toy_runs(tmp_path: Path) -> Path:
-    """A run folder with an SSD-GS and a GS³ job on a tiny NRHints scene (renders, components, curves)."""
+    """A run folder with an SSD-GS and a GS³ job on a tiny NRHints scene
+    (renders, components, curves)."""
     scene_root = tmp_path / "data" / "Toy"
     write_nrhints_tree(scene_root, n_train=3, n_test=2, size=(16, 12))
     runs = tmp_path / "runs"
@@ -117,7 +159,10 @@ def test_html_report_embeds_comparison_decomposition_and_curves(tmp_path):
     figures, notes = report_figures(collect(runs))
     titles = [figure.title for figure in figures]
     assert titles[0] == "nrhints/Toy: ground truth, renders and error maps"
-    assert sum("decomposition" in t for t in titles) == 2 and titles[-1] == "nrhints/Toy: training curves"
+    assert (
+        sum("decomposition" in t for t in titles) == 2
+        and titles[-1] == "nrhints/Toy: training curves"
+    )
     assert notes == []
     out = tmp_path / "report.html"
     result = CliRunner().invoke(main, ["report", str(runs), "--suite", "nrhints", "-o", str(out)])

@@ -1,6 +1,6 @@
-"""Warnings that catch a ruined run (`olatbench.bench.health`): the Gaussian count collapsing below 10 % of its
-initial count, the training PSNR staying below an image of the background alone; said in the job's log, its
-warnings.txt and `olatbench status`, with the likely cause."""
+"""Warnings that catch a ruined run (`olatbench.bench.health`): the Gaussian count collapsing below
+10 % of its initial count, the training PSNR staying below an image of the background alone; said in
+the job's log, its warnings.txt and `olatbench status`, with the likely cause."""
 
 from __future__ import annotations
 
@@ -29,7 +29,9 @@ def test_the_log_psnr_matches_skimage_and_stays_finite_on_an_exact_match():
     rng = np.random.default_rng(0)
     image, target = rng.random((8, 9, 3)), rng.random((8, 9, 3))
     mse = float(np.mean((image - target) ** 2))
-    assert psnr_from_mse(mse) == pytest.approx(peak_signal_noise_ratio(target, image, data_range=1.0), rel=1e-12)
+    assert psnr_from_mse(mse) == pytest.approx(
+        peak_signal_noise_ratio(target, image, data_range=1.0), rel=1e-12
+    )
     assert psnr_from_mse(4 * mse, peak=2.0) == pytest.approx(psnr_from_mse(mse), rel=1e-12)
     assert psnr_from_mse(0.0) == pytest.approx(120.0)  # the floor: a number for the log, not +inf
 
@@ -40,9 +42,12 @@ def test_a_collapsing_count_warns_below_ten_percent_of_the_initial_one():
     assert health.check() == []
     health.observe(120, {"num_gaussians": 627.0, "psnr": 20.0})  # the issue's 3dgs run at 200 steps
     (warning,) = health.check()
-    assert warning.startswith("collapse: the Gaussian count collapsed from 10000 to 627 by step 120")
+    assert warning.startswith(
+        "collapse: the Gaussian count collapsed from 10000 to 627 by step 120"
+    )
     assert "likely cause" in warning
-    assert RunHealth(None, None, 200).check() == []  # a method without Gaussians is not judged by its count
+    # a method without Gaussians is not judged by its count
+    assert RunHealth(None, None, 200).check() == []
 
 
 def test_a_training_psnr_below_the_background_warns_only_in_the_second_half():
@@ -52,14 +57,19 @@ def test_a_training_psnr_below_the_background_warns_only_in_the_second_half():
     assert health.check() == []  # every run starts below; judged from half the run on
     health.observe(50, {"psnr": 9.0})
     (warning,) = health.check()
-    assert warning.startswith("below background: the training PSNR (9.00 dB") and "12.00 dB" in warning
+    assert (
+        warning.startswith("below background: the training PSNR (9.00 dB") and "12.00 dB" in warning
+    )
     for step in range(51, 101):
         health.observe(step, {"psnr": 15.0})
     assert health.check() == []  # the last steps' mean is what counts
 
 
 def test_warnings_are_recorded_once_per_kind(tmp_path):
-    assert record_warnings(tmp_path, ["collapse: a", "below background: b"]) == ["collapse: a", "below background: b"]
+    assert record_warnings(tmp_path, ["collapse: a", "below background: b"]) == [
+        "collapse: a",
+        "below background: b",
+    ]
     assert record_warnings(tmp_path, ["collapse: c"]) == []
     assert read_warnings(tmp_path) == ["collapse: a", "below background: b"]
 
@@ -67,15 +77,24 @@ def test_warnings_are_recorded_once_per_kind(tmp_path):
 def test_a_ruined_run_says_so_in_its_log_and_in_status(tmp_path):
     data = support.write_tiny_data(tmp_path / "data", scenes=("Alpha",))
     out = tmp_path / "runs"
-    # the trivial method's loss (and so its reported PSNR) includes its noise: 3.0 keeps it far below the background
-    (bad,) = make_plan("trivial", support.tiny_suite(scenes=("Alpha",)), out, data_root=data, progress=False,
-                       overrides={"noise": 3.0})
+    # the trivial method's loss (and so its reported PSNR) includes its noise: 3.0 keeps it far
+    # below the background
+    (bad,) = make_plan(
+        "trivial",
+        support.tiny_suite(scenes=("Alpha",)),
+        out,
+        data_root=data,
+        progress=False,
+        overrides={"noise": 3.0},
+    )
     assert run_job(bad, progress=False).status == "done"
     (warning,) = read_warnings(bad.folder)
     assert warning.startswith("below background:") and "likely cause" in warning
     log = (tmp_path / bad.folder / "log.txt").read_text()
     assert f"WARNING: {warning}" in log
-    (good,) = make_plan("trivial", support.tiny_suite(scenes=("Alpha",)), out, data_root=data, progress=False)
+    (good,) = make_plan(
+        "trivial", support.tiny_suite(scenes=("Alpha",)), out, data_root=data, progress=False
+    )
     assert run_job(good, progress=False).status == "done"
     assert read_warnings(good.folder) == []
     result = CliRunner().invoke(main, ["status", str(out)])

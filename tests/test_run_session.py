@@ -1,5 +1,5 @@
-"""The run session as a library call (olatbench.bench.session): what `olatbench run` does after planning, from a
-notebook, with the command line's decisions and exit codes."""
+"""The run session as a library call (olatbench.bench.session): what `olatbench run` does after
+planning, from a notebook, with the command line's decisions and exit codes."""
 
 from __future__ import annotations
 
@@ -29,11 +29,16 @@ def test_run_plan_runs_every_job_then_skips_them(data, tmp_path):
     seen = []
     summary = session.run_plan(plan(data, out), out, progress=False, on_outcome=seen.append)
     assert summary.exit_code == session.EXIT_DONE and summary.failed == 0 and summary.elsewhere == 0
-    assert [outcome.status for outcome in summary.outcomes] == ["done", "done"] == [o.status for o in seen]
+    assert (
+        [outcome.status for outcome in summary.outcomes]
+        == ["done", "done"]
+        == [o.status for o in seen]
+    )
     folders = [Path(job.folder) for job in plan(data, out)]
     first = read_results(folders[0] / "results.json")
     again = session.run_plan(plan(data, out), out, progress=False)
-    assert again.outcomes == [] and again.exit_code == session.EXIT_DONE  # finished jobs are skipped
+    # finished jobs are skipped
+    assert again.outcomes == [] and again.exit_code == session.EXIT_DONE
     assert read_results(folders[0] / "results.json") == first
 
 
@@ -46,7 +51,8 @@ def test_a_failed_job_and_a_job_left_to_another_process_give_the_documented_code
     assert session.RunSummary([done], running=0).exit_code == 0
     assert session.RunSummary([done, locked], running=0).exit_code == 3
     assert session.RunSummary([done], running=1).exit_code == 3
-    assert session.RunSummary([failed, locked], running=1).exit_code == 1  # a failure outranks the rest
+    # a failure outranks the rest
+    assert session.RunSummary([failed, locked], running=1).exit_code == 1
 
 
 def test_triage_refuses_stale_folders_unless_told_and_keeps_finished_ones(data, tmp_path):
@@ -54,8 +60,10 @@ def test_triage_refuses_stale_folders_unless_told_and_keeps_finished_ones(data, 
     session.run_plan(plan(data, out, seeds=2), out, progress=False)
     changed = plan(data, out, seeds=2, overrides={"lr": 0.5})  # another variant name: other folders
     assert all(job_state(job.folder, job.id).state == "absent" for job in changed)
-    moved = [type(job)(**{**job.__dict__, "folder": original.folder})
-             for job, original in zip(changed, plan(data, out, seeds=2), strict=True)]
+    moved = [
+        type(job)(**{**job.__dict__, "folder": original.folder})
+        for job, original in zip(changed, plan(data, out, seeds=2), strict=True)
+    ]
     states = session.job_states(moved)
     assert {state.state for state in states} == {"stale"}
     with pytest.raises(session.StaleFoldersError, match="--keep-finished"):

@@ -1,4 +1,5 @@
-"""Executors: the local process pool and the Slurm path (submitit's local executor, including a requeue)."""
+"""Executors: the local process pool and the Slurm path (submitit's local executor, including a
+requeue)."""
 
 from __future__ import annotations
 
@@ -27,7 +28,8 @@ def data(tmp_path):
 
 @pytest.fixture()
 def tests_on_pythonpath(monkeypatch):
-    """Worker processes import the trivial method from tests/ (submitit starts plain `python -m`)."""
+    """Worker processes import the trivial method from tests/ (submitit starts plain `python
+    -m`)."""
     monkeypatch.setenv("PYTHONPATH", str(support.TESTS))
 
 
@@ -51,14 +53,19 @@ def test_local_pool_matches_inline_results(data, tmp_path):
     inline = plan(data, tmp_path / "inline", scenes=["Beta"])
     run_local(pooled, workers=1, progress=False)
     run_job(inline[0], progress=False)
-    metrics = [read_results(Path(jobs[0].folder) / "results.json")["metrics"] for jobs in (pooled, inline)]
+    metrics = [
+        read_results(Path(jobs[0].folder) / "results.json")["metrics"] for jobs in (pooled, inline)
+    ]
     assert metrics[0] == metrics[1]
 
 
 def test_slurm_array_through_submitit_local_executor(data, tmp_path, tests_on_pythonpath):
     jobs = plan(data, tmp_path / "runs")
-    submitted = submit_slurm(jobs, tmp_path / "runs", SlurmOptions(cluster="local", time_minutes=5, cpus=1,
-                                                                    partition="ignored-locally"))
+    submitted = submit_slurm(
+        jobs,
+        tmp_path / "runs",
+        SlurmOptions(cluster="local", time_minutes=5, cpus=1, partition="ignored-locally"),
+    )
     assert len(submitted) == 2
     outcomes = wait_slurm(submitted, jobs, progress=False)
     assert [o.status for o in outcomes] == ["done", "done"]
@@ -68,16 +75,31 @@ def test_slurm_array_through_submitit_local_executor(data, tmp_path, tests_on_py
 
 
 @pytest.mark.slow
-@pytest.mark.skipif(not Path("/proc/self/task").is_dir(), reason="finds the task process through Linux /proc")
+@pytest.mark.skipif(
+    not Path("/proc/self/task").is_dir(), reason="finds the task process through Linux /proc"
+)
 def test_slurm_preemption_requeues_and_resumes(data, tmp_path, tests_on_pythonpath):
-    job = plan(data, tmp_path / "runs", scenes=["Alpha"], iterations=60, options=PlanOptions(checkpoint_every=5))[0]
+    job = plan(
+        data,
+        tmp_path / "runs",
+        scenes=["Alpha"],
+        iterations=60,
+        options=PlanOptions(checkpoint_every=5),
+    )[0]
     slow = type(job)(**{**job.__dict__, "config": {**job.config, "step_sleep": 0.05}})
-    task = submit_slurm([slow], tmp_path / "runs", SlurmOptions(cluster="local", time_minutes=5, cpus=1))[0]
-    wait_until(lambda: list_checkpoints(job.folder) or task.done(), "first checkpoint of the Slurm task")
+    task = submit_slurm(
+        [slow], tmp_path / "runs", SlurmOptions(cluster="local", time_minutes=5, cpus=1)
+    )[0]
+    wait_until(
+        lambda: list_checkpoints(job.folder) or task.done(), "first checkpoint of the Slurm task"
+    )
     assert not task.done(), task.stderr()
-    # Slurm preempts by sending USR2 to the task (submitit then calls checkpoint() and requeues). submitit's
-    # local controller does not forward USR2 (LocalJob._interrupt would kill the controller), so signal the task.
-    children = Path(f"/proc/{task._process.pid}/task/{task._process.pid}/children").read_text().split()
+    # Slurm preempts by sending USR2 to the task (submitit then calls checkpoint() and requeues).
+    # submitit's local controller does not forward USR2 (LocalJob._interrupt would kill the
+    # controller), so signal the task.
+    children = (
+        Path(f"/proc/{task._process.pid}/task/{task._process.pid}/children").read_text().split()
+    )
     assert len(children) == 1
     os.kill(int(children[0]), signal.SIGUSR2)
     outcome = task.result()
@@ -94,9 +116,14 @@ def _free_port() -> int:
 
 @pytest.fixture()
 def slurm_cluster(tmp_path, monkeypatch):
-    """A one-node Slurm cluster on localhost (Debian's slurmctld + slurmd + munge), started for this test."""
+    """A one-node Slurm cluster on localhost (Debian's slurmctld + slurmd + munge), started for this
+    test."""
     tools = ("munged", "slurmctld", "slurmd", "sbatch", "sinfo")
-    if not all(shutil.which(tool) for tool in tools) or os.geteuid() != 0 or not Path("/etc/munge/munge.key").exists():
+    if (
+        not all(shutil.which(tool) for tool in tools)
+        or os.geteuid() != 0
+        or not Path("/etc/munge/munge.key").exists()
+    ):
         pytest.skip("needs root and Debian's slurmctld, slurmd, slurm-client and munge")
     root = tmp_path / "slurm"
     munge = root / "munge"
@@ -105,29 +132,69 @@ def slurm_cluster(tmp_path, monkeypatch):
     munge.chmod(0o700)
     host = socket.gethostname()
     conf = root / "slurm.conf"
-    conf.write_text("\n".join([
-        "ClusterName=olatbench-test", f"SlurmctldHost={host}", "SlurmUser=root", "SlurmdUser=root",
-        "AuthType=auth/munge", f"AuthInfo=socket={munge / 'munge.socket'}",
-        f"StateSaveLocation={root / 'state'}", f"SlurmdSpoolDir={root / 'spool'}",
-        f"SlurmctldPidFile={root / 'ctld.pid'}", f"SlurmdPidFile={root / 'd.pid'}",
-        f"SlurmctldPort={_free_port()}", f"SlurmdPort={_free_port()}",
-        "ProctrackType=proctrack/linuxproc", "TaskPlugin=task/none", "MpiDefault=none",
-        "SelectType=select/cons_tres", "SelectTypeParameters=CR_Core", "ReturnToService=2",
-        "JobAcctGatherType=jobacct_gather/none", "AccountingStorageType=accounting_storage/none",
-        f"SlurmctldLogFile={root / 'ctld.log'}", f"SlurmdLogFile={root / 'd.log'}",
-        f"NodeName={host} CPUs={os.cpu_count()} State=UNKNOWN",
-        f"PartitionName=olat Nodes={host} Default=YES MaxTime=INFINITE State=UP", ""]))
-    processes = [subprocess.Popen(["munged", "-F", "--force", f"--socket={munge / 'munge.socket'}",
-                                   f"--pid-file={munge / 'pid'}", f"--log-file={munge / 'log'}",
-                                   f"--seed-file={munge / 'seed'}"])]
+    conf.write_text(
+        "\n".join(
+            [
+                "ClusterName=olatbench-test",
+                f"SlurmctldHost={host}",
+                "SlurmUser=root",
+                "SlurmdUser=root",
+                "AuthType=auth/munge",
+                f"AuthInfo=socket={munge / 'munge.socket'}",
+                f"StateSaveLocation={root / 'state'}",
+                f"SlurmdSpoolDir={root / 'spool'}",
+                f"SlurmctldPidFile={root / 'ctld.pid'}",
+                f"SlurmdPidFile={root / 'd.pid'}",
+                f"SlurmctldPort={_free_port()}",
+                f"SlurmdPort={_free_port()}",
+                "ProctrackType=proctrack/linuxproc",
+                "TaskPlugin=task/none",
+                "MpiDefault=none",
+                "SelectType=select/cons_tres",
+                "SelectTypeParameters=CR_Core",
+                "ReturnToService=2",
+                "JobAcctGatherType=jobacct_gather/none",
+                "AccountingStorageType=accounting_storage/none",
+                f"SlurmctldLogFile={root / 'ctld.log'}",
+                f"SlurmdLogFile={root / 'd.log'}",
+                f"NodeName={host} CPUs={os.cpu_count()} State=UNKNOWN",
+                f"PartitionName=olat Nodes={host} Default=YES MaxTime=INFINITE State=UP",
+                "",
+            ]
+        )
+    )
+    processes = [
+        subprocess.Popen(
+            [
+                "munged",
+                "-F",
+                "--force",
+                f"--socket={munge / 'munge.socket'}",
+                f"--pid-file={munge / 'pid'}",
+                f"--log-file={munge / 'log'}",
+                f"--seed-file={munge / 'seed'}",
+            ]
+        )
+    ]
     wait_until(lambda: (munge / "munge.socket").exists(), "munged's socket")
-    processes += [subprocess.Popen([daemon, "-D", "-f", str(conf)]) for daemon in ("slurmctld", "slurmd")]
+    processes += [
+        subprocess.Popen([daemon, "-D", "-f", str(conf)]) for daemon in ("slurmctld", "slurmd")
+    ]
     monkeypatch.setenv("SLURM_CONF", str(conf))
     try:
-        wait_until(lambda: "idle" in subprocess.run(["sinfo", "-h", "-o", "%t"], capture_output=True,
-                                                    text=True).stdout, "idle Slurm node", poll=0.5)
+        wait_until(
+            lambda: (
+                "idle"
+                in subprocess.run(
+                    ["sinfo", "-h", "-o", "%t"], capture_output=True, text=True
+                ).stdout
+            ),
+            "idle Slurm node",
+            poll=0.5,
+        )
         yield root
-        deadline = time.monotonic() + BACKSTOP_SECONDS  # let the job steps finish before their daemons go
+        # let the job steps finish before their daemons go
+        deadline = time.monotonic() + BACKSTOP_SECONDS
         while subprocess.run(["squeue", "-h"], capture_output=True, text=True).stdout.strip():
             if time.monotonic() > deadline:
                 subprocess.run(["scancel", "--full", "--user=root"], check=False)
@@ -141,17 +208,38 @@ def slurm_cluster(tmp_path, monkeypatch):
 
 
 @pytest.mark.slow
-def test_run_cli_on_a_real_single_node_slurm_cluster(data, tmp_path, slurm_cluster, tests_on_pythonpath,
-                                                     monkeypatch):
+def test_run_cli_on_a_real_single_node_slurm_cluster(
+    data, tmp_path, slurm_cluster, tests_on_pythonpath, monkeypatch
+):
     from click.testing import CliRunner
 
     from olatbench.cli import main
     from olatbench.datasets import suites
 
     monkeypatch.setitem(suites.SUITES, "tiny", support.tiny_suite())
-    args = ["run", "-m", "trivial", "-s", "tiny", "--data-root", str(data), "--out", str(tmp_path / "runs"),
-            "--quiet", "--device", "cpu", "--executor", "slurm", "--slurm-partition", "olat", "--slurm-time", "10",
-            "--slurm-cpus", "1", "--wait"]
+    args = [
+        "run",
+        "-m",
+        "trivial",
+        "-s",
+        "tiny",
+        "--data-root",
+        str(data),
+        "--out",
+        str(tmp_path / "runs"),
+        "--quiet",
+        "--device",
+        "cpu",
+        "--executor",
+        "slurm",
+        "--slurm-partition",
+        "olat",
+        "--slurm-time",
+        "10",
+        "--slurm-cpus",
+        "1",
+        "--wait",
+    ]
     result = CliRunner().invoke(main, args)
     assert result.exit_code == 0, result.output
     assert "submitted 2 task(s) as array" in result.output

@@ -1,4 +1,5 @@
-"""SSD-GS through the runner at a tiny size: end to end, and an exact resume after an interruption."""
+"""SSD-GS through the runner at a tiny size: end to end, and an exact resume after an
+interruption."""
 
 from __future__ import annotations
 
@@ -14,7 +15,8 @@ from olatbench.bench.execute import run_job
 from olatbench.bench.plan import PlanOptions, make_plan
 from olatbench.bench.results import read_results
 
-pytest.importorskip("olatbench.gaussians.shadow")  # SSD-GS's light-view pass (gaussians-support helper)
+# SSD-GS's light-view pass (gaussians-support helper)
+pytest.importorskip("olatbench.gaussians.shadow")
 from olatbench.methods.ssdgs import SSDGS
 
 ITERATIONS = 30
@@ -26,8 +28,16 @@ def data(tmp_path_factory):
 
 
 def plan(data, out, iterations=ITERATIONS, **kwargs):
-    return make_plan("ssdgs", support.tiny_suite(scenes=("Alpha",)), out, variants=["mini"],
-                     iterations=iterations, data_root=data, progress=False, **kwargs)
+    return make_plan(
+        "ssdgs",
+        support.tiny_suite(scenes=("Alpha",)),
+        out,
+        variants=["mini"],
+        iterations=iterations,
+        data_root=data,
+        progress=False,
+        **kwargs,
+    )
 
 
 def smaller(job, **config):
@@ -38,7 +48,8 @@ def smaller(job, **config):
 def test_ssdgs_runs_end_to_end_at_a_few_iterations(data, tmp_path):
     """Default-run sized: 16 iterations, 300 Gaussians (SSD-GS on CPU takes seconds per step)."""
     job = plan(data, tmp_path / "runs", iterations=16, options=PlanOptions(save_components=True))[0]
-    # densify_from past the run: no density control (16 steps would densify under the schedule floors)
+    # densify_from past the run: no density control (16 steps would densify under the schedule
+    # floors)
     job = smaller(job, num_init_gaussians=300, shadow_resolution=32, densify_from=100_000)
     outcome = run_job(job, progress=False)
     assert outcome.status == "done", (Path(job.folder) / "error.txt").read_text()
@@ -46,7 +57,10 @@ def test_ssdgs_runs_end_to_end_at_a_few_iterations(data, tmp_path):
     assert results["model"]["iterations"] == 16 and results["model"]["num_gaussians"] == 300
     assert results["job"]["config"]["num_init_gaussians"] == 300
     assert (results["job"]["config"]["cull_shading"], results["job"]["config"]["cull_epsilon"]) == (
-        False, SSDGS.config_class().cull_epsilon)  # the contribution-culling switch is part of the recorded config
+        # the contribution-culling switch is part of the recorded config
+        False,
+        SSDGS.config_class().cull_epsilon,
+    )
     for split in ("train", "test"):
         assert results["metrics"][split]["mean"]["psnr"] > 0
     components = {p.name for p in (Path(job.folder) / "components" / "test").iterdir()}
@@ -55,17 +69,28 @@ def test_ssdgs_runs_end_to_end_at_a_few_iterations(data, tmp_path):
     # The C++ kernels build here, so every stage runs them; the log says so after set-up.
     stages = ("rasterizer", "projection", "binning", "light_pass", "ssim", "shading")
     assert results["resources"]["device"] == "cpu"
-    assert results["resources"]["backends"] == {**dict.fromkeys(stages, "cpu"), "network_precision": "fp32"}
-    assert "device cpu; backends: rasterizer=cpu, projection=cpu" in (Path(job.folder) / "log.txt").read_text()
+    assert results["resources"]["backends"] == {
+        **dict.fromkeys(stages, "cpu"),
+        "network_precision": "fp32",
+    }
+    assert (
+        "device cpu; backends: rasterizer=cpu, projection=cpu"
+        in (Path(job.folder) / "log.txt").read_text()
+    )
 
 
 def test_bf16_networks_are_recorded_in_results(data, tmp_path, monkeypatch):
     """``network_precision`` is in the recorded config and among the backends of results.json."""
     from olatbench.methods.shading import precision
 
-    monkeypatch.setattr(precision, "cpu_flags", lambda: ["avx512_bf16"])  # allowed on any CPU for this test
-    job = smaller(plan(data, tmp_path / "runs", iterations=4)[0], num_init_gaussians=200, shadow_resolution=24,
-                  network_precision="bf16")
+    # allowed on any CPU for this test
+    monkeypatch.setattr(precision, "cpu_flags", lambda: ["avx512_bf16"])
+    job = smaller(
+        plan(data, tmp_path / "runs", iterations=4)[0],
+        num_init_gaussians=200,
+        shadow_resolution=24,
+        network_precision="bf16",
+    )
     outcome = run_job(job, progress=False)
     assert outcome.status == "done", (Path(job.folder) / "error.txt").read_text()
     results = read_results(Path(job.folder) / "results.json")
@@ -75,14 +100,28 @@ def test_bf16_networks_are_recorded_in_results(data, tmp_path, monkeypatch):
 
 
 def test_test_time_refinement_is_run_and_recorded(data, tmp_path):
-    """Each test view is refined before it is scored; results say so, per frame; off by default (null)."""
-    base = smaller(plan(data, tmp_path / "base", iterations=8)[0], num_init_gaussians=200, shadow_resolution=24)
-    refined_job = smaller(plan(data, tmp_path / "refined", iterations=8)[0], num_init_gaussians=200,
-                          shadow_resolution=24, refine_camera=True, test_time_refinement=True, test_time_steps=3)
+    """Each test view is refined before it is scored; results say so, per frame; off by default
+    (null)."""
+    base = smaller(
+        plan(data, tmp_path / "base", iterations=8)[0], num_init_gaussians=200, shadow_resolution=24
+    )
+    refined_job = smaller(
+        plan(data, tmp_path / "refined", iterations=8)[0],
+        num_init_gaussians=200,
+        shadow_resolution=24,
+        refine_camera=True,
+        test_time_refinement=True,
+        test_time_steps=3,
+    )
     assert refined_job.id != base.id  # a different, recorded configuration
     for job in (base, refined_job):
-        assert run_job(job, progress=False).status == "done", (Path(job.folder) / "error.txt").read_text()
-    assert read_results(Path(base.folder) / "results.json")["evaluation"]["test_time_refinement"] is None
+        assert run_job(job, progress=False).status == "done", (
+            Path(job.folder) / "error.txt"
+        ).read_text()
+    assert (
+        read_results(Path(base.folder) / "results.json")["evaluation"]["test_time_refinement"]
+        is None
+    )
     results = read_results(Path(refined_job.folder) / "results.json")
     record = results["evaluation"]["test_time_refinement"]
     assert record["split"] == "test" and record["seconds"] > 0
@@ -93,27 +132,47 @@ def test_test_time_refinement_is_run_and_recorded(data, tmp_path):
 
 
 def test_interleaved_test_pose_fitting_is_run_recorded_and_footnoted(data, tmp_path):
-    """The runner gives the test views to the method, which fits them while training (4 training views: test passes
-    after steps 4 and 8); results.json records the mode and each frame's offsets; the report footnotes the test
-    numbers (not the train ones)."""
+    """The runner gives the test views to the method, which fits them while training (4 training
+    views: test passes after steps 4 and 8); results.json records the mode and each frame's offsets;
+    the report footnotes the test numbers (not the train ones)."""
     from olatbench.reports.collect import collect
     from olatbench.reports.runs_tables import scene_table
 
-    job = smaller(plan(data, tmp_path / "runs", iterations=10)[0], num_init_gaussians=200, shadow_resolution=24,
-                  refine_camera=True, refine_light=True, refine_camera_from=0, refine_light_from=0,
-                  test_pose_fitting="interleaved")
-    assert run_job(job, progress=False).status == "done", (Path(job.folder) / "error.txt").read_text()
+    job = smaller(
+        plan(data, tmp_path / "runs", iterations=10)[0],
+        num_init_gaussians=200,
+        shadow_resolution=24,
+        refine_camera=True,
+        refine_light=True,
+        refine_camera_from=0,
+        refine_light_from=0,
+        test_pose_fitting="interleaved",
+    )
+    assert run_job(job, progress=False).status == "done", (
+        Path(job.folder) / "error.txt"
+    ).read_text()
     results = read_results(Path(job.folder) / "results.json")
     record = results["evaluation"]["test_pose_fitting"]
     assert record["mode"] == "interleaved" and record["split"] == "test"
     assert set(record["frames"]) == set(results["metrics"]["test"]["per_image"])
-    assert all(frame["rotation_deg"] > 0 and frame["light_offset"] > 0 for frame in record["frames"].values())
+    assert all(
+        frame["rotation_deg"] > 0 and frame["light_offset"] > 0
+        for frame in record["frames"].values()
+    )
     table = scene_table(collect(tmp_path / "runs"), suite=job.suite, metrics=("psnr",))
-    assert any(note.startswith("f:") and "test_pose_fitting=interleaved" in note for note in table.footnotes)
-    marks = {column: cell.marks for block in table.blocks for row in block.rows
-             for column, cell in zip(table.columns, row.cells, strict=True)}
+    assert any(
+        note.startswith("f:") and "test_pose_fitting=interleaved" in note
+        for note in table.footnotes
+    )
+    marks = {
+        column: cell.marks
+        for block in table.blocks
+        for row in block.rows
+        for column, cell in zip(table.columns, row.cells, strict=True)
+    }
     assert {column: "f" in cell_marks for column, cell_marks in marks.items()} == {
-        column: column.endswith("/Test") for column in marks}
+        column: column.endswith("/Test") for column in marks
+    }
 
 
 @pytest.mark.slow
@@ -123,7 +182,10 @@ def test_ssdgs_mini_preset_runs_end_to_end(data, tmp_path):
     assert outcome.status == "done", (Path(job.folder) / "error.txt").read_text()
     results = read_results(Path(job.folder) / "results.json")
     assert results["model"]["iterations"] == ITERATIONS and results["model"]["num_gaussians"] > 0
-    assert results["job"]["config"]["num_init_gaussians"] == SSDGS.presets["mini"]["num_init_gaussians"]
+    assert (
+        results["job"]["config"]["num_init_gaussians"]
+        == SSDGS.presets["mini"]["num_init_gaussians"]
+    )
     for split in ("train", "test"):
         assert results["metrics"][split]["mean"]["psnr"] > 0
     components = {p.name for p in (Path(job.folder) / "components" / "test").iterdir()}
@@ -153,21 +215,30 @@ def test_ssdgs_resumes_exactly_through_the_runner(data, tmp_path, monkeypatch):
     a = read_results(Path(interrupted.folder) / "results.json")
     b = read_results(Path(reference.folder) / "results.json")
     assert a["metrics"] == b["metrics"]
-    model_a = torch.load(list_checkpoints(interrupted.folder)[-1][1], weights_only=True)["method"]["model"]
-    model_b = torch.load(list_checkpoints(reference.folder)[-1][1], weights_only=True)["method"]["model"]
+    model_a = torch.load(list_checkpoints(interrupted.folder)[-1][1], weights_only=True)["method"][
+        "model"
+    ]
+    model_b = torch.load(list_checkpoints(reference.folder)[-1][1], weights_only=True)["method"][
+        "model"
+    ]
     assert model_a.keys() == model_b.keys()
     assert all(torch.equal(model_a[key], model_b[key]) for key in model_a)
 
 
 def test_speed_benchmark_measures_a_trained_job_folder(data, tmp_path, capsys, monkeypatch):
-    """benchmarks/bench_ssdgs.py --jobs: a job folder's trained model, its own size and config, one row each."""
+    """benchmarks/bench_ssdgs.py --jobs: a job folder's trained model, its own size and config, one
+    row each."""
     import runpy
 
-    job = smaller(plan(data, tmp_path / "runs", iterations=4)[0], num_init_gaussians=150, shadow_resolution=16)
+    job = smaller(
+        plan(data, tmp_path / "runs", iterations=4)[0], num_init_gaussians=150, shadow_resolution=16
+    )
     assert run_job(job, progress=False).status == "done"
     script = Path(__file__).resolve().parents[1] / "benchmarks" / "bench_ssdgs.py"
-    monkeypatch.setattr("sys.argv", ["bench_ssdgs.py", "--states", "--repeats", "1", "--threads", "1",
-                                     "--jobs", job.folder])
+    monkeypatch.setattr(
+        "sys.argv",
+        ["bench_ssdgs.py", "--states", "--repeats", "1", "--threads", "1", "--jobs", job.folder],
+    )
     threads = torch.get_num_threads()
     try:
         runpy.run_path(str(script), run_name="__main__")
@@ -176,11 +247,15 @@ def test_speed_benchmark_measures_a_trained_job_folder(data, tmp_path, capsys, m
         torch.set_flush_denormal(False)
     lines = capsys.readouterr().out.strip().splitlines()
     row = lines[1].split()
-    assert row[:3] == ["Alpha", "64", "150"]  # scene, view width (the tiny suite's 64 px), trained Gaussians
+    # scene, view width (the tiny suite's 64 px), trained Gaussians
+    assert row[:3] == ["Alpha", "64", "150"]
     # by what each measures: mlp_efficiency_min=..., bf16 ..., culling ...
-    summaries = {line.split()[2].split("=")[0]: line for line in lines if line.startswith("SUMMARY")}
+    summaries = {
+        line.split()[2].split("=")[0]: line for line in lines if line.startswith("SUMMARY")
+    }
     assert summaries.keys() >= {"mlp_efficiency_min", "bf16", "culling"}, summaries
-    assert "step speed-up" in summaries["bf16"]  # the bf16 networks timed beside fp32 in the same run
+    # the bf16 networks timed beside fp32 in the same run
+    assert "step speed-up" in summaries["bf16"]
     # the culled variant, at eps 0 and the config's default, in the same run
     culling = summaries["culling"]
     assert culling.startswith("SUMMARY bench_ssdgs culling speed-up") and "Alpha@0=" in culling

@@ -1,9 +1,9 @@
 """A trivial, fast, bit-exactly resumable method and tiny suites for the runner tests.
 
-Importable by worker processes (spawned pools, submitit, subprocesses) with ``tests/`` on PYTHONPATH.
-The method learns one image (per-pixel logits) plus a per-light gain with Adam, sampling a training
-view with torch's global generator and adding numpy noise, so a resume is only exact when the
-runner restores both RNG states and the optimiser state.
+Importable by worker processes (spawned pools, submitit, subprocesses) with ``tests/`` on
+PYTHONPATH. The method learns one image (per-pixel logits) plus a per-light gain with Adam, sampling
+a training view with torch's global generator and adding numpy noise, so a resume is only exact when
+the runner restores both RNG states and the optimiser state.
 """
 
 from __future__ import annotations
@@ -24,8 +24,10 @@ from olatbench.methods.registry import register
 from olatbench.metrics.protocols import Protocol, protocol_names, register_protocol
 
 TESTS = Path(__file__).resolve().parent
-STEP_SLEEP_ENV = "OLATBENCH_TEST_STEP_SLEEP"  # seconds per step of every trivial job of a process and its workers,
-# kept out of the config (so out of the job id): a slowed first attempt and its rerun are the same job
+# seconds per step of every trivial job of a process and its workers,
+STEP_SLEEP_ENV = "OLATBENCH_TEST_STEP_SLEEP"
+# kept out of the config (so out of the job id): a slowed first attempt and its rerun are the same
+# job
 
 
 @dataclass
@@ -36,12 +38,15 @@ class TrivialConfig:
     fail_at_step: int = -1  # raise in train_step at this step (failure-isolation tests)
     step_sleep: float = 0.0  # seconds per step (kill tests)
     interrupt_at_step: int = -1  # raise KeyboardInterrupt at this step (an in-process Ctrl-C)
-    die_at_step: int = -1  # end the whole process at this step, as `die_by` says (a worker killed from outside)
-    die_by: str = "SIGKILL"  # a signal the process sends itself (SIGKILL, SIGSEGV, ...) or "exit" (os._exit(3))
+    # end the whole process at this step, as `die_by` says (a worker killed from outside)
+    die_at_step: int = -1
+    # a signal the process sends itself (SIGKILL, SIGSEGV, ...) or "exit" (os._exit(3))
+    die_by: str = "SIGKILL"
 
 
 class TrivialMethod(Method):
-    """Mean-image regression: ``rgb = sigmoid(logits) * gain``; components ``shadow`` and ``diffuse``."""
+    """Mean-image regression: ``rgb = sigmoid(logits) * gain``; components ``shadow`` and
+    ``diffuse``."""
 
     name = "trivial"
     config_class = TrivialConfig
@@ -83,7 +88,9 @@ class TrivialMethod(Method):
         if sleep:
             time.sleep(sleep)
         index = int(torch.randint(len(self.images), (1,)).item())
-        noise = torch.from_numpy(np.random.normal(0.0, self.config.noise, self.images.shape[1:]).astype(np.float32))
+        noise = torch.from_numpy(
+            np.random.normal(0.0, self.config.noise, self.images.shape[1:]).astype(np.float32)
+        )
         loss = torch.mean((self._image() - self.images[index] - noise.to(self.device)) ** 2)
         self.optimizer.zero_grad()
         loss.backward()
@@ -94,13 +101,20 @@ class TrivialMethod(Method):
     def render(self, camera, light) -> dict[str, torch.Tensor]:
         image = self._image().detach().clamp(0, 1)
         if image.shape[:2] != (camera.height, camera.width):
-            image = torch.nn.functional.interpolate(image.permute(2, 0, 1)[None], (camera.height, camera.width),
-                                                    mode="bilinear", align_corners=False)[0].permute(1, 2, 0)
+            image = torch.nn.functional.interpolate(
+                image.permute(2, 0, 1)[None],
+                (camera.height, camera.width),
+                mode="bilinear",
+                align_corners=False,
+            )[0].permute(1, 2, 0)
         return {"rgb": image, "diffuse": image * 0.5, "shadow": image.mean(dim=2)}
 
     def state_dict(self) -> dict:
-        return {"logits": self.logits.detach().clone(), "gain": self.gain.detach().clone(),
-                "optimizer": self.optimizer.state_dict()}
+        return {
+            "logits": self.logits.detach().clone(),
+            "gain": self.gain.detach().clone(),
+            "optimizer": self.optimizer.state_dict(),
+        }
 
     def load_state_dict(self, state: dict) -> None:
         with torch.no_grad():
@@ -125,19 +139,38 @@ class _FastProtocol(Protocol):
 
 FAST_PROTOCOL = "test-fast"
 if FAST_PROTOCOL not in protocol_names():
-    register_protocol(_FastProtocol(id=FAST_PROTOCOL, version=1, description="test protocol without LPIPS",
-                                    reproduces="nothing", lpips_nets=("alex",), lpips_primary="alex"))
+    register_protocol(
+        _FastProtocol(
+            id=FAST_PROTOCOL,
+            version=1,
+            description="test protocol without LPIPS",
+            reproduces="nothing",
+            lpips_nets=("alex",),
+            lpips_primary="alex",
+        )
+    )
 
 
-def tiny_suite(name: str = "tiny", scenes: tuple[str, ...] = ("Alpha", "Beta"), iterations: int = 20,
-               protocol: str = FAST_PROTOCOL) -> Suite:
+def tiny_suite(
+    name: str = "tiny",
+    scenes: tuple[str, ...] = ("Alpha", "Beta"),
+    iterations: int = 20,
+    protocol: str = FAST_PROTOCOL,
+) -> Suite:
     """An NRHints-format suite over folders written by `write_tiny_data`."""
-    return Suite(name=name, format="nrhints", scenes=scenes, aliases={s.lower(): s for s in scenes},
-                 iterations=iterations, protocol=protocol)
+    return Suite(
+        name=name,
+        format="nrhints",
+        scenes=scenes,
+        aliases={s.lower(): s for s in scenes},
+        iterations=iterations,
+        protocol=protocol,
+    )
 
 
-def write_tiny_data(root: Path, scenes: tuple[str, ...] = ("Alpha", "Beta"), size: tuple[int, int] = (64, 48)
-                    ) -> Path:
+def write_tiny_data(
+    root: Path, scenes: tuple[str, ...] = ("Alpha", "Beta"), size: tuple[int, int] = (64, 48)
+) -> Path:
     """One tiny NRHints tree per scene below ``root`` (4 train, 2 test views)."""
     from datasets_trees import write_nrhints_tree
 

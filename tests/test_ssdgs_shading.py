@@ -53,7 +53,9 @@ def test_lambert_clamped_and_smooth() -> None:
 def test_inverse_square_falloff() -> None:
     points = t(1, 2, 3)
     light = torch.tensor([1.0, 2.0, 5.0], dtype=torch.float64)
-    wi, irradiance = inverse_square_irradiance(points, light, torch.tensor([2.0, 4.0, 8.0], dtype=torch.float64))
+    wi, irradiance = inverse_square_irradiance(
+        points, light, torch.tensor([2.0, 4.0, 8.0], dtype=torch.float64)
+    )
     torch.testing.assert_close(wi, t(0, 0, 1))
     torch.testing.assert_close(irradiance, t(0.5, 1.0, 2.0))  # I / 2²
 
@@ -75,7 +77,9 @@ def test_min_scale_frame_is_right_handed_and_oriented() -> None:
 def test_asg_xu_centre_and_off_axis() -> None:
     asg = ASGMixture(num_bases=2, form="xu").double()
     with torch.no_grad():
-        asg.log_sharpness.copy_(torch.tensor([[math.log(4.0), math.log(9.0)], [math.log(1.0), math.log(1.0)]]))
+        asg.log_sharpness.copy_(
+            torch.tensor([[math.log(4.0), math.log(9.0)], [math.log(1.0), math.log(1.0)]])
+        )
     weights = torch.tensor([[1.0, 0.0]], dtype=torch.float64)
     assert asg(t(0, 0, 1), weights).item() == pytest.approx(1.0)  # lobe centre
     h = t(0.6, 0.0, 0.8)  # off-axis along x: 0.8 · exp(-4 · 0.36)
@@ -84,7 +88,9 @@ def test_asg_xu_centre_and_off_axis() -> None:
     assert asg(h, weights).item() == pytest.approx(0.8 * math.exp(-9 * 0.36))
     assert asg(t(0, 0, -1), weights).item() == 0.0  # smooth term max(h·z, 0)
     mixed = torch.tensor([[0.5, 2.0]], dtype=torch.float64)
-    assert asg(h, mixed).item() == pytest.approx(0.5 * 0.8 * math.exp(-9 * 0.36) + 2.0 * 0.8 * math.exp(-0.36))
+    assert asg(h, mixed).item() == pytest.approx(
+        0.5 * 0.8 * math.exp(-9 * 0.36) + 2.0 * 0.8 * math.exp(-0.36)
+    )
 
 
 def test_asg_official_form_closed_form() -> None:
@@ -97,8 +103,12 @@ def test_asg_official_form_closed_form() -> None:
     theta = 0.2
     along_x = math.exp(-0.5 * (theta / lam / sigma) ** 2) / (const * sigma)
     along_y = math.exp(-0.5 * (theta / mu / sigma) ** 2) / (const * sigma)
-    assert asg(t(math.sin(theta), 0, math.cos(theta)), one).item() == pytest.approx(along_x, rel=1e-4)
-    assert asg(t(0, math.sin(theta), math.cos(theta)), one).item() == pytest.approx(along_y, rel=1e-4)
+    assert asg(t(math.sin(theta), 0, math.cos(theta)), one).item() == pytest.approx(
+        along_x, rel=1e-4
+    )
+    assert asg(t(0, math.sin(theta), math.cos(theta)), one).item() == pytest.approx(
+        along_y, rel=1e-4
+    )
 
 
 def test_dipole_hand_computed() -> None:
@@ -114,8 +124,12 @@ def test_dipole_hand_computed() -> None:
     real = z_r * (s_tr * d_r + 1) * math.exp(-s_tr * d_r) / d_r**3
     virt = (s_tr * d_v + 1) * math.exp(-s_tr * d_v) / d_v**3
     albedo = sigma_s / st
-    args = (torch.tensor(r, dtype=torch.float64), torch.tensor(sigma_s, dtype=torch.float64),
-            torch.tensor(sigma_a, dtype=torch.float64), eta)
+    args = (
+        torch.tensor(r, dtype=torch.float64),
+        torch.tensor(sigma_s, dtype=torch.float64),
+        torch.tensor(sigma_a, dtype=torch.float64),
+        eta,
+    )
     jensen = dipole_profile(*args, virtual_factor="jensen").item()
     official = dipole_profile(*args, virtual_factor="official").item()
     assert jensen == pytest.approx(albedo / (4 * math.pi) * (real + z_v * virt))
@@ -130,7 +144,9 @@ def test_sss_network_output_ranges() -> None:
     net = SSSNetwork(hidden=32)
     k = 64
     generator = torch.Generator().manual_seed(0)
-    inputs = [torch.randn(k, 3, generator=generator) for _ in range(4)] + [torch.randn(k, 6, generator=generator)]
+    inputs = [torch.randn(k, 3, generator=generator) for _ in range(4)] + [
+        torch.randn(k, 6, generator=generator)
+    ]
     encoded = net.encode(*inputs)
     assert encoded.shape == (k, 3 * 27 + 3 + 6)
     sigma_s, sigma_a, r = net.parameters_from_input(encoded)
@@ -154,7 +170,8 @@ def test_encodings() -> None:
 
 
 def test_sss_network_checkpointed_chunks_match_the_plain_batch(monkeypatch) -> None:
-    """Large batches run Θ_SSS in checkpointed chunks (memory); values and every gradient are the plain path's."""
+    """Large batches run Θ_SSS in checkpointed chunks (memory); values and every gradient are the
+    plain path's."""
     from olatbench.methods.ssdgs import sss
 
     torch.manual_seed(0)
@@ -169,13 +186,17 @@ def test_sss_network_checkpointed_chunks_match_the_plain_batch(monkeypatch) -> N
             tensor.grad = None
         out = net(*inputs)
         (out * torch.linspace(0.5, 1.5, k, dtype=torch.float64)[:, None]).sum().backward()
-        return out.detach(), [t.grad.clone() for t in inputs] + [p.grad.clone() for p in net.parameters()]
+        return out.detach(), [t.grad.clone() for t in inputs] + [
+            p.grad.clone() for p in net.parameters()
+        ]
 
     plain_out, plain_grads = run()
     monkeypatch.setattr(sss, "CHECKPOINT_ROWS", 7)  # 50 rows -> 8 chunks
     calls = []
     real_checkpoint = sss.checkpoint
-    monkeypatch.setattr(sss, "checkpoint", lambda *a, **kw: calls.append(1) or real_checkpoint(*a, **kw))
+    monkeypatch.setattr(
+        sss, "checkpoint", lambda *a, **kw: calls.append(1) or real_checkpoint(*a, **kw)
+    )
     chunked_out, chunked_grads = run()
     assert len(calls) == 8
     torch.testing.assert_close(chunked_out, plain_out, rtol=1e-12, atol=1e-14)

@@ -1,4 +1,5 @@
-"""C++ SSIM training loss against the torch reference: values, gradients, determinism and backend dispatch."""
+"""C++ SSIM training loss against the torch reference: values, gradients, determinism and backend
+dispatch."""
 
 from __future__ import annotations
 
@@ -78,8 +79,9 @@ def test_unbatched_training_call_uses_the_kernel_and_matches():
     loss, _ = photometric_loss(leaf, target, 0.2)
     loss.backward()
     ref_leaf = image.clone().requires_grad_(True)
-    ref = 0.8 * (ref_leaf - target).abs().mean() + 0.2 * ssim_loss(ref_leaf, target, channels_last=True,
-                                                                   backend="torch")
+    ref = 0.8 * (ref_leaf - target).abs().mean() + 0.2 * ssim_loss(
+        ref_leaf, target, channels_last=True, backend="torch"
+    )
     ref.backward()
     assert resolve_ssim_backend(image.movedim(-1, 0)[None], target.movedim(-1, 0)[None]) == "cpu"
     assert float(loss.detach()) == pytest.approx(float(ref.detach()), abs=1e-6)
@@ -89,7 +91,9 @@ def test_unbatched_training_call_uses_the_kernel_and_matches():
 def test_gradcheck_float64():
     pred, gt = images((1, 2, 12, 13), seed=5)
     pred.requires_grad_(True)
-    assert torch.autograd.gradcheck(lambda p: ssim_loss_cpu(p, gt), (pred,), eps=1e-6, atol=1e-9, rtol=1e-5)
+    assert torch.autograd.gradcheck(
+        lambda p: ssim_loss_cpu(p, gt), (pred,), eps=1e-6, atol=1e-9, rtol=1e-5
+    )
 
 
 @pytest.mark.parametrize("shape", [(1, 3, 128, 128), (2, 1, 33, 70)])
@@ -147,7 +151,8 @@ def test_auto_uses_torch_when_the_kernel_does_not_apply():
     meta = ssim_loss(pred.to("meta"), gt.to("meta"))
     assert meta.device.type == "meta" and meta.shape == ()
     with torch.no_grad():
-        assert resolve_ssim_backend(pred, target) == "cpu"  # no graph: gt's requires_grad does not matter
+        # no graph: gt's requires_grad does not matter
+        assert resolve_ssim_backend(pred, target) == "cpu"
     with pytest.raises(ValueError, match="at least 11"):
         ssim_loss(pred[..., :10, :], gt[..., :10, :])
     with pytest.raises(ValueError, match=r"SSIM backend 'cpu' cannot.*at least 11"):
@@ -160,7 +165,8 @@ def test_auto_uses_torch_when_the_kernel_does_not_apply():
 
 @pytest.fixture
 def broken_build(monkeypatch, tmp_path):
-    """An empty build cache, a compiler that does not exist, and no remembered build outcome or warning."""
+    """An empty build cache, a compiler that does not exist, and no remembered build outcome or
+    warning."""
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
     monkeypatch.setenv("OLATBENCH_CXX", str(tmp_path / "no-such-compiler"))
     _native.reset_fallback_warnings()
@@ -172,11 +178,14 @@ def broken_build(monkeypatch, tmp_path):
 
 def test_failed_build_falls_back_to_torch_with_one_warning(broken_build):
     pred, gt = images((1, 3, 16, 16), seed=6)
-    with pytest.warns(RuntimeWarning, match=r"SSIM backend 'cpu' is unavailable, falling back.*no-such-compiler"):
+    with pytest.warns(
+        RuntimeWarning, match=r"SSIM backend 'cpu' is unavailable, falling back.*no-such-compiler"
+    ):
         assert resolve_ssim_backend(pred, gt) == "torch"
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         loss = ssim_loss(pred, gt)  # only one warning per process
     assert float(loss) == pytest.approx(float(ssim_loss(pred, gt, backend="torch")), rel=1e-15)
     with pytest.raises(RuntimeError, match="no-such-compiler"):
-        ssim_loss(pred, gt, backend="cpu")  # an explicit request fails loudly instead of falling back
+        # an explicit request fails loudly instead of falling back
+        ssim_loss(pred, gt, backend="cpu")

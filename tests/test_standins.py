@@ -19,11 +19,14 @@ def test_standin_has_the_suites_format_size_and_counts(tmp_path):
     camera = train[0].camera
     assert (camera.width, camera.height) == (256, 256)
     mtime = (folder / "synth.json").stat().st_mtime_ns
-    assert ensure_standin("sssgs", train=2, root=tmp_path, progress=False) == folder  # reused, not re-rendered
+    # reused, not re-rendered
+    assert ensure_standin("sssgs", train=2, root=tmp_path, progress=False) == folder
     assert (folder / "synth.json").stat().st_mtime_ns == mtime
     assert not list(tmp_path.glob(".*partial"))
 
 
 def test_unknown_suite_is_one_clear_error(tmp_path):
-    with pytest.raises(KeyError, match="no stand-in for suite 'mini'; stand-ins: nrhints, gs3, sssgs"):
+    with pytest.raises(
+        KeyError, match="no stand-in for suite 'mini'; stand-ins: nrhints, gs3, sssgs"
+    ):
         ensure_standin("mini", root=tmp_path)

@@ -1,4 +1,5 @@
-"""Rendering with Mitsuba: camera convention, closed-form shading, loading back, determinism, the mini cache.
+"""Rendering with Mitsuba: camera convention, closed-form shading, loading back, determinism, the
+mini cache.
 
 The fast path renders tiny images with ``scalar_rgb``; the full-size mini recipes are ``slow``.
 """
@@ -44,9 +45,9 @@ def test_variant_override_and_probe_cache(monkeypatch):
 def test_opencv_to_mitsuba_axes_flip_x_and_y():
     c2w = look_at([1.0, -3.0, 2.0], [0.0, 0.0, 0.5])
     to_world = backend.mitsuba_camera_to_world(c2w)
-    assert np.allclose(to_world[:3, 2], c2w[:3, 2])     # both look down +z
-    assert np.allclose(to_world[:3, 0], -c2w[:3, 0])    # Mitsuba x = left
-    assert np.allclose(to_world[:3, 1], -c2w[:3, 1])    # Mitsuba y = up
+    assert np.allclose(to_world[:3, 2], c2w[:3, 2])  # both look down +z
+    assert np.allclose(to_world[:3, 0], -c2w[:3, 0])  # Mitsuba x = left
+    assert np.allclose(to_world[:3, 1], -c2w[:3, 1])  # Mitsuba y = up
 
 
 @pytest.mark.parametrize("fmt", ["nrhints", "gs3", "sssgs"])
@@ -69,11 +70,18 @@ def test_generated_scene_loads_back_with_the_rendered_cameras_and_lights(tmp_pat
             assert np.allclose(frame.light.position, light.position, atol=1e-6)
             image = frame.load(colourspace="linear", background=None)
             assert image.alpha is not None and image.alpha.max() == 1.0
-            geometry = read_geometry(tmp_path / "scene" / "geometry" / split / f"{frame.frame_id}.exr")
+            geometry = read_geometry(
+                tmp_path / "scene" / "geometry" / split / f"{frame.frame_id}.exr"
+            )
             check_reprojection(frame.camera, geometry, mesh, recipe.ground_radius)
-            mirrored = Camera(K=frame.camera.K, c2w=frame.camera.c2w @ np.diag([-1.0, 1.0, 1.0, 1.0]),
-                              width=32, height=32)
-            with pytest.raises(AssertionError):  # the check can fail: a mirrored camera does not fit the render
+            mirrored = Camera(
+                K=frame.camera.K,
+                c2w=frame.camera.c2w @ np.diag([-1.0, 1.0, 1.0, 1.0]),
+                width=32,
+                height=32,
+            )
+            # the check can fail: a mirrored camera does not fit the render
+            with pytest.raises(AssertionError):
                 check_reprojection(mirrored, geometry, mesh, recipe.ground_radius)
             # the stored alpha is the rendered foreground coverage
             assert np.mean(np.abs(image.alpha - geometry["A"])) < 0.08
@@ -84,12 +92,17 @@ def check_reprojection(camera: Camera, geometry: dict, mesh, ground_radius: floa
     vertices = np.unique(mesh.vertices, axis=0)
     _, first = np.unique(mesh.vertices, axis=0, return_index=True)
     towards = camera.position - vertices
-    facing = np.einsum("ij,ij->i", mesh.normals[first], towards) / np.linalg.norm(towards, axis=1) > 0.3
+    facing = (
+        np.einsum("ij,ij->i", mesh.normals[first], towards) / np.linalg.norm(towards, axis=1) > 0.3
+    )
     # the bounding-sphere centre lies inside the blob: it projects into the object mask
-    (u, v), = project_points(mesh.bounding_sphere()[0][None], camera.K, camera.c2w)[0]
+    ((u, v),) = project_points(mesh.bounding_sphere()[0][None], camera.K, camera.c2w)[0]
     assert geometry["object"][int(v), int(u)] > 0.5
     rng = np.random.default_rng(0)
-    angle, radius = rng.uniform(0, 2 * np.pi, 400), ground_radius * np.sqrt(rng.uniform(0.3, 0.8, 400))
+    angle, radius = (
+        rng.uniform(0, 2 * np.pi, 400),
+        ground_radius * np.sqrt(rng.uniform(0.3, 0.8, 400)),
+    )
     ground = np.stack([radius * np.cos(angle), radius * np.sin(angle), np.zeros(400)], axis=1)
     checked = 0
     for points, mask_name in ((vertices[facing], "object"), (ground, "A")):
@@ -100,16 +113,19 @@ def check_reprojection(camera: Camera, geometry: dict, mesh, ground_radius: floa
         solid = geometry["A"][px[:, 1], px[:, 0]] == 1.0
         solid &= geometry["object"][px[:, 1], px[:, 0]] == (1.0 if mask_name == "object" else 0.0)
         error = z_map[solid] - depth[inside][solid]
-        # nothing visible lies behind a projected point (up to the depth spread inside one pixel) ...
+        # nothing visible lies behind a projected point (up to the depth spread inside one pixel)
+        # ...
         assert np.percentile(error, 98) < 0.2, np.percentile(error, 98)
-        # ... and most projected points are the visible surface itself (the blob hides few of its front vertices)
+        # ... and most projected points are the visible surface itself (the blob hides few of its
+        # front vertices)
         assert np.mean(np.abs(error) < 0.1) > 0.8, np.mean(np.abs(error) < 0.1)
         checked += int(solid.sum())
     assert checked > 50
 
 
 def ground_hits(camera: Camera, px: np.ndarray, sub: int) -> tuple[np.ndarray, np.ndarray]:
-    """Intersections (P, sub², 3) with z = 0 of rays through a sub × sub grid in each pixel (P, 2), and their rays."""
+    """Intersections (P, sub², 3) with z = 0 of rays through a sub × sub grid in each pixel (P, 2),
+    and their rays."""
     offsets = (np.arange(sub) + 0.5) / sub
     ox, oy = np.meshgrid(offsets, offsets)
     uv = px[:, None, :] + np.stack([ox.ravel(), oy.ravel()], axis=1)[None]
@@ -123,31 +139,52 @@ def ground_hits(camera: Camera, px: np.ndarray, sub: int) -> tuple[np.ndarray, n
 def segment_distance(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
     """Distance from point ``c`` to the segments a -> b (broadcast)."""
     ab = b - a
-    t = np.clip(np.einsum("...i,...i->...", c - a, ab) / np.einsum("...i,...i->...", ab, ab), 0.0, 1.0)
+    t = np.clip(
+        np.einsum("...i,...i->...", c - a, ab) / np.einsum("...i,...i->...", ab, ab), 0.0, 1.0
+    )
     return np.linalg.norm(a + t[..., None] * ab - c, axis=-1)
 
 
 def test_ground_pixels_match_closed_form_lambert_with_inverse_square_and_shadow():
-    """Direct light only: a lit ground pixel is albedo/π · I · cosθ / d² averaged over the pixel, in linear
-    light; a pixel in the sphere's cast shadow is 0."""
+    """Direct light only: a lit ground pixel is albedo/π · I · cosθ / d² averaged over the pixel, in
+    linear light; a pixel in the sphere's cast shadow is 0."""
     albedo, intensity = 0.5, 80.0
-    recipe = Recipe(name="lambert", shape="sphere", ground_albedo=(albedo,) * 3, ground_radius=3.0, spp=64,
-                    max_depth=2, resolution=(40, 40), cameras=CameraRig(fill=0.45)).validate()
+    recipe = Recipe(
+        name="lambert",
+        shape="sphere",
+        ground_albedo=(albedo,) * 3,
+        ground_radius=3.0,
+        spp=64,
+        max_depth=2,
+        resolution=(40, 40),
+        cameras=CameraRig(fill=0.45),
+    ).validate()
     renderer = SceneRenderer(recipe)
     width, height = recipe.resolution
-    camera = Camera(K=intrinsics_from_fov(np.radians(70), width, height),
-                    c2w=look_at([0.0, -3.5, 3.0], [-0.3, 0.0, 0.3]), width=width, height=height, near=0.1)
-    light = PointLight(position=np.array([2.0, 1.0, 3.0]), intensity=np.full(3, intensity), intensity_known=True)
+    camera = Camera(
+        K=intrinsics_from_fov(np.radians(70), width, height),
+        c2w=look_at([0.0, -3.5, 3.0], [-0.3, 0.0, 0.3]),
+        width=width,
+        height=height,
+        near=0.1,
+    )
+    light = PointLight(
+        position=np.array([2.0, 1.0, 3.0]), intensity=np.full(3, intensity), intensity_known=True
+    )
     image = renderer.render(camera, light, seed=7)
     centre = renderer.mesh.bounding_sphere()[0]
     ys, xs = np.mgrid[0:height, 0:width]
     px = np.stack([xs.ravel(), ys.ravel()], axis=1).astype(float)
     points, directions = ground_hits(camera, px, sub=8)
     # keep pixels whose whole footprint is on the disc and whose rays pass well clear of the sphere
-    ray_gap = np.linalg.norm(np.cross(centre - camera.position, directions), axis=-1) / np.linalg.norm(directions,
-                                                                                                        axis=-1)
-    on_ground = (np.all(directions[..., 2] < 0, axis=1) & np.all(np.linalg.norm(points[..., :2], axis=-1) < 2.9, 1)
-                 & np.all(ray_gap > 1.05, axis=1))
+    ray_gap = np.linalg.norm(
+        np.cross(centre - camera.position, directions), axis=-1
+    ) / np.linalg.norm(directions, axis=-1)
+    on_ground = (
+        np.all(directions[..., 2] < 0, axis=1)
+        & np.all(np.linalg.norm(points[..., :2], axis=-1) < 2.9, 1)
+        & np.all(ray_gap > 1.05, axis=1)
+    )
     light_gap = segment_distance(points, light.position, centre)
     lit = on_ground & np.all(light_gap > 1.05, axis=1)
     shadowed = on_ground & np.all(light_gap < 0.9, axis=1)
@@ -214,22 +251,37 @@ def test_cli_renders_a_tiny_scene_and_refuses_to_overwrite(tmp_path):
 
     from olatbench.cli.synth import synth
 
-    args = ["--recipe", "glossy_plastic", "--res", "16x12", "--spp", "2", "--train", "2", "--test", "1",
-            "--out", str(tmp_path / "s")]
+    args = [
+        "--recipe",
+        "glossy_plastic",
+        "--res",
+        "16x12",
+        "--spp",
+        "2",
+        "--train",
+        "2",
+        "--test",
+        "1",
+        "--out",
+        str(tmp_path / "s"),
+    ]
     result = CliRunner().invoke(synth, args)
     assert result.exit_code == 0, result.output
     scene = load_scene(tmp_path / "s")
     assert (scene.split("train")[0].camera.width, scene.split("train")[0].camera.height) == (16, 12)
     again = CliRunner().invoke(synth, args)
     assert again.exit_code == 2 and "already exists" in again.output
-    bad = CliRunner().invoke(synth, ["--recipe", "glossy_plastic", "--res", "big", "--out", str(tmp_path / "t")])
+    bad = CliRunner().invoke(
+        synth, ["--recipe", "glossy_plastic", "--res", "big", "--out", str(tmp_path / "t")]
+    )
     assert bad.exit_code == 2 and "--res" in bad.output
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("name", ["diffuse_shadow", "aniso_metal", "translucent"])
 def test_mini_recipes_fill_the_frame_and_are_well_exposed(name):
-    """Full-size mini frames: the object covers a good part of the image and is neither black nor clipped."""
+    """Full-size mini frames: the object covers a good part of the image and is neither black nor
+    clipped."""
     recipe = RECIPES[name]
     renderer = SceneRenderer(recipe)
     rig = make_rig(recipe, renderer.mesh.bounding_sphere()[0])
@@ -248,17 +300,21 @@ def test_user_mesh_file_is_read_normalised_and_rendered(tmp_path):
     from olatbench.datasets.synth.meshes import is_watertight, torus
 
     mesh = torus(16)
-    lines = [f"v {x} {y} {z}" for x, y, z in mesh.vertices * 3.0 + [5.0, 0.0, 2.0]]  # any scale and offset
+    # any scale and offset
+    lines = [f"v {x} {y} {z}" for x, y, z in mesh.vertices * 3.0 + [5.0, 0.0, 2.0]]
     lines += [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in mesh.faces]
     (tmp_path / "ring.obj").write_text("\n".join(lines) + "\n")
-    (tmp_path / "ring.json").write_text(json.dumps({"shape": "ring.obj", "resolution": [16, 16], "spp": 2,
-                                                    "train": 1, "test": 0}))
+    (tmp_path / "ring.json").write_text(
+        json.dumps({"shape": "ring.obj", "resolution": [16, 16], "spp": 2, "train": 1, "test": 0})
+    )
     from olatbench.datasets.synth.recipe import get_recipe
 
     recipe = get_recipe(tmp_path / "ring.json")
     loaded = object_mesh(recipe)
     centre, radius = loaded.bounding_sphere()
-    assert radius == pytest.approx(1.0) and loaded.vertices[:, 2].min() == pytest.approx(1e-3, abs=1e-6)
+    assert radius == pytest.approx(1.0) and loaded.vertices[:, 2].min() == pytest.approx(
+        1e-3, abs=1e-6
+    )
     assert is_watertight(loaded) and len(loaded.faces) == len(mesh.faces)
     renderer = SceneRenderer(recipe, loaded)
     camera, light = make_rig(recipe, centre).frames["train"][0]

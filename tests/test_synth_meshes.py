@@ -18,7 +18,9 @@ from olatbench.datasets.synth.rigs import band_directions, make_rig
 
 def signed_volume(mesh: meshes.TriangleMesh) -> float:
     corners = mesh.vertices[mesh.faces]
-    return float(np.einsum("ij,ij->i", corners[:, 0], np.cross(corners[:, 1], corners[:, 2])).sum() / 6.0)
+    return float(
+        np.einsum("ij,ij->i", corners[:, 0], np.cross(corners[:, 1], corners[:, 2])).sum() / 6.0
+    )
 
 
 @pytest.mark.parametrize("name", sorted(meshes.PROCEDURAL_SHAPES))
@@ -38,12 +40,18 @@ def test_procedural_meshes_are_closed_outward_and_smooth(name):
 
 def test_analytic_volumes_match_closed_forms():
     assert signed_volume(meshes.sphere(96)) == pytest.approx(4.0 / 3.0 * np.pi, rel=2e-3)
-    assert signed_volume(meshes.torus(96, 1.0, 0.4)) == pytest.approx(2 * np.pi**2 * 1.0 * 0.4**2, rel=2e-3)
+    assert signed_volume(meshes.torus(96, 1.0, 0.4)) == pytest.approx(
+        2 * np.pi**2 * 1.0 * 0.4**2, rel=2e-3
+    )
     # rounded box: box minus the edge and corner deficits
     h, r = np.array([1.0, 0.8, 0.6]), 0.25
     inner = h - r
-    expected = (8 * np.prod(inner) + 8 * r * (inner[0] * inner[1] + inner[1] * inner[2] + inner[0] * inner[2])
-                + 2 * np.pi * r**2 * inner.sum() + 4.0 / 3.0 * np.pi * r**3)
+    expected = (
+        8 * np.prod(inner)
+        + 8 * r * (inner[0] * inner[1] + inner[1] * inner[2] + inner[0] * inner[2])
+        + 2 * np.pi * r**2 * inner.sum()
+        + 4.0 / 3.0 * np.pi * r**3
+    )
     assert signed_volume(meshes.rounded_box(128)) == pytest.approx(expected, rel=5e-3)
 
 
@@ -66,7 +74,9 @@ def test_recipe_round_trips_through_json_and_names_bad_keys(tmp_path):
     path = tmp_path / "mine.json"
     path.write_text(json.dumps(recipe.to_dict()))
     assert get_recipe(path) == recipe
-    path.write_text(json.dumps({"shape": "torus", "material": {"kind": "diffuse", "albdo": [1, 1, 1]}}))
+    path.write_text(
+        json.dumps({"shape": "torus", "material": {"kind": "diffuse", "albdo": [1, 1, 1]}})
+    )
     with pytest.raises(ValueError, match="albdo"):
         get_recipe(path)
     with pytest.raises(ValueError, match="resolution"):
@@ -123,7 +133,9 @@ result = CliRunner().invoke(synth, ['--recipe', 'aniso_metal', '--out', 'never-w
 assert 'mitsuba' not in sys.modules
 print(result.exit_code, result.output)
 """
-    result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=BACKSTOP_SECONDS)
+    result = subprocess.run(
+        [sys.executable, "-c", script], capture_output=True, text=True, timeout=BACKSTOP_SECONDS
+    )
     assert result.returncode == 0, result.stderr
     assert result.stdout.startswith("1 ")
     assert "pip install 'olatbench[synth]'" in result.stdout
@@ -139,5 +151,6 @@ def test_procedural_textures_are_seamless_in_u_and_bounded(name):
     seam = np.abs(texture[:, 0] - texture[:, -1]).mean()
     neighbours = np.abs(texture[:, 1:] - texture[:, :-1]).mean()
     middle = np.abs(texture[:, 64] - texture[:, 63]).mean()  # u = 0.5: a tile edge of the checker
-    assert seam < 1.5 * middle + 3 * neighbours  # wrapping around u looks like any other place of the pattern
+    # wrapping around u looks like any other place of the pattern
+    assert seam < 1.5 * middle + 3 * neighbours
     assert texture.std() > 0.05  # an actual pattern

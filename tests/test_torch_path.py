@@ -1,10 +1,12 @@
-"""The path CUDA tensors take (every stage in torch), run on the CPU: same numbers as the C++ path, no device leaks.
+"""The path CUDA tensors take (every stage in torch), run on the CPU: same numbers as the C++ path,
+no device leaks.
 
-On a GPU the projection, binning, light pass, SSIM and SSD-GS shading run as their torch implementations (the C++
-kernels take CPU tensors only) and the rasterizer is gsplat's (its conventions: ``test_gsplat_conventions.py``).
-``OLATBENCH_RASTERIZER=torch`` (which projection, binning and the light pass follow), ``OLATBENCH_SSIM=torch`` and
-``OLATBENCH_SHADING=torch`` select that path here. A tensor created without ``device=`` would land on the CPU next
-to CUDA tensors: running the path under ``torch.set_default_device("meta")`` turns each such tensor into a meta
+On a GPU the projection, binning, light pass, SSIM and SSD-GS shading run as their torch
+implementations (the C++ kernels take CPU tensors only) and the rasterizer is gsplat's
+(its conventions: ``test_gsplat_conventions.py``). ``OLATBENCH_RASTERIZER=torch`` (which projection,
+binning and the light pass follow), ``OLATBENCH_SSIM=torch`` and ``OLATBENCH_SHADING=torch`` select
+that path here. A tensor created without ``device=`` would land on the CPU next to CUDA tensors:
+running the path under ``torch.set_default_device("meta")`` turns each such tensor into a meta
 tensor, and the first op mixing it with real data fails.
 """
 
@@ -22,14 +24,27 @@ from olatbench.methods.baselines.gs3dgs import GaussianSplatting3D
 from olatbench.methods.ssdgs import SSDGS
 from olatbench.methods.training import psnr_of
 
-TORCH_PATH = {"OLATBENCH_RASTERIZER": "torch", "OLATBENCH_SSIM": "torch", "OLATBENCH_SHADING": "torch"}
-COMMON = {"num_init_gaussians": 300, "init_radius": 1.3, "max_gaussians": 3_000, "iterations": 1_000,
-          "reference_iterations": 100_000, "opacity_reset_interval": 100_000, "densify_from": 200,
-          "densify_until": 60_000, "densify_interval": 2}  # windows at 100K scale: densify steps 2-600, every 2
+TORCH_PATH = {
+    "OLATBENCH_RASTERIZER": "torch",
+    "OLATBENCH_SSIM": "torch",
+    "OLATBENCH_SHADING": "torch",
+}
+COMMON = {
+    "num_init_gaussians": 300,
+    "init_radius": 1.3,
+    "max_gaussians": 3_000,
+    "iterations": 1_000,
+    "reference_iterations": 100_000,
+    "opacity_reset_interval": 100_000,
+    "densify_from": 200,
+    # windows at 100K scale: densify steps 2-600, every 2
+    "densify_until": 60_000,
+    "densify_interval": 2,
+}
 SMALL_SHADING = {"shadow_resolution": 24, "num_asg": 4}
 METHODS = {
-    # At step 300 of 1000 every term is on and nothing frozen: SSD-GS diffuse, shadow (light pass), SSS and
-    # specular; GS³ shadow, specular, ASG lobes; 3DGS SH degree 3. Densification runs.
+    # At step 300 of 1000 every term is on and nothing frozen: SSD-GS diffuse, shadow (light pass),
+    # SSS and specular; GS³ shadow, specular, ASG lobes; 3DGS SH degree 3. Densification runs.
     "ssdgs": (SSDGS, {**COMMON, **SMALL_SHADING, "sss_hidden": 32}, 300),
     "gs3": (GS3, {**COMMON, **SMALL_SHADING, "other_hidden": 32}, 300),
     "3dgs": (GaussianSplatting3D, COMMON, 300),
@@ -71,8 +86,9 @@ def gradients(method, step: int) -> tuple[float, dict[str, torch.Tensor]]:
 
 @pytest.mark.parametrize("name", list(METHODS))
 def test_one_step_on_the_torch_path_matches_the_cpp_path(name, views, monkeypatch):
-    """Loss to 1e-6 relative, every gradient to 1e-5 of its largest entry (float32; the C++ kernels sum in other
-    orders and project in float64; measured 2026-11-24: loss ≤ 1.2e-7, gradients ≤ 7.8e-7)."""
+    """Loss to 1e-6 relative, every gradient to 1e-5 of its largest entry (float32; the C++ kernels
+    sum in other orders and project in float64; measured 2026-11-24: loss ≤ 1.2e-7, gradients ≤
+    7.8e-7)."""
     step = METHODS[name][2]
     cpp_loss, cpp_grads = gradients(make(name, views, False, monkeypatch), step)
     torch_loss, torch_grads = gradients(make(name, views, True, monkeypatch), step)
@@ -112,10 +128,12 @@ def test_environment_selects_the_torch_backends(monkeypatch):
 
 @pytest.mark.parametrize("name", list(METHODS))
 def test_torch_path_creates_no_tensor_off_the_device(name, views, monkeypatch):
-    """Training steps with densification, and rendering, with every factory call defaulting to ``meta``.
+    """Training steps with densification, and rendering, with every factory call defaulting to
+    ``meta``.
 
-    Set-up runs outside: it builds the networks on the CPU and moves them (``Module.to(device)``), which a meta
-    default would break; its factory calls are held to naming their device by `test_factory_calls_name_a_device`."""
+    Set-up runs outside: it builds the networks on the CPU and moves them (``Module.to(device)``),
+    which a meta default would break; its factory calls are held to naming their device by
+    `test_factory_calls_name_a_device`."""
     method = make(name, views, True, monkeypatch)
     step = METHODS[name][2]
     before = method.model.num_gaussians
@@ -127,40 +145,54 @@ def test_torch_path_creates_no_tensor_off_the_device(name, views, monkeypatch):
     finally:
         torch.set_default_device(None)
     assert method.model.num_gaussians != before  # densification ran
-    assert result["loss"] > 0 and out["rgb"].device.type == "cpu" and bool(torch.isfinite(out["rgb"]).all())
+    assert (
+        result["loss"] > 0
+        and out["rgb"].device.type == "cpu"
+        and bool(torch.isfinite(out["rgb"]).all())
+    )
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("name", list(METHODS))
 def test_200_steps_on_the_torch_path_reach_the_cpp_psnr(name, views, monkeypatch):
-    """Training PSNR after 200 steps (every phase of the schedule) within 0.1 dB, without densification.
+    """Training PSNR after 200 steps (every phase of the schedule) within 0.1 dB, without
+    densification.
 
-    With densification the two paths' last-bit differences flip a clone/split decision near its threshold after
-    ~25 steps and the runs separate: measured 2026-11-24, the C++ path against itself with the initial means
-    perturbed by 1e-7 (relative) ended at 33.6-35.3 dB (SSD-GS, 6 runs) and 36.4-38.9 dB (GS³, 4 runs), the
-    torch path at 34.2-35.5 and 38.3-39.3 dB. Without densification both paths ended equal to 0.001 dB. The
-    densifying steps are held to the C++ path by `test_densifying_steps_match_the_cpp_path`."""
+    With densification the two paths' last-bit differences flip a clone/split decision near its
+    threshold after ~25 steps and the runs separate: measured 2026-11-24, the C++ path against
+    itself with the initial means perturbed by 1e-7 (relative) ended at 33.6-35.3 dB
+    (SSD-GS, 6 runs) and 36.4-38.9 dB (GS³, 4 runs), the torch path at 34.2-35.5 and 38.3-39.3 dB.
+    Without densification both paths ended equal to 0.001 dB. The densifying steps are held to the
+    C++ path by `test_densifying_steps_match_the_cpp_path`."""
     psnrs = []
     for torch_path in (False, True):
         method = make(name, views, torch_path, monkeypatch, iterations=200, densify_until=0)
         for step in range(200):
             method.train_step(step)
         assert method.model.num_gaussians == COMMON["num_init_gaussians"]
-        psnrs.append(sum(psnr_of(method.render(c, lt)["rgb"].clamp(0, 1), torch.from_numpy(img))
-                         for c, lt, img in zip(views.cameras, views.lights, views.images, strict=True)) / len(views))
+        psnrs.append(
+            sum(
+                psnr_of(method.render(c, lt)["rgb"].clamp(0, 1), torch.from_numpy(img))
+                for c, lt, img in zip(views.cameras, views.lights, views.images, strict=True)
+            )
+            / len(views)
+        )
     assert psnrs[1] == pytest.approx(psnrs[0], abs=0.1)
 
 
 @pytest.mark.parametrize("name", list(METHODS))
 def test_densifying_steps_match_the_cpp_path(name, views, monkeypatch):
     """Twelve steps from the start, densifying every second step (300 -> ~2900 Gaussians): the torch
-    path clones, splits and prunes the same Gaussians (same count after every step), its loss stays within 1e-5
-    relative and its renders after step 12 within 2e-3 at any pixel and 1e-5 on average (parameters are not
-    compared one by one: Adam turns last-bit differences of near-zero gradients into steps of the learning rate's
-    size, which reach single pixels). The largest pixel difference depends on the CPU's rounding: below 1e-3 on the
-    AMD EPYC (family 25) this bound was first set on, 1.16e-3 for GS³ on an Intel Xeon (family 6 model 207,
-    2026-11-27), whose other pixels differ by about 1e-7."""
-    cpp, torch_path = (make(name, views, flag, monkeypatch, iterations=200) for flag in (False, True))
+    path clones, splits and prunes the same Gaussians (same count after every step), its loss stays
+    within 1e-5 relative and its renders after step 12 within 2e-3 at any pixel and 1e-5 on average
+    (parameters are not compared one by one: Adam turns last-bit differences of near-zero gradients
+    into steps of the learning rate's size, which reach single pixels). The largest pixel difference
+    depends on the CPU's rounding: below 1e-3 on the AMD EPYC (family 25) this bound was first set
+    on, 1.16e-3 for GS³ on an Intel Xeon (family 6 model 207, 2026-11-27), whose other pixels differ
+    by about 1e-7."""
+    cpp, torch_path = (
+        make(name, views, flag, monkeypatch, iterations=200) for flag in (False, True)
+    )
     for step in range(12):
         losses = []
         for flag, method in ((False, cpp), (True, torch_path)):
@@ -175,14 +207,29 @@ def test_densifying_steps_match_the_cpp_path(name, views, monkeypatch):
         assert float(difference.max()) <= 2e-3 and float(difference.mean()) <= 1e-5
 
 
-# The modules whose code can run on CUDA tensors. The C++ wrappers (backends/cpu.py, ssdgs/shading_cpu.py,
-# metrics/ssim_cpu.py) are left out: they run only after their resolver has checked that the tensors are on the CPU;
-# so are the CPU stand-ins for the authors' CUDA modules (methods/official/cpu_standins), which exist to run on the CPU.
+# The modules whose code can run on CUDA tensors. The C++ wrappers (backends/cpu.py,
+# ssdgs/shading_cpu.py, metrics/ssim_cpu.py) are left out: they run only after their resolver has
+# checked that the tensors are on the CPU; so are the CPU stand-ins for the authors' CUDA modules
+# (methods/official/cpu_standins), which exist to run on the CPU.
 DEVICE_CODE = ("olatbench/methods", "olatbench/gaussians", "olatbench/metrics/ssim.py")
 CPU_ONLY = {"olatbench/gaussians/backends/cpu.py", "olatbench/methods/ssdgs/shading_cpu.py"}
 CPU_ONLY_FOLDERS = ("olatbench/methods/official/cpu_standins/",)
-FACTORIES = {"zeros", "ones", "empty", "full", "arange", "linspace", "logspace", "eye", "tensor", "as_tensor", "rand",
-             "randn", "randint", "randperm"}
+FACTORIES = {
+    "zeros",
+    "ones",
+    "empty",
+    "full",
+    "arange",
+    "linspace",
+    "logspace",
+    "eye",
+    "tensor",
+    "as_tensor",
+    "rand",
+    "randn",
+    "randint",
+    "randperm",
+}
 
 
 def _device_code_files() -> list[Path]:
@@ -191,13 +238,17 @@ def _device_code_files() -> list[Path]:
     for entry in DEVICE_CODE:
         path = root / entry
         files += sorted(path.rglob("*.py")) if path.is_dir() else [path]
-    return [f for f in files if f.relative_to(root).as_posix() not in CPU_ONLY
-            and not f.relative_to(root).as_posix().startswith(CPU_ONLY_FOLDERS)]
+    return [
+        f
+        for f in files
+        if f.relative_to(root).as_posix() not in CPU_ONLY
+        and not f.relative_to(root).as_posix().startswith(CPU_ONLY_FOLDERS)
+    ]
 
 
 def device_leaks(source: str) -> list[tuple[int, str]]:
-    """(line, call) of ``torch.<factory>(...)`` calls without ``device=`` and ``.numpy()`` calls whose receiver
-    chain has no ``.cpu()`` (on a CUDA tensor ``.numpy()`` raises)."""
+    """(line, call) of ``torch.<factory>(...)`` calls without ``device=`` and ``.numpy()`` calls
+    whose receiver chain has no ``.cpu()`` (on a CUDA tensor ``.numpy()`` raises)."""
     found = []
     for node in ast.walk(ast.parse(source)):
         if not (isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute)):
@@ -212,34 +263,48 @@ def device_leaks(source: str) -> list[tuple[int, str]]:
 
 
 def test_factory_calls_name_a_device():
-    """Every tensor the device path creates names its device (``device="cpu"`` where the CPU is meant)."""
-    leaks = [f"{path}:{line}: {what}" for path in _device_code_files() for line, what in
-             device_leaks(path.read_text())]
+    """Every tensor the device path creates names its device (``device="cpu"`` where the CPU is
+    meant)."""
+    leaks = [
+        f"{path}:{line}: {what}"
+        for path in _device_code_files()
+        for line, what in device_leaks(path.read_text())
+    ]
     assert not leaks, "\n".join(leaks)
 
 
 def test_the_lint_finds_leaks():
-    assert [what for _, what in device_leaks("x = torch.zeros(3)\ny = torch.ones(2, device=d)\n")] == [
-        "torch.zeros(...) without device="]
+    assert [
+        what for _, what in device_leaks("x = torch.zeros(3)\ny = torch.ones(2, device=d)\n")
+    ] == ["torch.zeros(...) without device="]
     assert len(device_leaks("a = t.detach().numpy()\nb = t.detach().cpu().numpy()\n")) == 1
 
 
 @pytest.mark.parametrize("torch_path", [False, True], ids=["cpp", "torch"])
 def test_reported_backends_are_the_ones_that_run(torch_path, views, monkeypatch):
-    """`Method.backends()` (what doctor and the run log show) names the backends the stages actually pick."""
+    """`Method.backends()` (what doctor and the run log show) names the backends the stages actually
+    pick."""
     from olatbench.gaussians.projection import project
     from olatbench.gaussians.rasterize import rasterize
     from olatbench.gaussians.shadow import shadow_gather
 
     method = make("ssdgs", views, torch_path, monkeypatch)
     reported = method.backends()
-    assert reported.pop("network_precision") == "fp32"  # the networks' precision, beside the stages' backends
+    # the networks' precision, beside the stages' backends
+    assert reported.pop("network_precision") == "fp32"
     assert set(reported.values()) == {"torch" if torch_path else "cpu"}
     model, camera = method.model, views.cameras[0]
     w2c, K = (torch.as_tensor(a, dtype=torch.float32) for a in (camera.w2c(), camera.K))
     projected = project(model.means, model.quats, model.scales, w2c, K, camera.width, camera.height)
     out = rasterize(projected, model.opacities, torch.zeros(model.num_gaussians, 3), torch.zeros(3))
     assert out.backend == reported["rasterizer"]
-    light = shadow_gather(model.means, model.quats, model.scales, model.opacities, torch.ones(3), torch.zeros(3),
-                          resolution=16)
+    light = shadow_gather(
+        model.means,
+        model.quats,
+        model.scales,
+        model.opacities,
+        torch.ones(3),
+        torch.zeros(3),
+        resolution=16,
+    )
     assert light.backend == reported["light_pass"]

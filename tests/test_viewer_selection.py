@@ -1,5 +1,6 @@
-"""The viewer opens only the job folders it lists, whatever a tab sends, and keeps a bounded number of models
-(#38 item 8). No browser or trained model is needed: restoring is replaced by a recorder."""
+"""The viewer opens only the job folders it lists, whatever a tab sends, and keeps a bounded number
+of models (#38 item 8). No browser or trained model is needed: restoring is replaced by a
+recorder."""
 
 from __future__ import annotations
 
@@ -15,7 +16,8 @@ from olatbench.viewer.server import ClientSession, ViewerApp
 
 @pytest.fixture()
 def opened(monkeypatch) -> list[Path]:
-    """Every folder `ViewerModel.open` is asked to restore (it returns a stand-in model naming the folder)."""
+    """Every folder `ViewerModel.open` is asked to restore (it returns a stand-in model naming the
+    folder)."""
     calls: list[Path] = []
 
     def fake_open(folder, device="cpu"):
@@ -32,7 +34,8 @@ def make_app(tmp_path: Path, count: int = 3, **kwargs) -> ViewerApp:
 
 
 def tab_choosing(app: ViewerApp, value: str) -> SimpleNamespace:
-    """A tab's session whose job menu holds ``value`` (what the browser sent); returns what it showed."""
+    """A tab's session whose job menu holds ``value`` (what the browser sent); returns what it
+    showed."""
     session = object.__new__(ClientSession)
     shown = SimpleNamespace(models=[])
     session.app, session._lock = app, threading.RLock()

@@ -1,27 +1,29 @@
-"""How long a planned job will train on this machine: a short measurement, stored, and a step-count model.
+"""How long a planned job will train on this machine: a short measurement, stored, and a step-count
+model.
 
-`calibrate` (imports torch; seconds to a minute) times the job's own method on a few of the job's own training
-views at the job's resolution, with the density control's statistics gathered as in training but no Gaussian
-added, removed or reset (so N stays put), at two model sizes — the config's initial Gaussian count
-and its cap (``max_gaussians``; 4× the initial count when the config has no cap) — and at three points of the
-schedule (10 %, 50 % and 90 % of the iterations, since terms switch on and off along it). The model is timed as a
-trained one looks, a closed nearly opaque surface (`olatbench.gaussians.surface`) in the initial ball, not as the
-initial cloud: at opacity 0.1 that cloud blends many Gaussians per pixel and stepped 2.1× slower than the trained
-model of the same size on mini (the estimate was 1.8× too high on an Intel Xeon for that reason). It fits seconds
+`calibrate` (imports torch; seconds to a minute) times the job's own method on a few of the job's
+own training views at the job's resolution, with the density control's statistics gathered as in
+training but no Gaussian added, removed or reset (so N stays put), at two model sizes — the config's
+initial Gaussian count and its cap (``max_gaussians``; 4× the initial count when the config has no
+cap) — and at three points of the schedule (10 %, 50 % and 90 % of the iterations, since terms
+switch on and off along it). The model is timed as a trained one looks, a closed nearly opaque
+surface (`olatbench.gaussians.surface`) in the initial ball, not as the initial cloud: at opacity
+0.1 that cloud blends many Gaussians per pixel and stepped 2.1× slower than the trained model of the
+same size on mini (the estimate was 1.8× too high on an Intel Xeon for that reason). It fits seconds
 per step as ``a + b·N`` and stores that per machine and per (method, config, resolution, device) in
-``$XDG_CACHE_HOME/olatbench/calibration.json``, together with the device ``--device auto`` named on the machine when
-it was measured (``"auto_devices": {machine: "cpu" | "cuda"}``): naming it needs torch, which a plain dry run never
-imports, so a dry run with ``auto`` reads the stored name instead (none stored: no estimate, ``--calibrate`` stores
-it).
+``$XDG_CACHE_HOME/olatbench/calibration.json``, together with the device ``--device auto`` named on
+the machine when it was measured (``"auto_devices": {machine: "cpu" | "cuda"}``): naming it needs
+torch, which a plain dry run never imports, so a dry run with ``auto`` reads the stored name instead
+(none stored: no estimate, ``--calibrate`` stores it).
 
-`estimate` (torch-free, for ``olatbench run --dry-run``) sums ``a + b·N(step)`` over the job's steps with the
-Gaussian count modelled as the config's initial count until the first densification (the first multiple of
-``densify_interval`` in the window), growing linearly to the cap at ``densify_until`` and constant after (the
-windows as the method scales them). Methods without a
-Gaussian count are timed at their one size. The estimate covers training only — not loading the views, the
-checkpoints nor the evaluation — and inherits the two models' errors: the first few hundred steps, while the
-initial cloud settles, are slower than the surface, and a run that stays well below its cap trains faster than
-estimated.
+`estimate` (torch-free, for ``olatbench run --dry-run``) sums ``a + b·N(step)`` over the job's steps
+with the Gaussian count modelled as the config's initial count until the first densification (the
+first multiple of ``densify_interval`` in the window), growing linearly to the cap at
+``densify_until`` and constant after (the windows as the method scales them). Methods without a
+Gaussian count are timed at their one size. The estimate covers training only — not loading the
+views, the checkpoints nor the evaluation — and inherits the two models' errors: the first few
+hundred steps, while the initial cloud settles, are slower than the surface, and a run that stays
+well below its cap trains faster than estimated.
 """
 
 from __future__ import annotations
@@ -39,18 +41,21 @@ from olatbench.bench.jobs import Job, hash_json
 from olatbench.devices import AUTO, resolve_device
 
 CALIBRATION_FILE = "calibration.json"
-AUTO_DEVICES = "auto_devices"  # the file's key of what --device auto named on each machine (module docstring)
+# the file's key of what --device auto named on each machine (module docstring)
+AUTO_DEVICES = "auto_devices"
 SCHEDULE_POINTS = (0.1, 0.5, 0.9)
 STEPS_PER_POINT = 2
 CALIBRATION_VIEWS = 4
-SURFACE_RADIUS = 0.8  # the calibration's surface, as a fraction of the initial ball's radius (bench_ssdgs's state)
+# the calibration's surface, as a fraction of the initial ball's radius (bench_ssdgs's state)
+SURFACE_RADIUS = 0.8
 UNCAPPED_GROWTH = 4  # the size measured for a config with no cap: this many times its initial count
 DAY_SECONDS = 86_400.0
 
 
 @dataclass(frozen=True)
 class StepCost:
-    """Seconds per training step ``a + b·N`` of one job's method, config and resolution on one machine."""
+    """Seconds per training step ``a + b·N`` of one job's method, config and resolution on one
+    machine."""
 
     a: float
     b: float
@@ -61,7 +66,8 @@ class StepCost:
 
 
 def machine_id() -> str:
-    """The machine a calibration belongs to: host name, CPU architecture, processor and core count."""
+    """The machine a calibration belongs to: host name, CPU architecture, processor and core
+    count."""
     return f"{platform.node()}|{platform.machine()}|{platform.processor()}|{os.cpu_count()}"
 
 
@@ -71,8 +77,16 @@ def calibration_path() -> Path:
 
 
 def cost_key(job: Job) -> str:
-    """What a calibration depends on besides the machine: method, config (without the seed) and resolution."""
-    return hash_json({"method": job.method, "config": job.config, "resolution": job.resolution, "device": job.device})
+    """What a calibration depends on besides the machine: method, config (without the seed) and
+    resolution."""
+    return hash_json(
+        {
+            "method": job.method,
+            "config": job.config,
+            "resolution": job.resolution,
+            "device": job.device,
+        }
+    )
 
 
 def load_costs(path: Path | None = None) -> dict[str, StepCost]:
@@ -86,7 +100,8 @@ def load_costs(path: Path | None = None) -> dict[str, StepCost]:
 
 
 def stored_auto_device(path: Path | None = None) -> str | None:
-    """The device ``--device auto`` named on this machine when a calibration was last measured (None: never)."""
+    """The device ``--device auto`` named on this machine when a calibration was last measured
+    (None: never)."""
     path = calibration_path() if path is None else path
     try:
         stored = json.loads(path.read_text(encoding="utf-8"))
@@ -97,14 +112,18 @@ def stored_auto_device(path: Path | None = None) -> str | None:
 
 
 def save_cost(job: Job, cost: StepCost, path: Path | None = None, auto: str | None = None) -> None:
-    """Add one calibration to the machine's entry (the file is rewritten atomically); ``auto``: the device
-    ``--device auto`` names on this machine, stored beside it."""
+    """Add one calibration to the machine's entry (the file is rewritten atomically); ``auto``: the
+    device ``--device auto`` names on this machine, stored beside it."""
     path = calibration_path() if path is None else path
     try:
         stored = json.loads(path.read_text(encoding="utf-8"))
     except (OSError, json.JSONDecodeError):
         stored = {}
-    stored.setdefault(machine_id(), {})[cost_key(job)] = {"a": cost.a, "b": cost.b, "measured": cost.measured}
+    stored.setdefault(machine_id(), {})[cost_key(job)] = {
+        "a": cost.a,
+        "b": cost.b,
+        "measured": cost.measured,
+    }
     if auto is not None:
         stored.setdefault(AUTO_DEVICES, {})[machine_id()] = auto
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -121,8 +140,9 @@ def gaussian_counts(config: Any) -> tuple[int, int] | None:
 
 
 def estimate_seconds(config: Any, cost: StepCost) -> float:
-    """Training seconds of a run of ``config`` (the method's config object) under ``cost``; see the module
-    docstring for the growth model. The densification window is the config's own, scaled by its ``steps``."""
+    """Training seconds of a run of ``config`` (the method's config object) under ``cost``; see the
+    module docstring for the growth model. The densification window is the config's own, scaled by
+    its ``steps``."""
     steps = int(config.iterations)
     counts = gaussian_counts(config)
     if counts is None:
@@ -132,16 +152,22 @@ def estimate_seconds(config: Any, cost: StepCost) -> float:
     if hasattr(config, "density_windows"):
         windows = config.density_windows()
         interval = windows.interval
-        start = min(steps, -(-windows.densify_from // interval) * interval)  # the first densification step
+        # the first densification step
+        start = min(steps, -(-windows.densify_from // interval) * interval)
         end = min(steps, max(start, windows.densify_until))
     ramp = end - start
-    # before the first densification at the initial count, then a linear ramp to the cap (its mean), then the cap
-    return (start * cost.seconds(initial) + ramp * cost.seconds((initial + cap) / 2)
-            + (steps - end) * cost.seconds(cap if ramp > 0 else initial))
+    # before the first densification at the initial count, then a linear ramp to the cap (its mean),
+    # then the cap
+    return (
+        start * cost.seconds(initial)
+        + ramp * cost.seconds((initial + cap) / 2)
+        + (steps - end) * cost.seconds(cap if ramp > 0 else initial)
+    )
 
 
 def calibrate(job: Job, views: Any | None = None, progress: bool = True) -> StepCost:
-    """Measure ``job``'s method on this machine (module docstring) and return its step cost (not stored)."""
+    """Measure ``job``'s method on this machine (module docstring) and return its step cost
+    (not stored)."""
     import torch
 
     from olatbench.bench.execute import load_views
@@ -149,7 +175,9 @@ def calibrate(job: Job, views: Any | None = None, progress: bool = True) -> Step
     from olatbench.datasets import load_scene
 
     if views is None:
-        frames = load_scene(job.scene_path, format=job.scene_format).split(job.train_split)[:CALIBRATION_VIEWS]
+        frames = load_scene(job.scene_path, format=job.scene_format).split(job.train_split)[
+            :CALIBRATION_VIEWS
+        ]
         views = load_views(frames, job)
     method_class = load_method_class(job)
     base = method_class.resolve_config(None, **job.config)
@@ -161,8 +189,13 @@ def calibrate(job: Job, views: Any | None = None, progress: bool = True) -> Step
     for size in sizes:
         config = base
         if counts is not None:
-            config = replace(base, num_init_gaussians=size, densify_from=never, densify_interval=never,
-                             opacity_reset_interval=never)
+            config = replace(
+                base,
+                num_init_gaussians=size,
+                densify_from=never,
+                densify_interval=never,
+                opacity_reset_interval=never,
+            )
         method = method_class(config)
         method.setup(views, job.device, job.seed)
         if counts is not None:
@@ -177,9 +210,14 @@ def calibrate(job: Job, views: Any | None = None, progress: bool = True) -> Step
                 if str(job.device).startswith("cuda"):
                     torch.cuda.synchronize(job.device)
                 seconds.append(time.perf_counter() - clock)
-        measured[str(size)] = sorted(seconds)[len(seconds) // 2]  # the median: robust to a passing load
+        # the median: robust to a passing load
+        measured[str(size)] = sorted(seconds)[len(seconds) // 2]
         if progress:
-            print(f"calibration {job.method} {job.variant}: N={size}: {measured[str(size)]:.3f} s/step", flush=True)
+            print(
+                f"calibration {job.method} {job.variant}: N={size}: {measured[str(size)]:.3f} "
+                "s/step",
+                flush=True,
+            )
         del method
     if len(sizes) == 1:
         return StepCost(a=measured[str(sizes[0])], b=0.0, measured=measured)
@@ -189,12 +227,14 @@ def calibrate(job: Job, views: Any | None = None, progress: bool = True) -> Step
 
 
 def _as_trained_surface(method: Any, views: Any, config: Any) -> None:
-    """Make a Gaussian method's model the trained-looking stand-in: a closed surface of 0.8× the radius of the
-    ball its Gaussians were initialised in, around the same centre (module docstring)."""
+    """Make a Gaussian method's model the trained-looking stand-in: a closed surface of 0.8× the
+    radius of the ball its Gaussians were initialised in, around the same centre
+    (module docstring)."""
     from olatbench.gaussians.surface import place_on_sphere
     from olatbench.methods.initialisation import initial_ball
 
-    centre, radius = initial_ball(views.in_frame().cameras, getattr(config, "init_radius", None))  # as the model
+    # as the model
+    centre, radius = initial_ball(views.in_frame().cameras, getattr(config, "init_radius", None))
     place_on_sphere(method.model, centre.tolist(), SURFACE_RADIUS * radius)
 
 
@@ -209,12 +249,15 @@ def format_duration(seconds: float) -> str:
     return f"{round(seconds)} s"
 
 
-def plan_estimates(jobs: list[Job], measure: bool = False, progress: bool = True) -> list[float | None]:
-    """Estimated training seconds of each job from this machine's stored calibrations (None where there is
-    none); ``measure`` calibrates (and stores) the missing ones first — jobs need their data for that.
+def plan_estimates(
+    jobs: list[Job], measure: bool = False, progress: bool = True
+) -> list[float | None]:
+    """Estimated training seconds of each job from this machine's stored calibrations
+    (None where there is none); ``measure`` calibrates (and stores) the missing ones first — jobs
+    need their data for that.
 
-    Without ``measure`` no torch is imported: a job's ``auto`` device is named from the calibration file (module
-    docstring)."""
+    Without ``measure`` no torch is imported: a job's ``auto`` device is named from the calibration
+    file (module docstring)."""
     from olatbench.methods.registry import config_class, get_spec
 
     costs = load_costs()
@@ -232,12 +275,15 @@ def plan_estimates(jobs: list[Job], measure: bool = False, progress: bool = True
         key = cost_key(job)
         if key not in costs and measure:
             if not job.scene_path:
-                raise ValueError(f"{job.label}: the scene's data is missing, so the job cannot be timed")
+                raise ValueError(
+                    f"{job.label}: the scene's data is missing, so the job cannot be timed"
+                )
             costs[key] = calibrate(job, progress=progress)
             save_cost(job, costs[key], auto=auto)
         if key not in costs:
             estimates.append(None)
             continue
-        config = config_class(get_spec(job.method))(**job.config)  # torch-free: the spec's config dataclass
+        # torch-free: the spec's config dataclass
+        config = config_class(get_spec(job.method))(**job.config)
         estimates.append(estimate_seconds(config, costs[key]))
     return estimates

@@ -1,8 +1,10 @@
-"""``olatbench evaluate`` as a results.json: a folder of renders scored, with the runner's provenance.
+"""``olatbench evaluate`` as a results.json: a folder of renders scored, with the runner's
+provenance.
 
-The scores come from `olatbench.metrics.evaluate.evaluate_folder`; this module adds what a run's results.json
-holds besides (`olatbench.bench.provenance`: start and end times, hardware, library versions, peak memory), so
-both files have one schema (`olatbench.bench.results`, ``kind: "evaluate"``, no job).
+The scores come from `olatbench.metrics.evaluate.evaluate_folder`; this module adds what a run's
+results.json holds besides (`olatbench.bench.provenance`: start and end times, hardware, library
+versions, peak memory), so both files have one schema (`olatbench.bench.results`,
+``kind: "evaluate"``, no job).
 """
 
 from __future__ import annotations
@@ -16,9 +18,15 @@ from olatbench.metrics.evaluate import evaluate_folder
 from olatbench.metrics.protocols import Protocol
 
 
-def evaluation_results(pred_dir: str | Path, scene_dir: str | Path, split: str = "test",
-                       protocol: Protocol | None = None, **options: Any) -> Results:
-    """Score ``pred_dir`` against ``split`` of ``scene_dir`` (``options``: those of `evaluate_folder`)."""
+def evaluation_results(
+    pred_dir: str | Path,
+    scene_dir: str | Path,
+    split: str = "test",
+    protocol: Protocol | None = None,
+    **options: Any,
+) -> Results:
+    """Score ``pred_dir`` against ``split`` of ``scene_dir``
+    (``options``: those of `evaluate_folder`)."""
     started = utc_now()
     scored = evaluate_folder(pred_dir, scene_dir, split, protocol, **options)
     results = {
@@ -28,8 +36,17 @@ def evaluation_results(pred_dir: str | Path, scene_dir: str | Path, split: str =
         "job": None,
         "protocol": scored["protocol"],
         "metrics": scored["metrics"],
-        "timing": {"started": started, "finished": utc_now(), "train_seconds": None, "render_fps": None},
-        "resources": {"device": "cpu", "peak_rss_mb": round(peak_rss_mb(), 1), "cuda_peak_mb": None},
+        "timing": {
+            "started": started,
+            "finished": utc_now(),
+            "train_seconds": None,
+            "render_fps": None,
+        },
+        "resources": {
+            "device": "cpu",
+            "peak_rss_mb": round(peak_rss_mb(), 1),
+            "cuda_peak_mb": None,
+        },
         "hardware": hardware_identity(),
         "model": None,
         "versions": library_versions(),
@@ -38,6 +55,7 @@ def evaluation_results(pred_dir: str | Path, scene_dir: str | Path, split: str =
         "source": scored["source"],
         "evaluation": {"test_time_refinement": None},
         "error": None,
-        "novel_lights": None,  # scores under novel illumination (olatbench.bench.novel_lights), when asked
+        # scores under novel illumination (olatbench.bench.novel_lights), when asked
+        "novel_lights": None,
     }
     return validate_results(results, f"evaluation of {pred_dir}")

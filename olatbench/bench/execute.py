@@ -82,37 +82,53 @@ def run_job(job: Job, progress: bool = True, position: int = 1) -> JobOutcome:
     """Run ``job`` to completion; a failure is recorded in the folder and returned, never raised.
 
     ``KeyboardInterrupt`` is not a failure: the job stays partial and resumes on the next run. A job
-    whose folder is locked by another process (running elsewhere) is returned as ``skipped``. The folder's state is
-    read again once the lock is held, since another process may have finished the job after this one planned it:
-    a finished job is returned as ``done`` with its recorded metrics and nothing in its folder changes (``--force``
-    clears folders before the run, not here), and a folder that now holds another job is left alone and the job
-    fails. A damaged job (a finished job whose results.json or job.json was damaged) has those files set aside as
-    ``<name>.damaged`` first, said in log.txt and on stderr, and is rerun. A folder that cannot be written
-    (read-only, full disk) fails the job, not the plan: the failure is recorded in the folder where the disk still
-    allows it, and always in the outcome.
+    whose folder is locked by another process (running elsewhere) is returned as ``skipped``. The
+    folder's state is read again once the lock is held, since another process may have finished the
+    job after this one planned it: a finished job is returned as ``done`` with its recorded metrics
+    and nothing in its folder changes (``--force`` clears folders before the run, not here), and a
+    folder that now holds another job is left alone and the job fails. A damaged job (a finished job
+    whose results.json or job.json was damaged) has those files set aside as ``<name>.damaged``
+    first, said in log.txt and on stderr, and is rerun. A folder that cannot be written
+    (read-only, full disk) fails the job, not the plan: the failure is recorded in the folder where
+    the disk still allows it, and always in the outcome.
     """
     folder = Path(job.folder)
     try:
         with job_lock(folder) as acquired:
             if not acquired:
-                return JobOutcome(job.id, job.label, str(folder), "skipped", error="running in another process")
-            state = job_state(folder, job.id)  # under the lock: "done" and "stale" are final (running: this one)
+                return JobOutcome(
+                    job.id, job.label, str(folder), "skipped", error="running in another process"
+                )
+            # under the lock: "done" and "stale" are final (running: this one)
+            state = job_state(folder, job.id)
             if state.state == "done":
                 return _finished_outcome(job, folder)
             if state.state == "stale":
-                return JobOutcome(job.id, job.label, str(folder), "failed", recorded=False,
-                                  error=f"{folder} {state.message} (written after this run planned it); rerun with "
-                                        "--force to replace it, or choose another --output")
+                return JobOutcome(
+                    job.id,
+                    job.label,
+                    str(folder),
+                    "failed",
+                    recorded=False,
+                    error=f"{folder} {state.message} (written after this run planned it); rerun "
+                    "with --force to replace it, or choose another --output",
+                )
             _keep_damaged(job, folder)
             return _run_locked(job, folder, progress, position)
     except OSError as error:  # the folder or its lock file cannot be made: nothing was written
-        return JobOutcome(job.id, job.label, str(folder), "failed", recorded=False,
-                          error=f"cannot write the job folder {folder}: {error.strerror or error}")
+        return JobOutcome(
+            job.id,
+            job.label,
+            str(folder),
+            "failed",
+            recorded=False,
+            error=f"cannot write the job folder {folder}: {error.strerror or error}",
+        )
 
 
 def _keep_damaged(job: Job, folder: Path) -> None:
-    """Set a damaged job's files aside (`set_aside_damaged`) and say so, with what was wrong, in log.txt and on
-    stderr: the rerun then repairs the job without overwriting what a user edited."""
+    """Set a damaged job's files aside (`set_aside_damaged`) and say so, with what was wrong, in
+    log.txt and on stderr: the rerun then repairs the job without overwriting what a user edited."""
     for path, problem in set_aside_damaged(folder, job.id):
         line = f"{job.label}: {problem}; kept as {path}; re-evaluating the job"
         JobLog(folder)(line)
@@ -120,19 +136,28 @@ def _keep_damaged(job: Job, folder: Path) -> None:
 
 
 def _finished_outcome(job: Job, folder: Path) -> JobOutcome:
-    """The outcome of a job found finished (by `job_state`): its metrics and timings as its results.json records."""
+    """The outcome of a job found finished (by `job_state`): its metrics and timings as its
+    results.json records."""
     results = read_results(folder / RESULTS_FILE)
     timing = results.get("timing") or {}
     test = results["metrics"].get(job.test_split, {}).get("mean", {})
-    return JobOutcome(job.id, job.label, str(folder), "done", test, timing.get("train_seconds"),
-                      timing.get("render_fps"))
+    return JobOutcome(
+        job.id,
+        job.label,
+        str(folder),
+        "done",
+        test,
+        timing.get("train_seconds"),
+        timing.get("render_fps"),
+    )
 
 
 def _run_locked(job: Job, folder: Path, progress: bool, position: int) -> JobOutcome:
     log = JobLog(folder)
     started = utc_now()
     try:
-        if job.official is not None:  # the authors' code in its own process (olatbench.bench.official)
+        # the authors' code in its own process (olatbench.bench.official)
+        if job.official is not None:
             from olatbench.bench.official import run_official_job
 
             return run_official_job(job, folder, log, started)
@@ -140,14 +165,20 @@ def _run_locked(job: Job, folder: Path, progress: bool, position: int) -> JobOut
     except Exception as error:
         return _record_failure(job, folder, log, error, started)
     finally:
-        with contextlib.suppress(OSError):  # a folder that cannot be written holds no views file either
+        # a folder that cannot be written holds no views file either
+        with contextlib.suppress(OSError):
             (folder / VIEWS_FILE).unlink(missing_ok=True)
 
 
-def _record_failure(job: Job, folder: Path, log: JobLog, error: Exception, started: str) -> JobOutcome:
-    """Write error.txt, the log line and a failed results.json, as far as the disk allows; the outcome says what
-    could not be written (the job then stays partial or pending, and the next run retries it)."""
-    outcome = JobOutcome(job.id, job.label, str(folder), "failed", error=f"{type(error).__name__}: {error}")
+def _record_failure(
+    job: Job, folder: Path, log: JobLog, error: Exception, started: str
+) -> JobOutcome:
+    """Write error.txt, the log line and a failed results.json, as far as the disk allows; the
+    outcome says what could not be written (the job then stays partial or pending, and the next run
+    retries it)."""
+    outcome = JobOutcome(
+        job.id, job.label, str(folder), "failed", error=f"{type(error).__name__}: {error}"
+    )
     try:
         write_text(folder / ERROR_FILE, traceback.format_exc())
         log(f"FAILED: {type(error).__name__}: {error}")
@@ -158,12 +189,17 @@ def _record_failure(job: Job, folder: Path, log: JobLog, error: Exception, start
     return outcome
 
 
-def _run(job: Job, folder: Path, log: JobLog, progress: bool, position: int, started: str) -> JobOutcome:
+def _run(
+    job: Job, folder: Path, log: JobLog, progress: bool, position: int, started: str
+) -> JobOutcome:
     for stale in (ERROR_FILE, RESULTS_FILE, DONE_FILE):
         (folder / stale).unlink(missing_ok=True)
     write_json(folder / JOB_FILE, job.to_json())
     write_json(folder / "config.json", job.config)
-    log(f"job {job.id}: {job.method} on {job.suite}/{job.label}, {job.iterations} iterations, device {job.device}")
+    log(
+        f"job {job.id}: {job.method} on {job.suite}/{job.label}, {job.iterations} iterations, "
+        f"device {job.device}"
+    )
 
     if torch.device(job.device).type == "cuda":
         torch.cuda.reset_peak_memory_stats(job.device)
@@ -174,16 +210,23 @@ def _run(job: Job, folder: Path, log: JobLog, progress: bool, position: int, sta
     metrics: dict[str, Any] = {}
     files: dict[str, dict[str, Any]] = {}
     render_fps, refinement = None, None
-    for split, frames in ((job.train_split, scene.split(job.train_split)),
-                          (job.test_split, scene.split(job.test_split))):
-        exact = train_views.images.dtype == np.float32  # a float16 stack is for training, not for scoring
+    for split, frames in (
+        (job.train_split, scene.split(job.train_split)),
+        (job.test_split, scene.split(job.test_split)),
+    ):
+        # a float16 stack is for training, not for scoring
+        exact = train_views.images.dtype == np.float32
         gt_images = train_views.images if split == job.train_split and exact else None
-        metrics[split], fps, refined = evaluate_split(method, frames, job, folder, split, gt_images, progress,
-                                                      position, protocol=protocol)
+        metrics[split], fps, refined = evaluate_split(
+            method, frames, job, folder, split, gt_images, progress, position, protocol=protocol
+        )
         files[split] = scored_files(frames, folder, split)
         if split == job.test_split:
             render_fps, refinement = fps, refined
-        log(f"{split}: " + ", ".join(f"{k} {v:.4f}" for k, v in metrics[split]["mean"].items() if v is not None))
+        log(
+            f"{split}: "
+            + ", ".join(f"{k} {v:.4f}" for k, v in metrics[split]["mean"].items() if v is not None)
+        )
 
     novel = _novel_lights(method, train_views, job, folder, log, progress, position)
     results = _done_results(job, started, metrics, train_seconds, render_fps, method)
@@ -195,40 +238,75 @@ def _run(job: Job, folder: Path, log: JobLog, progress: bool, position: int, sta
     results["hashes"]["checkpoint"] = sha256_file(checkpoints[-1][1]) if checkpoints else None
     results["evaluation"]["test_time_refinement"] = refinement
     if protocol.fitting is not None:
-        results["evaluation"]["test_pose_fitting"] = {"mode": protocol.fitting, "split": job.test_split,
-                                                      "frames": protocol.fitted_views() or {}}
+        results["evaluation"]["test_pose_fitting"] = {
+            "mode": protocol.fitting,
+            "split": job.test_split,
+            "frames": protocol.fitted_views() or {},
+        }
     write_results(folder / RESULTS_FILE, results)
     prune_checkpoints(folder, keep=1)
     write_text(folder / DONE_FILE, job.id + "\n")
     log("done")
-    return JobOutcome(job.id, job.label, str(folder), "done", metrics[job.test_split]["mean"], train_seconds,
-                      render_fps)
+    return JobOutcome(
+        job.id,
+        job.label,
+        str(folder),
+        "done",
+        metrics[job.test_split]["mean"],
+        train_seconds,
+        render_fps,
+    )
 
 
-def _novel_lights(method: Method, train_views: Views, job: Job, folder: Path, log: JobLog, progress: bool,
-                  position: int) -> dict[str, Any] | None:
-    """When the job asks (``job.novel_lights``), the ``novel_lights`` block of its results: the trained method,
-    as it is in memory, scored under the scene's novel-light ground truth (`olatbench.bench.novel_lights`)."""
+def _novel_lights(
+    method: Method,
+    train_views: Views,
+    job: Job,
+    folder: Path,
+    log: JobLog,
+    progress: bool,
+    position: int,
+) -> dict[str, Any] | None:
+    """When the job asks (``job.novel_lights``), the ``novel_lights`` block of its results: the
+    trained method, as it is in memory, scored under the scene's novel-light ground truth
+    (`olatbench.bench.novel_lights`)."""
     if job.novel_lights is None:
         return None
     from olatbench.bench.novel_lights import NovelLightsOptions, score_novel_lights
     from olatbench.bench.relight import Relighter
 
-    block = score_novel_lights(Relighter.for_views(method, train_views), job, folder,
-                               NovelLightsOptions(**job.novel_lights), progress=progress, position=position)
-    log("novel lights: " + ", ".join(f"{name} {scores['mean']['psnr']:.2f} dB" for name, scores in
-                                     block["conditions"].items() if scores["mean"].get("psnr") is not None))
+    block = score_novel_lights(
+        Relighter.for_views(method, train_views),
+        job,
+        folder,
+        NovelLightsOptions(**job.novel_lights),
+        progress=progress,
+        position=position,
+    )
+    log(
+        "novel lights: "
+        + ", ".join(
+            f"{name} {scores['mean']['psnr']:.2f} dB"
+            for name, scores in block["conditions"].items()
+            if scores["mean"].get("psnr") is not None
+        )
+    )
     return block
 
 
-def prepare_method(job: Job, log: Callable[[str], None] = lambda line: None, progress: bool = False,
-                   position: int = 1) -> tuple[Method, EvaluationProtocol, Views, Scene]:
-    """Seed every RNG with ``job.seed``, read the scene, load its training views (with the job's initial points),
-    build the method from ``job.config`` and its evaluation protocol, attaching the test views when the protocol
-    fits their poses while the method trains: everything a job does before ``method.setup``, in the runner's
-    order. So ``method.setup(views, job.device, job.seed)`` followed by ``train_step(0)``, ``train_step(1)``, ...
-    reproduces the job's training bit for bit (``benchmarks/numerics_trace.py`` relies on it). ``log`` receives
-    the job log's lines."""
+def prepare_method(
+    job: Job,
+    log: Callable[[str], None] = lambda line: None,
+    progress: bool = False,
+    position: int = 1,
+) -> tuple[Method, EvaluationProtocol, Views, Scene]:
+    """Seed every RNG with ``job.seed``, read the scene, load its training views
+    (with the job's initial points), build the method from ``job.config`` and its evaluation
+    protocol, attaching the test views when the protocol fits their poses while the method trains:
+    everything a job does before ``method.setup``, in the runner's order. So ``method.setup(views,
+    job.device, job.seed)`` followed by ``train_step(0)``, ``train_step(1)``, ... reproduces the
+    job's training bit for bit (``benchmarks/numerics_trace.py`` relies on it). ``log`` receives the
+    job log's lines."""
     seed_everything(job.seed)
     scene = load_scene(job.scene_path, format=job.scene_format)
     clock = time.perf_counter()
@@ -236,21 +314,26 @@ def prepare_method(job: Job, log: Callable[[str], None] = lambda line: None, pro
     log(f"loaded {len(train_views)} training views in {time.perf_counter() - clock:.1f} s")
     if job.init_points:
         train_views = dataclasses.replace(
-            train_views, points=load_init_points(job.init_points, job.init_points_digest))
+            train_views, points=load_init_points(job.init_points, job.init_points_digest)
+        )
         log(f"starting from the {len(train_views.points)} points of {job.init_points}")
     method_class = load_method_class(job)
     method = method_class(method_class.resolve_config(None, **job.config))
     protocol = evaluation_protocol(method)
-    if protocol.fitting is not None:  # the protocol fits the test views' poses/lights while the method trains
-        test_views = load_views(scene.split(job.test_split), job, progress, position, frame=train_views.frame)
+    # the protocol fits the test views' poses/lights while the method trains
+    if protocol.fitting is not None:
+        test_views = load_views(
+            scene.split(job.test_split), job, progress, position, frame=train_views.frame
+        )
         protocol.attach_test_views(test_views)
         log(f"loaded {len(test_views)} test views for test_pose_fitting={protocol.fitting}")
     return method, protocol, train_views, scene
 
 
 def _adopt_reusable_model(job: Job, folder: Path, log: JobLog) -> dict[str, str] | None:
-    """Start from a finished sibling job's model when it is the same experiment (`olatbench.bench.reuse`);
-    returns ``{"job_id", "folder"}`` of the source (folder relative to the job's), or None."""
+    """Start from a finished sibling job's model when it is the same experiment
+    (`olatbench.bench.reuse`); returns ``{"job_id", "folder"}`` of the source
+    (folder relative to the job's), or None."""
     if not job.reuse or list_checkpoints(folder):
         return None
     found = find_reusable(job)
@@ -259,14 +342,18 @@ def _adopt_reusable_model(job: Job, folder: Path, log: JobLog) -> dict[str, str]
     source, source_id = found
     adopt_finished_model(job, source, source_id)
     relative = os.path.relpath(source, folder)
-    log(f"same experiment as job {source_id} ({relative}: equal config, data, code and seed): its trained model "
-        "is evaluated here instead of training again (--no-reuse trains anyway)")
+    log(
+        f"same experiment as job {source_id} ({relative}: equal config, data, code and seed): its "
+        "trained model is evaluated here instead of training again (--no-reuse trains anyway)"
+    )
     return {"job_id": source_id, "folder": Path(relative).as_posix()}
 
 
-def _train(method: Method, views: Views, job: Job, folder: Path, log: JobLog, progress: bool, position: int
-           ) -> float:
-    """Set the method up, resume from the newest checkpoint, train to the end; returns train seconds.
+def _train(
+    method: Method, views: Views, job: Job, folder: Path, log: JobLog, progress: bool, position: int
+) -> float:
+    """Set the method up, resume from the newest checkpoint, train to the end; returns train
+    seconds.
 
     Train seconds: ``setup`` plus the optimisation steps (checkpoint writes excluded), accumulated
     over resumed sessions.
@@ -280,7 +367,10 @@ def _train(method: Method, views: Views, job: Job, folder: Path, log: JobLog, pr
     clock = time.perf_counter()
     set_up()
     setup_seconds = time.perf_counter() - clock
-    log(f"device {job.device}; backends: {format_backends(method.backends()) or 'not reported by the method'}")
+    log(
+        f"device {job.device}; backends: "
+        f"{format_backends(method.backends()) or 'not reported by the method'}"
+    )
     floor = background_psnr(views.images, views.background) if views.images is not None else None
     health = RunHealth(method.num_gaussians, floor, job.iterations)
     start, train_seconds = 0, setup_seconds
@@ -292,15 +382,24 @@ def _train(method: Method, views: Views, job: Job, folder: Path, log: JobLog, pr
     every = job.checkpoint_every or max(1, iterations // 10)
     log_every = max(1, iterations // 2000)
     last_save = time.monotonic()
-    bar = progress_bar(total=iterations, initial=start, desc=job.label, position=position, leave=False,
-               disable=not progress, dynamic_ncols=True, mininterval=0.5)
+    bar = progress_bar(
+        total=iterations,
+        initial=start,
+        desc=job.label,
+        position=position,
+        leave=False,
+        disable=not progress,
+        dynamic_ncols=True,
+        mininterval=0.5,
+    )
     try:
         postfix_time = 0.0
         for step in range(start, iterations):
             clock = time.perf_counter()
             result = method.train_step(step)
             done = step + 1
-            scalars = None  # read from the device only at the logging interval (timed: it waits for the device)
+            # read from the device only at the logging interval (timed: it waits for the device)
+            scalars = None
             if done % log_every == 0 or done == iterations:
                 scalars = read_scalars(result)
             train_seconds += time.perf_counter() - clock
@@ -309,23 +408,31 @@ def _train(method: Method, views: Views, job: Job, folder: Path, log: JobLog, pr
                 health.observe(done, scalars)
                 train_log.write({"step": done, "seconds": round(train_seconds, 4), **scalars})
                 if time.monotonic() - postfix_time > 0.5:
-                    bar.set_postfix({k: f"{scalars[k]:.4g}" for k in ("loss", "psnr") if k in scalars},
-                                    refresh=False)
+                    bar.set_postfix(
+                        {k: f"{scalars[k]:.4g}" for k in ("loss", "psnr") if k in scalars},
+                        refresh=False,
+                    )
                     postfix_time = time.monotonic()
             due = done % every == 0 or time.monotonic() - last_save > 60 * job.checkpoint_minutes
             if due or done == iterations:
                 scalars = scalars or read_scalars(result)
                 train_log.flush()
-                save_checkpoint(folder, done, method.state_dict(), job.id, train_seconds, job.keep_checkpoints)
+                save_checkpoint(
+                    folder, done, method.state_dict(), job.id, train_seconds, job.keep_checkpoints
+                )
                 last_save = time.monotonic()
-                log(f"checkpoint at step {done}: " + ", ".join(f"{k} {v:.5g}" for k, v in scalars.items()))
+                log(
+                    f"checkpoint at step {done}: "
+                    + ", ".join(f"{k} {v:.5g}" for k, v in scalars.items())
+                )
                 for warning in record_warnings(folder, health.check()):
                     log(f"WARNING: {warning}")
                     progress_write(f"WARNING {job.label}: {warning}")
     finally:
         bar.close()
         train_log.close()
-    if iterations == 0 and payload is None:  # learning-free: its one state (built by setup) is what restore loads
+    # learning-free: its one state (built by setup) is what restore loads
+    if iterations == 0 and payload is None:
         save_checkpoint(folder, 0, method.state_dict(), job.id, train_seconds, job.keep_checkpoints)
         log("learning-free method (0 iterations): no training steps; state saved at step 0")
     elif start >= iterations:
@@ -334,23 +441,27 @@ def _train(method: Method, views: Views, job: Job, folder: Path, log: JobLog, pr
 
 
 def read_scalars(result: Mapping[str, Any]) -> dict[str, float]:
-    """A training step's scalars as floats: numbers, 0-d tensors or lazy scalars (`Method.train_step`), read
-    only at the logging interval and at checkpoints, the one host sync a GPU step leaves to the runner
-    (allowance "logging" of `olatbench.gaussians.host_sync`)."""
+    """A training step's scalars as floats: numbers, 0-d tensors or lazy scalars
+    (`Method.train_step`), read only at the logging interval and at checkpoints, the one host sync a
+    GPU step leaves to the runner (allowance "logging" of `olatbench.gaussians.host_sync`)."""
     with allowed_host_sync("logging"):
         return {key: float(value) for key, value in result.items()}
 
 
-def _resume(method: Method, folder: Path, job: Job, log: JobLog, set_up: Callable[[], None]) -> dict[str, Any] | None:
-    """Load the newest checkpoint of the folder that loads into ``method`` and restore its RNG states; returns its
-    payload (None: start from step 0).
+def _resume(
+    method: Method, folder: Path, job: Job, log: JobLog, set_up: Callable[[], None]
+) -> dict[str, Any] | None:
+    """Load the newest checkpoint of the folder that loads into ``method`` and restore its RNG
+    states; returns its payload (None: start from step 0).
 
-    A checkpoint that does not load, whatever the reason — torch cannot read it (cut short by a crash, a full disk,
-    a damaged file, not a zip, an object ``weights_only`` refuses), it is not a checkpoint of this format or of this
-    job, or the method refuses its state (another config, another method) — is renamed to ``<name>.unreadable``
-    (kept, no longer listed or pruned) and the next older one is tried; each such step is said, with the file and the
-    reason, in log.txt and on stderr. After the method refused a state (which may have changed part of it), it is set
-    up again (``set_up``, from the RNG states of the first set-up) before the next one is tried or training starts.
+    A checkpoint that does not load, whatever the reason — torch cannot read it (cut short by a
+    crash, a full disk, a damaged file, not a zip, an object ``weights_only`` refuses), it is not a
+    checkpoint of this format or of this job, or the method refuses its state (another config,
+    another method) — is renamed to ``<name>.unreadable`` (kept, no longer listed or pruned) and the
+    next older one is tried; each such step is said, with the file and the reason, in log.txt and on
+    stderr. After the method refused a state (which may have changed part of it), it is set up again
+    (``set_up``, from the RNG states of the first set-up) before the next one is tried or training
+    starts.
     """
     for _, path in reversed(list_checkpoints(folder)):
         try:
@@ -361,9 +472,15 @@ def _resume(method: Method, folder: Path, job: Job, log: JobLog, set_up: Callabl
         try:
             method.load_state_dict(payload["method"])
             restore_rng_states(payload["rng"])
-        except Exception as error:  # the method's own check (e.g. another model's tensors): any reason sets it aside
+        # the method's own check (e.g. another model's tensors): any reason sets it aside
+        except Exception as error:
             reason = str(error).strip().splitlines()[0] if str(error).strip() else "no message"
-            _set_aside(path, f"{path}: does not load into {job.method} ({type(error).__name__}: {reason})", job, log)
+            _set_aside(
+                path,
+                f"{path}: does not load into {job.method} ({type(error).__name__}: {reason})",
+                job,
+                log,
+            )
             set_up()
             continue
         log(f"resumed from {path.name} (step {payload['step']} of {job.iterations})")
@@ -372,7 +489,8 @@ def _resume(method: Method, folder: Path, job: Job, log: JobLog, set_up: Callabl
 
 
 def _set_aside(path: Path, reason: str, job: Job, log: JobLog) -> None:
-    """Rename a checkpoint that does not load to ``<name>.unreadable`` and say so in log.txt and on stderr."""
+    """Rename a checkpoint that does not load to ``<name>.unreadable`` and say so in log.txt and on
+    stderr."""
     aside = path.with_name(path.name + ".unreadable")
     os.replace(path, aside)
     message = f"{job.label}: {reason}; kept as {aside.name}, trying the next older checkpoint"
@@ -381,7 +499,8 @@ def _set_aside(path: Path, reason: str, job: Job, log: JobLog) -> None:
 
 
 class _TrainLog:
-    """``train_log.jsonl``: one JSON object per logged step; on resume, lines past the checkpoint go."""
+    """``train_log.jsonl``: one JSON object per logged step; on resume, lines past the checkpoint
+    go."""
 
     def __init__(self, path: Path, start: int) -> None:
         kept = []
@@ -410,25 +529,43 @@ def _to_numpy(image: torch.Tensor) -> np.ndarray:
     return image.detach().to(torch.float32).cpu().numpy()
 
 
-def evaluate_split(method: Method, frames: list[Frame], job: Job, folder: Path, split: str,
-                   gt_images: np.ndarray | None, progress: bool, position: int, *, protocol: EvaluationProtocol
-                   ) -> tuple[dict[str, Any], float | None, dict[str, Any] | None]:
-    """Render every frame of a split, save ``renders/<split>/<frame_id>.png`` (8-bit sRGB) and score it.
+def evaluate_split(
+    method: Method,
+    frames: list[Frame],
+    job: Job,
+    folder: Path,
+    split: str,
+    gt_images: np.ndarray | None,
+    progress: bool,
+    position: int,
+    *,
+    protocol: EvaluationProtocol,
+) -> tuple[dict[str, Any], float | None, dict[str, Any] | None]:
+    """Render every frame of a split, save ``renders/<split>/<frame_id>.png`` (8-bit sRGB) and score
+    it.
 
     Scores are computed in the suite's evaluation space (``job.colourspace``: sRGB for PNG data,
-    gamma 2.2 for GS³ EXRs, as the official scripts display them), against the ground truth `_ground_truth`
-    picks. Returns the metrics block ``{"mean": ..., "per_image": {frame_id: ...}}``, the render FPS (renders
-    only, after `WARMUP_RENDERS` warm-up renders; CUDA synchronised) and, when the evaluation protocol refines
-    test views (``protocol.refines``, test split only), ``{"split", "seconds", "frames": {frame_id: summary}}``:
-    each view's pose/light is then fitted to its image (training space) before the render that is scored.
+    gamma 2.2 for GS³ EXRs, as the official scripts display them), against the ground truth
+    `_ground_truth` picks. Returns the metrics block ``{"mean": ..., "per_image": {frame_id:
+    ...}}``, the render FPS (renders only, after `WARMUP_RENDERS` warm-up renders; CUDA
+    synchronised) and, when the evaluation protocol refines test views (``protocol.refines``, test
+    split only), ``{"split", "seconds", "frames": {frame_id: summary}}``: each view's pose/light is
+    then fitted to its image (training space) before the render that is scored.
     """
     scoring = get_protocol(job.protocol)
     refinement = _Refinement(split) if split == job.test_split and protocol.refines else None
     render_seconds, per_image = 0.0, {}
     with torch.no_grad():
         _warm_up(method, frames, job)
-        for index, frame in enumerate(progress_bar(frames, desc=f"{job.label}: {split}", position=position,
-                                                   leave=False, disable=not progress)):
+        for index, frame in enumerate(
+            progress_bar(
+                frames,
+                desc=f"{job.label}: {split}",
+                position=position,
+                leave=False,
+                disable=not progress,
+            )
+        ):
             camera, light, loaded = view_camera(frame, job), frame.light, None
             if refinement is not None:
                 camera, light, loaded = refinement.refine(protocol, frame, camera, light, job)
@@ -439,8 +576,11 @@ def evaluate_split(method: Method, frames: list[Frame], job: Job, folder: Path, 
             per_image[frame.frame_id] = score_image(scoring, pred, gt, mask, str(job.device))
             _save_outputs(folder, split, frame, pred, output, job)
     fps = len(frames) / render_seconds if render_seconds > 0 else None
-    return ({"mean": mean_scores(scoring, per_image), "per_image": per_image}, fps,
-            refinement.record() if refinement is not None else None)
+    return (
+        {"mean": mean_scores(scoring, per_image), "per_image": per_image},
+        fps,
+        refinement.record() if refinement is not None else None,
+    )
 
 
 def _warm_up(method: Method, frames: list[Frame], job: Job) -> None:
@@ -449,9 +589,11 @@ def _warm_up(method: Method, frames: list[Frame], job: Job) -> None:
         method.render(view_camera(frame, job), frame.light)
 
 
-def _timed_render(method: Method, camera: Camera, light: PointLight, device: str
-                  ) -> tuple[dict[str, torch.Tensor], float]:
-    """The method's render of one view and its wall-clock seconds (CUDA synchronised before and after)."""
+def _timed_render(
+    method: Method, camera: Camera, light: PointLight, device: str
+) -> tuple[dict[str, torch.Tensor], float]:
+    """The method's render of one view and its wall-clock seconds (CUDA synchronised before and
+    after)."""
     cuda = torch.device(device).type == "cuda"
     if cuda:
         torch.cuda.synchronize(device)
@@ -463,18 +605,27 @@ def _timed_render(method: Method, camera: Camera, light: PointLight, device: str
 
 
 class _Refinement:
-    """Test-time refinement of one split's views by the evaluation protocol: each view's image is loaded (training
-    space, official background), the protocol fits the view to it, and the summaries and seconds are kept."""
+    """Test-time refinement of one split's views by the evaluation protocol: each view's image is
+    loaded (training space, official background), the protocol fits the view to it, and the
+    summaries and seconds are kept."""
 
     def __init__(self, split: str) -> None:
         self.split, self.seconds, self.frames = split, 0.0, {}
 
-    def refine(self, protocol: EvaluationProtocol, frame: Frame, camera: Camera, light: PointLight, job: Job
-               ) -> tuple[Camera, PointLight, LoadedImage]:
+    def refine(
+        self,
+        protocol: EvaluationProtocol,
+        frame: Frame,
+        camera: Camera,
+        light: PointLight,
+        job: Job,
+    ) -> tuple[Camera, PointLight, LoadedImage]:
         """The camera and light to render ``frame`` with, and the image the protocol was given."""
         clock = time.perf_counter()
         resolution = tuple(job.resolution) if job.resolution else None
-        loaded = frame.load(colourspace=job.colourspace, background="official", resolution=resolution)
+        loaded = frame.load(
+            colourspace=job.colourspace, background="official", resolution=resolution
+        )
         refined = protocol.refine(camera, light, loaded.rgb)
         if refined is not None:
             camera, light = refined.camera, refined.light
@@ -487,15 +638,22 @@ class _Refinement:
         return {"split": self.split, "seconds": round(self.seconds, 3), "frames": self.frames}
 
 
-def _ground_truth(job: Job, scoring: Protocol, frame: Frame, index: int, gt_images: np.ndarray | None,
-                  loaded: LoadedImage | None) -> tuple[np.ndarray, np.ndarray | None]:
+def _ground_truth(
+    job: Job,
+    scoring: Protocol,
+    frame: Frame,
+    index: int,
+    gt_images: np.ndarray | None,
+    loaded: LoadedImage | None,
+) -> tuple[np.ndarray, np.ndarray | None]:
     """The ground truth (H, W, 3) and mask (H, W) or None a render of ``frame`` is scored against.
 
-    Protocols that reproduce an official pipeline score against its ground truth (e.g. 8-bit truncated), which
-    exists at the native resolution only (`olatbench.bench.outcome.ground_truth`). Otherwise ``gt_images`` (the
-    already loaded training views, row ``index``) when the protocol is unmasked, else the image test-time
-    refinement was given (``loaded``), else the frame loaded afresh. Masked protocols get the ground truth's
-    alpha as mask.
+    Protocols that reproduce an official pipeline score against its ground truth
+    (e.g. 8-bit truncated), which exists at the native resolution only
+    (`olatbench.bench.outcome.ground_truth`). Otherwise ``gt_images`` (the already loaded training
+    views, row ``index``) when the protocol is unmasked, else the image test-time refinement was
+    given (``loaded``), else the frame loaded afresh. Masked protocols get the ground truth's alpha
+    as mask.
     """
     resolution = tuple(job.resolution) if job.resolution else None
     official_gt = scoring.ground_truth == "official" and resolution is None
@@ -506,16 +664,27 @@ def _ground_truth(job: Job, scoring: Protocol, frame: Frame, index: int, gt_imag
     return ground_truth(job, scoring, frame)
 
 
-def _save_outputs(folder: Path, split: str, frame: Frame, pred: np.ndarray, output: dict[str, torch.Tensor],
-                  job: Job) -> None:
+def _save_outputs(
+    folder: Path,
+    split: str,
+    frame: Frame,
+    pred: np.ndarray,
+    output: dict[str, torch.Tensor],
+    job: Job,
+) -> None:
     """Save the scored render and, when the job asks (test split only), the method's components."""
     save_render(folder, split, frame, pred, job.colourspace)
     if job.save_components and split == job.test_split:
-        _save_components(output, folder / "components" / split, safe_file_stem(frame.frame_id), job.colourspace)
+        _save_components(
+            output, folder / "components" / split, safe_file_stem(frame.frame_id), job.colourspace
+        )
 
 
-def _save_components(output: dict[str, torch.Tensor], directory: Path, stem: str, colourspace: str) -> None:
-    """Save each non-``rgb`` component: 3-channel ones encoded like ``rgb`` (sRGB 8-bit), scalar maps as is."""
+def _save_components(
+    output: dict[str, torch.Tensor], directory: Path, stem: str, colourspace: str
+) -> None:
+    """Save each non-``rgb`` component: 3-channel ones encoded like ``rgb`` (sRGB 8-bit), scalar
+    maps as is."""
     for name, tensor in output.items():
         if name == "rgb" or not isinstance(tensor, torch.Tensor) or tensor.dim() not in (2, 3):
             continue
@@ -527,19 +696,30 @@ def _save_components(output: dict[str, torch.Tensor], directory: Path, stem: str
         write_image(directory / name / f"{stem}.png", np.clip(image, 0.0, 1.0))
 
 
-def _done_results(job: Job, started: str, metrics: dict[str, Any], train_seconds: float,
-                  render_fps: float | None, method: Method) -> dict[str, Any]:
+def _done_results(
+    job: Job,
+    started: str,
+    metrics: dict[str, Any],
+    train_seconds: float,
+    render_fps: float | None,
+    method: Method,
+) -> dict[str, Any]:
     results = base_results(job, "done", started)
     results["metrics"] = metrics
-    results["timing"].update(train_seconds=round(train_seconds, 3),
-                             render_fps=round(render_fps, 3) if render_fps else None)
+    results["timing"].update(
+        train_seconds=round(train_seconds, 3),
+        render_fps=round(render_fps, 3) if render_fps else None,
+    )
     if torch.device(job.device).type == "cuda":
-        results["resources"]["cuda_peak_mb"] = round(torch.cuda.max_memory_allocated(job.device) / 2**20, 1)
+        results["resources"]["cuda_peak_mb"] = round(
+            torch.cuda.max_memory_allocated(job.device) / 2**20, 1
+        )
     results["model"]["num_gaussians"] = method.num_gaussians
     results["resources"].update(backend_fields(job, method))
     return results
 
 
 def backend_fields(job: Job, method: Method) -> dict[str, Any]:
-    """``device`` and ``backends`` (stage -> implementation, see `olatbench.methods.backends`) for results.json."""
+    """``device`` and ``backends`` (stage -> implementation, see `olatbench.methods.backends`) for
+    results.json."""
     return {"device": job.device, "backends": method.backends()}

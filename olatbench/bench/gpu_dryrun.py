@@ -1,19 +1,22 @@
-"""The fake-CUDA dry run of the Gaussian methods' GPU path: every host sync and device mix of a training step, found
-on any machine (`olatbench doctor --fake-cuda`; docs/gpu.md).
+"""The fake-CUDA dry run of the Gaussian methods' GPU path: every host sync and device mix of a
+training step, found on any machine (`olatbench doctor --fake-cuda`; docs/gpu.md).
 
-For SSD-GS (its ``nrhints`` preset: camera-matched light framing, camera and light refinement, test views fitted
-during training, a count cap), GS³ (its light view fitted to the Gaussians) and 3DGS, on a few views of the
-closed-form sphere (`olatbench.datasets.synth.analytic`) shortened to `ITERATIONS` steps, under
-`olatbench.gaussians.fake_cuda.fake_cuda` on ``device="cuda"``: ``setup``; ``train_step`` at the first step, then at
-the first densification step after every schedule phase has begun (SSD-GS's and GS³'s terms, frozen windows and
-refinements, 3DGS's SH degrees), and the step after it (with two training views the second of these starts a new
-epoch, and SSD-GS's ``nrhints`` preset fits its test views there); after each step the runner's logging read
-(`olatbench.bench.execute.read_scalars`); and one ``render``. The light-view pass runs inside SSD-GS's and GS³'s
-steps and renders once the shadow term is on: framed by the camera (SSD-GS ``nrhints``) and fitted to the
-Gaussians (GS³; SSD-GS's ``mini`` preset frames it the same way, through the same code).
+For SSD-GS (its ``nrhints`` preset: camera-matched light framing, camera and light refinement, test
+views fitted during training, a count cap), GS³ (its light view fitted to the Gaussians) and 3DGS,
+on a few views of the closed-form sphere (`olatbench.datasets.synth.analytic`) shortened to
+`ITERATIONS` steps, under `olatbench.gaussians.fake_cuda.fake_cuda` on ``device="cuda"``: ``setup``;
+``train_step`` at the first step, then at the first densification step after every schedule phase
+has begun (SSD-GS's and GS³'s terms, frozen windows and refinements, 3DGS's SH degrees), and the
+step after it (with two training views the second of these starts a new epoch, and SSD-GS's
+``nrhints`` preset fits its test views there); after each step the runner's logging read
+(`olatbench.bench.execute.read_scalars`); and one ``render``. The light-view pass runs inside
+SSD-GS's and GS³'s steps and renders once the shadow term is on: framed by the camera
+(SSD-GS ``nrhints``) and fitted to the Gaussians (GS³; SSD-GS's ``mini`` preset frames it the same
+way, through the same code).
 
-A finding fails the run (`DryRun.violations`) when it is a device mix anywhere, or a host sync inside a step or a
-render outside the allowances named in `olatbench.gaussians.host_sync` (or over an allowance's limit).
+A finding fails the run (`DryRun.violations`) when it is a device mix anywhere, or a host sync
+inside a step or a render outside the allowances named in `olatbench.gaussians.host_sync`
+(or over an allowance's limit).
 """
 
 from __future__ import annotations
@@ -28,7 +31,8 @@ from olatbench.datasets.synth.analytic import render_sphere, sphere_rig
 from olatbench.methods.base import Views
 
 ITERATIONS = 100  # the schedules scaled to this many steps: every phase begins by step 22
-#: (label, method, preset, overrides): small models and light views; 3DGS raises its SH degree every 5 steps.
+#: (label, method, preset, overrides): small models and light views; 3DGS raises its SH degree every
+#: 5 steps.
 CASES: tuple[tuple[str, str, str | None, dict[str, Any]], ...] = (
     ("ssdgs", "ssdgs", "nrhints", {"shadow_resolution": 16, "max_gaussians": 80}),
     ("gs3", "gs3", None, {"shadow_resolution": 16}),
@@ -40,8 +44,8 @@ GAUSSIANS, SIZE, TRAIN_VIEWS = 64, 24, 2
 
 @dataclass
 class DryRun:
-    """What the dry run did (``log``: one line per stage) and found (``findings``, in order); ``errors``: a case
-    that stopped with an exception (its message)."""
+    """What the dry run did (``log``: one line per stage) and found (``findings``, in order);
+    ``errors``: a case that stopped with an exception (its message)."""
 
     findings: list = field(default_factory=list)
     log: list[str] = field(default_factory=list)
@@ -49,17 +53,27 @@ class DryRun:
 
     def violations(self) -> list:
         """Device mixes, and syncs of a step or render outside an allowance or over its limit."""
-        return [f for f in self.findings if f.kind == "device mix" or (
-            f.kind == "sync" and f.phase.split(": ", 1)[-1].startswith(("train_step", "render"))
-            and (f.allowance is None or f.over_limit))]
+        return [
+            f
+            for f in self.findings
+            if f.kind == "device mix"
+            or (
+                f.kind == "sync"
+                and f.phase.split(": ", 1)[-1].startswith(("train_step", "render"))
+                and (f.allowance is None or f.over_limit)
+            )
+        ]
 
     def report(self) -> str:
         """A readable report: the stages, every finding (file:line), the violations and errors."""
         lines = ["fake-CUDA dry run of the GPU path (docs/gpu.md)", *self.log, "", "findings:"]
         lines += [f"  {f.line()}" for f in self.findings] or ["  none"]
         bad = self.violations()
-        lines += ["", f"violations ({len(bad)}): device mixes, and host syncs in a step or render outside the "
-                  "allowances of olatbench.gaussians.host_sync"]
+        lines += [
+            "",
+            f"violations ({len(bad)}): device mixes, and host syncs in a step or render outside "
+            "the allowances of olatbench.gaussians.host_sync",
+        ]
         lines += [f"  {f.line()}" for f in bad]
         lines += [f"error: {e}" for e in self.errors]
         return "\n".join(lines)
@@ -68,9 +82,16 @@ class DryRun:
 def sphere_views(n: int, seed: int) -> Views:
     """``n`` views of the closed-form Lambertian sphere, ``SIZE``² pixels, black background."""
     cameras, lights = sphere_rig(n, SIZE, seed)
-    images = np.stack([render_sphere(c, lt) for c, lt in zip(cameras, lights, strict=True)]).astype(np.float32)
-    return Views(cameras=cameras, lights=lights, images=images, frame_ids=[f"{seed}-{i}" for i in range(n)],
-                 scene_name="lambert-sphere")
+    images = np.stack([render_sphere(c, lt) for c, lt in zip(cameras, lights, strict=True)]).astype(
+        np.float32
+    )
+    return Views(
+        cameras=cameras,
+        lights=lights,
+        images=images,
+        frame_ids=[f"{seed}-{i}" for i in range(n)],
+        scene_name="lambert-sphere",
+    )
 
 
 def densification_step(method: Any, start: int) -> int:
@@ -82,11 +103,15 @@ def densification_step(method: Any, start: int) -> int:
     raise ValueError(f"no densification step from {start} before {cfg.densify_until}")
 
 
-def _case(label: str, name: str, preset: str | None, overrides: dict[str, Any], run: DryRun, recorder: Any) -> None:
+def _case(
+    label: str, name: str, preset: str | None, overrides: dict[str, Any], run: DryRun, recorder: Any
+) -> None:
     from olatbench.methods.registry import get_spec
 
     spec = get_spec(name)
-    config = spec.resolve_config(preset, iterations=ITERATIONS, num_init_gaussians=GAUSSIANS, **overrides)
+    config = spec.resolve_config(
+        preset, iterations=ITERATIONS, num_init_gaussians=GAUSSIANS, **overrides
+    )
     method = spec.load_implementation()(config)
     train, test = sphere_views(TRAIN_VIEWS, seed=0), sphere_views(1, seed=1)
     if name == "ssdgs":
@@ -99,15 +124,18 @@ def _case(label: str, name: str, preset: str | None, overrides: dict[str, Any], 
         result = method.train_step(at)
         recorder.phase = f"{label}: logging after step {at}"
         read_scalars(result)
-    run.log.append(f"{label}: setup, train_step 0, {step} (densifies), {step + 1}; {method.num_gaussians} Gaussians "
-                   f"(fake count); backends {method.backends()}")
+    run.log.append(
+        f"{label}: setup, train_step 0, {step} (densifies), {step + 1}; {method.num_gaussians} "
+        f"Gaussians (fake count); backends {method.backends()}"
+    )
     recorder.phase = f"{label}: render"
     method.render(test.cameras[0], test.lights[0])
 
 
 def dry_run(cases: tuple[tuple[str, str, str | None, dict[str, Any]], ...] = CASES) -> DryRun:
-    """Run `CASES` (or ``cases``) under fake CUDA; returns what was found (see the module docstring). Raises
-    ``olatbench._native.BuildError`` when the no-op CUDA guard cannot be built, ImportError without gsplat."""
+    """Run `CASES` (or ``cases``) under fake CUDA; returns what was found
+    (see the module docstring). Raises ``olatbench._native.BuildError`` when the no-op CUDA guard
+    cannot be built, ImportError without gsplat."""
     from olatbench.gaussians.fake_cuda import fake_cuda
 
     run = DryRun()

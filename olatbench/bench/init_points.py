@@ -1,13 +1,14 @@
-"""The point cloud a job's Gaussians start from: a scene folder's ``points3d.ply`` (where the official 3DGS, GS³
-and SSD-GS loaders look for one) or a file given with ``run --init-points``, for methods with the ``init_points``
-capability (`olatbench.methods.spec.CAPABILITIES`).
+"""The point cloud a job's Gaussians start from: a scene folder's ``points3d.ply`` (where the
+official 3DGS, GS³ and SSD-GS loaders look for one) or a file given with ``run --init-points``, for
+methods with the ``init_points`` capability (`olatbench.methods.spec.CAPABILITIES`).
 
-The plan records the file (``Job.init_points``) and its content digest (``Job.init_points_digest``, part of the job
-id); the runner reads it in the dataset's world units and hands it to the method as ``Views.points``, which
-`Views.in_frame` moves into the method's canonical frame with the cameras and lights (`olatbench.datasets.similarity`,
-the one place a frame is applied). Only positions are
-used: every Gaussian starts on a point, scaled by its nearest neighbours (`GaussianModel.from_points`); the file's
-colours are not (the methods learn their own albedo / SH from the images).
+The plan records the file (``Job.init_points``) and its content digest (``Job.init_points_digest``,
+part of the job id); the runner reads it in the dataset's world units and hands it to the method as
+``Views.points``, which `Views.in_frame` moves into the method's canonical frame with the cameras
+and lights (`olatbench.datasets.similarity`, the one place a frame is applied). Only positions are
+used: every Gaussian starts on a point, scaled by its nearest neighbours
+(`GaussianModel.from_points`); the file's colours are not (the methods learn their own albedo / SH
+from the images).
 """
 
 from __future__ import annotations
@@ -27,8 +28,8 @@ class InitPointsError(ValueError):
 
 
 def init_points_file(scene_path: str | Path | None, given: str | Path | None = None) -> Path | None:
-    """The point cloud to start from: ``given`` (``--init-points``), else the scene folder's ``points3d.ply`` when
-    it has one, else None."""
+    """The point cloud to start from: ``given`` (``--init-points``), else the scene folder's
+    ``points3d.ply`` when it has one, else None."""
     if given is not None:
         path = Path(given)
         if not path.is_file():
@@ -45,9 +46,11 @@ def points_digest(path: str | Path) -> str:
 
 
 def load_init_points(path: str | Path, digest: str | None) -> np.ndarray:
-    """The points (P, 3) float64 of ``path`` in the dataset's world frame; an `InitPointsError` when the file cannot be
-    read, holds no point, or no longer has the content ``digest`` the job was planned with."""
-    from olatbench.gaussians.ply import PlyError, read_ply_points  # the Gaussian package imports torch: plans do not
+    """The points (P, 3) float64 of ``path`` in the dataset's world frame; an `InitPointsError` when
+    the file cannot be read, holds no point, or no longer has the content ``digest`` the job was
+    planned with."""
+    # the Gaussian package imports torch: plans do not
+    from olatbench.gaussians.ply import PlyError, read_ply_points
 
     path = Path(path)
     try:
@@ -64,4 +67,10 @@ def load_init_points(path: str | Path, digest: str | None) -> np.ndarray:
     return np.asarray(points, dtype=np.float64).reshape(-1, 3)
 
 
-__all__ = ["SCENE_POINTS_FILE", "InitPointsError", "init_points_file", "load_init_points", "points_digest"]
+__all__ = [
+    "SCENE_POINTS_FILE",
+    "InitPointsError",
+    "init_points_file",
+    "load_init_points",
+    "points_digest",
+]

@@ -3,22 +3,24 @@
 A job's id is a content hash of everything that decides its result:
 
 * the method name and its fully resolved config (after suite preset, variant preset and overrides),
-* the suite, scene, seed, training colour space, image resolution, the train/test split names and the frame the
-  method works in (when it is not the dataset's own),
-* the scene's data manifest (`data_manifest_hash`: every file's relative path and content hash, but those of its
-  ``novel_lights/`` folder, the ground truth under new illumination installed on first use, which neither training
-  nor the test split reads: installing it leaves the scene's jobs as they were),
-* the point cloud the Gaussians start from, when one is used (``init_points_digest``: its content hash; the
-  file's path is not part of the id),
+* the suite, scene, seed, training colour space, image resolution, the train/test split names and
+  the frame the method works in (when it is not the dataset's own),
+* the scene's data manifest (`data_manifest_hash`: every file's relative path and content hash, but
+  those of its ``novel_lights/`` folder, the ground truth under new illumination installed on first
+  use, which neither training nor the test split reads: installing it leaves the scene's jobs as
+  they were),
+* the point cloud the Gaussians start from, when one is used (``init_points_digest``: its content
+  hash; the file's path is not part of the id),
 * the evaluation protocol id and version,
-* the code version (`code_hash`: olatbench's version, the method's source files and the
-  Gaussian core's sources; for official implementations the ``olatbench/methods/official`` package, which holds
-  the pinned commit and the command lines).
+* the code version (`code_hash`: olatbench's version, the method's source files and the Gaussian
+  core's sources; for official implementations the ``olatbench/methods/official`` package, which
+  holds the pinned commit and the command lines).
 
-Settings that do not change the result (device, output folder, checkpoint cadence, extra evaluations such as the
-novel-light scores, executor, where an official implementation's checkout and environment live, why a derived preset
-chose its values and where each config value came from: the values are in the config) are kept out of the id, so a
-job moved to another machine or resumed elsewhere keeps its id.
+Settings that do not change the result (device, output folder, checkpoint cadence, extra evaluations
+such as the novel-light scores, executor, where an official implementation's checkout and
+environment live, why a derived preset chose its values and where each config value came from: the
+values are in the config) are kept out of the id, so a job moved to another machine or resumed
+elsewhere keeps its id.
 """
 
 from __future__ import annotations
@@ -77,21 +79,29 @@ class Job:
     # after the OLAT evaluation, score the test cameras under the scene's novel-light ground truth
     # (`olatbench.bench.novel_lights.NovelLightsOptions` as a dict: samples, views); None: not asked
     novel_lights: dict[str, Any] | None = None
-    official: dict[str, Any] | None = None  # official code only: where it lives and runs (settings.CodeSettings)
-    reuse: bool = True  # start from a finished job of the same experiment under another variant name (bench.reuse)
-    init_points: str = ""  # the point PLY the Gaussians start from (bench.init_points), "" for the method's own init
-    init_points_digest: str | None = None  # its content digest (`file_digest`), part of the id when set
-    # the frame the method works in (`Suite.frame`): "dataset" (the data's world frame; jobs written before the
-    # field existed, and the official codes, which read the files as they are) or "fitted" (the canonical frame of
-    # the training cameras, `bench.views.job_frame`); in the identity when not "dataset"
+    # official code only: where it lives and runs (settings.CodeSettings)
+    official: dict[str, Any] | None = None
+    # start from a finished job of the same experiment under another variant name (bench.reuse)
+    reuse: bool = True
+    # the point PLY the Gaussians start from (bench.init_points), "" for the method's own init
+    init_points: str = ""
+    # its content digest (`file_digest`), part of the id when set
+    init_points_digest: str | None = None
+    # the frame the method works in (`Suite.frame`): "dataset" (the data's world frame; jobs written
+    # before the field existed, and the official codes, which read the files as they are) or
+    # "fitted" (the canonical frame of the training cameras, `bench.views.job_frame`); in the
+    # identity when not "dataset"
     frame: str = "dataset"
-    derived: dict[str, str] = field(default_factory=dict)  # field -> why, for a preset derived from the scene
-    # {"grid", "reference"}: the method's ablation grid the variant belongs to and the variant it is compared with
-    # (`MethodSpec.ablation_of`); None outside grids and in job.json files written before the field (the reports
-    # then ask the method's spec, `olatbench.bench.ablation.job_ablation`). Not in the identity: it names, it
-    # does not decide, the result
+    # field -> why, for a preset derived from the scene
+    derived: dict[str, str] = field(default_factory=dict)
+    # {"grid", "reference"}: the method's ablation grid the variant belongs to and the variant it is
+    # compared with (`MethodSpec.ablation_of`); None outside grids and in job.json files written
+    # before the field (the reports then ask the method's spec,
+    # `olatbench.bench.ablation.job_ablation`). Not in the identity: it names, it does not decide,
+    # the result
     ablation: dict[str, str] | None = None
-    # config field -> where its value came from (olatbench.methods.resolve: default, suite preset, variant, --set)
+    # config field -> where its value came from (olatbench.methods.resolve: default, suite preset,
+    # variant, --set)
     sources: dict[str, str] = field(default_factory=dict)
     id: str = field(default="")
 
@@ -134,33 +144,52 @@ class Job:
 
     @classmethod
     def from_json(cls, data: Mapping[str, Any]) -> Job:
-        """Inverse of `to_json` (also of its JSON text parsed back: ``resolution`` becomes a tuple again).
+        """Inverse of `to_json` (also of its JSON text parsed back: ``resolution`` becomes a tuple
+        again).
 
-        A `ValueError` names missing or unknown keys, and an ``identity`` that does not match the fields it is
-        computed from (a hand-edited job.json). ``id`` is taken as written, not recomputed.
+        A `ValueError` names missing or unknown keys, and an ``identity`` that does not match the
+        fields it is computed from (a hand-edited job.json). ``id`` is taken as written, not
+        recomputed.
         """
         values = dict(data)
         identity = values.pop("identity", None)
         known = {f.name: f for f in dataclasses.fields(cls)}
         unknown = sorted(set(values) - set(known))
-        missing = sorted(name for name, f in known.items() if name not in values
-                         and f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING)
+        missing = sorted(
+            name
+            for name, f in known.items()
+            if name not in values
+            and f.default is dataclasses.MISSING
+            and f.default_factory is dataclasses.MISSING
+        )
         if unknown or missing:
-            raise ValueError("not a job of this olatbench version: "
-                             + "; ".join(part for part in (f"missing keys {', '.join(missing)}" if missing else "",
-                                                           f"unknown keys {', '.join(unknown)}" if unknown else "")
-                                         if part))
+            raise ValueError(
+                "not a job of this olatbench version: "
+                + "; ".join(
+                    part
+                    for part in (
+                        f"missing keys {', '.join(missing)}" if missing else "",
+                        f"unknown keys {', '.join(unknown)}" if unknown else "",
+                    )
+                    if part
+                )
+            )
         if values.get("resolution") is not None:
             values["resolution"] = tuple(int(v) for v in values["resolution"])
         job = cls(**values)
         if identity is not None and hash_json(identity) != hash_json(job.identity()):
-            changed = sorted(k for k, v in job.identity().items() if hash_json(v) != hash_json(identity.get(k)))
-            raise ValueError(f"its identity does not match its fields ({', '.join(changed)}); was it edited?")
+            changed = sorted(
+                k for k, v in job.identity().items() if hash_json(v) != hash_json(identity.get(k))
+            )
+            raise ValueError(
+                f"its identity does not match its fields ({', '.join(changed)}); was it edited?"
+            )
         return job
 
 
 def hash_json(data: Any) -> str:
-    """SHA-256 hex digest of canonical JSON (sorted keys, no whitespace; non-JSON values via ``str``)."""
+    """SHA-256 hex digest of canonical JSON (sorted keys, no whitespace; non-JSON values via
+    ``str``)."""
     text = json.dumps(data, sort_keys=True, separators=(",", ":"), default=str, allow_nan=True)
     return hashlib.sha256(text.encode("utf-8")).hexdigest()
 
@@ -180,13 +209,17 @@ def file_digest(path: Path) -> str:
 
 
 def _hash_cache_path(root: Path) -> Path:
-    cache = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "olatbench" / "file-hashes"
+    cache = (
+        Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
+        / "olatbench"
+        / "file-hashes"
+    )
     return cache / (hashlib.sha256(str(root.resolve()).encode()).hexdigest()[:24] + ".json")
 
 
 def data_manifest_hash(root: str | Path, use_cache: bool = True) -> str:
-    """Hash of a scene folder: every non-hidden file's relative path and content digest, but its ``novel_lights/``
-    folder's (module docstring).
+    """Hash of a scene folder: every non-hidden file's relative path and content digest, but its
+    ``novel_lights/`` folder's (module docstring).
 
     Content digests are cached per file under ``$XDG_CACHE_HOME/olatbench/file-hashes`` keyed by
     (size, mtime in ns), as git's index does: a re-plan reads only files that changed, and a copy
@@ -195,8 +228,13 @@ def data_manifest_hash(root: str | Path, use_cache: bool = True) -> str:
     root = Path(root)
     if not root.is_dir():
         raise FileNotFoundError(f"{root}: scene folder not found")
-    files = sorted(p for p in root.rglob("*") if p.is_file() and p.relative_to(root).parts[0] != NOVEL_LIGHTS_FOLDER
-                   and not any(part.startswith(".") for part in p.relative_to(root).parts))
+    files = sorted(
+        p
+        for p in root.rglob("*")
+        if p.is_file()
+        and p.relative_to(root).parts[0] != NOVEL_LIGHTS_FOLDER
+        and not any(part.startswith(".") for part in p.relative_to(root).parts)
+    )
     cache_file = _hash_cache_path(root)
     cache: dict[str, list] = {}
     if use_cache and cache_file.is_file():
@@ -216,14 +254,15 @@ def data_manifest_hash(root: str | Path, use_cache: bool = True) -> str:
         fresh[relative] = [stat.st_size, stat.st_mtime_ns, digest]
         entries.append([relative, digest])
     if use_cache and fresh != cache:
-        with contextlib.suppress(OSError):  # the cache is an optimisation; the hash is complete without it
+        # the cache is an optimisation; the hash is complete without it
+        with contextlib.suppress(OSError):
             write_json(cache_file, fresh, indent=0)
     return hash_json(entries)
 
 
 def _module_file(module_name: str) -> Path:
-    """The source file of ``module_name``, found without executing it (its parent packages are imported:
-    the method packages keep their ``__init__`` torch-free so dry runs stay light)."""
+    """The source file of ``module_name``, found without executing it (its parent packages are
+    imported: the method packages keep their ``__init__`` torch-free so dry runs stay light)."""
     try:
         found = importlib.util.find_spec(module_name)
     except (ImportError, ValueError) as error:
@@ -235,8 +274,8 @@ def _module_file(module_name: str) -> Path:
 
 def _method_source_files(implementation: type | str) -> list[Path]:
     """The method's source: its whole folder for ``olatbench.methods.<name>`` packages and for
-    classes defined in a package ``__init__``; its module file otherwise. ``implementation`` is the class or its
-    ``"module:Class"`` reference (located, not imported)."""
+    classes defined in a package ``__init__``; its module file otherwise. ``implementation`` is the
+    class or its ``"module:Class"`` reference (located, not imported)."""
     if isinstance(implementation, str):
         module_name = implementation.partition(":")[0]
         path = _module_file(module_name)
@@ -253,11 +292,14 @@ def _method_source_files(implementation: type | str) -> list[Path]:
 
 
 def _core_source_files() -> list[Path]:
-    """The code every Gaussian method runs besides its own package: the Gaussian core (Python and C++), the shared
-    method modules (``olatbench/methods/*.py``: interface, training helpers, Gaussian-method base) and the shared
-    shading blocks (``olatbench/methods/shading/``)."""
+    """The code every Gaussian method runs besides its own package: the Gaussian core
+    (Python and C++), the shared method modules (``olatbench/methods/*.py``: interface, training
+    helpers, Gaussian-method base) and the shared shading blocks
+    (``olatbench/methods/shading/``)."""
     package = Path(__file__).resolve().parent.parent
-    core = sorted(p for p in (package / "gaussians").rglob("*") if p.suffix in (".py", ".cpp", ".h", ".cu"))
+    core = sorted(
+        p for p in (package / "gaussians").rglob("*") if p.suffix in (".py", ".cpp", ".h", ".cu")
+    )
     methods = package / "methods"
     return core + sorted(methods.glob("*.py")) + sorted((methods / "shading").rglob("*.py"))
 
@@ -265,8 +307,9 @@ def _core_source_files() -> list[Path]:
 def code_hash(implementation: type | str) -> str:
     """Hash of the code that decides a method's result: olatbench version, method and core sources.
 
-    ``implementation`` is the method class or its ``"module:Class"`` reference (a spec's ``implementation``);
-    both give the same hash, and the reference is never imported (no torch at plan time)."""
+    ``implementation`` is the method class or its ``"module:Class"`` reference
+    (a spec's ``implementation``); both give the same hash, and the reference is never imported
+    (no torch at plan time)."""
     from olatbench import __version__
 
     digest = hashlib.sha256(__version__.encode())

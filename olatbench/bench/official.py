@@ -1,12 +1,15 @@
-"""Run one job of an official implementation: the runner's counterpart of the in-process training loop.
+"""Run one job of an official implementation: the runner's counterpart of the in-process training
+loop.
 
-In the job folder: ``job.json`` and ``config.json`` first; ``official/`` (the converted scene and the official
-scripts' outputs; the scripts cannot resume a command, so an interrupted job reruns the commands that had not
-finished: `olatbench.methods.official.runner`); every command's output appended to ``log.txt``; the test renders
-copied to ``renders/<test split>/<frame id>.png`` (8-bit sRGB, as every method's); ``results.json`` scored under the
-suite's protocol with ``method_kind: "official"`` and an ``official`` block (repository, pinned and checked-out
-commit, launcher, command lines with exit codes and wall times); ``DONE`` last. A failing command leaves
-``error.txt`` (the log's last lines, then one line with the step and exit code) and a failed ``results.json``.
+In the job folder: ``job.json`` and ``config.json`` first; ``official/`` (the converted scene and
+the official scripts' outputs; the scripts cannot resume a command, so an interrupted job reruns the
+commands that had not finished: `olatbench.methods.official.runner`); every command's output
+appended to ``log.txt``; the test renders copied to ``renders/<test split>/<frame id>.png`` (8-bit
+sRGB, as every method's); ``results.json`` scored under the suite's protocol with
+``method_kind: "official"`` and an ``official`` block (repository, pinned and checked-out commit,
+launcher, command lines with exit codes and wall times); ``DONE`` last. A failing command leaves
+``error.txt`` (the log's last lines, then one line with the step and exit code) and a failed
+``results.json``.
 """
 
 from __future__ import annotations
@@ -43,38 +46,63 @@ from olatbench.metrics.evaluate import read_prediction
 
 
 def run_official_job(job: Job, folder: Path, log: JobLog, started: str) -> JobOutcome:
-    """Convert, run the official commands, score their renders, write results (module docstring); ``started``:
-    the UTC time the job started (results.json ``timing.started``)."""
+    """Convert, run the official commands, score their renders, write results (module docstring);
+    ``started``: the UTC time the job started (results.json ``timing.started``)."""
     for stale in (ERROR_FILE, RESULTS_FILE, DONE_FILE):
         (folder / stale).unlink(missing_ok=True)
     write_json(folder / JOB_FILE, job.to_json())
     write_json(folder / "config.json", job.config)
     code: OfficialCode = import_reference(job.method_ref)
     settings = CodeSettings.from_json(job.official or {"method": job.method})
-    config: OfficialConfig = get_spec(job.method).resolve_config(None, **job.config)  # the one resolver
-    log(f"job {job.id}: {job.method} (official code) on {job.suite}/{job.label}, {config.iterations} iterations; "
-        f"official scripts cannot resume: commands that had not finished run from their start")
+    # the one resolver
+    config: OfficialConfig = get_spec(job.method).resolve_config(None, **job.config)
+    log(
+        f"job {job.id}: {job.method} (official code) on {job.suite}/{job.label}, "
+        f"{config.iterations} iterations; official scripts cannot resume: commands that had not "
+        "finished run from their start"
+    )
     scene = load_scene(job.scene_path, format=job.scene_format)
     run: OfficialRun | None = None
     try:
-        run = prepare(code, settings, scene, folder / OFFICIAL_DIR, job.suite, job.train_split, job.test_split,
-                      tuple(job.resolution) if job.resolution else None, config, job.seed)
+        run = prepare(
+            code,
+            settings,
+            scene,
+            folder / OFFICIAL_DIR,
+            job.suite,
+            job.train_split,
+            job.test_split,
+            tuple(job.resolution) if job.resolution else None,
+            config,
+            job.seed,
+        )
         log(f"scene written as {code.data_format(job.suite)} to {run.scene_dir}")
         _share_threads(run)
         execute(run, log.path)
-        metrics = {job.test_split: _score(job, scene.split(job.test_split), collect(run), run.colourspace,
-                                          folder)}
+        metrics = {
+            job.test_split: _score(
+                job, scene.split(job.test_split), collect(run), run.colourspace, folder
+            )
+        }
     except OfficialRunError as error:
         return _failed(job, folder, log, error, run, started)
-    shutil.rmtree(run.scene_dir, ignore_errors=True)  # a copy of the data; the official outputs stay in model/
+    # a copy of the data; the official outputs stay in model/
+    shutil.rmtree(run.scene_dir, ignore_errors=True)
     results = base_results(job, "done", started)
     results["metrics"] = metrics
-    results["files"] = {job.test_split: scored_files(scene.split(job.test_split), folder, job.test_split)}
+    results["files"] = {
+        job.test_split: scored_files(scene.split(job.test_split), folder, job.test_split)
+    }
     train_seconds = sum(r.seconds or 0.0 for r in run.commands if r.step in code.train_steps)
     results["timing"].update(train_seconds=round(train_seconds, 3), render_fps=None)
     results.update(_provenance(job, run, settings))
-    if code.fits_test_views(job.suite, config.render_args):  # the authors' code fitted the test views' poses
-        results["evaluation"]["test_pose_fitting"] = {"mode": "official", "split": job.test_split, "frames": {}}
+    # the authors' code fitted the test views' poses
+    if code.fits_test_views(job.suite, config.render_args):
+        results["evaluation"]["test_pose_fitting"] = {
+            "mode": "official",
+            "split": job.test_split,
+            "frames": {},
+        }
     write_results(folder / RESULTS_FILE, results)
     write_text(folder / DONE_FILE, job.id + "\n")
     mean = metrics[job.test_split]["mean"]
@@ -84,22 +112,31 @@ def run_official_job(job: Job, folder: Path, log: JobLog, started: str) -> JobOu
 
 
 def _share_threads(run: OfficialRun) -> None:
-    """Give the official processes this job's share of the cores (``--jobs N`` splits them between workers, as
-    for native jobs, through torch's thread count in the worker) unless the user fixed ``OMP_NUM_THREADS``: torch
-    and OpenMP kernels read it at start. Without torch loaded (an inline run) the processes take every core."""
+    """Give the official processes this job's share of the cores (``--jobs N`` splits them between
+    workers, as for native jobs, through torch's thread count in the worker) unless the user fixed
+    ``OMP_NUM_THREADS``: torch and OpenMP kernels read it at start. Without torch loaded
+    (an inline run) the processes take every core."""
     import os
     import sys
 
-    torch = sys.modules.get("torch")  # imported by the pool's workers only: an official job itself needs no torch
+    # imported by the pool's workers only: an official job itself needs no torch
+    torch = sys.modules.get("torch")
     if torch is not None and "OMP_NUM_THREADS" not in os.environ:
         run.env.setdefault("OMP_NUM_THREADS", str(torch.get_num_threads()))
 
 
-def _failed(job: Job, folder: Path, log: JobLog, error: OfficialRunError, run: OfficialRun | None,
-            started: str) -> JobOutcome:
-    """Record a failed official job: error.txt ends with the one-line summary `olatbench status` shows. The outcome
-    always carries the official command's summary; a disk that refuses the records (full, read-only) is said after
-    it, as `olatbench.bench.execute` does for native jobs (the job then stays unrecorded and the next run retries)."""
+def _failed(
+    job: Job,
+    folder: Path,
+    log: JobLog,
+    error: OfficialRunError,
+    run: OfficialRun | None,
+    started: str,
+) -> JobOutcome:
+    """Record a failed official job: error.txt ends with the one-line summary `olatbench status`
+    shows. The outcome always carries the official command's summary; a disk that refuses the
+    records (full, read-only) is said after it, as `olatbench.bench.execute` does for native jobs
+    (the job then stays unrecorded and the next run retries)."""
     message = str(error)
     summary, _, details = message.partition("\n")
     outcome = JobOutcome(job.id, job.label, str(folder), "failed", error=summary)
@@ -127,31 +164,47 @@ def _provenance(job: Job, run: OfficialRun | None, settings: CodeSettings) -> di
     except KeyError:  # a spec registered in another process only
         pin = None
     commit, dirty = checkout_commit(settings.checkout) if settings.checkout else (None, None)
-    return {"method_kind": "official", "official": {
-        "repository": pin.repository if pin else None, "pinned_commit": pin.commit if pin else None,
-        "status": pin.status if pin else None, "commit": commit, "local_changes": dirty,
-        "matches_pin": None if commit is None or pin is None else commit == pin.commit,
-        "settings": settings.to_json(), "device": settings.device,
-        "standins": list(standins_for(job.method)) if settings.device == "cpu" else [],
-        "commands": [record.to_json() for record in run.commands] if run else []}}
+    return {
+        "method_kind": "official",
+        "official": {
+            "repository": pin.repository if pin else None,
+            "pinned_commit": pin.commit if pin else None,
+            "status": pin.status if pin else None,
+            "commit": commit,
+            "local_changes": dirty,
+            "matches_pin": None if commit is None or pin is None else commit == pin.commit,
+            "settings": settings.to_json(),
+            "device": settings.device,
+            "standins": list(standins_for(job.method)) if settings.device == "cpu" else [],
+            "commands": [record.to_json() for record in run.commands] if run else [],
+        },
+    }
 
 
-def _score(job: Job, frames: list[Frame], renders: dict[str, Path], encoded_as: str, folder: Path
-           ) -> dict[str, Any]:
-    """Score each render against its frame under the job's protocol (in ``job.colourspace``) and copy it to
-    ``renders/<split>/<frame id>.png``; returns ``{"mean", "per_image"}``."""
+def _score(
+    job: Job, frames: list[Frame], renders: dict[str, Path], encoded_as: str, folder: Path
+) -> dict[str, Any]:
+    """Score each render against its frame under the job's protocol (in ``job.colourspace``) and
+    copy it to ``renders/<split>/<frame id>.png``; returns ``{"mean", "per_image"}``."""
     from olatbench.metrics.protocols import get_protocol
 
     protocol = get_protocol(job.protocol)
     per_image = {}
     for frame in frames:
-        background = colour.convert_colourspace(np.asarray(frame.background, np.float32), frame.colourspace,
-                                                job.colourspace)
-        pred = np.clip(read_prediction(renders[frame.frame_id], job.colourspace, background, encoded_as), 0.0, 1.0)
+        background = colour.convert_colourspace(
+            np.asarray(frame.background, np.float32), frame.colourspace, job.colourspace
+        )
+        pred = np.clip(
+            read_prediction(renders[frame.frame_id], job.colourspace, background, encoded_as),
+            0.0,
+            1.0,
+        )
         gt, mask = ground_truth(job, protocol, frame)
         if pred.shape != gt.shape:
-            raise OfficialRunError(f"{frame.frame_id}: the official render {renders[frame.frame_id]} is "
-                                   f"{pred.shape[1]}×{pred.shape[0]}, the ground truth {gt.shape[1]}×{gt.shape[0]}")
+            raise OfficialRunError(
+                f"{frame.frame_id}: the official render {renders[frame.frame_id]} is "
+                f"{pred.shape[1]}×{pred.shape[0]}, the ground truth {gt.shape[1]}×{gt.shape[0]}"
+            )
         per_image[frame.frame_id] = score_image(protocol, pred, gt, mask, str(job.device))
         save_render(folder, job.test_split, frame, pred, job.colourspace)
     return {"mean": mean_scores(protocol, per_image), "per_image": per_image}

@@ -1,14 +1,15 @@
-"""A relight that refines progressively: the image under ``N`` lights (`olatbench.bench.relight.Relighter`)
-built a few renders at a time, each intermediate image an estimate of the final one (the viewer's environment-map
-mode, docs/viewer.md).
+"""A relight that refines progressively: the image under ``N`` lights
+(`olatbench.bench.relight.Relighter`) built a few renders at a time, each intermediate image an
+estimate of the final one (the viewer's environment-map mode, docs/viewer.md).
 
-The probes (`Relighter.rendered_probes`: for an environment map the ``N`` importance samples, each weighted
-``1 / N`` of the map's estimate) are rendered in `refinement_order`, a bit-reversal (van der Corput) permutation of
-their indices: `sample_map` returns its stratified samples in the order of their strata, so every prefix of this
-order takes strata spread over the whole map (the first 2^m of a power-of-two ``N`` are every ``N / 2^m``-th
-stratum) rather than its first rows. After ``n`` of the ``N`` probes the estimate is ``N / n`` × their sum (the
-average of their ``n`` images, each an estimate of the whole lighting), composited on the background once; after
-all ``N`` it is the relighter's own image of the same samples (up to the order of the float32 sum).
+The probes (`Relighter.rendered_probes`: for an environment map the ``N`` importance samples, each
+weighted ``1 / N`` of the map's estimate) are rendered in `refinement_order`, a bit-reversal
+(van der Corput) permutation of their indices: `sample_map` returns its stratified samples in the
+order of their strata, so every prefix of this order takes strata spread over the whole map (the
+first 2^m of a power-of-two ``N`` are every ``N / 2^m``-th stratum) rather than its first rows.
+After ``n`` of the ``N`` probes the estimate is ``N / n`` × their sum (the average of their ``n``
+images, each an estimate of the whole lighting), composited on the background once; after all ``N``
+it is the relighter's own image of the same samples (up to the order of the float32 sum).
 """
 
 from __future__ import annotations
@@ -23,8 +24,9 @@ from olatbench.datasets.records import Camera
 
 
 def refinement_order(count: int) -> np.ndarray:
-    """The permutation (count,) int of ``range(count)`` in which a progressive relight renders its probes: sorted
-    by the base-2 radical inverse of the index (stable), so that every prefix is spread over the indices."""
+    """The permutation (count,) int of ``range(count)`` in which a progressive relight renders its
+    probes: sorted by the base-2 radical inverse of the index (stable), so that every prefix is
+    spread over the indices."""
     if count < 1:
         raise ValueError(f"a progressive relight needs at least one light, not {count}")
     index = np.arange(count)
@@ -37,10 +39,12 @@ def refinement_order(count: int) -> np.ndarray:
 
 
 class ProgressiveRelight:
-    """The image of ``camera`` under ``lights`` for ``relighter``, refined by `advance` (module docstring).
+    """The image of ``camera`` under ``lights`` for ``relighter``, refined by `advance`
+    (module docstring).
 
-    ``done`` probes have been rendered of ``total`` (after `Relighter.rendered_probes`: 1 for a method that ignores
-    the light); `estimate` is the current image, linear (H, W, 3) float32. Not thread-safe: one caller advances it.
+    ``done`` probes have been rendered of ``total`` (after `Relighter.rendered_probes`: 1 for a
+    method that ignores the light); `estimate` is the current image, linear (H, W, 3) float32. Not
+    thread-safe: one caller advances it.
     """
 
     def __init__(self, relighter: Relighter, camera: Camera, lights: SampledLights) -> None:
@@ -61,8 +65,8 @@ class ProgressiveRelight:
         return self.done == self.total
 
     def advance(self, count: int, stop: Callable[[], bool] | None = None) -> int:
-        """Render up to ``count`` more probes (fewer when all are done, or when ``stop()`` turns true: it is asked
-        before each render); how many were rendered."""
+        """Render up to ``count`` more probes (fewer when all are done, or when ``stop()`` turns
+        true: it is asked before each render); how many were rendered."""
         import torch
 
         rendered = 0
@@ -77,12 +81,14 @@ class ProgressiveRelight:
         return rendered
 
     def estimate(self) -> np.ndarray:
-        """The image so far, linear (H, W, 3) float32: ``total / done`` × the rendered probes' sum, with the
-        background (a `ValueError` before any probe was rendered)."""
+        """The image so far, linear (H, W, 3) float32: ``total / done`` × the rendered probes' sum,
+        with the background (a `ValueError` before any probe was rendered)."""
         if self._sum is None or self._empty is None:
             raise ValueError("nothing rendered yet: advance first")
         scale = np.float32(self.total / self.done)
-        return self.relighter.composite(self._sum if self.finished else self._sum * scale, self._empty)
+        return self.relighter.composite(
+            self._sum if self.finished else self._sum * scale, self._empty
+        )
 
 
 __all__ = ["ProgressiveRelight", "refinement_order"]

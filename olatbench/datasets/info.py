@@ -1,4 +1,5 @@
-"""Summaries of scene folders: format, splits, resolutions, colour, lights (``olatbench datasets info``)."""
+"""Summaries of scene folders: format, splits, resolutions, colour, lights
+(``olatbench datasets info``)."""
 
 from __future__ import annotations
 
@@ -23,7 +24,9 @@ def find_scene_folders(path: str | Path) -> list[Path]:
         return [path]
     scenes = sorted(child for child in path.iterdir() if is_scene_folder(child))
     if not scenes:
-        raise DatasetError("neither a scene folder (transforms_*.json) nor a folder of scene folders", path=path)
+        raise DatasetError(
+            "neither a scene folder (transforms_*.json) nor a folder of scene folders", path=path
+        )
     return scenes
 
 
@@ -77,18 +80,24 @@ def format_summary(summary: dict[str, Any]) -> str:
         f"  colour:      {'/'.join(summary['colourspace'])}, {'/'.join(summary['alpha'])} alpha, "
         f"background {summary['background']}",
         f"  lights:      {lights['distinct_positions']} distinct positions; distance to origin "
-        f"{span(lights['distance_to_origin'])}, to camera {span(lights['distance_to_camera'])}; intensity "
-        f"{'known' if lights['intensity_known'] else 'unknown (1)'}",
+        f"{span(lights['distance_to_origin'])}, to camera {span(lights['distance_to_camera'])}; "
+        f"intensity {'known' if lights['intensity_known'] else 'unknown (1)'}",
         f"  cameras:     distance to origin {span(summary['camera_distance_to_origin'])}",
     ]
     if summary["novel_lights"]:
-        lines.append(f"  novel lights: {', '.join(summary['novel_lights'])} (ground truth of the test views under "
-                     "these lightings, novel_lights/)")
+        lines.append(
+            f"  novel lights: {', '.join(summary['novel_lights'])} (ground truth of the test views "
+            "under these lightings, novel_lights/)"
+        )
     if summary["refined_poses"]:
-        lines.append(f"  poses:       {summary['refined_poses']} frame(s) posed by their refined R_opt/T_opt")
+        lines.append(
+            f"  poses:       {summary['refined_poses']} frame(s) posed by their refined R_opt/T_opt"
+        )
     if summary["images_outside_folder"]:
-        lines.append(f"  images:      {summary['images_outside_folder']} read from outside the folder (absolute "
-                     "img_path, as GS³/SSD-GS Scene.save writes them)")
+        lines.append(
+            f"  images:      {summary['images_outside_folder']} read from outside the folder "
+            "(absolute img_path, as GS³/SSD-GS Scene.save writes them)"
+        )
     extra = {k: v for k, v in summary["metadata"].items() if k != "folder"}
     if extra:
         lines.append("  notes:       " + ", ".join(f"{k}={v}" for k, v in extra.items()))

@@ -1,4 +1,5 @@
-"""A light named on the command line: a training frame's light by its index, or a position in world units."""
+"""A light named on the command line: a training frame's light by its index, or a position in world
+units."""
 
 from __future__ import annotations
 
@@ -11,15 +12,16 @@ from olatbench.datasets.records import PointLight
 
 
 def parse_light(text: str, lights: Sequence[PointLight]) -> PointLight:
-    """``"12"``: ``lights[12]`` (the light of training frame 12, in the training split's order); ``"x,y,z"``: a
-    point light at that world position (scene units) with ``lights[0]``'s intensity. A `ValueError` naming the
-    valid indices otherwise."""
+    """``"12"``: ``lights[12]`` (the light of training frame 12, in the training split's order);
+    ``"x,y,z"``: a point light at that world position (scene units) with ``lights[0]``'s intensity.
+    A `ValueError` naming the valid indices otherwise."""
     parts = [part.strip() for part in text.split(",")]
     if len(parts) == 1 and parts[0].isdigit():
         index = int(parts[0])
         if index >= len(lights):
             raise ValueError(
-                f"light {index}: the training split has {len(lights)} frames (lights 0 … {len(lights) - 1})"
+                f"light {index}: the training split has {len(lights)} frames (lights 0 … "
+                f"{len(lights) - 1})"
             )
         return lights[index]
     try:
@@ -27,7 +29,10 @@ def parse_light(text: str, lights: Sequence[PointLight]) -> PointLight:
     except ValueError:
         position = None
     if position is None or not np.all(np.isfinite(position)):
-        raise ValueError(f"light {text!r}: expected a training light index (0 … {len(lights) - 1}) or a position x,y,z")
+        raise ValueError(
+            f"light {text!r}: expected a training light index (0 … {len(lights) - 1}) or a "
+            "position x,y,z"
+        )
     return replace(lights[0], position=position)
 
 

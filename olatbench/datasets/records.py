@@ -70,7 +70,8 @@ class Camera:
 
 @dataclass(frozen=True, eq=False)
 class PointLight:
-    """A point light: world ``position`` (3,), RGB ``intensity`` (3,), whether the intensity is known."""
+    """A point light: world ``position`` (3,), RGB ``intensity`` (3,), whether the intensity is
+    known."""
 
     position: np.ndarray
     intensity: np.ndarray = field(default_factory=lambda: np.ones(3))
@@ -78,7 +79,9 @@ class PointLight:
 
     def irradiance_scale(self, points: np.ndarray) -> np.ndarray:
         """Inverse-square falloff ``intensity / d²`` at world points (N, 3) -> (N, 3)."""
-        d2 = np.sum((np.asarray(points, dtype=np.float64) - self.position) ** 2, axis=-1, keepdims=True)
+        d2 = np.sum(
+            (np.asarray(points, dtype=np.float64) - self.position) ** 2, axis=-1, keepdims=True
+        )
         return self.intensity / d2
 
 
@@ -86,9 +89,9 @@ class PointLight:
 class LoadedImage:
     """Pixels of one frame: ``rgb`` (H, W, 3) float32 in ``colourspace``; ``alpha`` (H, W) or None.
 
-    When a background was applied ``rgb`` is composited; otherwise it is straight (not premultiplied).
-    Both may be views of one decoded (H, W, 4) buffer (``rgb`` then has a row stride of 4 channels);
-    ``np.ascontiguousarray`` gives a packed copy where one is needed.
+    When a background was applied ``rgb`` is composited; otherwise it is straight
+    (not premultiplied). Both may be views of one decoded (H, W, 4) buffer (``rgb`` then has a row
+    stride of 4 channels); ``np.ascontiguousarray`` gives a packed copy where one is needed.
     """
 
     rgb: np.ndarray
@@ -108,12 +111,16 @@ class Frame:
     light: PointLight
     colourspace: colour.ColourSpace = "srgb"
     alpha_mode: colour.AlphaMode = "straight"
-    background: np.ndarray = field(default_factory=lambda: np.zeros(3))  # official, stored colour space
+    # official, stored colour space
+    background: np.ndarray = field(default_factory=lambda: np.zeros(3))
     extras: Mapping[str, Any] = field(default_factory=dict)
 
-    def load(self, colourspace: colour.ColourSpace | None = None,
-             background: np.ndarray | float | str | None = "official",
-             resolution: tuple[int, int] | None = None) -> LoadedImage:
+    def load(
+        self,
+        colourspace: colour.ColourSpace | None = None,
+        background: np.ndarray | float | str | None = "official",
+        resolution: tuple[int, int] | None = None,
+    ) -> LoadedImage:
         """Read the pixels.
 
         ``colourspace``: target space (default: as stored). ``background``: ``"official"``
@@ -130,35 +137,51 @@ class Frame:
         try:
             pixels = read_image(self.image_path)
         except DatasetError as error:  # name the frame too
-            raise DatasetError(error.message, path=error.path, frame=self.frame_id, key=error.key) from None
+            raise DatasetError(
+                error.message, path=error.path, frame=self.frame_id, key=error.key
+            ) from None
         channels = pixels.shape[2]
         if channels not in (1, 3, 4):
-            raise DatasetError(f"expected 1, 3 or 4 channels, found {channels}", path=self.image_path,
-                               frame=self.frame_id)
+            raise DatasetError(
+                f"expected 1, 3 or 4 channels, found {channels}",
+                path=self.image_path,
+                frame=self.frame_id,
+            )
         if pixels.shape[:2] != (self.camera.height, self.camera.width):
-            raise DatasetError(f"image is {pixels.shape[1]}×{pixels.shape[0]} but the camera says "
-                               f"{self.camera.width}×{self.camera.height}", path=self.image_path,
-                               frame=self.frame_id)
+            raise DatasetError(
+                f"image is {pixels.shape[1]}×{pixels.shape[0]} but the camera says "
+                f"{self.camera.width}×{self.camera.height}",
+                path=self.image_path,
+                frame=self.frame_id,
+            )
         if not np.all(np.isfinite(pixels)):
-            raise DatasetError("image holds NaN or Inf pixels", path=self.image_path, frame=self.frame_id)
-        # Work in place on the freshly decoded buffer: rgb stays a view of it (no extra full-size copies).
+            raise DatasetError(
+                "image holds NaN or Inf pixels", path=self.image_path, frame=self.frame_id
+            )
+        # Work in place on the freshly decoded buffer: rgb stays a view of it
+        # (no extra full-size copies).
         if channels == 1:
             pixels = np.repeat(pixels, 3, axis=2)
         if resolution is not None:
             pixels = resize_image(pixels, *resolution)
         rgb = pixels[..., :3]
-        alpha = pixels[..., 3].copy() if channels == 4 else None  # kept aside: the colour pass below spans all 4
+        # kept aside: the colour pass below spans all 4
+        alpha = pixels[..., 3].copy() if channels == 4 else None
         if isinstance(background, str):
             if background != "official":
-                raise ValueError(f"background must be 'official', a colour or None, not {background!r}")
+                raise ValueError(
+                    f"background must be 'official', a colour or None, not {background!r}"
+                )
             background = colour.convert_colourspace(self.background, self.colourspace, target)
         if background is not None and alpha is not None:
-            stored_bg = colour.convert_colourspace(np.broadcast_to(np.asarray(background, np.float32), (3,)),
-                                                   target, self.colourspace)
+            stored_bg = colour.convert_colourspace(
+                np.broadcast_to(np.asarray(background, np.float32), (3,)), target, self.colourspace
+            )
             colour.composite(rgb, alpha, stored_bg, self.alpha_mode, out=rgb)
         elif alpha is not None and self.alpha_mode == "premultiplied":
             rgb[...] = colour.unpremultiply(rgb, alpha)
-        # Element-wise, so converting the whole contiguous buffer (4th channel discarded) is the fast path.
+        # Element-wise, so converting the whole contiguous buffer (4th channel discarded) is the
+        # fast path.
         colour.convert_colourspace(pixels, self.colourspace, target, out=pixels)
         return LoadedImage(rgb=rgb.astype(np.float32, copy=False), alpha=alpha, colourspace=target)
 
@@ -181,8 +204,9 @@ class Scene:
     def split(self, name: Split) -> list[Frame]:
         """The frames of one split; a `DatasetError` listing the available splits otherwise."""
         if name not in self.frames:
-            raise DatasetError(f"no split '{name}'; available: {', '.join(self.splits) or 'none'}",
-                               path=self.root)
+            raise DatasetError(
+                f"no split '{name}'; available: {', '.join(self.splits) or 'none'}", path=self.root
+            )
         return self.frames[name]
 
     def __iter__(self):

@@ -1,5 +1,6 @@
-"""Exact k-nearest-neighbour distances of a point cloud on any device, without a KD-tree or CUDA extension:
-`mean_neighbour_sq_distance`, what 3DGS's ``distCUDA2`` returns, for the initial scales of `GaussianModel`.
+"""Exact k-nearest-neighbour distances of a point cloud on any device, without a KD-tree or CUDA
+extension: `mean_neighbour_sq_distance`, what 3DGS's ``distCUDA2`` returns, for the initial scales
+of `GaussianModel`.
 """
 
 from __future__ import annotations
@@ -13,14 +14,15 @@ _KNN_PAIR_BUDGET = 1 << 22
 
 
 def mean_neighbour_sq_distance(points: torch.Tensor, k: int = 3) -> torch.Tensor:
-    """(N,) mean squared Euclidean distance from each point to its ``k`` nearest *other* points (exact).
+    """(N,) mean squared Euclidean distance from each point to its ``k`` nearest *other* points
+    (exact).
 
-    This is what 3DGS's ``distCUDA2`` returns for k = 3. Works on any device without a KD-tree: points are
-    binned in a uniform grid and each query looks at the 27 cells around its own, which is exact whenever its
-    k-th distance is at most the cell size. Every query starts at a cell size estimated from a sample; a query
-    whose k-th neighbour lies farther than the cell size retries with a doubled cell, one whose 27 cells hold
-    too many points (a dense cluster) retries with a halved cell, and a query that would reverse direction is
-    solved by brute force.
+    This is what 3DGS's ``distCUDA2`` returns for k = 3. Works on any device without a KD-tree:
+    points are binned in a uniform grid and each query looks at the 27 cells around its own, which
+    is exact whenever its k-th distance is at most the cell size. Every query starts at a cell size
+    estimated from a sample; a query whose k-th neighbour lies farther than the cell size retries
+    with a doubled cell, one whose 27 cells hold too many points (a dense cluster) retries with a
+    halved cell, and a query that would reverse direction is solved by brute force.
     """
     n = points.shape[0]
     if points.ndim != 2 or points.shape[1] != 3:
@@ -38,14 +40,16 @@ def mean_neighbour_sq_distance(points: torch.Tensor, k: int = 3) -> torch.Tensor
     lo = pts.min(0).values
     diagonal = float((pts.max(0).values - lo).norm())
     level = torch.zeros(n, dtype=torch.int64, device=device)  # cell = base * 2**level, per query
-    direction = torch.zeros(n, dtype=torch.int64, device=device)  # +1 went up, -1 went down, 0 not moved
+    # +1 went up, -1 went down, 0 not moved
+    direction = torch.zeros(n, dtype=torch.int64, device=device)
     pending = torch.arange(n, device=device)
     brute = []
     while pending.numel() > 0:
         current = int(level[pending].min())
         cell = base * 2.0**current
         at_level = pending[level[pending] == current]
-        if cell > diagonal or cell < diagonal * 2.0**-_FINEST_GRID_BITS:  # the grid cannot help (any more)
+        # the grid cannot help (any more)
+        if cell > diagonal or cell < diagonal * 2.0**-_FINEST_GRID_BITS:
             brute.append(at_level)
             pending = pending[level[pending] != current]
             continue
@@ -53,7 +57,8 @@ def mean_neighbour_sq_distance(points: torch.Tensor, k: int = 3) -> torch.Tensor
         done = exact & ~crowded
         result[at_level[done]] = sq[done]
         up, down = at_level[~exact & ~crowded], at_level[crowded]
-        # A reversal, or a cluster that stays crowded at any cell size (many duplicates), goes to brute force.
+        # A reversal, or a cluster that stays crowded at any cell size (many duplicates), goes to
+        # brute force.
         stuck = direction[down] > 0
         reversal = torch.cat([up[direction[up] < 0], down[stuck]])
         brute.append(reversal)
@@ -72,7 +77,8 @@ def mean_neighbour_sq_distance(points: torch.Tensor, k: int = 3) -> torch.Tensor
 
 
 def _initial_cell_size(points: torch.Tensor, k: int) -> float:
-    """Starting cell size: the lower quartile of the k-th neighbour distance of a random sample of points."""
+    """Starting cell size: the lower quartile of the k-th neighbour distance of a random sample of
+    points."""
     n = points.shape[0]
     generator = torch.Generator().manual_seed(0)
     sample = torch.randperm(n, generator=generator, device="cpu")[: min(n, 64)].to(points.device)
@@ -84,7 +90,8 @@ def _initial_cell_size(points: torch.Tensor, k: int) -> float:
 
 
 def _brute_force_knn(points: torch.Tensor, queries: torch.Tensor, k: int) -> torch.Tensor:
-    """(Q, k) ascending squared distances from ``points[queries]`` to their k nearest other points."""
+    """(Q, k) ascending squared distances from ``points[queries]`` to their k nearest other
+    points."""
     n = points.shape[0]
     chunk = max(1, _KNN_PAIR_BUDGET // (4 * n))
     out = []
@@ -97,9 +104,12 @@ def _brute_force_knn(points: torch.Tensor, queries: torch.Tensor, k: int) -> tor
     return torch.cat(out)
 
 
-_NEIGHBOUR_OFFSETS = torch.tensor([(i, j, l) for i in (-1, 0, 1) for j in (-1, 0, 1) for l in (-1, 0, 1)], device="cpu")
+_NEIGHBOUR_OFFSETS = torch.tensor(
+    [(i, j, l) for i in (-1, 0, 1) for j in (-1, 0, 1) for l in (-1, 0, 1)], device="cpu"
+)
 # A query whose 27 cells hold more candidates than this is sent to a finer grid, down to cells of
-# diagonal / 2**_FINEST_GRID_BITS (cell keys must fit in int64; clusters of duplicates end in brute force).
+# diagonal / 2**_FINEST_GRID_BITS (cell keys must fit in int64; clusters of duplicates end in brute
+# force).
 _MAX_CANDIDATES = 2048
 _FINEST_GRID_BITS = 20
 
@@ -109,8 +119,9 @@ def _grid_knn(
 ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
     """k-NN among the 27 grid cells around each query.
 
-    Returns (Q, k) ascending squared distances, ``exact`` (Q,) (k-th distance ≤ cell, so nothing outside the
-    block can be closer) and ``crowded`` (Q,) (more than ``_MAX_CANDIDATES`` candidates: not searched).
+    Returns (Q, k) ascending squared distances, ``exact`` (Q,) (k-th distance ≤ cell, so nothing
+    outside the block can be closer) and ``crowded`` (Q,) (more than ``_MAX_CANDIDATES`` candidates:
+    not searched).
     """
     device = points.device
     cells = torch.floor((points - lo) / cell).long()
@@ -120,7 +131,8 @@ def _grid_knn(
     unique_keys, unique_counts = torch.unique_consecutive(sorted_keys, return_counts=True)
     unique_starts = torch.cumsum(unique_counts, 0) - unique_counts
 
-    # The 27 neighbour cells of a query differ from its own key by constant offsets; only the bounds vary.
+    # The 27 neighbour cells of a query differ from its own key by constant offsets; only the bounds
+    # vary.
     offsets = _NEIGHBOUR_OFFSETS.to(device)
     key_offsets = (offsets[:, 0] * dims[1] + offsets[:, 1]) * dims[2] + offsets[:, 2]
     qcells = cells[queries]
@@ -140,7 +152,9 @@ def _grid_knn(
     else:
         slot = torch.searchsorted(unique_keys, nkeys).clamp_max(unique_keys.numel() - 1)
         start = unique_starts[slot]
-        counts = torch.where(inside & (unique_keys[slot] == nkeys), unique_counts[slot], torch.zeros_like(slot))
+        counts = torch.where(
+            inside & (unique_keys[slot] == nkeys), unique_counts[slot], torch.zeros_like(slot)
+        )
     per_query = counts.sum(1)
     crowded = per_query > _MAX_CANDIDATES
     counts[crowded] = 0
@@ -157,7 +171,9 @@ def _grid_knn(
         total = int(q_counts.sum())
         if total > 0:
             seg = torch.repeat_interleave(torch.arange(q_counts.numel(), device=device), q_counts)
-            within = torch.arange(total, device=device) - (torch.cumsum(q_counts, 0) - q_counts)[seg]
+            within = (
+                torch.arange(total, device=device) - (torch.cumsum(q_counts, 0) - q_counts)[seg]
+            )
             candidate = order[start[first:last].reshape(-1)[seg] + within]
             local_query = torch.div(seg, offsets.shape[0], rounding_mode="floor")
             query = queries[first:last][local_query]
@@ -165,12 +181,15 @@ def _grid_knn(
             sq = torch.einsum("pc,pc->p", diff, diff).masked_fill(candidate == query, float("inf"))
             row_counts = per_query[first:last]
             row_first = torch.cumsum(row_counts, 0) - row_counts
-            dense = torch.full((last - first, max(int(row_counts.max()), k)), float("inf"), device=device)
+            dense = torch.full(
+                (last - first, max(int(row_counts.max()), k)), float("inf"), device=device
+            )
             dense[local_query, torch.arange(total, device=device) - row_first[local_query]] = sq
             sq_out[first:last] = torch.topk(dense, k, dim=1, largest=False).values
         first = last
-    # Nothing outside the 27-cell block is closer than the distance from the query to the block's boundary.
-    position = (points[queries] - lo) / cell - qcells.to(points.dtype)  # in [0, 1) within its own cell
+    # Nothing outside the 27-cell block is closer than the distance from the query to the block's
+    # boundary. in [0, 1) within its own cell
+    position = (points[queries] - lo) / cell - qcells.to(points.dtype)
     margin = cell * (1.0 + torch.minimum(position, 1.0 - position).min(1).values.clamp(0.0, 1.0))
     exact = sq_out[:, -1] <= margin * margin
     return sq_out, exact, crowded

@@ -15,17 +15,22 @@ def exponential_lr(
     delay_steps: int = 0,
     delay_mult: float = 1.0,
 ) -> float:
-    """Log-linear decay from ``lr_init`` (step 0) to ``lr_final`` (step ``max_steps``, held after), 3DGS-style.
+    """Log-linear decay from ``lr_init`` (step 0) to ``lr_final`` (step ``max_steps``, held after),
+    3DGS-style.
 
-    ``lr(step) = delay(step) · exp((1 - t) · log(lr_init) + t · log(lr_final))`` with ``t = clip(step / max_steps,
-    0, 1)``. With ``delay_steps > 0`` the rate is additionally scaled by ``delay(step) = delay_mult + (1 -
-    delay_mult) · sin(π/2 · clip(step / delay_steps, 0, 1))`` (a smooth warm-up from ``delay_mult``);
-    otherwise ``delay = 1``. Negative steps and ``lr_init == lr_final == 0`` give 0 (the parameter is frozen).
+    ``lr(step) = delay(step) · exp((1 - t) · log(lr_init) + t · log(lr_final))`` with ``t =
+    clip(step / max_steps, 0, 1)``. With ``delay_steps > 0`` the rate is additionally scaled by
+    ``delay(step) = delay_mult + (1 - delay_mult) · sin(π/2 · clip(step / delay_steps, 0, 1))`` (a
+    smooth warm-up from ``delay_mult``); otherwise ``delay = 1``. Negative steps and ``lr_init ==
+    lr_final == 0`` give 0 (the parameter is frozen).
     """
     if step < 0 or (lr_init == 0.0 and lr_final == 0.0):
         return 0.0
     if lr_init <= 0.0 or lr_final <= 0.0:
-        raise ValueError(f"exponential_lr needs lr_init > 0 and lr_final > 0 (or both 0), got {lr_init}, {lr_final}")
+        raise ValueError(
+            f"exponential_lr needs lr_init > 0 and lr_final > 0 (or both 0), got {lr_init}, "
+            f"{lr_final}"
+        )
     if max_steps <= 0:
         raise ValueError(f"exponential_lr needs max_steps > 0, got {max_steps}")
     if delay_steps > 0:
@@ -40,7 +45,8 @@ def exponential_lr(
 def exponential_lr_schedule(
     lr_init: float, lr_final: float, max_steps: int, delay_steps: int = 0, delay_mult: float = 1.0
 ) -> Callable[[int], float]:
-    """``step -> exponential_lr(step, ...)`` with the other arguments bound (the 3DGS closure form)."""
+    """``step -> exponential_lr(step, ...)`` with the other arguments bound
+    (the 3DGS closure form)."""
     return partial(
         exponential_lr,
         lr_init=lr_init,

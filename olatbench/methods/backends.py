@@ -1,10 +1,12 @@
-"""Which implementation each stage of a Gaussian method's training step runs on a device (doctor, run logs).
+"""Which implementation each stage of a Gaussian method's training step runs on a device
+(doctor, run logs).
 
-Stages and their backends: ``rasterizer`` ``cuda`` (gsplat), ``cpu`` (C++) or ``torch``; ``projection``,
-``binning`` and ``light_pass`` ``cpu`` or ``torch`` (``resolve_kernel_backend``: the C++ kernel exactly when the
-rasterizer resolves to ``cpu``); ``ssim`` ``cpu`` or ``torch``; ``shading`` (SSD-GS only) ``cpu`` or ``torch``.
-Each answer comes from the stage's own resolver, so the environment overrides (``OLATBENCH_RASTERIZER``,
-``OLATBENCH_SSIM``, ``OLATBENCH_SHADING``) and a failed C++ build are reflected.
+Stages and their backends: ``rasterizer`` ``cuda`` (gsplat), ``cpu`` (C++) or ``torch``;
+``projection``, ``binning`` and ``light_pass`` ``cpu`` or ``torch`` (``resolve_kernel_backend``: the
+C++ kernel exactly when the rasterizer resolves to ``cpu``); ``ssim`` ``cpu`` or ``torch``;
+``shading`` (SSD-GS only) ``cpu`` or ``torch``. Each answer comes from the stage's own resolver, so
+the environment overrides (``OLATBENCH_RASTERIZER``, ``OLATBENCH_SSIM``, ``OLATBENCH_SHADING``) and
+a failed C++ build are reflected.
 """
 
 from __future__ import annotations
@@ -15,7 +17,9 @@ from olatbench.gaussians.backends import resolve_backend, resolve_kernel_backend
 from olatbench.metrics.ssim import WINDOW_SIZE, resolve_ssim_backend
 
 
-def stage_backends(device: torch.device | str, dtype: torch.dtype = torch.float32) -> dict[str, str]:
+def stage_backends(
+    device: torch.device | str, dtype: torch.dtype = torch.float32
+) -> dict[str, str]:
     """Backend of every stage the Gaussian methods share, for ``dtype`` tensors on ``device``."""
     device = torch.device(device)
     stages = {"rasterizer": resolve_backend("auto", device, dtype)}

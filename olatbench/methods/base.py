@@ -29,16 +29,17 @@ if TYPE_CHECKING:
 class Views:
     """Training (or evaluation) views: one camera, light and image per entry.
 
-    ``images`` is (N, H, W, 3) float32 in [0, 1] in ``colourspace``, composited on ``background`` (3,); it is
-    None when a trained method is restored for rendering and declared it needs no images
-    (`Method.restore_needs_images`). ``points`` (P, 3) float64 are world points (the scene's frame) for a method
-    with the ``init_points`` capability to start its Gaussians at (the scene's ``points3d.ply`` or
-    ``run --init-points``), or None.
+    ``images`` is (N, H, W, 3) float32 in [0, 1] in ``colourspace``, composited on ``background``
+    (3,); it is None when a trained method is restored for rendering and declared it needs no images
+    (`Method.restore_needs_images`). ``points`` (P, 3) float64 are world points (the scene's frame)
+    for a method with the ``init_points`` capability to start its Gaussians at (the scene's
+    ``points3d.ply`` or ``run --init-points``), or None.
 
-    Cameras and lights are in the dataset's world frame; ``frame`` is the world -> canonical similarity the
-    runner chose for the job (`olatbench.datasets.similarity`: fitted to the training cameras, or the identity for
-    the built-in suites), which a method works in so that nothing it does depends on the world's origin, axes or
-    unit of length (the Gaussian methods do: `GaussianMethod`).
+    Cameras and lights are in the dataset's world frame; ``frame`` is the world -> canonical
+    similarity the runner chose for the job (`olatbench.datasets.similarity`: fitted to the training
+    cameras, or the identity for the built-in suites), which a method works in so that nothing it
+    does depends on the world's origin, axes or unit of length (the Gaussian methods do:
+    `GaussianMethod`).
     """
 
     cameras: list[Camera]
@@ -55,50 +56,59 @@ class Views:
         return len(self.cameras)
 
     def in_frame(self) -> Views:
-        """These views with cameras, lights and initial points moved into ``frame`` (`Similarity.camera`,
-        `Similarity.light`, `Similarity.points`); the result's ``frame`` is the identity (it is its own world)."""
+        """These views with cameras, lights and initial points moved into ``frame``
+        (`Similarity.camera`, `Similarity.light`, `Similarity.points`); the result's ``frame`` is
+        the identity (it is its own world)."""
         if self.frame.is_identity:
             return self
         points = None if self.points is None else self.frame.points(self.points)
-        return replace(self, cameras=[self.frame.camera(c) for c in self.cameras],
-                       lights=[self.frame.light(lt) for lt in self.lights], points=points, frame=Similarity.identity())
+        return replace(
+            self,
+            cameras=[self.frame.camera(c) for c in self.cameras],
+            lights=[self.frame.light(lt) for lt in self.lights],
+            points=points,
+            frame=Similarity.identity(),
+        )
 
 
 class Method(ABC):
     """A trainable method. Subclasses set ``name``, ``config_class`` and ``presets``.
 
     ``presets`` maps a preset name (e.g. ``"nrhints"``, ``"mini"``, ``"ablation-A"``) to a dict of
-    config overrides; ``resolve_config`` applies them over the dataclass defaults. What the runner and
-    `olatbench methods` read without importing the class lives in the method's `MethodSpec`.
+    config overrides; ``resolve_config`` applies them over the dataclass defaults. What the runner
+    and `olatbench methods` read without importing the class lives in the method's `MethodSpec`.
     """
 
     name: ClassVar[str]
     config_class: ClassVar[type]
     presets: ClassVar[dict[str, dict[str, Any]]] = {}
     description: ClassVar[str] = ""
-    #: Named grids of presets (``run --ablation NAME``: a sequence of variants, or an `AblationGrid` naming its
-    #: reference variant), for methods registered as a class (plugins, tests); built-in methods declare theirs in
-    #: their `MethodSpec`.
+    #: Named grids of presets (``run --ablation NAME``: a sequence of variants, or an `AblationGrid`
+    #: naming its reference variant), for methods registered as a class (plugins, tests); built-in
+    #: methods declare theirs in their `MethodSpec`.
     ablations: ClassVar[dict[str, Sequence[str]]] = {}
-    #: Whether `setup` needs the training images when the method is restored from its final checkpoint to
-    #: render (`olatbench.bench.restore`). False: `setup` then gets ``Views.images = None`` (cameras, lights and
-    #: frame ids are always given, in training order, so per-view state stays addressable by frame id), and a
-    #: sweep or the viewer reads no training image. True (the safe default for plugins): the images are loaded.
+    #: Whether `setup` needs the training images when the method is restored from its final
+    #: checkpoint to render (`olatbench.bench.restore`). False: `setup` then gets
+    #: ``Views.images = None`` (cameras, lights and frame ids are always given, in training order,
+    #: so per-view state stays addressable by frame id), and a sweep or the viewer reads no training
+    #: image. True (the safe default for plugins): the images are loaded.
     restore_needs_images: ClassVar[bool] = True
-    #: Training steps the method always takes, replacing the suite's (None: the suite's; 0: learning-free, all the
-    #: work is in `setup`), for methods registered as a class; built-in methods declare it in their `MethodSpec`.
+    #: Training steps the method always takes, replacing the suite's (None: the suite's; 0:
+    #: learning-free, all the work is in `setup`), for methods registered as a class; built-in
+    #: methods declare it in their `MethodSpec`.
     training_iterations: ClassVar[int | None] = None
-    #: What the method can do (`olatbench.methods.spec.CAPABILITIES`), for methods registered as a class; built-in
-    #: methods declare them in their `MethodSpec`.
+    #: What the method can do (`olatbench.methods.spec.CAPABILITIES`), for methods registered as a
+    #: class; built-in methods declare them in their `MethodSpec`.
     capabilities: ClassVar[frozenset[str]] = frozenset()
-    #: The method's evaluation protocol (``"module:Class"``, `olatbench.methods.evaluation_protocol`): how its test
-    #: views are posed before they are scored; built-in methods name theirs in their `MethodSpec`.
+    #: The method's evaluation protocol
+    #: (``"module:Class"``, `olatbench.methods.evaluation_protocol`): how its test views are posed
+    #: before they are scored; built-in methods name theirs in their `MethodSpec`.
     evaluation: ClassVar[str] = DEFAULT_EVALUATION
 
     def __init_subclass__(cls, spec: MethodSpec | None = None, **kwargs: Any) -> None:
-        """``class SSDGS(GaussianMethod, spec=SPEC)`` takes ``name``, ``presets``, ``description``, ``ablations``,
-        ``capabilities`` and ``evaluation`` from the method's spec, so they are written once (and a class registered
-        by name keeps them)."""
+        """``class SSDGS(GaussianMethod, spec=SPEC)`` takes ``name``, ``presets``, ``description``,
+        ``ablations``, ``capabilities`` and ``evaluation`` from the method's spec, so they are
+        written once (and a class registered by name keeps them)."""
         super().__init_subclass__(**kwargs)
         if spec is not None:
             cls.name, cls.presets, cls.description = spec.name, dict(spec.presets), spec.description
@@ -112,13 +122,18 @@ class Method(ABC):
 
     @classmethod
     def resolve_config(cls, preset: str | None = None, **overrides: Any) -> Any:
-        """The config dataclass with the presets named in ``preset`` (``"mini+ablation-C"``: left to right), then
-        explicit overrides, applied (`olatbench.methods.resolve`, the one resolution path)."""
+        """The config dataclass with the presets named in ``preset`` (``"mini+ablation-C"``: left to
+        right), then explicit overrides, applied (`olatbench.methods.resolve`, the one resolution
+        path)."""
         return cls.resolve_sources(preset, overrides).config
 
     @classmethod
-    def resolve_sources(cls, preset: str | None = None, overrides: Mapping[str, Any] | None = None,
-                        overrides_source: str = SET_SOURCE) -> ResolvedConfig:
+    def resolve_sources(
+        cls,
+        preset: str | None = None,
+        overrides: Mapping[str, Any] | None = None,
+        overrides_source: str = SET_SOURCE,
+    ) -> ResolvedConfig:
         """`resolve_config` with the source of each field's value (``overrides`` reported as
         ``overrides_source``: ``"job.json"`` when a job's config is rebuilt)."""
         return resolve(cls.name, cls.config_class, cls.presets, preset, overrides, overrides_source)
@@ -129,13 +144,15 @@ class Method(ABC):
 
     @abstractmethod
     def train_step(self, step: int) -> dict[str, Any]:
-        """One optimisation step (``step`` counts from 0); returns scalars such as ``loss``: anything ``float()``
-        reads (numbers, 0-d tensors, `olatbench.methods.training.LazyScalar`). The runner reads them only at its
-        logging interval and at checkpoints, so a step on a GPU need not wait for the device to report them."""
+        """One optimisation step (``step`` counts from 0); returns scalars such as ``loss``:
+        anything ``float()`` reads (numbers, 0-d tensors, `olatbench.methods.training.LazyScalar`).
+        The runner reads them only at its logging interval and at checkpoints, so a step on a GPU
+        need not wait for the device to report them."""
 
     @abstractmethod
     def render(self, camera: Camera, light: PointLight) -> dict[str, torch.Tensor]:
-        """Render one view: ``rgb`` (H, W, 3) plus named components (``diffuse``, ``shadow``, ...)."""
+        """Render one view: ``rgb`` (H, W, 3) plus named components (``diffuse``, ``shadow``,
+        ...)."""
 
     @abstractmethod
     def state_dict(self) -> dict[str, Any]:
@@ -156,6 +173,6 @@ class Method(ABC):
         return None
 
     def backends(self) -> dict[str, str]:
-        """The implementation each stage runs after `setup` (stage -> backend, e.g. ``{"rasterizer": "cuda"}``), for
-        the run's log and results; empty when the method does not say."""
+        """The implementation each stage runs after `setup` (stage -> backend, e.g. ``{"rasterizer":
+        "cuda"}``), for the run's log and results; empty when the method does not say."""
         return {}

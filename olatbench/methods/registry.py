@@ -2,11 +2,12 @@
 
 Three sources, later ones winning on a name clash except where noted:
 
-1. the built-in catalogue `BUILTIN_SPECS` (``"module:attribute"`` references to a `MethodSpec` or a sequence of them,
-   in torch-free modules);
-2. the ``olatbench.methods`` entry points (plugins), pointing at a `MethodSpec` or, old style, at a `Method` class
-   (imported to describe it). An entry point named like a built-in spec is ignored: the built-in wins (a stale
-   installation's metadata may still list the built-ins' old class entry points);
+1. the built-in catalogue `BUILTIN_SPECS` (``"module:attribute"`` references to a `MethodSpec` or a
+   sequence of them, in torch-free modules);
+2. the ``olatbench.methods`` entry points (plugins), pointing at a `MethodSpec` or, old style, at a
+   `Method` class (imported to describe it). An entry point named like a built-in spec is ignored:
+   the built-in wins (a stale installation's metadata may still list the built-ins' old class entry
+   points);
 3. in-process registrations (`register`, for tests and notebooks), which win over both.
 """
 
@@ -37,15 +38,21 @@ _registered_classes: dict[str, type[Method]] = {}
 
 
 def spec_from_class(name: str, method_class: type[Method], kind: str = "plugin") -> MethodSpec:
-    """A spec describing an old-style method class (its presets, ablation grids, description, capabilities and
-    evaluation protocol)."""
+    """A spec describing an old-style method class (its presets, ablation grids, description,
+    capabilities and evaluation protocol)."""
     config_class = method_class.config_class
-    return MethodSpec(name=name, description=(method_class.description or "").strip(),
-                      implementation=_reference(method_class), config=_reference(config_class), kind=kind,  # type: ignore[arg-type]
-                      presets=dict(method_class.presets), ablations=dict(getattr(method_class, "ablations", {})),
-                      iterations=getattr(method_class, "training_iterations", None),
-                      capabilities=frozenset(getattr(method_class, "capabilities", frozenset())),
-                      evaluation=getattr(method_class, "evaluation", DEFAULT_EVALUATION))
+    return MethodSpec(
+        name=name,
+        description=(method_class.description or "").strip(),
+        implementation=_reference(method_class),
+        config=_reference(config_class),
+        kind=kind,  # type: ignore[arg-type]
+        presets=dict(method_class.presets),
+        ablations=dict(getattr(method_class, "ablations", {})),
+        iterations=getattr(method_class, "training_iterations", None),
+        capabilities=frozenset(getattr(method_class, "capabilities", frozenset())),
+        evaluation=getattr(method_class, "evaluation", DEFAULT_EVALUATION),
+    )
 
 
 def register(name: str | MethodSpec, method_class: type[Method] | None = None) -> None:
@@ -65,7 +72,11 @@ def register(name: str | MethodSpec, method_class: type[Method] | None = None) -
 def _as_specs(value: object, reference: str) -> list[MethodSpec]:
     if isinstance(value, MethodSpec):
         return [value]
-    if isinstance(value, Sequence) and not isinstance(value, str) and all(isinstance(v, MethodSpec) for v in value):
+    if (
+        isinstance(value, Sequence)
+        and not isinstance(value, str)
+        and all(isinstance(v, MethodSpec) for v in value)
+    ):
         return list(value)
     raise TypeError(f"{reference} is neither a MethodSpec nor a sequence of them")
 
@@ -82,7 +93,11 @@ def builtin_specs() -> dict[str, MethodSpec]:
 
 
 def _plugin_entries(builtin: set[str]) -> dict[str, object]:
-    return {entry.name: entry for entry in entry_points(group=ENTRY_POINT_GROUP) if entry.name not in builtin}
+    return {
+        entry.name: entry
+        for entry in entry_points(group=ENTRY_POINT_GROUP)
+        if entry.name not in builtin
+    }
 
 
 def method_names() -> list[str]:
@@ -92,19 +107,22 @@ def method_names() -> list[str]:
 
 
 def canonical_method_name(name: str) -> str:
-    """The known method ``name`` names (exactly, or ignoring case when only one matches: `olatbench.names`); a
-    `KeyError` with a "did you mean" and the known names otherwise."""
+    """The known method ``name`` names (exactly, or ignoring case when only one matches:
+    `olatbench.names`); a `KeyError` with a "did you mean" and the known names otherwise."""
     known = method_names()
     matched = match_name(name, known)
     if matched is None:
-        raise KeyError(f"unknown method '{name}'{did_you_mean(name, known)}; known methods: "
-                       f"{', '.join(known) or 'none'}")
+        raise KeyError(
+            f"unknown method '{name}'{did_you_mean(name, known)}; known methods: "
+            f"{', '.join(known) or 'none'}"
+        )
     return matched
 
 
 def get_spec(name: str) -> MethodSpec:
-    """The spec of method ``name``; a `KeyError` listing the known names, or an `ImportError` naming the entry
-    point of a plugin that cannot be loaded. Names match ignoring case where that is unambiguous (``SSDGS``)."""
+    """The spec of method ``name``; a `KeyError` listing the known names, or an `ImportError` naming
+    the entry point of a plugin that cannot be loaded. Names match ignoring case where that is
+    unambiguous (``SSDGS``)."""
     builtin = builtin_specs()
     if name not in _registered and name not in builtin:
         name = canonical_method_name(name)
@@ -116,8 +134,10 @@ def get_spec(name: str) -> MethodSpec:
     try:
         target = entry.load()  # type: ignore[attr-defined]
     except Exception as error:  # a broken plugin must say which one, not crash with its traceback
-        raise ImportError(f"method '{name}' (entry point '{entry.value}') could not be loaded: "  # type: ignore[attr-defined]
-                          f"{type(error).__name__}: {error}") from error
+        raise ImportError(
+            f"method '{name}' (entry point '{entry.value}') could not be loaded: "  # type: ignore[attr-defined]
+            f"{type(error).__name__}: {error}"
+        ) from error
     if isinstance(target, MethodSpec):
         if target.name != name:
             raise ImportError(f"entry point '{name}' points at the spec of method '{target.name}'")
@@ -125,7 +145,9 @@ def get_spec(name: str) -> MethodSpec:
     if isinstance(target, type):
         _registered_classes.setdefault(name, target)
         return spec_from_class(name, target)
-    raise ImportError(f"method '{name}' (entry point '{entry.value}') is neither a MethodSpec nor a Method class")  # type: ignore[attr-defined]
+    raise ImportError(
+        f"method '{name}' (entry point '{entry.value}') is neither a MethodSpec nor a Method class"
+    )  # type: ignore[attr-defined]
 
 
 def get_method(name: str) -> type[Method]:
@@ -136,12 +158,15 @@ def get_method(name: str) -> type[Method]:
     try:
         return spec.load_implementation()
     except Exception as error:
-        raise ImportError(f"method '{name}': its implementation {spec.implementation} could not be imported: "
-                          f"{type(error).__name__}: {error}") from error
+        raise ImportError(
+            f"method '{name}': its implementation {spec.implementation} could not be imported: "
+            f"{type(error).__name__}: {error}"
+        ) from error
 
 
 def config_class(spec: MethodSpec) -> type:
-    """The config dataclass of ``spec`` (a class registered in-process gives its own, importable or not)."""
+    """The config dataclass of ``spec`` (a class registered in-process gives its own, importable or
+    not)."""
     registered = _registered_classes.get(spec.name)
     if registered is not None and spec.implementation == _reference(registered):
         return registered.config_class

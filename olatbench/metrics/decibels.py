@@ -1,7 +1,8 @@
 """MSE -> PSNR for logs and health checks, without torch: ``10 log10(peak² / max(MSE, 1e-12))``.
 
-The floor keeps a perfect match finite (120 dB at peak 1) where a log line or a warning needs a number; scores
-under a metric protocol use `olatbench.metrics.psnr`, which gives +inf for identical images.
+The floor keeps a perfect match finite (120 dB at peak 1) where a log line or a warning needs a
+number; scores under a metric protocol use `olatbench.metrics.psnr`, which gives +inf for identical
+images.
 """
 
 from __future__ import annotations

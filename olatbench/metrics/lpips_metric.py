@@ -1,5 +1,6 @@
-"""The ``lpips``, ``lpips_alex`` and ``lpips_vgg`` metrics of the registry (`olatbench.metrics.registry`): one
-LPIPS pass per batch (`Protocol.lpips_batch`, shared through the batch's cache), read per network."""
+"""The ``lpips``, ``lpips_alex`` and ``lpips_vgg`` metrics of the registry
+(`olatbench.metrics.registry`): one LPIPS pass per batch (`Protocol.lpips_batch`, shared through the
+batch's cache), read per network."""
 
 from __future__ import annotations
 
@@ -11,7 +12,8 @@ if TYPE_CHECKING:
 
 
 def _lpips_by_net(batch: MetricBatch, protocol: Protocol) -> dict[str, list[float | None]]:
-    """The protocol's LPIPS of the batch per network (`Protocol.lpips_batch`), computed once per batch."""
+    """The protocol's LPIPS of the batch per network (`Protocol.lpips_batch`), computed once per
+    batch."""
     if "lpips" not in batch.cache:
         batch.cache["lpips"] = protocol.lpips_batch(batch.pred, batch.gt, batch.mask, batch.device)
     return batch.cache["lpips"]
@@ -19,8 +21,10 @@ def _lpips_by_net(batch: MetricBatch, protocol: Protocol) -> dict[str, list[floa
 
 def _of_net(batch: MetricBatch, protocol: Protocol, net: str) -> list[float | None]:
     if net not in protocol.lpips_nets:
-        raise ValueError(f"protocol {protocol.id} lists lpips_{net} but its LPIPS networks are "
-                         f"{', '.join(protocol.lpips_nets)}")
+        raise ValueError(
+            f"protocol {protocol.id} lists lpips_{net} but its LPIPS networks are "
+            f"{', '.join(protocol.lpips_nets)}"
+        )
     return _lpips_by_net(batch, protocol)[net]
 
 

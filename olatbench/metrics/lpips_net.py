@@ -7,11 +7,12 @@ Numerically the ``lpips`` package's ``LPIPS(net=..., version="0.1")`` in eval mo
 2. the torchvision backbone's ``features`` up to the last tap: AlexNet taps relu1…relu5
    (``features.1, 4, 7, 9, 11``), VGG16 taps relu1_2, relu2_2, relu3_3, relu4_3, relu5_3
    (``features.3, 8, 15, 22, 29``);
-3. per tap: channel-normalise ``f / (sqrt(Σ_c f²) + 1e-10)``, squared difference, the 1×1 linear head
-   (no bias; dropout is a no-op in eval), spatial mean; the sum over taps is the distance.
+3. per tap: channel-normalise ``f / (sqrt(Σ_c f²) + 1e-10)``, squared difference, the 1×1 linear
+   head (no bias; dropout is a no-op in eval), spatial mean; the sum over taps is the distance.
 
-Parameters use torchvision's state-dict names (``features.<i>.weight``/``bias``) plus ``lin<k>.weight``
-of shape (1, C_k, 1, 1), so a torchvision checkpoint plus the lpips heads load directly.
+Parameters use torchvision's state-dict names (``features.<i>.weight``/``bias``) plus
+``lin<k>.weight`` of shape (1, C_k, 1, 1), so a torchvision checkpoint plus the lpips heads load
+directly.
 """
 
 from __future__ import annotations
@@ -25,18 +26,45 @@ SCALE = (0.458, 0.448, 0.450)
 NETS: tuple[str, ...] = ("alex", "vgg")
 
 # Per backbone: torchvision ``features`` layers as (kind, args); taps are indices of ReLU layers.
-_ALEX_LAYERS = [("conv", (3, 64, 11, 4, 2)), ("relu", ()), ("pool", (3, 2)),
-                ("conv", (64, 192, 5, 1, 2)), ("relu", ()), ("pool", (3, 2)),
-                ("conv", (192, 384, 3, 1, 1)), ("relu", ()),
-                ("conv", (384, 256, 3, 1, 1)), ("relu", ()),
-                ("conv", (256, 256, 3, 1, 1)), ("relu", ())]
+_ALEX_LAYERS = [
+    ("conv", (3, 64, 11, 4, 2)),
+    ("relu", ()),
+    ("pool", (3, 2)),
+    ("conv", (64, 192, 5, 1, 2)),
+    ("relu", ()),
+    ("pool", (3, 2)),
+    ("conv", (192, 384, 3, 1, 1)),
+    ("relu", ()),
+    ("conv", (384, 256, 3, 1, 1)),
+    ("relu", ()),
+    ("conv", (256, 256, 3, 1, 1)),
+    ("relu", ()),
+]
 _ALEX_TAPS = (1, 4, 7, 9, 11)
 
 
 def _vgg16_layers() -> list[tuple[str, tuple[int, ...]]]:
     layers: list[tuple[str, tuple[int, ...]]] = []
     channels = 3
-    for width in (64, 64, "M", 128, 128, "M", 256, 256, 256, "M", 512, 512, 512, "M", 512, 512, 512):
+    for width in (
+        64,
+        64,
+        "M",
+        128,
+        128,
+        "M",
+        256,
+        256,
+        256,
+        "M",
+        512,
+        512,
+        512,
+        "M",
+        512,
+        512,
+        512,
+    ):
         if width == "M":
             layers.append(("pool", (2, 2)))
         else:
@@ -63,7 +91,8 @@ def tap_channels(net: str) -> tuple[int, ...]:
 
 
 class LPIPSNet(nn.Module):
-    """LPIPS distance network; ``forward(x, y)`` takes (B, 3, H, W) images in [-1, 1] and returns (B,)."""
+    """LPIPS distance network; ``forward(x, y)`` takes (B, 3, H, W) images in [-1, 1] and returns
+    (B,)."""
 
     def __init__(self, net: str = "alex") -> None:
         super().__init__()
@@ -76,7 +105,9 @@ class LPIPSNet(nn.Module):
         for index, (kind, args) in enumerate(self.layers):
             if kind == "conv":
                 c_in, c_out, kernel, stride, padding = args
-                self.features[str(index)] = nn.Conv2d(c_in, c_out, kernel, stride=stride, padding=padding)
+                self.features[str(index)] = nn.Conv2d(
+                    c_in, c_out, kernel, stride=stride, padding=padding
+                )
         for k, channels in enumerate(tap_channels(net)):
             self.register_parameter(f"lin{k}", nn.Parameter(torch.zeros(1, channels, 1, 1)))
         self.register_buffer("shift", torch.tensor(SHIFT).view(1, 3, 1, 1), persistent=False)
@@ -90,11 +121,16 @@ class LPIPSNet(nn.Module):
         missing = sorted(set(own) - set(state))
         unexpected = sorted(set(state) - set(own))
         if missing or unexpected:
-            raise ValueError(f"LPIPS-{self.net} weights do not fit: missing {missing[:4]}, unexpected {unexpected[:4]}")
+            raise ValueError(
+                f"LPIPS-{self.net} weights do not fit: missing {missing[:4]}, unexpected "
+                f"{unexpected[:4]}"
+            )
         for key, value in state.items():
             if tuple(value.shape) != tuple(own[key].shape):
-                raise ValueError(f"LPIPS-{self.net} weight {key}: shape {tuple(value.shape)}, "
-                                 f"expected {tuple(own[key].shape)}")
+                raise ValueError(
+                    f"LPIPS-{self.net} weight {key}: shape {tuple(value.shape)}, "
+                    f"expected {tuple(own[key].shape)}"
+                )
         self.load_state_dict(state)
         return self
 

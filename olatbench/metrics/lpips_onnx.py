@@ -1,8 +1,10 @@
-"""LPIPS through onnxruntime: the torch `LPIPSNet` exported once to ONNX (cached on disk), run on the CPU.
+"""LPIPS through onnxruntime: the torch `LPIPSNet` exported once to ONNX (cached on disk), run on
+the CPU.
 
-Export uses torch's TorchScript-based exporter (``dynamo=False``), which needs the ``onnx`` package; a model
-already exported (``$XDG_CACHE_HOME/olatbench/weights/onnx/lpips_<net>-<sha12>.onnx``, keyed by the sha256 of
-the weights and the opset) runs with onnxruntime alone. Values agree with the torch path to ~1e-7.
+Export uses torch's TorchScript-based exporter (``dynamo=False``), which needs the ``onnx`` package;
+a model already exported (``$XDG_CACHE_HOME/olatbench/weights/onnx/lpips_<net>-<sha12>.onnx``, keyed
+by the sha256 of the weights and the opset) runs with onnxruntime alone. Values agree with the torch
+path to ~1e-7.
 """
 
 from __future__ import annotations
@@ -51,7 +53,8 @@ def onnx_path(model: LPIPSNet, folder: Path | None = None) -> Path:
 
 
 def export_onnx(model: LPIPSNet, path: Path) -> Path:
-    """Export ``model`` (inputs x, y: (B, 3, H, W) in [-1, 1]; output (B,)) with dynamic batch and size."""
+    """Export ``model`` (inputs x, y: (B, 3, H, W) in [-1, 1]; output (B,)) with dynamic batch and
+    size."""
     if not exporter_available():
         raise RuntimeError("exporting LPIPS to ONNX needs the 'onnx' package (pip install onnx)")
     example = torch.zeros(1, 3, 64, 64)
@@ -59,16 +62,26 @@ def export_onnx(model: LPIPSNet, path: Path) -> Path:
     buffer = io.BytesIO()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        torch.onnx.export(model.cpu().float(), (example, example), buffer, dynamo=False, opset_version=OPSET,
-                          input_names=["x", "y"], output_names=["distance"],
-                          dynamic_axes={"x": dynamic, "y": dynamic, "distance": {0: "batch"}})
+        torch.onnx.export(
+            model.cpu().float(),
+            (example, example),
+            buffer,
+            dynamo=False,
+            opset_version=OPSET,
+            input_names=["x", "y"],
+            output_names=["distance"],
+            dynamic_axes={"x": dynamic, "y": dynamic, "distance": {0: "batch"}},
+        )
     return write_bytes(path, buffer.getvalue())
 
 
 class OnnxLPIPS:
-    """Callable like `LPIPSNet`: ``(x, y)`` (B, 3, H, W) in [-1, 1] -> (B,) tensor, computed by onnxruntime."""
+    """Callable like `LPIPSNet`: ``(x, y)`` (B, 3, H, W) in [-1, 1] -> (B,) tensor, computed by
+    onnxruntime."""
 
-    def __init__(self, model: LPIPSNet, path: Path | None = None, threads: int | None = None) -> None:
+    def __init__(
+        self, model: LPIPSNet, path: Path | None = None, threads: int | None = None
+    ) -> None:
         import onnxruntime
 
         self.net = model.net
@@ -77,11 +90,15 @@ class OnnxLPIPS:
             export_onnx(model, self.path)
         options = onnxruntime.SessionOptions()
         options.intra_op_num_threads = threads or torch.get_num_threads()
-        self.session = onnxruntime.InferenceSession(str(self.path), options, providers=["CPUExecutionProvider"])
+        self.session = onnxruntime.InferenceSession(
+            str(self.path), options, providers=["CPUExecutionProvider"]
+        )
 
     def __call__(self, x: torch.Tensor, y: torch.Tensor) -> torch.Tensor:
-        feed = {"x": np.ascontiguousarray(x.detach().cpu().float().numpy()),
-                "y": np.ascontiguousarray(y.detach().cpu().float().numpy())}
+        feed = {
+            "x": np.ascontiguousarray(x.detach().cpu().float().numpy()),
+            "y": np.ascontiguousarray(y.detach().cpu().float().numpy()),
+        }
         return torch.from_numpy(self.session.run(None, feed)[0].reshape(-1))
 
 

@@ -1,4 +1,5 @@
-"""PSNR with a fixed peak: ``10 log10(peak² / MSE)``, MSE over all pixels and channels of one image."""
+"""PSNR with a fixed peak: ``10 log10(peak² / MSE)``, MSE over all pixels and channels of one
+image."""
 
 from __future__ import annotations
 
@@ -15,8 +16,11 @@ if TYPE_CHECKING:
     from olatbench.metrics.registry import MetricBatch
 
 
-def mse_torch(pred: torch.Tensor, gt: torch.Tensor, mask: torch.Tensor | None = None) -> torch.Tensor:
-    """Per-image mean squared error of (B, C, H, W) tensors -> (B,); ``mask`` (B, 1, H, W) weights pixels."""
+def mse_torch(
+    pred: torch.Tensor, gt: torch.Tensor, mask: torch.Tensor | None = None
+) -> torch.Tensor:
+    """Per-image mean squared error of (B, C, H, W) tensors -> (B,); ``mask`` (B, 1, H, W) weights
+    pixels."""
     squared = (pred - gt) ** 2
     if mask is None:
         return squared.flatten(1).mean(1)
@@ -24,13 +28,16 @@ def mse_torch(pred: torch.Tensor, gt: torch.Tensor, mask: torch.Tensor | None = 
     return weighted / (mask.flatten(1).sum(1) * pred.shape[1])
 
 
-def psnr_torch(pred: torch.Tensor, gt: torch.Tensor, mask: torch.Tensor | None = None,
-               peak: float = 1.0) -> torch.Tensor:
+def psnr_torch(
+    pred: torch.Tensor, gt: torch.Tensor, mask: torch.Tensor | None = None, peak: float = 1.0
+) -> torch.Tensor:
     """PSNR in dB of (B, C, H, W) tensors -> (B,); identical images give +inf."""
     return 10.0 * torch.log10(peak**2 / mse_torch(pred, gt, mask))
 
 
-def psnr(pred: ArrayLike, gt: ArrayLike, mask: ArrayLike | None = None, peak: float = 1.0) -> float | np.ndarray:
+def psnr(
+    pred: ArrayLike, gt: ArrayLike, mask: ArrayLike | None = None, peak: float = 1.0
+) -> float | np.ndarray:
     """PSNR (dB) of channel-last images (H, W, C) or batches (B, H, W, C) with values in [0, peak].
 
     ``mask`` (H, W) or (B, H, W) in [0, 1] restricts (weights) the pixels of the MSE.
@@ -44,8 +51,8 @@ def psnr(pred: ArrayLike, gt: ArrayLike, mask: ArrayLike | None = None, peak: fl
 
 
 def protocol_psnr(batch: MetricBatch, protocol: Protocol) -> list[float]:
-    """The ``psnr`` metric: ``10 log10(1 / MSE)`` per image, the MSE in float64 (mask-weighted for masked
-    protocols) and floored at `PSNR_MSE_FLOOR` (at most 100 dB)."""
+    """The ``psnr`` metric: ``10 log10(1 / MSE)`` per image, the MSE in float64 (mask-weighted for
+    masked protocols) and floored at `PSNR_MSE_FLOOR` (at most 100 dB)."""
     mask = None if batch.mask is None else batch.mask.double()
     mse = mse_torch(batch.pred.double(), batch.gt.double(), mask).clamp_min(PSNR_MSE_FLOOR)
     return (10.0 * torch.log10(1.0 / mse)).tolist()

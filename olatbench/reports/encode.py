@@ -3,14 +3,15 @@
 Encoders, tried in this order unless one is named:
 
 1. ``av`` — PyAV (``pip install 'olatbench[video]'``): libx264, ``yuv420p``, CRF 18, ``+faststart``.
-2. ``imageio-ffmpeg`` — the ffmpeg binary that package ships (also in ``olatbench[video]``), same settings, frames
-   piped in as raw RGB.
-3. ``opencv`` — OpenCV's ``mp4v`` (MPEG-4 Part 2), always installed. Browsers do not play it (the HTML report
-   cannot show it; VLC and ffplay can), so choosing it is logged as a warning naming the extra to install.
+2. ``imageio-ffmpeg`` — the ffmpeg binary that package ships (also in ``olatbench[video]``), same
+   settings, frames piped in as raw RGB.
+3. ``opencv`` — OpenCV's ``mp4v`` (MPEG-4 Part 2), always installed. Browsers do not play it (the
+   HTML report cannot show it; VLC and ffplay can), so choosing it is logged as a warning naming the
+   extra to install.
 
-``yuv420p`` stores colour at half resolution, so H.264 frames need an even width and height: an odd frame is
-padded by repeating its last column / row (the video is then up to one pixel larger than the PNG frames).
-Frames are ``(H, W, 3)`` uint8 sRGB, all of one size.
+``yuv420p`` stores colour at half resolution, so H.264 frames need an even width and height: an odd
+frame is padded by repeating its last column / row (the video is then up to one pixel larger than
+the PNG frames). Frames are ``(H, W, 3)`` uint8 sRGB, all of one size.
 """
 
 from __future__ import annotations
@@ -27,12 +28,15 @@ log = logging.getLogger(__name__)
 
 ENCODERS = ("av", "imageio-ffmpeg", "opencv")
 CRF = 18  # visually lossless for renders; x264's default is 23
-FALLBACK_WARNING = ("no H.264 encoder found (install 'olatbench[video]': PyAV or imageio-ffmpeg); writing MPEG-4 "
-                    "Part 2 (mp4v) with OpenCV, which browsers do not play")
+FALLBACK_WARNING = (
+    "no H.264 encoder found (install 'olatbench[video]': PyAV or imageio-ffmpeg); writing MPEG-4 "
+    "Part 2 (mp4v) with OpenCV, which browsers do not play"
+)
 
 
 class FrameWriter(Protocol):
-    """What `open_video` returns: ``write`` one (H, W, 3) uint8 RGB frame at a time, then ``close``."""
+    """What `open_video` returns: ``write`` one (H, W, 3) uint8 RGB frame at a time, then
+    ``close``."""
 
     encoder: str
 
@@ -43,8 +47,11 @@ class FrameWriter(Protocol):
 
 def available_encoders() -> list[str]:
     """The encoders of `ENCODERS` this environment can use, in order of preference."""
-    found = [name for name, module in (("av", "av"), ("imageio-ffmpeg", "imageio_ffmpeg"))
-             if importlib.util.find_spec(module) is not None]
+    found = [
+        name
+        for name, module in (("av", "av"), ("imageio-ffmpeg", "imageio_ffmpeg"))
+        if importlib.util.find_spec(module) is not None
+    ]
     return [*found, "opencv"]
 
 
@@ -62,15 +69,21 @@ class _AvWriter:
 
         import av
 
-        self.container = av.open(str(path), mode="w", format="mp4", options={"movflags": "+faststart"})
-        self.stream = self.container.add_stream("libx264", rate=Fraction(fps).limit_denominator(1001))
+        self.container = av.open(
+            str(path), mode="w", format="mp4", options={"movflags": "+faststart"}
+        )
+        self.stream = self.container.add_stream(
+            "libx264", rate=Fraction(fps).limit_denominator(1001)
+        )
         self.stream.width, self.stream.height = width + width % 2, height + height % 2
         self.stream.pix_fmt = "yuv420p"
         self.stream.options = {"crf": str(CRF)}
         self.frame_type = av.VideoFrame
 
     def write(self, frame: np.ndarray) -> None:
-        for packet in self.stream.encode(self.frame_type.from_ndarray(_even(frame), format="rgb24")):
+        for packet in self.stream.encode(
+            self.frame_type.from_ndarray(_even(frame), format="rgb24")
+        ):
             self.container.mux(packet)
 
     def close(self) -> None:
@@ -86,9 +99,33 @@ class _FfmpegWriter:
         import imageio_ffmpeg
 
         even = f"{width + width % 2}x{height + height % 2}"
-        command = [imageio_ffmpeg.get_ffmpeg_exe(), "-y", "-loglevel", "error", "-f", "rawvideo", "-pix_fmt",
-                   "rgb24", "-s", even, "-r", f"{fps}", "-i", "-", "-c:v", "libx264", "-pix_fmt", "yuv420p",
-                   "-crf", str(CRF), "-movflags", "+faststart", "-f", "mp4", str(path)]
+        command = [
+            imageio_ffmpeg.get_ffmpeg_exe(),
+            "-y",
+            "-loglevel",
+            "error",
+            "-f",
+            "rawvideo",
+            "-pix_fmt",
+            "rgb24",
+            "-s",
+            even,
+            "-r",
+            f"{fps}",
+            "-i",
+            "-",
+            "-c:v",
+            "libx264",
+            "-pix_fmt",
+            "yuv420p",
+            "-crf",
+            str(CRF),
+            "-movflags",
+            "+faststart",
+            "-f",
+            "mp4",
+            str(path),
+        ]
         self.process = subprocess.Popen(command, stdin=subprocess.PIPE, stderr=subprocess.PIPE)
 
     def write(self, frame: np.ndarray) -> None:
@@ -97,7 +134,10 @@ class _FfmpegWriter:
     def close(self) -> None:
         _, error = self.process.communicate()
         if self.process.returncode:
-            raise OSError(f"ffmpeg failed ({self.process.returncode}): {error.decode(errors='replace').strip()}")
+            raise OSError(
+                f"ffmpeg failed ({self.process.returncode}): "
+                f"{error.decode(errors='replace').strip()}"
+            )
 
 
 class _OpenCvWriter:
@@ -106,7 +146,9 @@ class _OpenCvWriter:
     def __init__(self, path: Path, fps: float, width: int, height: int) -> None:
         import cv2
 
-        self.writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"mp4v"), float(fps), (width, height))
+        self.writer = cv2.VideoWriter(
+            str(path), cv2.VideoWriter_fourcc(*"mp4v"), float(fps), (width, height)
+        )
         if not self.writer.isOpened():
             raise OSError(f"{path}: OpenCV cannot open an mp4v video writer")
 
@@ -120,14 +162,19 @@ class _OpenCvWriter:
 _WRITERS = {"av": _AvWriter, "imageio-ffmpeg": _FfmpegWriter, "opencv": _OpenCvWriter}
 
 
-def open_video(path: str | Path, fps: float, width: int, height: int, encoder: str | None = None) -> FrameWriter:
-    """A writer of ``width`` × ``height`` frames into the MP4 at ``path``; the file is complete after ``close()``
-    (written in place: wrap it in `olatbench.atomic.atomic_path` for an atomic file). ``encoder``: one of
-    `ENCODERS`, default the first available; falling back to ``opencv`` logs `FALLBACK_WARNING`."""
+def open_video(
+    path: str | Path, fps: float, width: int, height: int, encoder: str | None = None
+) -> FrameWriter:
+    """A writer of ``width`` × ``height`` frames into the MP4 at ``path``; the file is complete
+    after ``close()`` (written in place: wrap it in `olatbench.atomic.atomic_path` for an atomic
+    file). ``encoder``: one of `ENCODERS`, default the first available; falling back to ``opencv``
+    logs `FALLBACK_WARNING`."""
     if encoder is None:
         encoder = available_encoders()[0]
         if encoder == "opencv":
             log.warning(FALLBACK_WARNING)
     if encoder not in _WRITERS:
-        raise ValueError(f"unknown video encoder {encoder!r}; expected one of {', '.join(ENCODERS)}")
+        raise ValueError(
+            f"unknown video encoder {encoder!r}; expected one of {', '.join(ENCODERS)}"
+        )
     return _WRITERS[encoder](Path(path), fps, width, height)

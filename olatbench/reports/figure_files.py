@@ -1,5 +1,6 @@
-"""The figures of an HTML report as the page embeds them, and (``olatbench report --figures png|svg|pdf``) as files
-in ``<page name>_figures/`` beside the page, for a paper: ``01-<title>.pdf``, ``02-…`` in page order."""
+"""The figures of an HTML report as the page embeds them, and (``olatbench report --figures
+png|svg|pdf``) as files in ``<page name>_figures/`` beside the page, for a paper:
+``01-<title>.pdf``, ``02-…`` in page order."""
 
 from __future__ import annotations
 
@@ -19,17 +20,19 @@ def figure_folder(page: str | Path) -> Path:
 
 
 def file_name(index: int, title: str, suffix: str) -> str:
-    """``03-nrhints-pixiu-training-curves.pdf``: the position on the page and the title as a file-name slug."""
+    """``03-nrhints-pixiu-training-curves.pdf``: the position on the page and the title as a
+    file-name slug."""
     slug = re.sub(r"[^a-z0-9]+", "-", title.lower()).strip("-")[:80] or "figure"
     return f"{index:02d}-{slug}.{suffix}"
 
 
-def page_figures(figures: Sequence[ReportFigure], page: str | Path | None, fmt: str
-                 ) -> list[tuple[str, bytes, str | None]]:
-    """(title and caption, embedded bytes, link) of each figure for `olatbench.reports.html.to_html`, closing each
-    figure.
-    With a ``page`` path, the drawn figures (not the videos) are also written as ``fmt`` files into
-    `figure_folder` (atomically) and linked by their path relative to the page."""
+def page_figures(
+    figures: Sequence[ReportFigure], page: str | Path | None, fmt: str
+) -> list[tuple[str, bytes, str | None]]:
+    """(title and caption, embedded bytes, link) of each figure for
+    `olatbench.reports.html.to_html`, closing each figure. With a ``page`` path, the drawn figures
+    (not the videos) are also written as ``fmt`` files into `figure_folder` (atomically) and linked
+    by their path relative to the page."""
     embedded = []
     folder = figure_folder(page) if page is not None else None
     try:

@@ -1,4 +1,5 @@
-"""A format-neutral table: what every layout builds and every writer (LaTeX, Markdown, CSV, HTML) prints.
+"""A format-neutral table: what every layout builds and every writer (LaTeX, Markdown, CSV, HTML)
+prints.
 
 A `Table` has a header (rows of spanning column titles above the leaf columns), one or more
 `Block`s (the paper's metric blocks, e.g. "PSNR ↑"), each holding `Row`s of `Cell`s. Ranking
@@ -34,7 +35,11 @@ class Cell:
     @property
     def number(self) -> float | None:
         """The value as a float, or None when missing, text or NaN."""
-        if isinstance(self.value, (int, float)) and not isinstance(self.value, bool) and math.isfinite(self.value):
+        if (
+            isinstance(self.value, (int, float))
+            and not isinstance(self.value, bool)
+            and math.isfinite(self.value)
+        ):
             return float(self.value)
         return None
 
@@ -46,7 +51,10 @@ class Cell:
             return self.value
         body = f"{self.value:{'+' if self.signed else ''}.{self.decimals}f}"
         if self.std is not None and math.isfinite(self.std):
-            body += f" ± {self.std:.{self.decimals if self.std_decimals is None else self.std_decimals}f}"
+            body += (
+                " ± "
+                f"{self.std:.{self.decimals if self.std_decimals is None else self.std_decimals}f}"
+            )
         return body
 
 
@@ -68,7 +76,8 @@ class Block:
     """A block of rows under an optional spanning title (e.g. "PSNR ↑").
 
     ``directions[j]`` is "max" or "min" (which way is better) for column j, or None (not ranked).
-    ``rule_before`` lists row indices that start a new group (a horizontal rule is drawn above them).
+    ``rule_before`` lists row indices that start a new group (a horizontal rule is drawn above
+    them).
     """
 
     title: str | None
@@ -83,8 +92,9 @@ class Table:
 
     ``header`` rows are lists of (title, span) whose spans add up to ``len(columns)``; the last
     header row names the leaf columns. ``label_names`` name the label columns (e.g. ("Method",)).
-    ``column_rules`` lists leaf-column indices after which a vertical rule is drawn (LaTeX); ``rules`` is how
-    its horizontal rules are typeset (LaTeX): "hline" (most of the paper's tables) or "booktabs".
+    ``column_rules`` lists leaf-column indices after which a vertical rule is drawn (LaTeX);
+    ``rules`` is how its horizontal rules are typeset (LaTeX): "hline" (most of the paper's tables)
+    or "booktabs".
     """
 
     name: str
@@ -103,15 +113,21 @@ class Table:
         for level, header_row in enumerate(self.header):
             span = sum(width for _, width in header_row)
             if span != len(self.columns):
-                raise ValueError(f"table {self.name}: header row {level} spans {span} columns, "
-                                 f"expected {len(self.columns)}")
+                raise ValueError(
+                    f"table {self.name}: header row {level} spans {span} columns, "
+                    f"expected {len(self.columns)}"
+                )
         for block in self.blocks:
             if len(block.directions) != len(self.columns):
-                raise ValueError(f"table {self.name}: block {block.title!r} has {len(block.directions)} "
-                                 f"directions for {len(self.columns)} columns")
+                raise ValueError(
+                    f"table {self.name}: block {block.title!r} has {len(block.directions)} "
+                    f"directions for {len(self.columns)} columns"
+                )
             for row in block.rows:
                 if len(row.cells) != len(self.columns) or len(row.labels) != len(self.label_names):
-                    raise ValueError(f"table {self.name}: row {row.labels} does not match the columns")
+                    raise ValueError(
+                        f"table {self.name}: row {row.labels} does not match the columns"
+                    )
 
     def cell(self, block_title: str | None, labels: tuple[str, ...], column: str) -> Cell:
         """The cell of a row (by labels) and leaf column (by name) in the block with this title."""

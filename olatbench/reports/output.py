@@ -26,7 +26,7 @@ def format_for(path: str | Path | None, explicit: str | None) -> str:
 
 
 def parse_colours(text: str | None) -> tuple[str, ...]:
-    """"1,0.8,0.8;1,0.9,0.8" -> ("1,0.8,0.8", "1,0.9,0.8"), each three numbers in [0, 1]."""
+    """ "1,0.8,0.8;1,0.9,0.8" -> ("1,0.8,0.8", "1,0.9,0.8"), each three numbers in [0, 1]."""
     if not text:
         return PAPER_COLOURS
     colours = tuple(part.strip() for part in text.split(";") if part.strip())
@@ -44,17 +44,27 @@ def _unit(text: str) -> bool:
         return False
 
 
-def render_tables(tables: Sequence[Table], fmt: str, *, standalone: bool = False,
-                  colours: Sequence[str] = PAPER_COLOURS, rules: str | None = None,
-                  figures: Sequence[tuple[str, bytes, str | None]] = (), notes: Sequence[str] = (),
-                  title: str = "olatbench report", fit: bool = False) -> str:
-    """All tables in one document of format ``fmt`` (figures — title, PNG or MP4 bytes, link to the figure's file
-    or None — and notes are used by HTML only). LaTeX: ``standalone`` a document in the portable flavour, else the
-    paper's flavour opened by a comment naming its packages; ``fit`` shrinks tables wider than the line
-    (`olatbench.reports.latex`)."""
+def render_tables(
+    tables: Sequence[Table],
+    fmt: str,
+    *,
+    standalone: bool = False,
+    colours: Sequence[str] = PAPER_COLOURS,
+    rules: str | None = None,
+    figures: Sequence[tuple[str, bytes, str | None]] = (),
+    notes: Sequence[str] = (),
+    title: str = "olatbench report",
+    fit: bool = False,
+) -> str:
+    """All tables in one document of format ``fmt`` (figures — title, PNG or MP4 bytes, link to the
+    figure's file or None — and notes are used by HTML only). LaTeX: ``standalone`` a document in
+    the portable flavour, else the paper's flavour opened by a comment naming its packages; ``fit``
+    shrinks tables wider than the line (`olatbench.reports.latex`)."""
     if fmt == "latex":
-        body = "\n".join(to_latex(table, colours=colours, rules=rules, portable=standalone, fit=fit)
-                         for table in tables)
+        body = "\n".join(
+            to_latex(table, colours=colours, rules=rules, portable=standalone, fit=fit)
+            for table in tables
+        )
         return standalone_document(body) if standalone else packages_comment() + body
     if fmt == "markdown":
         return join_documents([to_markdown(table) for table in tables])
@@ -63,4 +73,3 @@ def render_tables(tables: Sequence[Table], fmt: str, *, standalone: bool = False
     if fmt == "html":
         return to_html(tables, figures, title=title, colours=colours, notes=notes)
     raise ValueError(f"unknown format {fmt!r}; choose one of {', '.join(FORMATS)}")
-

@@ -33,15 +33,16 @@ PROTOCOL = "published numbers: SSD-GS, ICLR 2026 (as printed in the paper)"
 
 @dataclass(frozen=True)
 class Ranking:
-    """How a paper table colours its cells: ``top`` ranks, columns with at least ``min_values`` numbers,
-    and, when ``average_only``, only the "Average" columns."""
+    """How a paper table colours its cells: ``top`` ranks, columns with at least ``min_values``
+    numbers, and, when ``average_only``, only the "Average" columns."""
 
     top: int = 2
     min_values: int = 2
     average_only: bool = False
 
 
-# The rules each paper table is typeset with (LaTeX): the appendix ablation tables use booktabs, the others \hline.
+# The rules each paper table is typeset with (LaTeX): the appendix ablation tables use booktabs, the
+# others \hline.
 PAPER_RULES: dict[str, str] = {"ablation-scenes": "booktabs", "shadow-on-sss": "booktabs"}
 
 PAPER_RANKING: dict[str, Ranking] = {
@@ -58,12 +59,19 @@ PAPER_RANKING: dict[str, Ranking] = {
 CAPTIONS = {
     "real": "Comparison on the real NRHints scenes (paper Table 1(a)).",
     "gs3": "Comparison on the GS3 synthetic scenes (paper Table 1(b)).",
-    "sssgs": "Per-scene comparison on the SSS-GS synthetic scenes, 60K iterations (paper appendix table).",
-    "sssgs-overview": "Comparison with SSS-GS and KiloOSF on the SSS-GS synthetic scenes (paper Table 1(c)).",
+    "sssgs": (
+        "Per-scene comparison on the SSS-GS synthetic scenes, 60K iterations (paper appendix "
+        "table)."
+    ),
+    "sssgs-overview": (
+        "Comparison with SSS-GS and KiloOSF on the SSS-GS synthetic scenes (paper Table 1(c))."
+    ),
     "ablation": "Ablation study on the real scene Pixiu (paper Table 2).",
     "ablation-scenes": "Ablation study on real and synthetic scenes (paper appendix table).",
     "shadow-on-sss": "Applying the shadow term to the SSS component (paper appendix table).",
-    "relighting-baselines": "Expanded relighting baselines TensoIR and R3DG on GS3 (paper appendix table).",
+    "relighting-baselines": (
+        "Expanded relighting baselines TensoIR and R3DG on GS3 (paper appendix table)."
+    ),
 }
 
 
@@ -76,7 +84,9 @@ def _cells(rows: pd.DataFrame) -> dict[tuple[str, str, str, str], Cell]:
             cell = Cell(str(row["value"]))
         elif std is not None or find_metric(row["metric"]) is None:
             std_decimals = None if std is None else int(row["std_decimals"])
-            cell = Cell(float(number), std=std, decimals=int(row["decimals"]), std_decimals=std_decimals)
+            cell = Cell(
+                float(number), std=std, decimals=int(row["decimals"]), std_decimals=std_decimals
+            )
         else:
             cell = Cell(float(number), decimals=4)
         cells[(row["method"], row["scene"], row["split"], row["metric"])] = cell
@@ -107,38 +117,66 @@ def build_paper_table(name: str) -> tuple[Table, pd.DataFrame]:
     splits = [s for s in ("train", "test") if s in set(rows["split"])]
     if name in ("real", "gs3", "sssgs"):
         scenes = _average_last(_unique(rows["scene"]))
-        table = scenes_layout(lookup, methods, scenes, splits, metrics, name=label, caption=caption,
-                              protocol=protocol)
+        table = scenes_layout(
+            lookup, methods, scenes, splits, metrics, name=label, caption=caption, protocol=protocol
+        )
     elif name == "sssgs-overview":
-        table = overview_layout(lookup, methods, splits, metrics, name=label, caption=caption, protocol=protocol)
+        table = overview_layout(
+            lookup, methods, splits, metrics, name=label, caption=caption, protocol=protocol
+        )
     elif name == "ablation":
         sets = {method: _ablation_set(method) for method in methods}
         first_schedule = [i for i, m in enumerate(methods) if sets[m] == "schedule"][:1]
-        table = metric_columns_layout(lookup, methods, _unique(rows["scene"])[0], splits, metrics, name=label,
-                                      caption=caption, protocol=protocol, rank_sets=sets,
-                                      rule_before=first_schedule)
+        table = metric_columns_layout(
+            lookup,
+            methods,
+            _unique(rows["scene"])[0],
+            splits,
+            metrics,
+            name=label,
+            caption=caption,
+            protocol=protocol,
+            rank_sets=sets,
+            rule_before=first_schedule,
+        )
     else:
         scene_suite = dict(zip(rows["scene"], rows["suite"], strict=False))
         scenes = _average_last(_unique(rows["scene"]))
         groups = None
         if name != "relighting-baselines":
-            groups = [(SUITE_TITLES[suite], sum(scene_suite[s] == suite for s in scenes))
-                      for suite in _unique(pd.Series([scene_suite[s] for s in scenes]))]
+            groups = [
+                (SUITE_TITLES[suite], sum(scene_suite[s] == suite for s in scenes))
+                for suite in _unique(pd.Series([scene_suite[s] for s in scenes]))
+            ]
         if name == "ablation-scenes":
             sets = {method: _ablation_set(method) for method in methods}
             rule_rows = [m for m in methods if sets[m] == "schedule"][:1]
         else:
             sets, rule_rows = {method: "all" for method in methods}, []
-        table = split_rows_layout(lookup, methods, scenes, splits, metrics, name=label, caption=caption,
-                                  protocol=protocol, rank_sets=sets, scene_groups=groups, rule_before_rows=rule_rows)
+        table = split_rows_layout(
+            lookup,
+            methods,
+            scenes,
+            splits,
+            metrics,
+            name=label,
+            caption=caption,
+            protocol=protocol,
+            rank_sets=sets,
+            scene_groups=groups,
+            rule_before_rows=rule_rows,
+        )
     return table, rows
 
 
 def rank_disagreements(table: Table, rows: pd.DataFrame) -> list[str]:
     """Cells whose computed rank differs from the paper's colouring, as readable sentences."""
-    paper = {(r["method"], r["scene"], r["split"], r["metric"]): (None if pd.isna(r["paper_rank"])
-                                                                  else int(r["paper_rank"]))
-             for _, r in rows.iterrows()}
+    paper = {
+        (r["method"], r["scene"], r["split"], r["metric"]): (
+            None if pd.isna(r["paper_rank"]) else int(r["paper_rank"])
+        )
+        for _, r in rows.iterrows()
+    }
     computed = _computed_ranks(table, rows)
     words = {1: "best", 2: "second best", None: "uncoloured"}
     paper_words = {1: "colours it best", 2: "colours it second best", None: "leaves it uncoloured"}
@@ -147,13 +185,18 @@ def rank_disagreements(table: Table, rows: pd.DataFrame) -> list[str]:
         ours = computed.get(key)
         if key in computed and ours != paper_rank:
             method, scene, split, metric = key
-            notes.append(f"{method}, {scene} {split_title(split)} {metric.upper()}: the paper "
-                         f"{paper_words[paper_rank]}, its numbers make it {words[ours]}")
+            notes.append(
+                f"{method}, {scene} {split_title(split)} {metric.upper()}: the paper "
+                f"{paper_words[paper_rank]}, its numbers make it {words[ours]}"
+            )
     return notes
 
 
-def _computed_ranks(table: Table, rows: pd.DataFrame) -> dict[tuple[str, str, str, str], int | None]:
-    """Map each published key to the rank its cell received (matching cells by identity of position)."""
+def _computed_ranks(
+    table: Table, rows: pd.DataFrame
+) -> dict[tuple[str, str, str, str], int | None]:
+    """Map each published key to the rank its cell received (matching cells by identity of
+    position)."""
     ranks = {}
     for _, r in rows.iterrows():
         key = (r["method"], r["scene"], r["split"], r["metric"])
@@ -169,9 +212,11 @@ def _find(table: Table, method: str, scene: str, split: str, metric: str) -> Cel
     if table.label_names == ("Method", "Split"):
         candidates.append((title, (method, split_title(split)), scene))
     else:
-        candidates += [(title, (method,), f"{scene}/{split_title(split)}"),
-                       (None, (method,), f"{split_title(split)} Set/{title}"),
-                       (None, (method,), f"{split_title(split)} (Average)/{title}")]
+        candidates += [
+            (title, (method,), f"{scene}/{split_title(split)}"),
+            (None, (method,), f"{split_title(split)} Set/{title}"),
+            (None, (method,), f"{split_title(split)} (Average)/{title}"),
+        ]
     for block_title, labels, column in candidates:
         if column in table.columns:
             try:
@@ -182,7 +227,8 @@ def _find(table: Table, method: str, scene: str, split: str, metric: str) -> Cel
 
 
 def paper_table(name: str) -> Table:
-    """One of the paper's tables (`PAPER_TABLES` names), ranked, with footnotes on colouring disagreements."""
+    """One of the paper's tables (`PAPER_TABLES` names), ranked, with footnotes on colouring
+    disagreements."""
     if name not in PAPER_TABLES:
         raise KeyError(f"unknown paper table {name!r}; choose one of {', '.join(PAPER_TABLES)}")
     table, rows = build_paper_table(name)
@@ -198,5 +244,9 @@ def paper_table(name: str) -> Table:
 
 
 def _has_missing(table: Table) -> bool:
-    return any(cell.value is None or (isinstance(cell.value, float) and math.isnan(cell.value))
-               for block in table.blocks for row in block.rows for cell in row.cells)
+    return any(
+        cell.value is None or (isinstance(cell.value, float) and math.isnan(cell.value))
+        for block in table.blocks
+        for row in block.rows
+        for cell in row.cells
+    )

@@ -34,21 +34,41 @@ PAPER_TABLES: dict[str, str] = {
 
 # Run variant (a method preset) -> the row label the paper prints for it.
 VARIANT_LABELS: dict[str, str] = {
-    "ablation-A": "A: Diff", "ablation-B": "B: D + S", "ablation-C": "C: D + S + SSS",
-    "ablation-D": "D: Full (Ours)", "ablation-E": "E: Full - S", "ablation-F": "F: Full - SSS",
-    "schedule-H": "H: Joint", "schedule-I": "I: Prog. Phys (Ours)", "schedule-J": "J: Prog. NonPhys",
-    "schedule-K": "K: Prog. Merge", "shadow-on-sss": "Shadow-on-SSS",
-    "sssgs": "Ours (w/ Opt)", "sssgs-no-opt": "Ours (w/o Opt)",
+    "ablation-A": "A: Diff",
+    "ablation-B": "B: D + S",
+    "ablation-C": "C: D + S + SSS",
+    "ablation-D": "D: Full (Ours)",
+    "ablation-E": "E: Full - S",
+    "ablation-F": "F: Full - SSS",
+    "schedule-H": "H: Joint",
+    "schedule-I": "I: Prog. Phys (Ours)",
+    "schedule-J": "J: Prog. NonPhys",
+    "schedule-K": "K: Prog. Merge",
+    "shadow-on-sss": "Shadow-on-SSS",
+    "sssgs": "Ours (w/ Opt)",
+    "sssgs-no-opt": "Ours (w/o Opt)",
 }
 
 # The published tables in which a suite's per-scene numbers are looked up, most specific first.
 SUITE_TABLES: dict[str, tuple[str, ...]] = {
-    "nrhints": ("tab:quantitative_real", "tab:ablation_study", "tab:ablation_study_additional-scene",
-                "tab:ablationstudy_shadow-on-sss"),
-    "gs3": ("tab:quantitative_synthetic", "tab:quantitative_synthetic_relighting",
-            "tab:ablation_study_additional-scene", "tab:ablationstudy_shadow-on-sss"),
-    "sssgs": ("tab:quantitative_synthetic_sss-gs", "tab:quantitative_synthetic_sss-gs_overall",
-              "tab:ablation_study_additional-scene", "tab:ablationstudy_shadow-on-sss"),
+    "nrhints": (
+        "tab:quantitative_real",
+        "tab:ablation_study",
+        "tab:ablation_study_additional-scene",
+        "tab:ablationstudy_shadow-on-sss",
+    ),
+    "gs3": (
+        "tab:quantitative_synthetic",
+        "tab:quantitative_synthetic_relighting",
+        "tab:ablation_study_additional-scene",
+        "tab:ablationstudy_shadow-on-sss",
+    ),
+    "sssgs": (
+        "tab:quantitative_synthetic_sss-gs",
+        "tab:quantitative_synthetic_sss-gs_overall",
+        "tab:ablation_study_additional-scene",
+        "tab:ablationstudy_shadow-on-sss",
+    ),
 }
 
 
@@ -62,7 +82,8 @@ def data_path() -> Path:
 
 
 def load_published(path: str | Path | None = None) -> pd.DataFrame:
-    """The published numbers with the CSV's columns (``value`` as printed text, ``std`` float, ``paper_rank`` Int64).
+    """The published numbers with the CSV's columns (``value`` as printed text, ``std`` float,
+    ``paper_rank`` Int64).
 
     Rows keep the CSV's order, which is the paper's row and column order.
     """
@@ -72,16 +93,24 @@ def load_published(path: str | Path | None = None) -> pd.DataFrame:
 @lru_cache(maxsize=4)
 def _load(path: str) -> pd.DataFrame:
     try:
-        frame = pd.read_csv(path, dtype={"value": str, "std": str}, keep_default_na=False,
-                            na_values={"paper_rank": [""]})
+        frame = pd.read_csv(
+            path,
+            dtype={"value": str, "std": str},
+            keep_default_na=False,
+            na_values={"paper_rank": [""]},
+        )
     except FileNotFoundError:
-        raise PublishedError(f"{path}: published numbers not found (is olatbench installed with its data?)") from None
+        raise PublishedError(
+            f"{path}: published numbers not found (is olatbench installed with its data?)"
+        ) from None
     missing = [column for column in CSV_COLUMNS if column not in frame.columns]
     if missing:
         raise PublishedError(f"{path}: missing columns {', '.join(missing)}")
     frame = frame[list(CSV_COLUMNS)]
     frame["std_decimals"] = [_decimals(text) for text in frame["std"]]  # as printed: "0.10" has 2
-    frame["std"] = pd.to_numeric(frame["std"].replace("", float("nan")), errors="raise").astype(float)
+    frame["std"] = pd.to_numeric(frame["std"].replace("", float("nan")), errors="raise").astype(
+        float
+    )
     frame["paper_rank"] = pd.to_numeric(frame["paper_rank"], errors="raise").astype("Int64")
     return frame
 
@@ -96,8 +125,9 @@ def table_id(name: str) -> str:
 
 
 def published_table(name: str) -> pd.DataFrame:
-    """The rows of one paper table, plus ``number`` (float, NaN for text values), ``decimals`` and ``std_decimals``
-    (as printed: the CSV keeps the paper's strings, e.g. ``0.040`` and ``61.50``)."""
+    """The rows of one paper table, plus ``number`` (float, NaN for text values), ``decimals`` and
+    ``std_decimals`` (as printed: the CSV keeps the paper's strings, e.g. ``0.040`` and
+    ``61.50``)."""
     frame = _load(str(data_path())).copy()
     rows = frame[frame["table"] == table_id(name)].copy()
     rows["number"] = pd.to_numeric(rows["value"], errors="coerce")
@@ -115,17 +145,20 @@ def normalise_name(name: str) -> str:
     return re.sub(r"[^a-z0-9]", "", name.lower().replace("–", "-"))
 
 
-def paper_method(method: str, variant: str | None = None, suite: str | None = None,
-                 fitted: bool = False) -> str | None:
-    """The paper's row label for a run's method, variant and suite, or None when the paper has no such row.
+def paper_method(
+    method: str, variant: str | None = None, suite: str | None = None, fitted: bool = False
+) -> str | None:
+    """The paper's row label for a run's method, variant and suite, or None when the paper has no
+    such row.
 
-    ``ssdgs`` runs map to "Ours", or to the variant preset's label ("ablation-A" -> "A: Diff", "sssgs-no-opt" ->
-    "Ours (w/o Opt)"). On the sssgs suite the row follows whether cameras and lights were refined: the native
-    preset refines them ("Ours (w/ Opt)"); ``ssdgs-official`` follows ``fitted``, whether the run's test views were
-    scored with the poses its training fitted (results.json's ``evaluation.test_pose_fitting``: the flags of
-    batch_script_synthetic_sssgs.py fit none, "Ours (w/o Opt)"; its ``opt`` variant's --cam_opt --pl_opt /
-    --opt_pose do, "Ours (w/ Opt)"). Baselines match the paper's names ignoring case and punctuation ("gs3" ->
-    "GS3"), the authors' code (``-official``) the row of its method.
+    ``ssdgs`` runs map to "Ours", or to the variant preset's label ("ablation-A" -> "A: Diff",
+    "sssgs-no-opt" -> "Ours (w/o Opt)"). On the sssgs suite the row follows whether cameras and
+    lights were refined: the native preset refines them ("Ours (w/ Opt)"); ``ssdgs-official``
+    follows ``fitted``, whether the run's test views were scored with the poses its training fitted
+    (results.json's ``evaluation.test_pose_fitting``: the flags of batch_script_synthetic_sssgs.py
+    fit none, "Ours (w/o Opt)"; its ``opt`` variant's --cam_opt --pl_opt / --opt_pose do, "Ours
+    (w/ Opt)"). Baselines match the paper's names ignoring case and punctuation ("gs3" -> "GS3"),
+    the authors' code (``-official``) the row of its method.
     """
     if variant in VARIANT_LABELS:
         return VARIANT_LABELS[variant]
@@ -144,14 +177,17 @@ def paper_method(method: str, variant: str | None = None, suite: str | None = No
 
 
 def lookup(method_label: str, suite: str, scene: str, split: str, metric: str) -> float | None:
-    """The paper's number for one cell, searching the suite's tables in order; None when not published.
+    """The paper's number for one cell, searching the suite's tables in order; None when not
+    published.
 
     Scene and method names match ignoring case and punctuation.
     """
     frame = _load(str(data_path()))
     keys = (normalise_name(method_label), normalise_name(scene))
     for table in SUITE_TABLES.get(suite, ()):
-        rows = frame[(frame["table"] == table) & (frame["split"] == split) & (frame["metric"] == metric)]
+        rows = frame[
+            (frame["table"] == table) & (frame["split"] == split) & (frame["metric"] == metric)
+        ]
         for _, row in rows.iterrows():
             if (normalise_name(row["method"]), normalise_name(row["scene"])) == keys:
                 number = pd.to_numeric(row["value"], errors="coerce")

@@ -43,8 +43,9 @@ def _printed(cell: Cell) -> float | None:
     return None if number is None else round(number, cell.decimals)
 
 
-def rank_table(table: Table, top: int = 2, min_values: int = 2,
-               columns: Callable[[str], bool] | None = None) -> Table:
+def rank_table(
+    table: Table, top: int = 2, min_values: int = 2, columns: Callable[[str], bool] | None = None
+) -> Table:
     """Set ``Cell.rank`` (1..top or None) on every cell of ``table`` in place; returns the table.
 
     ``columns`` selects which leaf columns are ranked (by name; default all with a direction).

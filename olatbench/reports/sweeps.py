@@ -44,7 +44,8 @@ def rotation_matrix(axis: np.ndarray, degrees: float) -> np.ndarray:
 
 
 def orbit_frame(cameras: Sequence[Camera]) -> tuple[np.ndarray, np.ndarray]:
-    """(centre (3,), unit up (3,)) of a capture from its cameras (at least two non-parallel axes)."""
+    """(centre (3,), unit up (3,)) of a capture from its cameras (at least two non-parallel
+    axes)."""
     if len(cameras) < 2:
         raise ValueError("orbit_frame needs at least two cameras to find the scene centre")
     system, rhs = np.zeros((3, 3)), np.zeros(3)
@@ -73,7 +74,9 @@ def rotate_camera(camera: Camera, centre: np.ndarray, up: np.ndarray, degrees: f
     return replace(camera, c2w=turned)
 
 
-def rotate_light(light: PointLight, centre: np.ndarray, up: np.ndarray, degrees: float) -> PointLight:
+def rotate_light(
+    light: PointLight, centre: np.ndarray, up: np.ndarray, degrees: float
+) -> PointLight:
     """The light moved by ``degrees`` about the axis ``up`` through ``centre``."""
     rotation = rotation_matrix(up, degrees)
     position = centre + rotation @ (np.asarray(light.position, dtype=np.float64) - centre)
@@ -84,22 +87,41 @@ def _steps(degrees: float, step: float) -> np.ndarray:
     return np.arange(1, round(degrees / step) + 1) * step  # excludes the start, reaches the end
 
 
-def light_sweep(camera: Camera, light: PointLight, centre, up, degrees: float = 360.0,
-                step: float = LIGHT_STEP_DEG, phase: str = "light") -> list[SweepFrame]:
-    """The light turning ``degrees`` in ``step`` increments, starting at the given light (exclusive end)."""
+def light_sweep(
+    camera: Camera,
+    light: PointLight,
+    centre,
+    up,
+    degrees: float = 360.0,
+    step: float = LIGHT_STEP_DEG,
+    phase: str = "light",
+) -> list[SweepFrame]:
+    """The light turning ``degrees`` in ``step`` increments, starting at the given light
+    (exclusive end)."""
     angles = np.concatenate([[0.0], _steps(degrees, step)[:-1]])
     return [SweepFrame(camera, rotate_light(light, centre, up, a), phase) for a in angles]
 
 
-def view_sweep(camera: Camera, light: PointLight, centre, up, degrees: float, step: float = VIEW_STEP_DEG,
-               phase: str = "view") -> list[SweepFrame]:
+def view_sweep(
+    camera: Camera,
+    light: PointLight,
+    centre,
+    up,
+    degrees: float,
+    step: float = VIEW_STEP_DEG,
+    phase: str = "view",
+) -> list[SweepFrame]:
     """The camera turning ``degrees`` (signed) in ``step`` increments after the given camera."""
     sign = 1.0 if degrees >= 0 else -1.0
-    return [SweepFrame(rotate_camera(camera, centre, up, sign * a), light, phase)
-            for a in _steps(abs(degrees), step)]
+    return [
+        SweepFrame(rotate_camera(camera, centre, up, sign * a), light, phase)
+        for a in _steps(abs(degrees), step)
+    ]
 
 
-def trajectory(kind: str, camera: Camera, light: PointLight, centre: np.ndarray, up: np.ndarray) -> list[SweepFrame]:
+def trajectory(
+    kind: str, camera: Camera, light: PointLight, centre: np.ndarray, up: np.ndarray
+) -> list[SweepFrame]:
     """The frames of a named sweep (`SWEEPS`) starting from ``camera`` and ``light``."""
     if kind == "light-orbit":
         return light_sweep(camera, light, centre, up)

@@ -17,22 +17,25 @@ from olatbench.reports.model import Cell, Table
 LEGEND = "Best in **bold**, second best in *italics*."
 
 
-# what Markdown acts on; "_" only where it can open or close emphasis (not inside a word: "diffuse_shadow")
+# what Markdown acts on; "_" only where it can open or close emphasis
+# (not inside a word: "diffuse_shadow")
 _MARKDOWN_SPECIAL = re.compile(r"([\\`*\[\]|#!~]|(?<![A-Za-z0-9])_|_(?![A-Za-z0-9]))")
 
 
 def markdown_text(text: str) -> str:
-    """Plain text (a scene or method name, a caption) as Markdown that shows exactly that text: ``&``, ``<``,
-    ``>`` become entities (no HTML gets through), the characters Markdown acts on are backslash-escaped (``|``
-    no longer ends a table cell; ``_`` inside a word is left alone, as Markdown does), and line breaks become
-    spaces (a table row is one line)."""
+    """Plain text (a scene or method name, a caption) as Markdown that shows exactly that text:
+    ``&``, ``<``, ``>`` become entities (no HTML gets through), the characters Markdown acts on are
+    backslash-escaped (``|`` no longer ends a table cell; ``_`` inside a word is left alone, as
+    Markdown does), and line breaks become spaces (a table row is one line)."""
     text = " ".join(str(text).splitlines())
     text = text.replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;")
     return _MARKDOWN_SPECIAL.sub(r"\\\1", text)
 
 
 def _markdown_cell(cell: Cell) -> str:
-    text = markdown_text(cell.text()) + "".join(f"<sup>{markdown_text(mark)}</sup>" for mark in cell.marks)
+    text = markdown_text(cell.text()) + "".join(
+        f"<sup>{markdown_text(mark)}</sup>" for mark in cell.marks
+    )
     if cell.rank == 1:
         return f"**{text}**"
     if cell.rank == 2:
@@ -46,10 +49,15 @@ def _header_title(table: Table, index: int) -> str:
 
 
 def to_markdown(table: Table) -> str:
-    """The table as a GitHub-flavoured Markdown section (caption, protocol, table, legend, footnotes)."""
+    """The table as a GitHub-flavoured Markdown section (caption, protocol, table, legend,
+    footnotes)."""
     labels = [markdown_text(name) for name in table.label_names]
-    lines = [f"**{markdown_text(table.name)}** — {markdown_text(table.caption)}", "",
-             f"Protocol: {markdown_text(table.protocol)}", ""]
+    lines = [
+        f"**{markdown_text(table.name)}** — {markdown_text(table.caption)}",
+        "",
+        f"Protocol: {markdown_text(table.protocol)}",
+        "",
+    ]
     titles = labels + [_header_title(table, i) for i in range(len(table.columns))]
     lines.append("| " + " | ".join(titles) + " |")
     lines.append("|" + "|".join([" --- "] * len(labels) + [" ---: "] * len(table.columns)) + "|")
@@ -58,8 +66,14 @@ def to_markdown(table: Table) -> str:
         if block.title is not None:
             lines.append("| " + " | ".join([f"**{markdown_text(block.title)}**", *empty]) + " |")
         for row in block.rows:
-            lines.append("| " + " | ".join([markdown_text(label) for label in row.labels]
-                                           + [_markdown_cell(c) for c in row.cells]) + " |")
+            lines.append(
+                "| "
+                + " | ".join(
+                    [markdown_text(label) for label in row.labels]
+                    + [_markdown_cell(c) for c in row.cells]
+                )
+                + " |"
+            )
     ranked = any(cell.rank for block in table.blocks for row in block.rows for cell in row.cells)
     lines.append("")
     if ranked:
@@ -75,8 +89,13 @@ def to_csv(table: Table) -> str:
     writer.writerow(["block", *[name.lower() for name in table.label_names], *table.columns])
     for block in table.blocks:
         for row in block.rows:
-            writer.writerow([block.title or "", *row.labels,
-                             *[cell.text() + "".join(cell.marks) for cell in row.cells]])
+            writer.writerow(
+                [
+                    block.title or "",
+                    *row.labels,
+                    *[cell.text() + "".join(cell.marks) for cell in row.cells],
+                ]
+            )
     return buffer.getvalue()
 
 

@@ -1,20 +1,24 @@
-"""The viewer's render scheduler: one render in flight, the newest request per view, progressive resolution.
+"""The viewer's render scheduler: one render in flight, the newest request per view, progressive
+resolution.
 
-Browser events (camera orbits, light drags, slider moves) arrive far faster than a CPU renders. `RenderScheduler`
-keeps, per key (one per browser tab and output), only the newest request: a request replaced before it was
-rendered is dropped (`dropped` counts them). One worker thread renders, so the UI callbacks that call `submit`
-never block and the model is never rendered by two threads at once.
+Browser events (camera orbits, light drags, slider moves) arrive far faster than a CPU renders.
+`RenderScheduler` keeps, per key (one per browser tab and output), only the newest request: a
+request replaced before it was rendered is dropped (`dropped` counts them). One worker thread
+renders, so the UI callbacks that call `submit` never block and the model is never rendered by two
+threads at once.
 
-Progressive rendering: while requests for a key keep arriving (the last less than ``settle_seconds`` ago: the user
-is dragging) the worker renders it at the reduced ``preview`` quality; once the key has been still for
-``settle_seconds`` it renders the newest request once more at ``full`` quality. Requests submitted with
-``progressive=False`` (a snap to a dataset frame, a button) are rendered at full quality at once.
+Progressive rendering: while requests for a key keep arriving (the last less than ``settle_seconds``
+ago: the user is dragging) the worker renders it at the reduced ``preview`` quality; once the key
+has been still for ``settle_seconds`` it renders the newest request once more at ``full`` quality.
+Requests submitted with ``progressive=False`` (a snap to a dataset frame, a button) are rendered at
+full quality at once.
 
-Refinement: a request submitted with ``passes`` > 1 (the viewer's environment-map mode, which adds light samples
-batch by batch) is rendered at full quality that many times in a row while it stays the newest, each pass
-delivered (the request carries its own progress). A newer request of the key supersedes it: no further pass of the
-old one starts, and the pass in flight can stop early: ``render`` may ask `superseded` while it works and raise
-`Superseded`, which drops the pass silently (`cancelled` counts them).
+Refinement: a request submitted with ``passes`` > 1 (the viewer's environment-map mode, which adds
+light samples batch by batch) is rendered at full quality that many times in a row while it stays
+the newest, each pass delivered (the request carries its own progress). A newer request of the key
+supersedes it: no further pass of the old one starts, and the pass in flight can stop early:
+``render`` may ask `superseded` while it works and raise `Superseded`, which drops the pass silently
+(`cancelled` counts them).
 
 Keys are served round-robin, so several tabs share the one worker fairly.
 """
@@ -45,21 +49,30 @@ class _Slot:
 
 
 class Superseded(Exception):
-    """Raised by a render that stopped because its request was superseded (`RenderScheduler.superseded`)."""
+    """Raised by a render that stopped because its request was superseded
+    (`RenderScheduler.superseded`)."""
 
 
 class RenderScheduler:
-    """Render the newest request of each key on one worker thread and hand each image to ``deliver``.
+    """Render the newest request of each key on one worker thread and hand each image to
+    ``deliver``.
 
-    ``render(request, quality) -> image`` runs on the worker; ``deliver(key, request, image, quality)`` runs on the
-    worker right after. An exception in either is passed to ``on_error(key, error)`` (default: re-raised in the
-    worker, which then stops) and the key is considered rendered (no further pass), except `Superseded`, which is
-    dropped. Use as a context manager, or `start` / `close`.
+    ``render(request, quality) -> image`` runs on the worker; ``deliver(key, request, image,
+    quality)`` runs on the worker right after. An exception in either is passed to
+    ``on_error(key, error)`` (default: re-raised in the worker, which then stops) and the key is
+    considered rendered (no further pass), except `Superseded`, which is dropped. Use as a context
+    manager, or `start` / `close`.
     """
 
-    def __init__(self, render: Callable[[Any, Quality], Any], deliver: Callable[[Hashable, Any, Any, Quality], None],
-                 *, settle_seconds: float = 0.25, on_error: Callable[[Hashable, BaseException], None] | None = None,
-                 clock: Callable[[], float] = time.monotonic) -> None:
+    def __init__(
+        self,
+        render: Callable[[Any, Quality], Any],
+        deliver: Callable[[Hashable, Any, Any, Quality], None],
+        *,
+        settle_seconds: float = 0.25,
+        on_error: Callable[[Hashable, BaseException], None] | None = None,
+        clock: Callable[[], float] = time.monotonic,
+    ) -> None:
         self.render = render
         self.deliver = deliver
         self.settle_seconds = settle_seconds
@@ -74,9 +87,12 @@ class RenderScheduler:
         self._closed = False
         self._busy = False
         self._current: tuple[Hashable, int] | None = None  # (key, generation) being rendered
-        self._thread = threading.Thread(target=self._run, name="olatbench-viewer-render", daemon=True)
+        self._thread = threading.Thread(
+            target=self._run, name="olatbench-viewer-render", daemon=True
+        )
 
-    # ----------------------------------------------------------------------------------------- public
+    # -----------------------------------------------------------------------------------------
+    # public
     def start(self) -> RenderScheduler:
         self._thread.start()
         return self
@@ -95,9 +111,11 @@ class RenderScheduler:
     def __exit__(self, *exc: object) -> None:
         self.close()
 
-    def submit(self, key: Hashable, request: Any, progressive: bool = True, passes: int = 1) -> None:
-        """Make ``request`` the newest of ``key``, to be rendered ``passes`` times at full quality once still
-        (never blocks on a render)."""
+    def submit(
+        self, key: Hashable, request: Any, progressive: bool = True, passes: int = 1
+    ) -> None:
+        """Make ``request`` the newest of ``key``, to be rendered ``passes`` times at full quality
+        once still (never blocks on a render)."""
         if passes < 1:
             raise ValueError(f"passes must be at least 1, not {passes}")
         with self._condition:
@@ -113,8 +131,8 @@ class RenderScheduler:
             self._condition.notify_all()
 
     def superseded(self) -> bool:
-        """Asked by ``render`` on the worker: whether the request it renders is no longer its key's newest (or the
-        scheduler is closing, or the key forgotten)."""
+        """Asked by ``render`` on the worker: whether the request it renders is no longer its key's
+        newest (or the scheduler is closing, or the key forgotten)."""
         with self._condition:
             if self._closed or self._current is None:
                 return True
@@ -129,10 +147,15 @@ class RenderScheduler:
                 self._order.remove(key)
 
     def idle(self) -> bool:
-        """Whether nothing is rendering and every key's newest request has been rendered at full quality."""
+        """Whether nothing is rendering and every key's newest request has been rendered at full
+        quality."""
         with self._condition:
-            return not self._busy and all(s.rendered_generation == s.generation and s.rendered_quality == "full"
-                                          and s.rendered_passes >= s.passes for s in self._slots.values())
+            return not self._busy and all(
+                s.rendered_generation == s.generation
+                and s.rendered_quality == "full"
+                and s.rendered_passes >= s.passes
+                for s in self._slots.values()
+            )
 
     def wait_idle(self, timeout: float = 30.0) -> bool:
         """Block until `idle` (tests, recording); False on timeout."""
@@ -143,23 +166,32 @@ class RenderScheduler:
             time.sleep(0.005)
         return self.idle()
 
-    # ----------------------------------------------------------------------------------------- worker
+    # -----------------------------------------------------------------------------------------
+    # worker
     def _next(self, now: float) -> tuple[Hashable, Any, int, Quality] | float | None:
-        """The next job (key, request, generation, quality), else the seconds until one may become due (None:
-        nothing pending at all)."""
+        """The next job (key, request, generation, quality), else the seconds until one may become
+        due (None: nothing pending at all)."""
         wait: float | None = None
         for offset in range(len(self._order)):
             key = self._order[offset]
             slot = self._slots[key]
             fresh = slot.rendered_generation < slot.generation
             still = now - slot.submitted >= self.settle_seconds or not slot.progressive
-            refining = not fresh and slot.rendered_quality == "full" and slot.rendered_passes < slot.passes
+            refining = (
+                not fresh and slot.rendered_quality == "full" and slot.rendered_passes < slot.passes
+            )
             if fresh and not still:
-                job: tuple[Hashable, Any, int, Quality] = (key, slot.request, slot.generation, "preview")
+                job: tuple[Hashable, Any, int, Quality] = (
+                    key,
+                    slot.request,
+                    slot.generation,
+                    "preview",
+                )
             elif ((fresh or slot.rendered_quality != "full") and still) or refining:
                 job = (key, slot.request, slot.generation, "full")
             else:
-                if not fresh and slot.rendered_quality != "full":  # a preview shown; full once still
+                # a preview shown; full once still
+                if not fresh and slot.rendered_quality != "full":
                     remaining = self.settle_seconds - (now - slot.submitted)
                     wait = remaining if wait is None else min(wait, remaining)
                 continue
@@ -181,8 +213,11 @@ class RenderScheduler:
                 self._busy = True
                 slot = self._slots[key]
                 same = slot.rendered_generation == generation and slot.rendered_quality == "full"
-                slot.rendered_passes = 0 if quality == "preview" else slot.rendered_passes + 1 if same else 1
-                slot.rendered_generation, slot.rendered_quality = generation, quality  # started = not dropped
+                slot.rendered_passes = (
+                    0 if quality == "preview" else slot.rendered_passes + 1 if same else 1
+                )
+                # started = not dropped
+                slot.rendered_generation, slot.rendered_quality = generation, quality
                 self._current = (key, generation)
             try:
                 image = self.render(request, quality)
@@ -193,7 +228,8 @@ class RenderScheduler:
             except Exception as error:  # handed to on_error, or re-raised
                 with self._condition:
                     if slot.generation == generation:
-                        slot.rendered_passes = slot.passes  # no further pass of a request that failed
+                        # no further pass of a request that failed
+                        slot.rendered_passes = slot.passes
                 if self.on_error is None:
                     raise
                 self.on_error(key, error)

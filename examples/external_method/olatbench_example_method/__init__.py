@@ -1,8 +1,10 @@
-"""A minimal external method: predicts the mean training image whatever the light (a constant baseline).
+"""A minimal external method: predicts the mean training image whatever the light
+(a constant baseline).
 
-Install it with ``pip install -e examples/external_method`` and run ``olatbench run --method mean-image ...``.
-It learns nothing (``training_iterations = 0``): `setup` computes the mean, the runner takes no training step
-whatever the suite's iteration count, and the one checkpoint (step 0) holds the mean for ``olatbench view``.
+Install it with ``pip install -e examples/external_method`` and run ``olatbench run --method
+mean-image ...``. It learns nothing (``training_iterations = 0``): `setup` computes the mean, the
+runner takes no training step whatever the suite's iteration count, and the one checkpoint (step 0)
+holds the mean for ``olatbench view``.
 """
 
 from __future__ import annotations
@@ -21,12 +23,15 @@ class MeanImageConfig:
 
 
 class MeanImage(Method):
-    """``rgb`` = the per-pixel mean of the training images (H, W, 3), in the training colour space."""
+    """``rgb`` = the per-pixel mean of the training images (H, W, 3), in the training colour
+    space."""
 
     name: ClassVar[str] = "mean-image"
     config_class: ClassVar[type] = MeanImageConfig
     presets: ClassVar[dict[str, dict[str, Any]]] = {}
-    description: ClassVar[str] = "Example external method: the mean training image, blind to the light."
+    description: ClassVar[str] = (
+        "Example external method: the mean training image, blind to the light."
+    )
     training_iterations: ClassVar[int | None] = 0  # learning-free, whatever the suite says
 
     def setup(self, train: Views, device, seed: int) -> None:

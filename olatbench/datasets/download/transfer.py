@@ -22,11 +22,13 @@ Headers = dict[str, str]
 
 
 class DownloadError(OSError):
-    """A download that failed after its retries; names the URL and the partial file kept for resuming."""
+    """A download that failed after its retries; names the URL and the partial file kept for
+    resuming."""
 
 
 def _open(url: str, start: int = 0, timeout: float = 30.0, headers: Headers | None = None):
-    """Open ``url``; ``headers`` (e.g. ``Authorization``) go to this host only, never to one it redirects to."""
+    """Open ``url``; ``headers`` (e.g. ``Authorization``) go to this host only, never to one it
+    redirects to."""
     request = urllib.request.Request(url, headers={"User-Agent": USER_AGENT})
     for name, value in (headers or {}).items():
         request.add_unredirected_header(name, value)
@@ -59,14 +61,17 @@ def _fetch_page(url: str, timeout: float, headers: Headers | None) -> tuple[obje
     """(JSON document, URL of the next page from the ``Link`` header or None)."""
     try:
         with _open(url, timeout=timeout, headers=headers) as response:
-            return parse_json(response.read().decode("utf-8")), next_link(response.headers.get("Link"))
-    except (urllib.error.URLError, OSError, ValueError) as error:  # ValueError: not UTF-8, not JSON, too deep
+            return parse_json(response.read().decode("utf-8")), next_link(
+                response.headers.get("Link")
+            )
+    # ValueError: not UTF-8, not JSON, too deep
+    except (urllib.error.URLError, OSError, ValueError) as error:
         raise DownloadError(f"{url}: cannot read JSON ({error})") from error
 
 
 def fetch_json_pages(url: str, timeout: float = 30.0, headers: Headers | None = None) -> list:
-    """GET a paginated JSON list: every page's items, following ``Link: <...>; rel="next"`` until none is left
-    (the Hugging Face Hub's tree and commit listings are paginated so)."""
+    """GET a paginated JSON list: every page's items, following ``Link: <...>; rel="next"`` until
+    none is left (the Hugging Face Hub's tree and commit listings are paginated so)."""
     items: list = []
     page_url: str | None = url
     for _ in range(MAX_PAGES):
@@ -81,8 +86,8 @@ def fetch_json_pages(url: str, timeout: float = 30.0, headers: Headers | None = 
 
 
 def _copy_local(url: str, target: Path, partial: Path, expected_size: int | None, progress) -> Path:
-    """Copy a ``file://`` URL to ``partial``, check its size (``expected_size``, else the source's) and rename it
-    onto ``target``."""
+    """Copy a ``file://`` URL to ``partial``, check its size (``expected_size``, else the source's)
+    and rename it onto ``target``."""
     source = Path(urllib.request.url2pathname(urllib.parse.urlparse(url).path))
     if not source.is_file():
         raise DownloadError(f"{url}: no such file in the mirror folder")
@@ -93,23 +98,34 @@ def _copy_local(url: str, target: Path, partial: Path, expected_size: int | None
     except OSError as error:
         raise DownloadError(f"{url}: cannot copy from the mirror folder ({error})") from error
     if size != expected:
-        raise DownloadError(f"{url}: copied {size} bytes, expected {expected} (the mirror's file changed while it "
-                            f"was copied?); the partial copy {partial} is replaced by the next run")
+        raise DownloadError(
+            f"{url}: copied {size} bytes, expected {expected} (the mirror's file changed while it "
+            f"was copied?); the partial copy {partial} is replaced by the next run"
+        )
     if progress is not None:
         progress.update(size)
     partial.replace(target)
     return target
 
 
-def download(url: str, target: Path, *, expected_size: int | None = None, retries: int = 5,
-             progress=None, timeout: float = 30.0, backoff: float = 0.5, headers: Headers | None = None) -> Path:
+def download(
+    url: str,
+    target: Path,
+    *,
+    expected_size: int | None = None,
+    retries: int = 5,
+    progress=None,
+    timeout: float = 30.0,
+    backoff: float = 0.5,
+    headers: Headers | None = None,
+) -> Path:
     """Download ``url`` to ``target``, resuming from ``target.with_suffix(+'.part')``.
 
     Each retry asks for the remaining bytes with a ``Range`` header; a server that ignores it
-    (status 200) restarts the file. ``progress`` is a tqdm-like object updated with byte counts. ``headers`` are
-    sent to ``url``'s host only (not across redirects).
-    The finished file is renamed onto ``target`` once it has its full size; the ``.part`` file survives failures.
-    A ``file://`` URL (a local mirror) is copied to the ``.part`` file the same way, so a copy cut off mid-way
+    (status 200) restarts the file. ``progress`` is a tqdm-like object updated with byte counts.
+    ``headers`` are sent to ``url``'s host only (not across redirects). The finished file is renamed
+    onto ``target`` once it has its full size; the ``.part`` file survives failures. A ``file://``
+    URL (a local mirror) is copied to the ``.part`` file the same way, so a copy cut off mid-way
     never lies under ``target``'s name.
     """
     target = Path(target)
@@ -135,7 +151,9 @@ def download(url: str, target: Path, *, expected_size: int | None = None, retrie
                             progress.update(len(block))
             if expected_size is None or partial.stat().st_size >= expected_size:
                 break
-            last_error = DownloadError(f"{url}: connection closed at {partial.stat().st_size} of {expected_size} bytes")
+            last_error = DownloadError(
+                f"{url}: connection closed at {partial.stat().st_size} of {expected_size} bytes"
+            )
         except urllib.error.HTTPError as error:
             if error.code == 416 and expected_size is None:  # range past the end: already complete
                 break
@@ -144,12 +162,16 @@ def download(url: str, target: Path, *, expected_size: int | None = None, retrie
             last_error = error
         except (urllib.error.URLError, http.client.HTTPException, OSError) as error:
             last_error = error
-        time.sleep(backoff * (2 ** attempt))
+        time.sleep(backoff * (2**attempt))
     else:
-        raise DownloadError(f"{url}: failed after {retries + 1} attempts ({last_error}); "
-                            f"the partial file {partial} is kept and the next run resumes it")
+        raise DownloadError(
+            f"{url}: failed after {retries + 1} attempts ({last_error}); "
+            f"the partial file {partial} is kept and the next run resumes it"
+        )
     size = partial.stat().st_size if partial.exists() else 0
     if expected_size is not None and size != expected_size:
-        raise DownloadError(f"{url}: got {size} bytes, expected {expected_size}; partial file kept at {partial}")
+        raise DownloadError(
+            f"{url}: got {size} bytes, expected {expected_size}; partial file kept at {partial}"
+        )
     partial.replace(target)
     return target

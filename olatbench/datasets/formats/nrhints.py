@@ -4,11 +4,12 @@ Files: ``transforms_{train,val,test}.json`` (+ ``transforms_valid.json``: a came
 images, exposed as split ``path``). Intrinsics ``camera_intrinsics`` = [cx, cy, fx, fy] with a
 ``camera_angle_x`` fallback. Images: RGBA PNG, sRGB, straight alpha.
 
-Background, per scene (`scene_background`; ``datasets info`` prints the reason): NRHints trains its real captures
-on black (``scripts/train_real.sh``: ``--config.data.white-background False``) and its synthetic Blender scenes
-on white (``scripts/train_synthetic.sh``: ``True``; ``data/data_parser.py:100-103``). A synthetic scene is one
-whose transforms files give ``camera_angle_x`` and no ``camera_intrinsics`` (the Blender export; every real
-capture has calibrated ``camera_intrinsics``). Scenes made by olatbench's generator (a ``synth.json`` beside the
+Background, per scene (`scene_background`; ``datasets info`` prints the reason): NRHints trains its
+real captures on black (``scripts/train_real.sh``: ``--config.data.white-background False``) and its
+synthetic Blender scenes on white (``scripts/train_synthetic.sh``: ``True``;
+``data/data_parser.py:100-103``). A synthetic scene is one whose transforms files give
+``camera_angle_x`` and no ``camera_intrinsics`` (the Blender export; every real capture has
+calibrated ``camera_intrinsics``). Scenes made by olatbench's generator (a ``synth.json`` beside the
 files, e.g. the ``mini`` suite) keep black, the empty background they were rendered with.
 """
 
@@ -23,7 +24,12 @@ import numpy as np
 from olatbench.datasets import colour
 from olatbench.datasets.errors import DatasetError
 from olatbench.datasets.formats import _common as c
-from olatbench.datasets.formats._nerf import SPLIT_FILES, NerfFlavour, read_nerf_scene, write_nerf_scene
+from olatbench.datasets.formats._nerf import (
+    SPLIT_FILES,
+    NerfFlavour,
+    read_nerf_scene,
+    write_nerf_scene,
+)
 from olatbench.datasets.formats._suite import SuiteDefaults, default_aliases
 from olatbench.datasets.records import Frame, Scene
 
@@ -32,44 +38,77 @@ DISPLAY_COLOURSPACE = "srgb"  # trained and scored in: 8-bit sRGB PNGs, used as 
 _SCENES = ("Cat", "CatSmall", "CupFabric", "Fish", "FurScene", "Pikachu", "Pixiu")
 #: The paper's NRHints suite (512² or 1024² scenes: each at its own size).
 SUITE_DEFAULTS = SuiteDefaults(
-    scenes=_SCENES, aliases=default_aliases(_SCENES, {"Cat_on_Decor": "CatSmall", "Cluttered": "FurScene",
-                                                      "Cup-Fabric": "CupFabric"}),
-    resolution=None, iterations=100_000, protocol="ssdgs")
+    scenes=_SCENES,
+    aliases=default_aliases(
+        _SCENES, {"Cat_on_Decor": "CatSmall", "Cluttered": "FurScene", "Cup-Fabric": "CupFabric"}
+    ),
+    resolution=None,
+    iterations=100_000,
+    protocol="ssdgs",
+)
 BLACK, WHITE = (0.0, 0.0, 0.0), (1.0, 1.0, 1.0)
 
 
-def scene_background(root: Path, metas: Mapping[str, tuple[Path, dict]]) -> tuple[tuple[float, float, float], str]:
-    """(background, why) of an NRHints scene (module docstring) from its folder and transforms files."""
+def scene_background(
+    root: Path, metas: Mapping[str, tuple[Path, dict]]
+) -> tuple[tuple[float, float, float], str]:
+    """(background, why) of an NRHints scene (module docstring) from its folder and transforms
+    files."""
     if (Path(root) / "synth.json").is_file():
-        return BLACK, "black (made by olatbench's generator, synth.json: rendered on an empty background)"
+        return (
+            BLACK,
+            "black (made by olatbench's generator, synth.json: rendered on an empty background)",
+        )
     tops = [meta for _, meta in metas.values() if isinstance(meta, Mapping)]
-    frames = [frame for meta in tops if isinstance(meta.get("frames"), list) for frame in meta["frames"][:1]
-              if isinstance(frame, Mapping)]
-    calibrated = any("camera_intrinsics" in m for m in tops) or any("camera_intrinsics" in f for f in frames)
+    frames = [
+        frame
+        for meta in tops
+        if isinstance(meta.get("frames"), list)
+        for frame in meta["frames"][:1]
+        if isinstance(frame, Mapping)
+    ]
+    calibrated = any("camera_intrinsics" in m for m in tops) or any(
+        "camera_intrinsics" in f for f in frames
+    )
     if not calibrated and any("camera_angle_x" in m for m in tops):
-        return WHITE, ("white (NRHints synthetic scene: camera_angle_x, no camera_intrinsics; NRHints trains these "
-                       "on white, scripts/train_synthetic.sh)")
-    return BLACK, ("black (NRHints real capture: camera_intrinsics; NRHints trains these on black, "
-                   "scripts/train_real.sh)")
+        return WHITE, (
+            "white (NRHints synthetic scene: camera_angle_x, no camera_intrinsics; NRHints trains "
+            "these on white, scripts/train_synthetic.sh)"
+        )
+    return BLACK, (
+        "black (NRHints real capture: camera_intrinsics; NRHints trains these on black, "
+        "scripts/train_real.sh)"
+    )
 
 
-FLAVOUR = NerfFlavour(format_name=FORMAT_NAME, default_ext=".png", colourspace="srgb", alpha_mode="straight",
-                      background=BLACK, background_rule=scene_background)
+FLAVOUR = NerfFlavour(
+    format_name=FORMAT_NAME,
+    default_ext=".png",
+    colourspace="srgb",
+    alpha_mode="straight",
+    background=BLACK,
+    background_rule=scene_background,
+)
 
 
 def detect(root: Path) -> bool:
-    """A NeRF-style tree whose frames have one ``file_path`` (or ``img_path``) and PNG (not EXR) images."""
+    """A NeRF-style tree whose frames have one ``file_path`` (or ``img_path``) and PNG (not EXR)
+    images."""
     root = Path(root)
     found = c.first_frame(root, (SPLIT_FILES["train"], SPLIT_FILES["test"], SPLIT_FILES["val"]))
     if found is None:
         return False
     _, _, frame = found
-    return ("file_path" in frame or "img_path" in frame) and "file_paths" not in frame and not _is_exr(root, frame)
+    return (
+        ("file_path" in frame or "img_path" in frame)
+        and "file_paths" not in frame
+        and not _is_exr(root, frame)
+    )
 
 
 def _is_exr(root: Path, frame: Mapping[str, Any]) -> bool:
-    """Whether a frame's image is an EXR: its ``img_path`` suffix (which wins, as in the reader), its ``file_ext``,
-    its ``file_path`` suffix, or the file on disk."""
+    """Whether a frame's image is an EXR: its ``img_path`` suffix (which wins, as in the reader),
+    its ``file_ext``, its ``file_path`` suffix, or the file on disk."""
     ext, file_path = frame.get("file_ext"), frame.get("file_path")
     if isinstance(frame.get("img_path"), str):
         return frame["img_path"].lower().endswith(".exr")
@@ -83,7 +122,8 @@ def _is_exr(root: Path, frame: Mapping[str, Any]) -> bool:
 
 
 def read_scene(root: Path, errors: list[DatasetError] | None = None) -> Scene:
-    """Read an NRHints scene folder (aliases such as ``Cat_on_Decor`` become the paper's ``CatSmall``)."""
+    """Read an NRHints scene folder (aliases such as ``Cat_on_Decor`` become the paper's
+    ``CatSmall``)."""
     root = Path(root)
     return read_nerf_scene(root, FLAVOUR, SUITE_DEFAULTS.canonical(root.name) or root.name, errors)
 
@@ -91,7 +131,9 @@ def read_scene(root: Path, errors: list[DatasetError] | None = None) -> Scene:
 def _encode(rgba_linear: np.ndarray) -> np.ndarray:
     """Linear straight RGBA -> sRGB straight RGBA (the PNG content)."""
     rgb = colour.linear_to_srgb(rgba_linear[..., :3])
-    return np.concatenate([np.clip(rgb, 0.0, 1.0), np.clip(rgba_linear[..., 3:4], 0.0, 1.0)], axis=2)
+    return np.concatenate(
+        [np.clip(rgb, 0.0, 1.0), np.clip(rgba_linear[..., 3:4], 0.0, 1.0)], axis=2
+    )
 
 
 def write_scene(scene: Scene, out_dir: Path, pixels: Callable[[Frame], np.ndarray]) -> Path:

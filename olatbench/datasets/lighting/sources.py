@@ -2,17 +2,21 @@
 
 Sources (world units and frame of the scene, as `olatbench.datasets.records`):
 
-* `olatbench.datasets.records.PointLight`: ``position`` (3,), RGB radiant ``intensity`` (3,), inverse-square;
-* `DirectionalLight`: ``direction`` (3,) unit vector from the scene towards the light, RGB ``irradiance`` (3,) on a
-  surface facing it (a point light of intensity ``E d²`` at distance ``d`` along it, as ``d`` → ∞);
-* `SphereLight`, `RectLight`: area lights, sampled into ``samples`` isotropic point lights spread over the sphere's
-  surface or the rectangle (stratified, seeded), each with ``intensity / samples``: from far away each acts as one
-  point light of ``intensity`` at its centre;
-* `EnvironmentMap`: an equirectangular map (`olatbench.datasets.lighting.envmap`: a built-in name or an .exr/.hdr
-  file), importance-sampled into ``samples`` directional lights.
+* `olatbench.datasets.records.PointLight`: ``position`` (3,), RGB radiant ``intensity`` (3,),
+  inverse-square;
+* `DirectionalLight`: ``direction`` (3,) unit vector from the scene towards the light, RGB
+  ``irradiance`` (3,) on a surface facing it (a point light of intensity ``E d²`` at distance ``d``
+  along it, as ``d`` → ∞);
+* `SphereLight`, `RectLight`: area lights, sampled into ``samples`` isotropic point lights spread
+  over the sphere's surface or the rectangle (stratified, seeded), each with
+  ``intensity / samples``: from far away each acts as one point light of ``intensity`` at its
+  centre;
+* `EnvironmentMap`: an equirectangular map (`olatbench.datasets.lighting.envmap`: a built-in name or
+  an .exr/.hdr file), importance-sampled into ``samples`` directional lights.
 
-`Lighting.sample` turns the whole list into `SampledLights` (point lights and directional lights) that a renderer
-sums; the same lighting, sample counts and seed give the same lights on every machine.
+`Lighting.sample` turns the whole list into `SampledLights` (point lights and directional lights)
+that a renderer sums; the same lighting, sample counts and seed give the same lights on every
+machine.
 """
 
 from __future__ import annotations
@@ -31,7 +35,8 @@ GOLDEN = (np.sqrt(5.0) - 1.0) / 2.0
 
 @dataclass(frozen=True, eq=False)
 class DirectionalLight:
-    """A light at infinity: unit ``direction`` (3,) towards it, RGB ``irradiance`` (3,) on a surface facing it."""
+    """A light at infinity: unit ``direction`` (3,) towards it, RGB ``irradiance`` (3,) on a surface
+    facing it."""
 
     direction: np.ndarray
     irradiance: np.ndarray
@@ -39,8 +44,8 @@ class DirectionalLight:
 
 @dataclass(frozen=True, eq=False)
 class SphereLight:
-    """A spherical area light: ``centre`` (3,), ``radius``, total RGB radiant ``intensity`` (3,), point ``samples``
-    (None: the lighting's default)."""
+    """A spherical area light: ``centre`` (3,), ``radius``, total RGB radiant ``intensity`` (3,),
+    point ``samples`` (None: the lighting's default)."""
 
     centre: np.ndarray
     radius: float
@@ -50,8 +55,8 @@ class SphereLight:
 
 @dataclass(frozen=True, eq=False)
 class RectLight:
-    """A rectangular area light: ``centre`` (3,), full edge vectors ``u`` and ``v`` (3,), total RGB radiant
-    ``intensity`` (3,), point ``samples`` (None: the lighting's default)."""
+    """A rectangular area light: ``centre`` (3,), full edge vectors ``u`` and ``v`` (3,), total RGB
+    radiant ``intensity`` (3,), point ``samples`` (None: the lighting's default)."""
 
     centre: np.ndarray
     u: np.ndarray
@@ -62,9 +67,10 @@ class RectLight:
 
 @dataclass(frozen=True, eq=False)
 class EnvironmentMap:
-    """An equirectangular environment map: ``source`` a built-in name or a file (relative to ``base``), turned by
-    ``rotation`` degrees about ``up`` (None: the scene's vertical, given to `Lighting.sample`), scaled by
-    2**``exposure``, sampled into ``samples`` directional lights (None: the lighting's default)."""
+    """An equirectangular environment map: ``source`` a built-in name or a file
+    (relative to ``base``), turned by ``rotation`` degrees about ``up`` (None: the scene's vertical,
+    given to `Lighting.sample`), scaled by 2**``exposure``, sampled into ``samples`` directional
+    lights (None: the lighting's default)."""
 
     source: str
     rotation: float = 0.0
@@ -74,7 +80,8 @@ class EnvironmentMap:
     base: Path | None = None
 
     def radiance(self) -> np.ndarray:
-        """The map's radiance (H, W, 3) before rotation and exposure (`olatbench.datasets.lighting.envmap`)."""
+        """The map's radiance (H, W, 3) before rotation and exposure
+        (`olatbench.datasets.lighting.envmap`)."""
         return load_map(self.source, self.base)
 
 
@@ -83,7 +90,8 @@ LightSource = PointLight | DirectionalLight | SphereLight | RectLight | Environm
 
 @dataclass(frozen=True)
 class SampledLights:
-    """The point and directional lights that stand for a lighting; a renderer sums its image under each."""
+    """The point and directional lights that stand for a lighting; a renderer sums its image under
+    each."""
 
     points: tuple[PointLight, ...] = ()
     directions: tuple[DirectionalLight, ...] = ()
@@ -94,8 +102,8 @@ class SampledLights:
 
 @dataclass(frozen=True)
 class Lighting:
-    """A list of light sources; ``samples`` is the default sample count of the area lights and environment maps
-    that do not give theirs, ``seed`` seeds their stratified sampling."""
+    """A list of light sources; ``samples`` is the default sample count of the area lights and
+    environment maps that do not give theirs, ``seed`` seeds their stratified sampling."""
 
     sources: tuple[LightSource, ...]
     samples: int = DEFAULT_SAMPLES
@@ -103,8 +111,8 @@ class Lighting:
     name: str = field(default="lighting", compare=False)
 
     def sample(self, up: np.ndarray | None = None, samples: int | None = None) -> SampledLights:
-        """The point and directional lights of every source; ``up`` (3,) is the vertical of the maps that give none
-        (default +z), ``samples`` overrides every area light's and map's count."""
+        """The point and directional lights of every source; ``up`` (3,) is the vertical of the maps
+        that give none (default +z), ``samples`` overrides every area light's and map's count."""
         rng = np.random.default_rng(self.seed)
         points: list[PointLight] = []
         directions: list[DirectionalLight] = []
@@ -117,23 +125,35 @@ class Lighting:
             elif isinstance(source, SphereLight | RectLight):
                 points += area_points(source, count, rng)
             else:
-                vertical = source.up if source.up is not None else up if up is not None else np.array([0.0, 0, 1])
-                dirs, irradiance = sample_map(source.radiance(), count, rng, vertical, source.rotation,
-                                              source.exposure)
-                directions += [DirectionalLight(d, e) for d, e in zip(dirs, irradiance, strict=True)]
+                vertical = (
+                    source.up
+                    if source.up is not None
+                    else up
+                    if up is not None
+                    else np.array([0.0, 0, 1])
+                )
+                dirs, irradiance = sample_map(
+                    source.radiance(), count, rng, vertical, source.rotation, source.exposure
+                )
+                directions += [
+                    DirectionalLight(d, e) for d, e in zip(dirs, irradiance, strict=True)
+                ]
         return SampledLights(tuple(points), tuple(directions))
 
 
 def stratified_square(count: int, rng: np.random.Generator) -> np.ndarray:
-    """(count, 2) points in [0, 1)²: one in each of ``count`` rows, at golden-ratio offsets across them, both
-    jittered (a jittered Fibonacci lattice: evenly spread for any count)."""
+    """(count, 2) points in [0, 1)²: one in each of ``count`` rows, at golden-ratio offsets across
+    them, both jittered (a jittered Fibonacci lattice: evenly spread for any count)."""
     rows = (np.arange(count) + rng.random(count)) / count
     cols = (np.arange(count) * GOLDEN + rng.random() + rng.random(count) / count) % 1.0
     return np.stack([rows, cols], axis=-1)
 
 
-def area_points(light: SphereLight | RectLight, count: int, rng: np.random.Generator) -> list[PointLight]:
-    """``count`` isotropic point lights of ``intensity / count`` spread over an area light (module docstring)."""
+def area_points(
+    light: SphereLight | RectLight, count: int, rng: np.random.Generator
+) -> list[PointLight]:
+    """``count`` isotropic point lights of ``intensity / count`` spread over an area light
+    (module docstring)."""
     if count < 1:
         raise ValueError(f"an area light needs at least 1 sample, not {count}")
     square = stratified_square(count, rng)
@@ -145,8 +165,21 @@ def area_points(light: SphereLight | RectLight, count: int, rng: np.random.Gener
     else:
         offsets = (square[:, :1] - 0.5) * light.u + (square[:, 1:] - 0.5) * light.v
     share = np.asarray(light.intensity, dtype=np.float64) / count
-    return [PointLight(np.asarray(light.centre, dtype=np.float64) + offset, share.copy(), True) for offset in offsets]
+    return [
+        PointLight(np.asarray(light.centre, dtype=np.float64) + offset, share.copy(), True)
+        for offset in offsets
+    ]
 
 
-__all__ = ["DEFAULT_SAMPLES", "DirectionalLight", "EnvironmentMap", "LightSource", "Lighting", "RectLight",
-           "SampledLights", "SphereLight", "area_points", "stratified_square"]
+__all__ = [
+    "DEFAULT_SAMPLES",
+    "DirectionalLight",
+    "EnvironmentMap",
+    "LightSource",
+    "Lighting",
+    "RectLight",
+    "SampledLights",
+    "SphereLight",
+    "area_points",
+    "stratified_square",
+]

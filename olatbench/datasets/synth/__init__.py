@@ -10,7 +10,28 @@ See ``docs/synthetic-data.md``.
 
 from olatbench.datasets.synth.generate import RenderedScene, generate, render_recipe, write_rendered
 from olatbench.datasets.synth.mini import MINI_SCENES, ensure_mini_suite
-from olatbench.datasets.synth.recipe import RECIPES, CameraRig, LightRig, Material, Recipe, get_recipe, recipe_names
+from olatbench.datasets.synth.recipe import (
+    RECIPES,
+    CameraRig,
+    LightRig,
+    Material,
+    Recipe,
+    get_recipe,
+    recipe_names,
+)
 
-__all__ = ["MINI_SCENES", "RECIPES", "CameraRig", "LightRig", "Material", "Recipe", "RenderedScene",
-           "ensure_mini_suite", "generate", "get_recipe", "recipe_names", "render_recipe", "write_rendered"]
+__all__ = [
+    "MINI_SCENES",
+    "RECIPES",
+    "CameraRig",
+    "LightRig",
+    "Material",
+    "Recipe",
+    "RenderedScene",
+    "ensure_mini_suite",
+    "generate",
+    "get_recipe",
+    "recipe_names",
+    "render_recipe",
+    "write_rendered",
+]

@@ -1,9 +1,10 @@
-"""A closed-form OLAT scene: a Lambertian unit sphere at the origin lit by point lights (numpy only, no renderer).
+"""A closed-form OLAT scene: a Lambertian unit sphere at the origin lit by point lights
+(numpy only, no renderer).
 
-Pixel value = albedo · max(n·ωi, 0) · I / d² where a camera ray hits the sphere (self-shadowing is exactly the
-``max`` for a convex object), the background elsewhere. Tests use it as an exact reference; the paper-scale
-benchmarks use it where Mitsuba is not installed (a GPU node), since a training step's cost does not depend on
-what the images show.
+Pixel value = albedo · max(n·ωi, 0) · I / d² where a camera ray hits the sphere (self-shadowing is
+exactly the ``max`` for a convex object), the background elsewhere. Tests use it as an exact
+reference; the paper-scale benchmarks use it where Mitsuba is not installed (a GPU node), since a
+training step's cost does not depend on what the images show.
 """
 
 from __future__ import annotations
@@ -20,7 +21,8 @@ LIGHT_DISTANCE = 5.0
 
 
 def unit_directions(n: int, rng: np.random.Generator, min_elevation: float = -0.3) -> np.ndarray:
-    """(n, 3) random unit vectors with z > ``min_elevation`` (rejection sampling from the isotropic normal)."""
+    """(n, 3) random unit vectors with z > ``min_elevation`` (rejection sampling from the isotropic
+    normal)."""
     out = []
     while len(out) < n:
         v = rng.normal(size=3)
@@ -31,9 +33,10 @@ def unit_directions(n: int, rng: np.random.Generator, min_elevation: float = -0.
 
 
 def sphere_hits(camera: Camera) -> tuple[np.ndarray, np.ndarray]:
-    """(points (H, W, 3), hit (H, W) bool) where each pixel's ray (through its centre) first meets the unit sphere
-    at the origin; points are world positions, equal to the unit outward normals there (meaningless where not hit)."""
-    ys, xs = np.mgrid[0:camera.height, 0:camera.width] + 0.5
+    """(points (H, W, 3), hit (H, W) bool) where each pixel's ray (through its centre) first meets
+    the unit sphere at the origin; points are world positions, equal to the unit outward normals
+    there (meaningless where not hit)."""
+    ys, xs = np.mgrid[0 : camera.height, 0 : camera.width] + 0.5
     pix = np.stack([xs, ys, np.ones_like(xs)], axis=-1) @ np.linalg.inv(camera.K).T
     dirs = pix @ camera.c2w[:3, :3].T
     dirs /= np.linalg.norm(dirs, axis=-1, keepdims=True)
@@ -46,7 +49,8 @@ def sphere_hits(camera: Camera) -> tuple[np.ndarray, np.ndarray]:
 
 
 def render_sphere(camera: Camera, light: PointLight, background: float = 0.0) -> np.ndarray:
-    """(H, W, 3) float32 linear image of the Lambertian unit sphere at the origin, clipped to [0, 1]."""
+    """(H, W, 3) float32 linear image of the Lambertian unit sphere at the origin, clipped to
+    [0, 1]."""
     points, hit = sphere_hits(camera)
     to_light = light.position - points
     d2 = np.sum(to_light**2, axis=-1, keepdims=True)
@@ -57,15 +61,28 @@ def render_sphere(camera: Camera, light: PointLight, background: float = 0.0) ->
 
 
 def sphere_rig(n: int, size: int, seed: int = 0) -> tuple[list[Camera], list[PointLight]]:
-    """``n`` cameras at distance 4 looking at the origin (40° field of view, ``size``² pixels) and ``n`` lights at
-    distance 5 above the horizon, both in random directions drawn from ``seed``."""
+    """``n`` cameras at distance 4 looking at the origin (40° field of view, ``size``² pixels) and
+    ``n`` lights at distance 5 above the horizon, both in random directions drawn from ``seed``."""
     rng = np.random.default_rng(seed)
     K = intrinsics_from_fov(np.radians(40.0), size, size)
-    cameras = [Camera(K=K, c2w=look_at(CAMERA_DISTANCE * d, np.zeros(3)), width=size, height=size)
-               for d in unit_directions(n, rng)]
-    lights = [PointLight(position=LIGHT_DISTANCE * d, intensity=np.full(3, LIGHT_INTENSITY), intensity_known=True)
-              for d in unit_directions(n, rng, min_elevation=0.0)]
+    cameras = [
+        Camera(K=K, c2w=look_at(CAMERA_DISTANCE * d, np.zeros(3)), width=size, height=size)
+        for d in unit_directions(n, rng)
+    ]
+    lights = [
+        PointLight(
+            position=LIGHT_DISTANCE * d, intensity=np.full(3, LIGHT_INTENSITY), intensity_known=True
+        )
+        for d in unit_directions(n, rng, min_elevation=0.0)
+    ]
     return cameras, lights
 
 
-__all__ = ["ALBEDO", "LIGHT_INTENSITY", "render_sphere", "sphere_hits", "sphere_rig", "unit_directions"]
+__all__ = [
+    "ALBEDO",
+    "LIGHT_INTENSITY",
+    "render_sphere",
+    "sphere_hits",
+    "sphere_rig",
+    "unit_directions",
+]

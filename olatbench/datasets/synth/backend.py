@@ -1,11 +1,12 @@
 """Mitsuba 3 access: the variant probe, the one camera-axis conversion, and mesh file reading.
 
-Mitsuba is optional (``pip install 'olatbench[synth]'``) and imported only here, on first use.
-The variant is ``llvm_ad_rgb`` when a probe renders a tiny scene with it in a *subprocess* (a
-mismatched libLLVM aborts the whole process, which must not take the caller down), else
-``scalar_rgb``; ``OLATBENCH_MITSUBA_VARIANT`` overrides the probe. The result is cached per process.
-`pinned_variant` fixes the variant for a block (the ``mini`` suite renders with ``scalar_rgb`` everywhere,
-so its pixels do not depend on whether a machine has LLVM); the environment variable still wins.
+Mitsuba is optional (``pip install 'olatbench[synth]'``) and imported only here, on first use. The
+variant is ``llvm_ad_rgb`` when a probe renders a tiny scene with it in a *subprocess* (a mismatched
+libLLVM aborts the whole process, which must not take the caller down), else ``scalar_rgb``;
+``OLATBENCH_MITSUBA_VARIANT`` overrides the probe. The result is cached per process.
+`pinned_variant` fixes the variant for a block (the ``mini`` suite renders with ``scalar_rgb``
+everywhere, so its pixels do not depend on whether a machine has LLVM); the environment variable
+still wins.
 """
 
 from __future__ import annotations
@@ -49,19 +50,24 @@ def _import_mitsuba() -> ModuleType:
     try:
         import mitsuba
     except ImportError as error:
-        raise MitsubaMissing(f"rendering synthetic scenes needs Mitsuba 3: {INSTALL_HINT} ({error})") from error
+        raise MitsubaMissing(
+            f"rendering synthetic scenes needs Mitsuba 3: {INSTALL_HINT} ({error})"
+        ) from error
     return mitsuba
 
 
 @functools.cache
 def probe_variant() -> str:
-    """``$OLATBENCH_MITSUBA_VARIANT``, else ``llvm_ad_rgb`` if a subprocess renders with it, else ``scalar_rgb``."""
+    """``$OLATBENCH_MITSUBA_VARIANT``, else ``llvm_ad_rgb`` if a subprocess renders with it, else
+    ``scalar_rgb``."""
     override = os.environ.get(VARIANT_ENV)
     if override:
         return override
     _import_mitsuba()
     try:
-        result = subprocess.run([sys.executable, "-c", _PROBE_SCRIPT], capture_output=True, timeout=300)
+        result = subprocess.run(
+            [sys.executable, "-c", _PROBE_SCRIPT], capture_output=True, timeout=300
+        )
         works = result.returncode == 0
     except subprocess.TimeoutExpired:
         works = False
@@ -73,7 +79,8 @@ _pinned: list[str] = []
 
 @contextlib.contextmanager
 def pinned_variant(variant: str) -> Iterator[None]:
-    """Render with ``variant`` inside the block unless ``$OLATBENCH_MITSUBA_VARIANT`` names another."""
+    """Render with ``variant`` inside the block unless ``$OLATBENCH_MITSUBA_VARIANT`` names
+    another."""
     _pinned.append(variant)
     try:
         yield
@@ -91,8 +98,10 @@ def mitsuba() -> ModuleType:
     mi = _import_mitsuba()
     variant = active_variant()
     if variant not in mi.variants():
-        raise ValueError(f"Mitsuba variant {variant!r} (from ${VARIANT_ENV}, a pin or the probe) is not available; "
-                         f"this build has {', '.join(mi.variants())}")
+        raise ValueError(
+            f"Mitsuba variant {variant!r} (from ${VARIANT_ENV}, a pin or the probe) is not "
+            f"available; this build has {', '.join(mi.variants())}"
+        )
     if mi.variant() != variant:
         mi.set_variant(variant)
     return mi
@@ -104,12 +113,14 @@ _OPENCV_TO_MITSUBA_AXES = np.diag([-1.0, -1.0, 1.0, 1.0])
 
 
 def mitsuba_camera_to_world(c2w_opencv: np.ndarray) -> np.ndarray:
-    """Camera-to-world (4, 4) in OpenCV axes -> Mitsuba sensor ``to_world`` (4, 4). The only conversion."""
+    """Camera-to-world (4, 4) in OpenCV axes -> Mitsuba sensor ``to_world`` (4, 4). The only
+    conversion."""
     return np.asarray(c2w_opencv, dtype=np.float64) @ _OPENCV_TO_MITSUBA_AXES
 
 
 def sensor_dict(camera: Camera, spp: int) -> dict:
-    """A Mitsuba ``perspective`` sensor reproducing ``camera`` exactly (box pixel filter, RGBA film).
+    """A Mitsuba ``perspective`` sensor reproducing ``camera`` exactly
+    (box pixel filter, RGBA film).
 
     Requires square pixels and the principal point at the image centre (what the rigs produce).
     """
@@ -119,8 +130,10 @@ def sensor_dict(camera: Camera, spp: int) -> dict:
     if not np.isclose(camera.fx, camera.fy, rtol=1e-9):
         raise ValueError(f"Mitsuba sensors need square pixels; fx={camera.fx}, fy={camera.fy}")
     if not (np.isclose(camera.cx, camera.width / 2) and np.isclose(camera.cy, camera.height / 2)):
-        raise ValueError(f"the principal point ({camera.cx}, {camera.cy}) must be the image centre "
-                         f"({camera.width / 2}, {camera.height / 2})")
+        raise ValueError(
+            f"the principal point ({camera.cx}, {camera.cy}) must be the image centre "
+            f"({camera.width / 2}, {camera.height / 2})"
+        )
     return {
         "type": "perspective",
         "fov": float(np.degrees(fov_from_focal(camera.fx, camera.width))),
@@ -128,8 +141,13 @@ def sensor_dict(camera: Camera, spp: int) -> dict:
         "near_clip": float(camera.near if camera.near is not None else 0.01),
         "far_clip": float(camera.far if camera.far is not None else 1e4),
         "to_world": mi.ScalarTransform4f(mitsuba_camera_to_world(camera.c2w).tolist()),
-        "film": {"type": "hdrfilm", "width": int(camera.width), "height": int(camera.height),
-                 "pixel_format": "rgba", "rfilter": {"type": "box"}},
+        "film": {
+            "type": "hdrfilm",
+            "width": int(camera.width),
+            "height": int(camera.height),
+            "pixel_format": "rgba",
+            "rfilter": {"type": "box"},
+        },
         "sampler": {"type": "independent", "sample_count": int(spp)},
     }
 
@@ -144,6 +162,9 @@ def read_mesh_file(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray | Non
     params = mi.traverse(shape)
     vertices = np.array(params["vertex_positions"], dtype=np.float64).reshape(-1, 3)
     faces = np.array(params["faces"], dtype=np.int64).reshape(-1, 3)
-    uvs = np.array(params["vertex_texcoords"], dtype=np.float64).reshape(-1, 2) if shape.has_vertex_texcoords() \
+    uvs = (
+        np.array(params["vertex_texcoords"], dtype=np.float64).reshape(-1, 2)
+        if shape.has_vertex_texcoords()
         else None
+    )
     return vertices, faces, uvs

@@ -15,7 +15,8 @@ from olatbench.datasets.images import read_channels, write_image
 
 
 def write_geometry(path: str | Path, channels: dict[str, np.ndarray]) -> Path:
-    """Write (H, W) float arrays as one half-float EXR whose channel names are the dict keys (atomically)."""
+    """Write (H, W) float arrays as one half-float EXR whose channel names are the dict keys
+    (atomically)."""
     names = list(channels)
     stacked = np.stack([np.asarray(channels[n], dtype=np.float32) for n in names], axis=-1)
     return write_image(path, stacked, "half", channel_names=names)

@@ -1,17 +1,19 @@
-"""Paper-scale stand-ins: a rendered scene per real suite, in that suite's format, image size and image count.
+"""Paper-scale stand-ins: a rendered scene per real suite, in that suite's format, image size and
+image count.
 
-They exist to measure what a paper-scale run costs (time per step, memory) on a machine without the real data;
-they are not quality references (few samples per pixel, one of the built-in recipes). The sizes and counts are
-the paper's (§5 and appendix of the SSD-GS paper):
+They exist to measure what a paper-scale run costs (time per step, memory) on a machine without the
+real data; they are not quality references (few samples per pixel, one of the built-in recipes). The
+sizes and counts are the paper's (§5 and appendix of the SSD-GS paper):
 
-* ``nrhints``: real captures, 500–1500 training and 45–200 test images, four scenes at 512², three at 1024²
-  (the stand-in takes the middle of the range at the more common 512²: 1000 / 100);
+* ``nrhints``: real captures, 500–1500 training and 45–200 test images, four scenes at 512², three
+  at 1024² (the stand-in takes the middle of the range at the more common 512²: 1000 / 100);
 * ``gs3``: 2000 training and 400 test images at 512² (white background, HDR converted to gamma 2.2);
 * ``sssgs``: the public down-scaled release, 500 training and 500 test images at 256².
 
-`ensure_standin` renders one into ``$XDG_CACHE_HOME/olatbench/standins/<suite>-<train>`` on first use (a folder
-per training-image count, so a quick run with fewer images does not replace the full one) and reuses it after;
-the render goes to a temporary sibling that is renamed into place, so an interruption leaves nothing half-made.
+`ensure_standin` renders one into ``$XDG_CACHE_HOME/olatbench/standins/<suite>-<train>`` on first
+use (a folder per training-image count, so a quick run with fewer images does not replace the full
+one) and reuses it after; the render goes to a temporary sibling that is renamed into place, so an
+interruption leaves nothing half-made.
 """
 
 from __future__ import annotations
@@ -26,8 +28,9 @@ from olatbench.datasets.synth.recipe import RECIPES
 
 @dataclass(frozen=True)
 class Standin:
-    """How to render the stand-in of one suite: a built-in ``recipe`` written in ``format`` at ``resolution``
-    (square, pixels) with ``train`` / ``test`` images and ``spp`` samples per pixel."""
+    """How to render the stand-in of one suite: a built-in ``recipe`` written in ``format`` at
+    ``resolution`` (square, pixels) with ``train`` / ``test`` images and ``spp`` samples per
+    pixel."""
 
     recipe: str
     format: str
@@ -38,7 +41,9 @@ class Standin:
 
 
 STANDINS: dict[str, Standin] = {
-    "nrhints": Standin(recipe="diffuse_shadow", format="nrhints", resolution=512, train=1000, test=100),
+    "nrhints": Standin(
+        recipe="diffuse_shadow", format="nrhints", resolution=512, train=1000, test=100
+    ),
     "gs3": Standin(recipe="aniso_metal", format="gs3", resolution=512, train=2000, test=400),
     "sssgs": Standin(recipe="translucent", format="sssgs", resolution=256, train=500, test=500),
 }
@@ -50,9 +55,11 @@ def standin_root() -> Path:
     return Path(cache) / "olatbench" / "standins"
 
 
-def ensure_standin(suite: str, train: int | None = None, root: Path | None = None, progress: bool = True) -> Path:
-    """The stand-in scene folder of ``suite`` (rendered on first use); ``train`` overrides the training-image
-    count (test images scale with it, at least one)."""
+def ensure_standin(
+    suite: str, train: int | None = None, root: Path | None = None, progress: bool = True
+) -> Path:
+    """The stand-in scene folder of ``suite`` (rendered on first use); ``train`` overrides the
+    training-image count (test images scale with it, at least one)."""
     from olatbench.datasets.synth.generate import generate
 
     if suite not in STANDINS:
@@ -66,8 +73,9 @@ def ensure_standin(suite: str, train: int | None = None, root: Path | None = Non
         return final
     partial = root / f".{suite}-{train}.partial"
     shutil.rmtree(partial, ignore_errors=True)
-    recipe = RECIPES[standin.recipe].with_overrides(resolution=(standin.resolution, standin.resolution),
-                                                    spp=standin.spp, train=train, test=test)
+    recipe = RECIPES[standin.recipe].with_overrides(
+        resolution=(standin.resolution, standin.resolution), spp=standin.spp, train=train, test=test
+    )
     generate(recipe, partial, standin.format, progress=progress, geometry=False)
     os.replace(partial, final)
     return final

@@ -1,13 +1,14 @@
 """Reference rasterizer in plain torch: the test oracle, on any device and dtype.
 
-Tile-based and vectorised: the non-empty tiles are grouped into chunks (longest lists first, so padding stays
-small) and each chunk evaluates every (pixel, Gaussian-of-its-tile) pair at once. Front-to-back compositing
-follows the given `CompositingRules` exactly (default 3DGS's: ``alpha = min(0.99, o·exp(power))`` with
-``power = -½ dᵀ conic d`` (d = mean - pixel centre), pairs with ``power > 0`` or ``alpha < 1/255`` are skipped,
-and a pixel stops *before* the Gaussian that would bring its transmittance below 1e-4; gsplat's: 0.999 and at or
-below 1e-4). Gradients come from autograd (the true gradient: zero where the alpha clamp is active). With
-autograd on, each chunk is wrapped in activation checkpointing so the memory held for backward is one chunk's
-worth, not the whole image's.
+Tile-based and vectorised: the non-empty tiles are grouped into chunks (longest lists first, so
+padding stays small) and each chunk evaluates every (pixel, Gaussian-of-its-tile) pair at once.
+Front-to-back compositing follows the given `CompositingRules` exactly (default 3DGS's: ``alpha =
+min(0.99, o·exp(power))`` with ``power = -½ dᵀ conic d`` (d = mean - pixel centre), pairs with
+``power > 0`` or ``alpha < 1/255`` are skipped, and a pixel stops *before* the Gaussian that would
+bring its transmittance below 1e-4; gsplat's: 0.999 and at or below 1e-4). Gradients come from
+autograd (the true gradient: zero where the alpha clamp is active). With autograd on, each chunk is
+wrapped in activation checkpointing so the memory held for backward is one chunk's worth, not the
+whole image's.
 """
 
 from __future__ import annotations
@@ -21,7 +22,8 @@ from ..compositing import ALPHA_MIN, T_MIN, THREE_DGS, CompositingRules
 from ..screen import TileBins
 
 ALPHA_MAX = THREE_DGS.alpha_max  # the default rules' clamp
-# Elements (pixels × padded list length) evaluated per chunk; bounds peak memory (~10 tensors of this size).
+# Elements (pixels × padded list length) evaluated per chunk; bounds peak memory
+# (~10 tensors of this size).
 CHUNK_ELEMENTS = 1 << 22
 
 
@@ -34,10 +36,11 @@ def _chunk_weights(
     pixels: torch.Tensor,
     rules: CompositingRules = THREE_DGS,
 ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-    """Blending weights of B tiles: ``ids``/``valid`` (B, L) padded lists, ``pixels`` (B, P, 2) pixel centres.
+    """Blending weights of B tiles: ``ids``/``valid`` (B, L) padded lists, ``pixels`` (B, P, 2)
+    pixel centres.
 
-    Returns the weights ``T·α`` (B, P, L) (0 where a Gaussian is skipped or after the pixel stops), ``1 - α``
-    (B, P, L) and the composited mask (B, P, L)."""
+    Returns the weights ``T·α`` (B, P, L) (0 where a Gaussian is skipped or after the pixel stops),
+    ``1 - α`` (B, P, L) and the composited mask (B, P, L)."""
     mean = means2d[ids]  # (B, L, 2)
     con = conics[ids]
     d = mean[:, None, :, :] - pixels[:, :, None, :]  # (B, P, L, 2)
@@ -68,14 +71,17 @@ def _composite_chunk(
     """Composite B tiles (arguments as `_chunk_weights`, ``features`` (N, C)).
 
     Returns colour without background (B, P, C) and final transmittance (B, P)."""
-    weights, one_minus, include = _chunk_weights(means2d, conics, opacities, ids, valid, pixels, rules)
+    weights, one_minus, include = _chunk_weights(
+        means2d, conics, opacities, ids, valid, pixels, rules
+    )
     colour = torch.einsum("bpl,blc->bpc", weights, features[ids])
     t_final = torch.where(include, one_minus, torch.ones_like(one_minus)).prod(dim=-1)
     return colour, t_final
 
 
 def _chunks(counts: torch.Tensor, pixels_per_tile: int) -> list[torch.Tensor]:
-    """Group non-empty tiles (longest list first) into chunks of at most CHUNK_ELEMENTS padded elements."""
+    """Group non-empty tiles (longest list first) into chunks of at most CHUNK_ELEMENTS padded
+    elements."""
     order = torch.argsort(counts, descending=True, stable=True)
     order = order[counts[order] > 0].tolist()
     counts_list = counts.tolist()
@@ -95,14 +101,16 @@ def _chunks(counts: torch.Tensor, pixels_per_tile: int) -> list[torch.Tensor]:
 def _chunk_lists(
     bins: TileBins, chunks: list[torch.Tensor], device: torch.device, dtype: torch.dtype
 ) -> Iterator[tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]]:
-    """Per chunk of tiles: their indices (B,), padded Gaussian lists ``ids``/``valid`` (B, L) and the pixel
-    centres (B, P, 2) of their ``tile_size``² pixels (including those of edge tiles beyond the image)."""
+    """Per chunk of tiles: their indices (B,), padded Gaussian lists ``ids``/``valid`` (B, L) and
+    the pixel centres (B, P, 2) of their ``tile_size``² pixels (including those of edge tiles beyond
+    the image)."""
     ts = bins.tile_size
     offsets = bins.offsets.to(device)
     ids_all = bins.gaussian_ids.to(device)
     counts = offsets[1:] - offsets[:-1]
     local = torch.arange(ts * ts, device=device)
-    tile_pixel = torch.stack([local % ts, local // ts], dim=-1).to(dtype) + 0.5  # (P, 2) offsets within a tile
+    # (P, 2) offsets within a tile
+    tile_pixel = torch.stack([local % ts, local // ts], dim=-1).to(dtype) + 0.5
     for chunk in chunks:
         chunk_dev = chunk.to(device)
         starts = offsets[chunk_dev]
@@ -112,7 +120,10 @@ def _chunk_lists(
         valid = slot[None, :] < lengths[:, None]
         ids = ids_all[(starts[:, None] + slot[None, :]).clamp(max=max(ids_all.numel() - 1, 0))]
         ids = torch.where(valid, ids, torch.zeros_like(ids))
-        origin = torch.stack([chunk_dev % bins.tiles_x, chunk_dev // bins.tiles_x], dim=-1).to(dtype) * ts
+        origin = (
+            torch.stack([chunk_dev % bins.tiles_x, chunk_dev // bins.tiles_x], dim=-1).to(dtype)
+            * ts
+        )
         yield chunk_dev, ids, valid, origin[:, None, :] + tile_pixel[None, :, :]
 
 
@@ -124,10 +135,11 @@ def rasterize_torch(
     bins: TileBins,
     rules: CompositingRules = THREE_DGS,
 ) -> tuple[torch.Tensor, torch.Tensor]:
-    """Composite binned Gaussians: colour without background (H, W, C) and final transmittance (H, W).
+    """Composite binned Gaussians: colour without background (H, W, C) and final transmittance
+    (H, W).
 
-    Inputs: means2d (N, 2) px, conics (N, 3), opacities (N,), features (N, C), all one dtype and device;
-    ``rules``: the clamp and stop (`olatbench.gaussians.compositing`)."""
+    Inputs: means2d (N, 2) px, conics (N, 3), opacities (N,), features (N, C), all one dtype and
+    device; ``rules``: the clamp and stop (`olatbench.gaussians.compositing`)."""
     device, dtype = means2d.device, means2d.dtype
     ts, n_tiles, channels = bins.tile_size, bins.num_tiles, features.shape[1]
     counts = (bins.offsets[1:] - bins.offsets[:-1]).cpu()
@@ -139,8 +151,8 @@ def rasterize_torch(
     t_tiles = torch.ones(n_tiles, ts * ts, device=device, dtype=dtype)
     chunks = _chunks(counts, ts * ts)
     if not chunks and use_checkpoint:
-        # Nothing visible: keep the outputs connected to the inputs (zero gradients) so that backward works on
-        # an empty view, as with the other backends.
+        # Nothing visible: keep the outputs connected to the inputs (zero gradients) so that
+        # backward works on an empty view, as with the other backends.
         tie = sum(t.sum() for t in (means2d, conics, opacities, features)) * 0
         colour_tiles, t_tiles = colour_tiles + tie, t_tiles + tie
     for chunk_dev, ids, valid, pixels in _chunk_lists(bins, chunks, device, dtype):
@@ -160,23 +172,33 @@ def rasterize_torch(
     return untile(colour_tiles), untile(t_tiles)
 
 
-
-
 @torch.no_grad()
 def max_weights_torch(
     means2d: torch.Tensor, conics: torch.Tensor, opacities: torch.Tensor, bins: TileBins
 ) -> torch.Tensor:
-    """Each Gaussian's largest blending weight ``T·α`` over the image's pixels (N,) (0 for a Gaussian that is
-    composited nowhere), with the compositing rules of `rasterize_torch`; inputs as there, no features."""
+    """Each Gaussian's largest blending weight ``T·α`` over the image's pixels (N,) (0 for a
+    Gaussian that is composited nowhere), with the compositing rules of `rasterize_torch`; inputs as
+    there, no features."""
     device, dtype = means2d.device, means2d.dtype
     counts = (bins.offsets[1:] - bins.offsets[:-1]).cpu()
     best = torch.zeros(means2d.shape[0], device=device, dtype=dtype)
-    for _, ids, valid, pixels in _chunk_lists(bins, _chunks(counts, bins.tile_size**2), device, dtype):
+    for _, ids, valid, pixels in _chunk_lists(
+        bins, _chunks(counts, bins.tile_size**2), device, dtype
+    ):
         weights = _chunk_weights(means2d, conics, opacities, ids, valid, pixels)[0]
-        inside = (pixels[..., 0] < bins.width) & (pixels[..., 1] < bins.height)  # edge tiles reach past the image
-        per_pair = torch.where(inside[:, :, None], weights, torch.zeros_like(weights)).amax(dim=1)  # (B, L)
+        # edge tiles reach past the image
+        inside = (pixels[..., 0] < bins.width) & (pixels[..., 1] < bins.height)
+        # (B, L)
+        per_pair = torch.where(inside[:, :, None], weights, torch.zeros_like(weights)).amax(dim=1)
         best = best.scatter_reduce(0, ids[valid], per_pair[valid], reduce="amax")
     return best
 
 
-__all__ = ["ALPHA_MAX", "ALPHA_MIN", "CHUNK_ELEMENTS", "T_MIN", "max_weights_torch", "rasterize_torch"]
+__all__ = [
+    "ALPHA_MAX",
+    "ALPHA_MIN",
+    "CHUNK_ELEMENTS",
+    "T_MIN",
+    "max_weights_torch",
+    "rasterize_torch",
+]

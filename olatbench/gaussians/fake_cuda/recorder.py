@@ -1,22 +1,26 @@
-"""A dispatch mode that finds host syncs and device mixes among fake CUDA tensors, and goes on past each.
+"""A dispatch mode that finds host syncs and device mixes among fake CUDA tensors, and goes on past
+each.
 
 Pushed above a ``FakeTensorMode``, `Recorder` sees every aten op first and classifies:
 
-- **scalar reads** (``aten._local_scalar_dense``: ``.item()``, ``float(t)``, ``int(t)``, ``bool(t)``, ``.tolist()``)
-  and ``aten.equal`` of a CUDA tensor: a sync; the value is substituted (`SUBSTITUTE`);
-- **copies between host and device** (``_to_copy`` / ``copy_`` across CPU and CUDA: ``.cpu()``, ``.to("cuda")``,
-  ``torch.tensor(..., device="cuda")``): a sync each way (a blocking copy waits for the device's stream), except
-  an upload with ``non_blocking=True``, which the host queues without waiting;
-- **data-dependent output sizes** on CUDA tensors (``nonzero``, boolean-mask indexing, ``repeat_interleave``
-  without ``output_size``, ``bincount``, ``unique``, ``masked_select``): a sync; the op runs as if the first half
-  (rounded down) of every mask were true, so that a loop shrinking a set by masks ends, and repeats and counts
-  sum to `SUBSTITUTE`'s count;
-- **device mixes** (``FakeTensorDeviceMismatchError``: a CPU tensor of one or more dimensions in an op on CUDA
-  tensors): a finding; the op then runs with the CPU tensors moved to CUDA.
+- **scalar reads** (``aten._local_scalar_dense``: ``.item()``, ``float(t)``, ``int(t)``,
+  ``bool(t)``, ``.tolist()``) and ``aten.equal`` of a CUDA tensor: a sync; the value is substituted
+  (`SUBSTITUTE`);
+- **copies between host and device** (``_to_copy`` / ``copy_`` across CPU and CUDA: ``.cpu()``,
+  ``.to("cuda")``, ``torch.tensor(..., device="cuda")``): a sync each way (a blocking copy waits for
+  the device's stream), except an upload with ``non_blocking=True``, which the host queues without
+  waiting;
+- **data-dependent output sizes** on CUDA tensors (``nonzero``, boolean-mask indexing,
+  ``repeat_interleave`` without ``output_size``, ``bincount``, ``unique``, ``masked_select``): a
+  sync; the op runs as if the first half (rounded down) of every mask were true, so that a loop
+  shrinking a set by masks ends, and repeats and counts sum to `SUBSTITUTE`'s count;
+- **device mixes** (``FakeTensorDeviceMismatchError``: a CPU tensor of one or more dimensions in an
+  op on CUDA tensors): a finding; the op then runs with the CPU tensors moved to CUDA.
 
-Each finding keeps the frames of olatbench and its caller of the Python stack (innermost: where) and the allowance
-block it ran in (`olatbench.gaussians.host_sync`). Substituted values are not the real ones, so control flow after
-one may differ from a real run; shapes, dtypes and devices stay consistent.
+Each finding keeps the frames of olatbench and its caller of the Python stack (innermost: where) and
+the allowance block it ran in (`olatbench.gaussians.host_sync`). Substituted values are not the real
+ones, so control flow after one may differ from a real run; shapes, dtypes and devices stay
+consistent.
 """
 
 from __future__ import annotations
@@ -44,17 +48,20 @@ OWN = Path(__file__).resolve().parent  # frames of the dry run itself are not "w
 TORCH = Path(torch.__file__).resolve().parent
 STDLIB = Path(sysconfig.get_paths()["stdlib"]).resolve()
 
-#: More syncs than this in one phase stop it (a loop over device values that substituted values do not end).
+#: More syncs than this in one phase stop it (a loop over device values that substituted values do
+#: not end).
 MAX_SYNCS_PER_PHASE = 2000
-#: Values a dry run gives for data it cannot know: CUDA counts, CPU integers (indices stay valid), floats, bools.
+#: Values a dry run gives for data it cannot know: CUDA counts, CPU integers (indices stay valid),
+#: floats, bools.
 SUBSTITUTE = {"cuda_int": 64, "cpu_int": 0, "float": 1.0, "bool": True}
 
 
 @dataclass(frozen=True)
 class Finding:
-    """``kind``: "sync" or "device mix"; ``what`` happened (the op and its meaning); ``where``: the innermost frame
-    of olatbench or its caller ("olatbench/x.py:12 in f"); ``stack``: those frames, outermost first; ``phase``: what
-    the dry run was doing; ``allowance``: the `host_sync` allowance it counts against (None: none)."""
+    """``kind``: "sync" or "device mix"; ``what`` happened (the op and its meaning); ``where``: the
+    innermost frame of olatbench or its caller ("olatbench/x.py:12 in f"); ``stack``: those frames,
+    outermost first; ``phase``: what the dry run was doing; ``allowance``: the `host_sync` allowance
+    it counts against (None: none)."""
 
     kind: str
     what: str
@@ -65,20 +72,28 @@ class Finding:
     over_limit: bool = False
 
     def line(self) -> str:
-        allowed = f" [allowed: {self.allowance}{', OVER ITS LIMIT' if self.over_limit else ''}]" \
-            if self.allowance else ""
+        allowed = (
+            f" [allowed: {self.allowance}{', OVER ITS LIMIT' if self.over_limit else ''}]"
+            if self.allowance
+            else ""
+        )
         return f"{self.phase}: {self.kind}: {self.what} at {self.where}{allowed}"
 
 
 def _frames() -> tuple[str, ...]:
-    """The frames of the current stack that are code of olatbench or of its caller (outermost first): not torch's,
-    the standard library's or this package's own; olatbench's as ``olatbench/...:line in function``."""
+    """The frames of the current stack that are code of olatbench or of its caller
+    (outermost first): not torch's, the standard library's or this package's own; olatbench's as
+    ``olatbench/...:line in function``."""
     frames = []
     for frame in traceback.extract_stack():
         path = Path(frame.filename).resolve()
         if path.is_relative_to(OWN) or path.is_relative_to(TORCH) or path.is_relative_to(STDLIB):
             continue
-        shown = path.relative_to(PACKAGE.parent).as_posix() if path.is_relative_to(PACKAGE) else frame.filename
+        shown = (
+            path.relative_to(PACKAGE.parent).as_posix()
+            if path.is_relative_to(PACKAGE)
+            else frame.filename
+        )
         frames.append(f"{shown}:{frame.lineno} in {frame.name}")
     return tuple(frames)
 
@@ -91,7 +106,11 @@ def _on_cuda(args: Any, kwargs: Any) -> bool:
     return any(t.device.type == "cuda" for t in _tensors(args, kwargs))
 
 
-READS = {aten._local_scalar_dense.default: ".item() / float() / int() / bool() / .tolist(): a scalar read"}
+READS = {
+    aten._local_scalar_dense.default: (
+        ".item() / float() / int() / bool() / .tolist(): a scalar read"
+    )
+}
 SIZES = {
     aten.nonzero.default: "nonzero (torch.where(mask), mask.nonzero())",
     aten.index.Tensor: "boolean-mask indexing x[mask]",
@@ -106,7 +125,8 @@ SIZES = {
 
 
 class Recorder(TorchDispatchMode):
-    """Records `Finding`s of the ops it sees (see the module docstring); ``phase`` names what runs now."""
+    """Records `Finding`s of the ops it sees (see the module docstring); ``phase`` names what runs
+    now."""
 
     def __init__(self) -> None:
         super().__init__()
@@ -114,7 +134,8 @@ class Recorder(TorchDispatchMode):
         self.phase = ""
         self._quiet = False  # while the recorder runs its own substitutes
 
-    # ------------------------------------------------------------------------------------------ findings
+    # ------------------------------------------------------------------------------------------
+    # findings
     def record(self, kind: str, what: str) -> None:
         frames = _frames()
         where = frames[-1] if frames else "(unknown)"
@@ -123,13 +144,19 @@ class Recorder(TorchDispatchMode):
         if use is not None:
             use.syncs += 1
             over = use.allowance.limit is not None and use.syncs > use.allowance.limit
-        self.findings.append(Finding(kind, what, where, frames, self.phase,
-                                     use.allowance.name if use else None, over))
+        self.findings.append(
+            Finding(
+                kind, what, where, frames, self.phase, use.allowance.name if use else None, over
+            )
+        )
         if sum(f.phase == self.phase for f in self.findings) > MAX_SYNCS_PER_PHASE:
-            raise RuntimeError(f"more than {MAX_SYNCS_PER_PHASE} findings in {self.phase!r}, the last at {where}: a "
-                               "loop over values the device computes, which substituted values do not end")
+            raise RuntimeError(
+                f"more than {MAX_SYNCS_PER_PHASE} findings in {self.phase!r}, the last at {where}: "
+                "a loop over values the device computes, which substituted values do not end"
+            )
 
-    # ------------------------------------------------------------------------------------------ dispatch
+    # ------------------------------------------------------------------------------------------
+    # dispatch
     def __torch_dispatch__(self, func, types, args=(), kwargs=None):
         kwargs = kwargs or {}
         if self._quiet:
@@ -185,15 +212,21 @@ class Recorder(TorchDispatchMode):
         else:
             return
         if source.type == target.type or (non_blocking and source.type == "cpu"):
-            return  # a non-blocking upload is queued on the stream (cudaMemcpyAsync): the host does not wait
+            # a non-blocking upload is queued on the stream (cudaMemcpyAsync): the host does not
+            # wait
+            return
         if "cuda" in (source.type, target.type):
-            way = "device-to-host copy (.cpu(), .numpy())" if source.type == "cuda" else \
-                "host-to-device copy (.to(cuda), torch.tensor/as_tensor(..., device=cuda))"
+            way = (
+                "device-to-host copy (.cpu(), .numpy())"
+                if source.type == "cuda"
+                else "host-to-device copy (.to(cuda), torch.tensor/as_tensor(..., device=cuda))"
+            )
             self.record("sync", f"{way}: a blocking copy")
 
     @staticmethod
     def _sized(func, args, kwargs) -> Any:
-        """The op as if half of every mask were true and every data-dependent count `SUBSTITUTE`'s."""
+        """The op as if half of every mask were true and every data-dependent count
+        `SUBSTITUTE`'s."""
         count = SUBSTITUTE["cuda_int"]
         if func is aten.nonzero.default:
             x = args[0]
@@ -202,7 +235,9 @@ class Recorder(TorchDispatchMode):
             x, indices = args[0], []
             for index in args[1]:
                 if index is not None and index.dtype == torch.bool:
-                    indices += [torch.zeros(index.numel() // 2, dtype=torch.int64, device=index.device)] * index.dim()
+                    indices += [
+                        torch.zeros(index.numel() // 2, dtype=torch.int64, device=index.device)
+                    ] * index.dim()
                 else:
                     indices.append(index)
             return func(x, indices)
@@ -211,7 +246,11 @@ class Recorder(TorchDispatchMode):
         if func is aten.bincount.default:
             minlength = kwargs.get("minlength", args[2] if len(args) > 2 else 0)
             weights = kwargs.get("weights", args[1] if len(args) > 1 else None)
-            dtype = torch.int64 if weights is None else torch.promote_types(weights.dtype, torch.float64)
+            dtype = (
+                torch.int64
+                if weights is None
+                else torch.promote_types(weights.dtype, torch.float64)
+            )
             return torch.zeros(minlength or count, dtype=dtype, device=args[0].device)
         if func is aten.masked_select.default:
             shape = torch.broadcast_shapes(args[0].shape, args[1].shape)
@@ -226,10 +265,13 @@ class Recorder(TorchDispatchMode):
     def _on_one_device(func, args, kwargs) -> Any:
         device = next(t.device for t in _tensors(args, kwargs) if t.device.type == "cuda")
 
-        def moved(t: Any) -> Any:  # a fresh fake tensor on the device (values are not tracked anyway)
+        # a fresh fake tensor on the device (values are not tracked anyway)
+        def moved(t: Any) -> Any:
             if not isinstance(t, torch.Tensor) or t.device == device:
                 return t
-            return torch.zeros(t.shape, dtype=t.dtype, device=device).requires_grad_(t.requires_grad)
+            return torch.zeros(t.shape, dtype=t.dtype, device=device).requires_grad_(
+                t.requires_grad
+            )
 
         return func(*tree_map(moved, args), **tree_map(moved, kwargs))
 

@@ -1,4 +1,5 @@
-"""The GS³ configuration (torch-free: `olatbench methods show gs3` and dry runs read it without torch)."""
+"""The GS³ configuration (torch-free: `olatbench methods show gs3` and dry runs read it without
+torch)."""
 
 from __future__ import annotations
 
@@ -11,16 +12,27 @@ from olatbench.methods.shading.config import ShadingConfig
 
 @dataclass
 class GS3Config(ShadingConfig):
-    """GS³ settings (defaults: the official synthetic-scene script): the shared Gaussian and shading fields, GS³'s
-    schedule, networks and rates."""
+    """GS³ settings (defaults: the official synthetic-scene script): the shared Gaussian and shading
+    fields, GS³'s schedule, networks and rates."""
 
     label: ClassVar[str] = "GS³"
-    iteration_fields: ClassVar[tuple[str, ...]] = (*ShadingConfig.iteration_fields, "shadow_from", "mlp_freeze_from",
-                                                   "specular_from", "asg_lobes_from")
+    iteration_fields: ClassVar[tuple[str, ...]] = (
+        *ShadingConfig.iteration_fields,
+        "shadow_from",
+        "mlp_freeze_from",
+        "specular_from",
+        "asg_lobes_from",
+    )
     ranges: ClassVar[dict[str, Range]] = {
-        "shadow_from": NON_NEGATIVE, "mlp_freeze_from": NON_NEGATIVE, "specular_from": NON_NEGATIVE,
-        "asg_lobes_from": NON_NEGATIVE, "other_hidden": AT_LEAST_ONE, "other_layers": AT_LEAST_ONE,
-        "num_freqs": NON_NEGATIVE, "mlp_lr": RATE, "initial_shading": POSITIVE,
+        "shadow_from": NON_NEGATIVE,
+        "mlp_freeze_from": NON_NEGATIVE,
+        "specular_from": NON_NEGATIVE,
+        "asg_lobes_from": NON_NEGATIVE,
+        "other_hidden": AT_LEAST_ONE,
+        "other_layers": AT_LEAST_ONE,
+        "num_freqs": NON_NEGATIVE,
+        "mlp_lr": RATE,
+        "initial_shading": POSITIVE,
     }
 
     iterations: int = 100_000
@@ -37,22 +49,28 @@ class GS3Config(ShadingConfig):
     other_hidden: int = 128
     other_layers: int = 3
     num_freqs: int = 4
-    # The two networks' layout: "torch", plain MLPs (the other-effects network with ReLU and biases, the shadow
-    # network with one bias vector); "tiny_cuda_nn", the authors' FullyFusedMLP for both (LeakyReLU, no biases, the
-    # input padded with ones; gs3_shading.OtherEffectsNetwork, shading.shadow_mlp).
+    # The two networks' layout: "torch", plain MLPs (the other-effects network with ReLU and biases,
+    # the shadow network with one bias vector); "tiny_cuda_nn", the authors' FullyFusedMLP for both
+    # (LeakyReLU, no biases, the input padded with ones; gs3_shading.OtherEffectsNetwork,
+    # shading.shadow_mlp).
     network_layout: str = "torch"
     shadow_resolution: int | None = 256
     shadow_framing: str = "scene"
-    # The brightest the initial diffuse shading albedo/π · I/d² may be at the initial ball's centre under the median
-    # training light (GS3.prepare); None: the official albedo (softplus(0.5)) however bright the lights.
+    # The brightest the initial diffuse shading albedo/π · I/d² may be at the initial ball's centre
+    # under the median training light (GS3.prepare); None: the official albedo (softplus(0.5))
+    # however bright the lights.
     initial_shading: float | None = 0.5
     # Learning rate of the networks.
-    mlp_lr: float = 1e-3  # constant: the official decay never applies (its group-name test is always false)
+    # constant: the official decay never applies (its group-name test is always false)
+    mlp_lr: float = 1e-3
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        if self.network_layout not in ("torch", "tiny_cuda_nn"):  # gs3_shading.NETWORK_LAYOUTS (imports torch)
-            raise ValueError(f"GS³ config: network_layout must be 'torch' or 'tiny_cuda_nn', not "
-                             f"{self.network_layout!r}")
+        # gs3_shading.NETWORK_LAYOUTS (imports torch)
+        if self.network_layout not in ("torch", "tiny_cuda_nn"):
+            raise ValueError(
+                f"GS³ config: network_layout must be 'torch' or 'tiny_cuda_nn', not "
+                f"{self.network_layout!r}"
+            )
         if not self.shadow_from <= self.mlp_freeze_from <= self.specular_from:
             raise ValueError("GS³ config: need shadow_from <= mlp_freeze_from <= specular_from")

@@ -1,10 +1,12 @@
-"""Vanilla 3D Gaussian Splatting (Kerbl et al. 2023): the light-unaware lower bound of the paper's tables.
+"""Vanilla 3D Gaussian Splatting (Kerbl et al. 2023): the light-unaware lower bound of the paper's
+tables.
 
-Colour is view-dependent spherical harmonics of degree 3 (`olatbench.methods.baselines.sh`), raised one degree
-every ``sh_increase_interval`` steps; the light of a view is ignored, so one radiance field has to explain every
-lighting at once and novel lights are not reproduced. Training is the 3DGS recipe on the shared core: one view
-per step, ``0.8 L1 + 0.2 (1 - SSIM)``, Adam (eps 1e-15) with the exponential position rate, and 3DGS density
-control (`olatbench.gaussians.densify.Densifier`). Gaussians start uniformly in a ball (the OLAT datasets
+Colour is view-dependent spherical harmonics of degree 3 (`olatbench.methods.baselines.sh`), raised
+one degree every ``sh_increase_interval`` steps; the light of a view is ignored, so one radiance
+field has to explain every lighting at once and novel lights are not reproduced. Training is the
+3DGS recipe on the shared core: one view per step, ``0.8 L1 + 0.2 (1 - SSIM)``, Adam (eps 1e-15)
+with the exponential position rate, and 3DGS density control
+(`olatbench.gaussians.densify.Densifier`). Gaussians start uniformly in a ball (the OLAT datasets
 have no SfM points), as SSD-GS does.
 """
 
@@ -27,7 +29,8 @@ from olatbench.methods.training import camera_centre, camera_tensors
 if TYPE_CHECKING:
     from olatbench.datasets.records import Camera, PointLight
 
-STATE_FORMAT = "olatbench.methods.baselines.3dgs/2"  # 2: the optimiser saved as "gaussian_optimizer"
+# 2: the optimiser saved as "gaussian_optimizer"
+STATE_FORMAT = "olatbench.methods.baselines.3dgs/2"
 
 
 class GaussianSplatting3D(GaussianMethod, spec=SPEC):
@@ -39,58 +42,92 @@ class GaussianSplatting3D(GaussianMethod, spec=SPEC):
 
     config: GS3DConfig
 
-    # ------------------------------------------------------------------------------------------- set-up
+    # -------------------------------------------------------------------------------------------
+    # set-up
     @classmethod
     def splat_colour(cls, attributes: Mapping[str, torch.Tensor], colourspace: str) -> SplatColour:
-        """The trained SH coefficients as they are (3DGS's own colour; in the job's ``colourspace``)."""
-        return SplatColour(attributes["sh_dc"].reshape(-1, 3), attributes["sh_rest"], ("sh_dc", "sh_rest"),
-                           f"colour: 3DGS spherical harmonics as trained ({colourspace} radiance)")
+        """The trained SH coefficients as they are (3DGS's own colour; in the job's
+        ``colourspace``)."""
+        return SplatColour(
+            attributes["sh_dc"].reshape(-1, 3),
+            attributes["sh_rest"],
+            ("sh_dc", "sh_rest"),
+            f"colour: 3DGS spherical harmonics as trained ({colourspace} radiance)",
+        )
 
     def initial_attributes(self, n: int) -> dict[str, torch.Tensor]:
         rest = sh.num_coefficients(self.config.sh_degree) - 1
-        return {"sh_dc": torch.zeros(n, 1, 3, device="cpu"), "sh_rest": torch.zeros(n, rest, 3, device="cpu")}
+        return {
+            "sh_dc": torch.zeros(n, 1, 3, device="cpu"),
+            "sh_rest": torch.zeros(n, rest, 3, device="cpu"),
+        }
 
     def learning_rates(self, step: int) -> dict[str, float]:
-        """Per parameter group at ``step``: exponential decay for positions, constants otherwise (3DGS)."""
+        """Per parameter group at ``step``: exponential decay for positions, constants otherwise
+        (3DGS)."""
         cfg = self.config
         extent = self.train_views.scene_extent
         return {
-            "means": exponential_lr(step, cfg.position_lr_init * extent, cfg.position_lr_final * extent,
-                                    max(1, cfg.steps(cfg.position_lr_max_steps))),
-            "log_scales": cfg.scaling_lr, "quats": cfg.rotation_lr, "opacity_logits": cfg.opacity_lr,
-            "attributes.sh_dc": cfg.feature_lr, "attributes.sh_rest": cfg.feature_lr / 20.0,
+            "means": exponential_lr(
+                step,
+                cfg.position_lr_init * extent,
+                cfg.position_lr_final * extent,
+                max(1, cfg.steps(cfg.position_lr_max_steps)),
+            ),
+            "log_scales": cfg.scaling_lr,
+            "quats": cfg.rotation_lr,
+            "opacity_logits": cfg.opacity_lr,
+            "attributes.sh_dc": cfg.feature_lr,
+            "attributes.sh_rest": cfg.feature_lr / 20.0,
         }
 
     def active_sh_degree(self, step: int) -> int:
-        """SH degree in use at ``step``: one more every ``sh_increase_interval`` steps, up to ``sh_degree``."""
+        """SH degree in use at ``step``: one more every ``sh_increase_interval`` steps, up to
+        ``sh_degree``."""
         return min(self.config.sh_degree, step // self.config.sh_increase_interval)
 
-    # ------------------------------------------------------------------------------------- forward pass
-    def _forward(self, w2c: torch.Tensor, K: torch.Tensor, width: int, height: int, degree: int) -> dict[str, Any]:
+    # ------------------------------------------------------------------------------------- forward
+    # pass
+    def _forward(
+        self, w2c: torch.Tensor, K: torch.Tensor, width: int, height: int, degree: int
+    ) -> dict[str, Any]:
         model = self.model
         projected = project(model.means, model.quats, model.scales, w2c, K, width, height)
         dirs = torch.nn.functional.normalize(model.means - camera_centre(w2c)[None, :], dim=-1)
         coefficients = torch.cat([model.attributes["sh_dc"], model.attributes["sh_rest"]], dim=1)
         colours = (sh.eval_sh(degree, coefficients, dirs) + 0.5).clamp_min(0.0)
         out = rasterize(projected, model.opacities, colours, self.train_views.background)
-        return {"image": out.image, "alpha": out.alpha, "projected": projected, "light_weight": None}
+        return {
+            "image": out.image,
+            "alpha": out.alpha,
+            "projected": projected,
+            "light_weight": None,
+        }
 
     def training_forward(self, index: int, step: int) -> dict[str, Any]:
         views = self.train_views
         camera = views.views.cameras[index]
-        return self._forward(views.w2cs[index], views.Ks[index], camera.width, camera.height,
-                             self.active_sh_degree(step))
+        return self._forward(
+            views.w2cs[index],
+            views.Ks[index],
+            camera.width,
+            camera.height,
+            self.active_sh_degree(step),
+        )
 
     def step_summary(self, step: int) -> dict[str, float]:
         return {"sh_degree": float(self.active_sh_degree(step))}
 
-    # ----------------------------------------------------------------------------------------- rendering
+    # -----------------------------------------------------------------------------------------
+    # rendering
     @torch.no_grad()
     def render_canonical(self, camera: Camera, light: PointLight) -> dict[str, torch.Tensor]:
-        """``rgb`` (H, W, 3) in [0, 1] and the coverage ``alpha`` (H, W, 1); ``light`` is ignored (3DGS has no
-        notion of it)."""
+        """``rgb`` (H, W, 3) in [0, 1] and the coverage ``alpha`` (H, W, 1); ``light`` is ignored
+        (3DGS has no notion of it)."""
         w2c, K = camera_tensors(camera, self.device)
-        out = self._forward(w2c, K, camera.width, camera.height, self.active_sh_degree(max(self.step - 1, 0)))
+        out = self._forward(
+            w2c, K, camera.width, camera.height, self.active_sh_degree(max(self.step - 1, 0))
+        )
         return {"rgb": out["image"].clamp(0.0, 1.0), "alpha": out["alpha"][..., None]}
 
 

@@ -1,7 +1,8 @@
 """Run one command of an official implementation with its output streamed into the job's log.
 
-The command runs in its own process group (session), so a timeout or an interruption ends it with everything it
-started (``conda run``'s and a container runtime's children too): SIGTERM, then SIGKILL after `KILL_GRACE` s.
+The command runs in its own process group (session), so a timeout or an interruption ends it with
+everything it started (``conda run``'s and a container runtime's children too): SIGTERM, then
+SIGKILL after `KILL_GRACE` s.
 """
 
 from __future__ import annotations
@@ -20,13 +21,15 @@ KILL_GRACE = 10.0
 
 
 class OfficialRunError(RuntimeError):
-    """An official command failed: non-zero exit, could not start, timed out, or left renders out."""
+    """An official command failed: non-zero exit, could not start, timed out, or left renders
+    out."""
 
 
 @dataclass
 class CommandRecord:
-    """What ran: the step, its argument list, working folder, exit code (None: did not finish) and wall time (s);
-    ``resumed``: an earlier attempt of the job finished it (its exit code and time), so it was not run again."""
+    """What ran: the step, its argument list, working folder, exit code (None: did not finish) and
+    wall time (s); ``resumed``: an earlier attempt of the job finished it (its exit code and time),
+    so it was not run again."""
 
     step: str
     argv: list[str]
@@ -36,9 +39,15 @@ class CommandRecord:
     resumed: bool = False
 
     def to_json(self) -> dict:
-        return {"step": self.step, "argv": self.argv, "command": shlex.join(self.argv), "cwd": self.cwd,
-                "exit_code": self.exit_code, "seconds": None if self.seconds is None else round(self.seconds, 3),
-                "resumed": self.resumed}
+        return {
+            "step": self.step,
+            "argv": self.argv,
+            "command": shlex.join(self.argv),
+            "cwd": self.cwd,
+            "exit_code": self.exit_code,
+            "seconds": None if self.seconds is None else round(self.seconds, 3),
+            "resumed": self.resumed,
+        }
 
 
 def log_tail(path: Path, start: int = 0, lines: int = LOG_TAIL_LINES) -> str:
@@ -65,11 +74,16 @@ def _end_group(process: subprocess.Popen) -> None:
             continue
 
 
-def run_command(record: CommandRecord, log_path: Path, env: Mapping[str, str] | None = None,
-                timeout: float | None = None) -> None:
-    """Run ``record.argv`` in ``record.cwd``, appending stdout and stderr to ``log_path``; fills in the exit code
-    and wall time. Raises `OfficialRunError` (exit code or timeout, the command line and the log's last lines);
-    on any interruption (KeyboardInterrupt, SystemExit) the process group is ended before it propagates."""
+def run_command(
+    record: CommandRecord,
+    log_path: Path,
+    env: Mapping[str, str] | None = None,
+    timeout: float | None = None,
+) -> None:
+    """Run ``record.argv`` in ``record.cwd``, appending stdout and stderr to ``log_path``; fills in
+    the exit code and wall time. Raises `OfficialRunError` (exit code or timeout, the command line
+    and the log's last lines); on any interruption (KeyboardInterrupt, SystemExit) the process group
+    is ended before it propagates."""
     log_path.parent.mkdir(parents=True, exist_ok=True)
     line = shlex.join(record.argv)
     with open(log_path, "ab") as log:
@@ -78,25 +92,36 @@ def run_command(record: CommandRecord, log_path: Path, env: Mapping[str, str] | 
         start = log.tell()
         clock = time.perf_counter()
         try:
-            process = subprocess.Popen(record.argv, cwd=record.cwd, stdout=log, stderr=subprocess.STDOUT,
-                                       stdin=subprocess.DEVNULL, env={**os.environ, **(env or {})},
-                                       start_new_session=True)
+            process = subprocess.Popen(
+                record.argv,
+                cwd=record.cwd,
+                stdout=log,
+                stderr=subprocess.STDOUT,
+                stdin=subprocess.DEVNULL,
+                env={**os.environ, **(env or {})},
+                start_new_session=True,
+            )
         except OSError as error:
-            raise OfficialRunError(f"{record.step}: cannot start {record.argv[0]!r} ({error.strerror}); "
-                                   f"command: {line}") from None
+            raise OfficialRunError(
+                f"{record.step}: cannot start {record.argv[0]!r} ({error.strerror}); "
+                f"command: {line}"
+            ) from None
         try:
             record.exit_code = process.wait(timeout=timeout)
         except subprocess.TimeoutExpired:
             _end_group(process)
             record.seconds = time.perf_counter() - clock
-            raise OfficialRunError(f"{record.step} timed out after {timeout / 60:g} min and was stopped\n"
-                                   f"command: {line}\nlast lines of {log_path}:\n{log_tail(log_path, start)}"
-                                   ) from None
+            raise OfficialRunError(
+                f"{record.step} timed out after {timeout / 60:g} min and was stopped\n"
+                f"command: {line}\nlast lines of {log_path}:\n{log_tail(log_path, start)}"
+            ) from None
         except BaseException:
             _end_group(process)
             raise
         finally:
             record.seconds = time.perf_counter() - clock
     if record.exit_code != 0:
-        raise OfficialRunError(f"{record.step} failed with exit code {record.exit_code}\ncommand: {line}\n"
-                               f"last lines of {log_path}:\n{log_tail(log_path, start)}")
+        raise OfficialRunError(
+            f"{record.step} failed with exit code {record.exit_code}\ncommand: {line}\n"
+            f"last lines of {log_path}:\n{log_tail(log_path, start)}"
+        )

@@ -1,17 +1,18 @@
-"""Specular lobes: a mixture of N global anisotropic spherical Gaussians (ASG) in each Gaussian's frame.
+"""Specular lobes: a mixture of N global anisotropic spherical Gaussians (ASG) in each Gaussian's
+frame.
 
-``D(h) = Σ_j α_j G_j(h)`` where ``h`` is the half vector expressed in the Gaussian's shading frame and
-``α`` (K, N) are per-Gaussian non-negative weights. Two lobe shapes:
+``D(h) = Σ_j α_j G_j(h)`` where ``h`` is the half vector expressed in the Gaussian's shading frame
+and ``α`` (K, N) are per-Gaussian non-negative weights. Two lobe shapes:
 
-* ``"xu"`` (default, the paper's appendix): Xu et al. 2013,
-  ``G_j(h) = max(h·z_j, 0) · exp(-λ_j (h·x_j)² - μ_j (h·y_j)²)`` with the smooth term ``max(h·z_j, 0)``
-  of the original ASG definition, unit amplitude.
+* ``"xu"`` (default, the paper's appendix): Xu et al. 2013, ``G_j(h) = max(h·z_j, 0) · exp(-λ_j
+  (h·x_j)² - μ_j (h·y_j)²)`` with the smooth term ``max(h·z_j, 0)`` of the original ASG definition,
+  unit amplitude.
 * ``"official"``: the official SSD-GS code's angular anisotropic Gaussian,
   ``G_j(h) = exp(-½ (θ · a(h) / σ_j)²) / (√2 π^{2/3} σ_j)`` with ``θ = arccos(h·z_j)`` and
   ``a(h) = ‖((s·x_j)/λ_j, (s·y_j)/μ_j)‖``, ``s`` = h projected on the tangent plane and normalised.
 
-Both are initialised to the same lobe widths as the official code (8 bases from sharp to wide, anisotropy
-2.5 : 1, all centred on the normal), so the two forms start from comparable highlights.
+Both are initialised to the same lobe widths as the official code (8 bases from sharp to wide,
+anisotropy 2.5 : 1, all centred on the normal), so the two forms start from comparable highlights.
 """
 
 from __future__ import annotations
@@ -35,7 +36,8 @@ def _official_sigma_ratio(num_bases: int) -> torch.Tensor:
 
 
 class ASGMixture(nn.Module):
-    """N global ASG bases with learnable frames and widths; ``forward(h_local, weights) -> (K, 1)``."""
+    """N global ASG bases with learnable frames and widths; ``forward(h_local, weights) -> (K,
+    1)``."""
 
     def __init__(self, num_bases: int = 8, form: ASGForm = "xu") -> None:
         super().__init__()
@@ -61,9 +63,9 @@ class ASGMixture(nn.Module):
             self.raw_scales = nn.Parameter(scales)  # λ, μ = 10 · sigmoid(raw)
 
     def lobe_parameters(self, include_sigma: bool = True) -> list[nn.Parameter]:
-        """The lobe shape parameters that Schedule I freezes early in the specular phase: frames and widths, and in
-        the ``"official"`` form σ unless ``include_sigma`` is False (the official code freezes only its
-        ``asg_scales`` and ``asg_rotation``)."""
+        """The lobe shape parameters that Schedule I freezes early in the specular phase: frames and
+        widths, and in the ``"official"`` form σ unless ``include_sigma`` is False (the official
+        code freezes only its ``asg_scales`` and ``asg_rotation``)."""
         if self.form == "official" and not include_sigma:
             return [self.rotation, self.raw_scales]
         return list(self.parameters())
@@ -73,7 +75,8 @@ class ASGMixture(nn.Module):
         return quat_to_rotmat(self.rotation)
 
     def forward(self, h_local: torch.Tensor, weights: torch.Tensor) -> torch.Tensor:
-        """``h_local`` (K, 3) unit half vectors in shading frames, ``weights`` (K, N) >= 0 -> D (K, 1)."""
+        """``h_local`` (K, 3) unit half vectors in shading frames, ``weights`` (K, N) >= 0 -> D
+        (K, 1)."""
         axes = self.frames()
         hx = h_local @ axes[:, :, 0].T  # (K, N)
         hy = h_local @ axes[:, :, 1].T
@@ -84,9 +87,12 @@ class ASGMixture(nn.Module):
         else:
             lam, mu = (10.0 * torch.sigmoid(self.raw_scales)).clamp_min(1e-4).unbind(-1)
             sigma = (torch.sigmoid(self.raw_sigma) * self.sigma_ratio).clamp_min(1e-4)
-            tangent = torch.stack([hx, hy], dim=-1)  # s = normalised projection on the lobe's xy plane
+            # s = normalised projection on the lobe's xy plane
+            tangent = torch.stack([hx, hy], dim=-1)
             tangent = F.normalize(tangent, dim=-1, eps=1e-8)
             anisotropy = torch.sqrt((tangent[..., 0] / lam) ** 2 + (tangent[..., 1] / mu) ** 2)
             theta = torch.arccos(hz.clamp(-1 + 1e-6, 1 - 1e-6))
-            lobes = torch.exp(-0.5 * (theta * anisotropy / sigma) ** 2) / (_OFFICIAL_NORMALISER * sigma)
+            lobes = torch.exp(-0.5 * (theta * anisotropy / sigma) ** 2) / (
+                _OFFICIAL_NORMALISER * sigma
+            )
         return (weights * lobes).sum(-1, keepdim=True)

@@ -27,7 +27,8 @@ def positional_encoding_dim(dim: int, num_freqs: int) -> int:
 
 
 def frequency_encoding(x: torch.Tensor, num_freqs: int) -> torch.Tensor:
-    """(…, D) -> (…, D · 2 · num_freqs): ``sin(2^k π x)`` then ``cos(2^k π x)``, no identity term."""
+    """(…, D) -> (…, D · 2 · num_freqs): ``sin(2^k π x)`` then ``cos(2^k π x)``, no identity
+    term."""
     freqs = math.pi * 2.0 ** torch.arange(num_freqs, dtype=x.dtype, device=x.device)
     scaled = (x[..., None, :] * freqs[:, None]).flatten(-2)
     return torch.cat([torch.sin(scaled), torch.cos(scaled)], dim=-1)

@@ -1,19 +1,20 @@
 """Reduced-precision per-Gaussian networks: the ``network_precision`` of SSD-GS and GS³.
 
-``"fp32"`` (default) runs the networks as they always ran: no autocast, bit-identical to a build without this
-module. ``"bf16"`` and ``"fp16"`` run the networks' bodies (their Linear layers and activations) under
-``torch.autocast`` at that dtype: the weights stay float32 parameters (autocast casts them per call), the network
-input is the float32 encoding (cast at each Linear) and the output is cast back to float32 before the output
-nonlinearity (sigmoid, dipole profile), so everything outside the networks — encodings, shading, rasterization,
-loss, Adam — stays float32.
+``"fp32"`` (default) runs the networks as they always ran: no autocast, bit-identical to a build
+without this module. ``"bf16"`` and ``"fp16"`` run the networks' bodies (their Linear layers and
+activations) under ``torch.autocast`` at that dtype: the weights stay float32 parameters (autocast
+casts them per call), the network input is the float32 encoding (cast at each Linear) and the output
+is cast back to float32 before the output nonlinearity (sigmoid, dipole profile), so everything
+outside the networks — encodings, shading, rasterization, loss, Adam — stays float32.
 
 Where each precision is allowed (`precision_unsupported`):
 
-* ``bf16``: CUDA devices with bf16 (``torch.cuda.is_bf16_supported``), and CPUs with a native bf16 matrix
-  instruction, AMX (``amx_tile``) or AVX512-BF16 (``avx512_bf16``), where oneDNN runs bf16 matmuls faster than
-  float32. Elsewhere torch emulates bf16 by conversion and it is slower than float32, so it is refused.
-* ``fp16``: CUDA only, with dynamic loss scaling (`LossScaler`): float16's range is narrow enough for the
-  networks' gradients to underflow. bf16 has float32's range and needs none.
+* ``bf16``: CUDA devices with bf16 (``torch.cuda.is_bf16_supported``), and CPUs with a native bf16
+  matrix instruction, AMX (``amx_tile``) or AVX512-BF16 (``avx512_bf16``), where oneDNN runs bf16
+  matmuls faster than float32. Elsewhere torch emulates bf16 by conversion and it is slower than
+  float32, so it is refused.
+* ``fp16``: CUDA only, with dynamic loss scaling (`LossScaler`): float16's range is narrow enough
+  for the networks' gradients to underflow. bf16 has float32's range and needs none.
 """
 
 from __future__ import annotations
@@ -31,7 +32,8 @@ BF16_CPU_FLAGS = ("amx_tile", "avx512_bf16")
 
 
 def fast_bf16_cpu_flag(flags: Iterable[str] | None = None) -> str | None:
-    """The CPU feature that makes bf16 matmuls fast here (``"amx_tile"`` or ``"avx512_bf16"``), or None.
+    """The CPU feature that makes bf16 matmuls fast here (``"amx_tile"`` or ``"avx512_bf16"``), or
+    None.
 
     ``flags``: CPU flags to use instead of this machine's (`olatbench.numerics.cpu_flags`)."""
     present = set(cpu_flags() if flags is None else flags)
@@ -50,27 +52,36 @@ def precision_unsupported(precision: str, device: torch.device | str) -> str | N
             return f"this GPU ({torch.cuda.get_device_name(device)}) has no bf16 support"
         return None
     if precision == "fp16":
-        return f"fp16 runs on CUDA only (device {device.type!r}); on a CPU with AMX or AVX512-BF16 use bf16"
+        return (
+            f"fp16 runs on CUDA only (device {device.type!r}); on a CPU with AMX or AVX512-BF16 "
+            "use bf16"
+        )
     if device.type != "cpu":
         return f"bf16 networks run on CUDA and on CPUs only, not on {device.type!r}"
     if fast_bf16_cpu_flag() is None:
-        return ("this CPU has neither AMX (amx_tile) nor AVX512-BF16 (avx512_bf16), so bf16 matmuls are emulated "
-                "and slower than float32")
+        return (
+            "this CPU has neither AMX (amx_tile) nor AVX512-BF16 (avx512_bf16), so bf16 matmuls "
+            "are emulated and slower than float32"
+        )
     return None
 
 
 def check_precision(precision: str, device: torch.device | str, label: str) -> None:
-    """Raise one `ValueError` naming ``label``'s ``network_precision`` when `precision_unsupported`."""
+    """Raise one `ValueError` naming ``label``'s ``network_precision`` when
+    `precision_unsupported`."""
     reason = precision_unsupported(precision, device)
     if reason is not None:
-        raise ValueError(f"{label}: network_precision={precision!r} is not supported here: {reason}. "
-                         "Use network_precision=fp32 (the default).")
+        raise ValueError(
+            f"{label}: network_precision={precision!r} is not supported here: {reason}. "
+            "Use network_precision=fp32 (the default)."
+        )
 
 
-def run_network(network: Callable[[torch.Tensor], torch.Tensor], x: torch.Tensor,
-                precision: str) -> torch.Tensor:
-    """``network(x)`` at ``precision``: as is for ``"fp32"``; otherwise under ``torch.autocast`` at that dtype
-    on ``x``'s device, the output cast back to float32."""
+def run_network(
+    network: Callable[[torch.Tensor], torch.Tensor], x: torch.Tensor, precision: str
+) -> torch.Tensor:
+    """``network(x)`` at ``precision``: as is for ``"fp32"``; otherwise under ``torch.autocast`` at
+    that dtype on ``x``'s device, the output cast back to float32."""
     if precision == "fp32":
         return network(x)
     with torch.autocast(x.device.type, dtype=DTYPES[precision]):
@@ -79,12 +90,13 @@ def run_network(network: Callable[[torch.Tensor], torch.Tensor], x: torch.Tensor
 
 
 class LossScaler:
-    """Dynamic loss scaling for fp16 networks (the scheme of ``torch.amp.GradScaler``, applied to every gradient
-    a training step uses, including the retained 2D-mean gradient that density control reads, and skipping the
-    whole step — every optimiser and the densification statistics — when any gradient overflowed).
+    """Dynamic loss scaling for fp16 networks (the scheme of ``torch.amp.GradScaler``, applied to
+    every gradient a training step uses, including the retained 2D-mean gradient that density
+    control reads, and skipping the whole step — every optimiser and the densification statistics —
+    when any gradient overflowed).
 
-    ``scale`` starts at ``initial``, halves after a step with a non-finite gradient and doubles after
-    ``growth_interval`` finite steps in a row."""
+    ``scale`` starts at ``initial``, halves after a step with a non-finite gradient and doubles
+    after ``growth_interval`` finite steps in a row."""
 
     def __init__(self, initial: float = 2.0**16, growth_interval: int = 2000) -> None:
         self.scale = float(initial)
@@ -127,5 +139,14 @@ def loss_scaler_for(precision: str) -> LossScaler | None:
     return LossScaler() if precision == "fp16" else None
 
 
-__all__ = ["BF16_CPU_FLAGS", "DTYPES", "PRECISIONS", "LossScaler", "check_precision", "fast_bf16_cpu_flag",
-           "loss_scaler_for", "precision_unsupported", "run_network"]
+__all__ = [
+    "BF16_CPU_FLAGS",
+    "DTYPES",
+    "PRECISIONS",
+    "LossScaler",
+    "check_precision",
+    "fast_bf16_cpu_flag",
+    "loss_scaler_for",
+    "precision_unsupported",
+    "run_network",
+]

@@ -1,7 +1,7 @@
 """SSD-GS, the reference method: see `olatbench.methods.ssdgs.method.SSDGS` and docs/ssdgs.md.
 
-The package imports lazily (PEP 562): ``from olatbench.methods.ssdgs import SSDGS`` loads torch, but its
-torch-free modules (``spec``, ``config``, ``presets``) can be imported without it.
+The package imports lazily (PEP 562): ``from olatbench.methods.ssdgs import SSDGS`` loads torch, but
+its torch-free modules (``spec``, ``config``, ``presets``) can be imported without it.
 """
 
 from __future__ import annotations
@@ -9,8 +9,11 @@ from __future__ import annotations
 import importlib
 from typing import Any
 
-_EXPORTS = {"SSDGS": "olatbench.methods.ssdgs.method", "SSDGSConfig": "olatbench.methods.ssdgs.config",
-            "PRESETS": "olatbench.methods.ssdgs.presets"}
+_EXPORTS = {
+    "SSDGS": "olatbench.methods.ssdgs.method",
+    "SSDGSConfig": "olatbench.methods.ssdgs.config",
+    "PRESETS": "olatbench.methods.ssdgs.presets",
+}
 
 __all__ = sorted(_EXPORTS)
 

@@ -1,11 +1,14 @@
-"""SSD-GS's evaluation protocol: its test views scored as given, fitted during training, or refined after it.
+"""SSD-GS's evaluation protocol: its test views scored as given, fitted during training, or refined
+after it.
 
-Two config switches choose, and they combine: ``test_pose_fitting="interleaved"`` (the official real-data
-protocol: each test view's pose and light offsets are fitted to its image in passes interleaved with the training
-epochs, `olatbench.methods.ssdgs.view_fitting`) and ``test_time_refinement`` (each test view's pose and light fitted
-to its image after training, from its interleaved fit when it has one, `SSDGS.refine_view`). With both off the
-views are scored as given, as every other method's are. The runner records both in results.json
-(``evaluation.test_pose_fitting``, ``evaluation.test_time_refinement``) and the reports footnote such numbers.
+Two config switches choose, and they combine: ``test_pose_fitting="interleaved"`` (the official
+real-data protocol: each test view's pose and light offsets are fitted to its image in passes
+interleaved with the training epochs, `olatbench.methods.ssdgs.view_fitting`) and
+``test_time_refinement`` (each test view's pose and light fitted to its image after training, from
+its interleaved fit when it has one, `SSDGS.refine_view`). With both off the views are scored as
+given, as every other method's are. The runner records both in results.json
+(``evaluation.test_pose_fitting``, ``evaluation.test_time_refinement``) and the reports footnote
+such numbers.
 """
 
 from __future__ import annotations

@@ -1,19 +1,20 @@
 """The device shim: CUDA requests of unmodified authors' code served by the CPU.
 
-`install()` (called by the stand-in ``sitecustomize`` of an official job with ``device=cpu``; never by olatbench
-itself) makes, for the rest of the process:
+`install()` (called by the stand-in ``sitecustomize`` of an official job with ``device=cpu``; never
+by olatbench itself) makes, for the rest of the process:
 
 - every torch function or tensor method called with a CUDA device (``device="cuda"``, ``"cuda:0"``,
-  ``torch.device("cuda")``, or a positional device as in ``x.to("cuda")``) use the CPU instead, through a
-  `torch.overrides.TorchFunctionMode` that stays entered;
-- ``Tensor.cuda(...)`` return the tensor on the CPU and ``Module.cuda(...)`` return the module unchanged;
-- ``torch.load(..., map_location="cuda")`` (RNG's ``train.py:46`` loads its stage-1 checkpoint so) load onto the
-  CPU: a CUDA device given as ``map_location`` (str or torch.device) becomes the CPU;
-- ``torch.cuda.Stream``, ``stream``, ``current_stream``, ``Event``, ``synchronize``, ``empty_cache``,
-  ``set_device`` harmless on the CPU: streams are placeholders whose ``wait_stream`` does nothing and
-  ``stream(s)`` is an empty context (CPU work is already ordered); an ``Event`` records the wall clock, so
-  ``start.elapsed_time(end)`` is the milliseconds between the two ``record()`` calls, as the CUDA event
-  reports them after a synchronize.
+  ``torch.device("cuda")``, or a positional device as in ``x.to("cuda")``) use the CPU instead,
+  through a `torch.overrides.TorchFunctionMode` that stays entered;
+- ``Tensor.cuda(...)`` return the tensor on the CPU and ``Module.cuda(...)`` return the module
+  unchanged;
+- ``torch.load(..., map_location="cuda")`` (RNG's ``train.py:46`` loads its stage-1 checkpoint so)
+  load onto the CPU: a CUDA device given as ``map_location`` (str or torch.device) becomes the CPU;
+- ``torch.cuda.Stream``, ``stream``, ``current_stream``, ``Event``, ``synchronize``,
+  ``empty_cache``, ``set_device`` harmless on the CPU: streams are placeholders whose
+  ``wait_stream`` does nothing and ``stream(s)`` is an empty context (CPU work is already ordered);
+  an ``Event`` records the wall clock, so ``start.elapsed_time(end)`` is the milliseconds between
+  the two ``record()`` calls, as the CUDA event reports them after a synchronize.
 
 ``torch.cuda.is_available()`` stays False (code that asks takes its CPU path).
 """
@@ -32,7 +33,8 @@ _installed: dict[str, Any] = {}
 
 
 def to_cpu_device(value: Any) -> Any:
-    """``value`` with a CUDA device (str or torch.device) replaced by ``"cpu"``; anything else unchanged."""
+    """``value`` with a CUDA device (str or torch.device) replaced by ``"cpu"``; anything else
+    unchanged."""
     if isinstance(value, torch.device) and value.type == "cuda":
         return torch.device("cpu")
     if isinstance(value, str) and (value == "cuda" or value.startswith("cuda:")):
@@ -73,7 +75,8 @@ class Stream:
 
 
 class Event:
-    """A CUDA event on the CPU: ``record()`` notes the wall clock; ``elapsed_time`` is in milliseconds."""
+    """A CUDA event on the CPU: ``record()`` notes the wall clock; ``elapsed_time`` is in
+    milliseconds."""
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         self.time: float | None = None
@@ -105,7 +108,8 @@ def stream(value: Any = None) -> Iterator[None]:
     yield
 
 
-# One function object per replaced name: torch._dynamo's trace rules refuse one object under two names.
+# One function object per replaced name: torch._dynamo's trace rules refuse one object under two
+# names.
 def synchronize(device: Any = None) -> None:
     """CPU work is already synchronous."""
 
@@ -140,12 +144,20 @@ def _load(*args: Any, **kwargs: Any) -> Any:
 
 
 def install() -> None:
-    """Install the shim for the rest of the process (module docstring); a second call does nothing."""
+    """Install the shim for the rest of the process (module docstring); a second call does
+    nothing."""
     if _installed:
         return
     cuda = torch.cuda
-    replacements = {"Stream": Stream, "Event": Event, "stream": stream, "current_stream": current_stream,
-                    "synchronize": synchronize, "empty_cache": empty_cache, "set_device": set_device}
+    replacements = {
+        "Stream": Stream,
+        "Event": Event,
+        "stream": stream,
+        "current_stream": current_stream,
+        "synchronize": synchronize,
+        "empty_cache": empty_cache,
+        "set_device": set_device,
+    }
     for name, value in replacements.items():
         _installed["cuda." + name] = getattr(cuda, name, None)
         setattr(cuda, name, value)

@@ -1,4 +1,5 @@
-"""Stand-in for gsplat 1.1.1 in an official job with device=cpu (olatbench.methods.official.cpu_standins)."""
+"""Stand-in for gsplat 1.1.1 in an official job with device=cpu
+(olatbench.methods.official.cpu_standins)."""
 
 from olatbench.methods.official.cpu_standins.rasterization import rasterization
 

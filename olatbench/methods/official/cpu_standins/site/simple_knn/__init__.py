@@ -1,1 +1,2 @@
-"""Stand-in for simple_knn in an official job with device=cpu (olatbench.methods.official.cpu_standins.knn)."""
+"""Stand-in for simple_knn in an official job with device=cpu
+(olatbench.methods.official.cpu_standins.knn)."""

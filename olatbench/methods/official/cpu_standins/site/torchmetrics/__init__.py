@@ -1,5 +1,6 @@
-"""Stand-in for torchmetrics in an official job of rng-official with device=cpu: only the PSNR, SSIM and LPIPS of
-``torchmetrics.functional.image`` (olatbench.methods.official.cpu_standins.torchmetrics_image)."""
+"""Stand-in for torchmetrics in an official job of rng-official with device=cpu: only the PSNR, SSIM
+and LPIPS of ``torchmetrics.functional.image``
+(olatbench.methods.official.cpu_standins.torchmetrics_image)."""
 
 from . import functional
 

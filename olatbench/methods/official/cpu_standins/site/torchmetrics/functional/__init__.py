@@ -1,4 +1,5 @@
-"""Stand-in for torchmetrics.functional (olatbench.methods.official.cpu_standins.torchmetrics_image)."""
+"""Stand-in for torchmetrics.functional
+(olatbench.methods.official.cpu_standins.torchmetrics_image)."""
 
 from . import image
 
