@@ -124,6 +124,18 @@ def test_save_load_gives_identical_renders_and_resumes_exactly(views) -> None:
         make(views, num_asg=2).load_state_dict(state)
 
 
+def test_a_checkpoint_from_before_a_config_field_existed_restores_when_the_field_is_at_its_default(
+    views,
+) -> None:
+    method = make(views)
+    method.train_step(0)
+    state = method.state_dict()
+    del state["config"]["shadow_input_bias"]  # as written before the field existed
+    make(views).load_state_dict(state)  # restores: the default is the old behaviour
+    with pytest.raises(ValueError, match=r"different config \(fields: shadow_input_bias\)"):
+        make(views, shadow_input_bias="padded_ones").load_state_dict(state)
+
+
 def test_render_components_are_consistent(views) -> None:
     method = make(views)
     for step in range(3):

@@ -389,19 +389,22 @@ class GaussianMethod(Method):
 
     def check_state(self, state: Any) -> None:
         """A `ValueError` unless ``state`` is this method's checkpoint format, written with this
-        config."""
+        config. A field the checkpoint does not list (one added to the config after it was written)
+        counts as written at its default, the behaviour the code had before the field existed."""
         found = state.get("format") if isinstance(state, dict) else type(state).__name__
         if found != self.state_format:
             raise ValueError(
                 f"not a {self.label} checkpoint (format {found!r}, need {self.state_format!r})"
             )
         config = self.config.to_dict()
-        if state["config"] != config:
-            changed = sorted(
-                k
-                for k in set(state["config"]) | set(config)
-                if state["config"].get(k) != config.get(k)
-            )
+        defaults = type(self.config)().to_dict()
+        written = state["config"]
+        changed = sorted(
+            k
+            for k in set(written) | set(config)
+            if written.get(k, defaults.get(k)) != config.get(k)
+        )
+        if changed:
             raise ValueError(
                 f"{self.label} checkpoint was written with a different config (fields: "
                 f"{', '.join(changed)})"
