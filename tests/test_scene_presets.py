@@ -114,11 +114,16 @@ def test_the_paper_and_mini_suites_resolve_exactly_the_configs_they_did():
     }
     # fields added since, each at the value that keeps the old behaviour (#45: the recorded light
     # intensity; #53: SSD-GS's official SSS widths, GS³'s light-view framing and mode, now shared
-    # with SSD-GS)
+    # with SSD-GS; the parity harness's shadow-network bias, term-start counting and GS³'s
+    # tiny-cuda-nn network layout)
     added_since = {"light_intensity": "recorded"}
     added_to = {
-        "ssdgs": {"sss_last_hidden": None},
-        "gs3": {"shadow_framing": "scene", "shadow_mode": "uniform"},
+        "ssdgs": {
+            "sss_last_hidden": None,
+            "shadow_input_bias": "vector",
+            "schedule_counting": "zero_based",
+        },
+        "gs3": {"shadow_framing": "scene", "shadow_mode": "uniform", "network_layout": "torch"},
     }
     # fields added since that change the old behaviour on purpose: GS³'s bound on its start's
     # brightness under recorded intensities (docs/baselines.md, "Brightness at the start"; None
