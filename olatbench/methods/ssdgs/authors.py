@@ -27,9 +27,9 @@ VALUES: dict[str, AuthorsValue] = {
         "iteration counted from 1; SSS and specular on at iteration = threshold "
         "(`iteration < ...`), shadow after it (`iteration <= ...`)",
     ),
-    "use_shadow": AuthorsValue(True, "train.py:132-136"),
-    "use_sss": AuthorsValue(True, "train.py:132-136"),
-    "use_specular": AuthorsValue(True, "train.py:132-136"),
+    "use_shadow": AuthorsValue(True, "train.py:131-136"),
+    "use_sss": AuthorsValue(True, "train.py:131-136"),
+    "use_specular": AuthorsValue(True, "train.py:131-136"),
     "diffuse_cosine": AuthorsValue(
         "smooth", f"{_RENDER}:159,272-279", "ELU(alpha=0.01) smooth clamp"
     ),
