@@ -26,6 +26,23 @@ from olatbench.methods.resolve import DEFAULT_SOURCE, ResolvedConfig
 #: The variant every spec with an `AuthorsConfig` gets: the authors' values over the suite's run
 #: settings.
 OFFICIAL_VARIANT = "official"
+#: Fields the official runner passes from the suite exactly as the native suite preset sets them,
+#: for every official code (`olatbench.methods.official.specs`): run length, initial points,
+#: Gaussian budget and density window. A spec's `AuthorsConfig.suite_fields` adds its own.
+RUNNER_SUITE_FIELDS = frozenset(
+    {
+        "iterations",
+        "reference_iterations",
+        "num_init_gaussians",
+        "init_shape",
+        "init_radius",
+        "max_gaussians",
+        "position_lr_max_steps",
+        "densify_from",
+        "densify_until",
+        "opacity_reset_interval",
+    }
+)
 #: The source prefixes whose remainder names a preset (`olatbench.methods.resolve`).
 _PRESET_SOURCES = ("suite preset ", "variant ", "scene recipe ")
 

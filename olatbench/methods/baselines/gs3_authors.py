@@ -5,7 +5,13 @@ scripts' lengths."""
 
 from __future__ import annotations
 
-from olatbench.methods.authors import AuthorsConfig, AuthorsValue, Departure, Unswitchable
+from olatbench.methods.authors import (
+    RUNNER_SUITE_FIELDS,
+    AuthorsConfig,
+    AuthorsValue,
+    Departure,
+    Unswitchable,
+)
 
 _ARGS = "arguments/__init__.py"
 _RENDER = "gaussian_renderer/__init__.py"
@@ -76,21 +82,7 @@ VALUES: dict[str, AuthorsValue] = {
 #: Set by the suite for both runners (olatbench.methods.official.specs: the same length, initial
 #: points, budget, density window on a suite); GS³'s real-data scripts also set
 #: densify_grad_threshold per scene.
-SUITE_FIELDS = frozenset(
-    {
-        "iterations",
-        "reference_iterations",
-        "num_init_gaussians",
-        "init_shape",
-        "init_radius",
-        "max_gaussians",
-        "position_lr_max_steps",
-        "densify_from",
-        "densify_until",
-        "opacity_reset_interval",
-        "densify_grad_threshold",
-    }
-)
+SUITE_FIELDS = RUNNER_SUITE_FIELDS | {"densify_grad_threshold"}
 
 _DEFAULT_WHY = "olatbench's GS³ default (docs/baselines.md)"
 

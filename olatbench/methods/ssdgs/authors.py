@@ -6,7 +6,13 @@ flags."""
 
 from __future__ import annotations
 
-from olatbench.methods.authors import AuthorsConfig, AuthorsValue, Departure, Unswitchable
+from olatbench.methods.authors import (
+    RUNNER_SUITE_FIELDS,
+    AuthorsConfig,
+    AuthorsValue,
+    Departure,
+    Unswitchable,
+)
 
 _ARGS = "arguments/__init__.py"
 _RENDER = "gaussian_renderer/__init__.py"
@@ -131,24 +137,12 @@ VALUES: dict[str, AuthorsValue] = {
 #: Set by the suite for both runners: the official runner passes the same run length, initial
 #: points, budget, density window and background on a suite as the native suite preset
 #: (olatbench.methods.official.specs).
-SUITE_FIELDS = frozenset(
-    {
-        "iterations",
-        "reference_iterations",
-        "num_init_gaussians",
-        "init_shape",
-        "init_radius",
-        "max_gaussians",
-        "position_lr_max_steps",
-        "densify_from",
-        "densify_until",
-        "opacity_reset_interval",
-        "background",
-        "refine_camera",
-        "refine_light",
-        "test_pose_fitting",
-    }
-)
+SUITE_FIELDS = RUNNER_SUITE_FIELDS | {
+    "background",
+    "refine_camera",
+    "refine_light",
+    "test_pose_fitting",
+}
 
 _PAPER = (
     "the paper's choice, kept as the config's default (docs/ssdgs.md, 'Where the paper and the "
