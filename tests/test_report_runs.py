@@ -860,3 +860,80 @@ def test_a_one_scene_overview_prints_no_spread(tmp_path):
     assert "21.0000 ± 1.4142" in markdown  # the scene cell: sample std over the two seeds
     # no spread over one scene, in the overview or the Average column
     assert "± 0.0" not in markdown
+
+
+def test_versus_adds_a_delta_row_tested_against_seed_noise(tmp_path):
+    """`--versus`: "Δ ROW − REF" beneath every other row, the difference of the means marked "s"
+    beyond 2 × the pooled std over seeds and "n" within it; an Average tested on per-seed
+    averages; a one-seed row unmarked."""
+    root = tmp_path / "runs"
+    psnrs = {
+        "official": {"diffuse_shadow": (20.0, 20.2, 19.8), "aniso_metal": (17.0, 17.4, 16.6)},
+        # Δ = +3, std 0.2: beyond; Δ = +0.1, std 0.4: within
+        "mini": {"diffuse_shadow": (23.0, 23.2, 22.8), "aniso_metal": (17.1, 17.5, 16.7)},
+    }
+    for variant, scenes in psnrs.items():
+        for scene, values in scenes.items():
+            for seed, psnr in enumerate(values):
+                write_run(root, "ssdgs", variant, "mini", scene, seed, metric_values(psnr))
+    write_run(root, "gs3", "default", "mini", "diffuse_shadow", 0, metric_values(18.0))
+    frame = collect(root)
+    table = scene_table(frame, metrics=["psnr"], splits=["test"], versus="ssdgs/official")
+    labels = [row.labels[0] for row in table.blocks[0].rows]
+    assert labels == [
+        "gs3",
+        "Δ gs3 − ssdgs/official",
+        "ssdgs/mini",
+        "Δ ssdgs/mini − ssdgs/official",
+        "ssdgs/official",
+    ]
+    delta = "Δ ssdgs/mini − ssdgs/official"
+    beyond = table.cell("PSNR ↑", (delta,), "diffuse_shadow/Test")
+    assert beyond.number == pytest.approx(3.0) and beyond.marks == ("s",)
+    assert beyond.text() == "+3.0000"
+    within = table.cell("PSNR ↑", (delta,), "aniso_metal/Test")
+    assert within.number == pytest.approx(0.1) and within.marks == ("n",)
+    one_seed = table.cell("PSNR ↑", ("Δ gs3 − ssdgs/official",), "diffuse_shadow/Test")
+    assert one_seed.number == pytest.approx(-2.0) and one_seed.marks == ()
+    assert table.cell("PSNR ↑", (delta,), "diffuse_shadow/Test").rank is None
+    # the Average column (every scene needs a value): per-seed averages over the three scenes,
+    # 21.70 / 21.93 / 21.47 against 20.67 / 20.90 / 20.43, Δ 1.03 beyond 2 × 0.23
+    for variant in psnrs:
+        for seed, psnr in enumerate((25.0, 25.1, 24.9)):
+            write_run(root, "ssdgs", variant, "mini", "translucent", seed, metric_values(psnr))
+    frame = collect(root)
+    averaged = scene_table(
+        frame,
+        methods=["ssdgs"],
+        metrics=["psnr"],
+        splits=["test"],
+        average=True,
+        versus="SSDGS/OFFICIAL",
+    )
+    assert averaged.cell("PSNR ↑", (delta,), "Average/Test").marks == ("s",)
+    notes = "\n".join(table.footnotes)
+    assert "the row above − ssdgs/official" in notes and "--versus row" in notes
+
+
+def test_versus_names_one_row_or_says_which(tmp_path):
+    root = tmp_path / "runs"
+    for variant in ("mini", "official"):
+        write_run(root, "ssdgs", variant, "mini", "aniso_metal", 0, metric_values(17.0))
+    write_run(root, "gs3", "default", "mini", "aniso_metal", 0, metric_values(15.0))
+    frame = collect(root)
+    assert scene_table(frame, versus="gs3/default").blocks[0].rows[0].labels == ("gs3",)
+    with pytest.raises(ReportError, match=r"matches 2 rows \(ssdgs/mini; ssdgs/official\)"):
+        scene_table(frame, versus="ssdgs")
+    with pytest.raises(ReportError, match=r"no row 'ssdgs/oficial'.*ssdgs/official"):
+        scene_table(frame, versus="ssdgs/oficial")
+    with pytest.raises(ReportError, match="not with --published or --seeds all"):
+        scene_table(frame, versus="gs3", seeds="all")
+    runner = CliRunner()
+    for extra in (["--json"], ["--layout", "overview"], ["--published"]):
+        result = runner.invoke(main, ["report", str(root), "--versus", "gs3", *extra])
+        assert result.exit_code == 2, result.output
+    result = runner.invoke(main, ["report", str(root), "--versus", "ssdgs"])
+    assert result.exit_code == 2 and "matches 2 rows" in result.output
+    result = runner.invoke(main, ["report", str(root), "--versus", "gs3", "--splits", "test"])
+    assert result.exit_code == 0, result.output
+    assert "Δ ssdgs/official − gs3" in result.output

@@ -109,6 +109,13 @@ def _emit(text: str, output: str | None) -> None:
     "--published", is_flag=True, help="Put the paper's numbers (and a Δ row) beside matching runs."
 )
 @click.option(
+    "--versus",
+    metavar="ROW",
+    help="Scenes layout: beneath every other row a Δ row (that row − ROW), each cell marked s "
+    "where the difference exceeds 2 × the pooled sample std over seeds, n where it is within seed "
+    "noise. ROW: a row's label as printed, or method[/variant] when one row has it.",
+)
+@click.option(
     "--published-only", is_flag=True, help="Regenerate the paper's tables from its numbers alone."
 )
 @click.option(
@@ -167,6 +174,7 @@ def report(
     booktabs,
     colours,
     published,
+    versus,
     published_only,
     paper_tables,
     seeds,
@@ -191,6 +199,7 @@ def report(
       olatbench report runs/ --json > results.json        # every number, with its job's identity
       olatbench report runs/ -o results.csv               # the same as tidy CSV
       olatbench report runs/ --suite nrhints --published -o table.tex --standalone
+      olatbench report runs/ --suite mini --methods ssdgs --versus ssdgs/mini  # Δ, seed noise
       olatbench report runs/ --suite nrhints -o table.tex --fit  # paper code, at most the line wide
       olatbench report runs/ --layout ablation --format markdown
       olatbench report runs/ --suite sssgs --layout overview -o report.html
@@ -242,6 +251,10 @@ def report(
                 "give a runs folder (or results.json files), or use --published-only; e.g. "
                 "olatbench report runs/ --suite mini"
             )
+        if versus is not None and (
+            as_json or fmt == "csv" or "scenes" not in (layouts or ("scenes",))
+        ):
+            raise click.UsageError("--versus adds Δ rows to the scenes layout's table")
         if as_json or fmt == "csv":
             text = _report_data(
                 runs,
@@ -275,6 +288,7 @@ def report(
                 name_list(frame_ids, "--frames") or [],
                 output,
                 fit,
+                versus,
             )
     except ResultsError as error:
         raise click.ClickException(
@@ -365,6 +379,7 @@ def _report_runs(
     frame_ids,
     output,
     fit=False,
+    versus=None,
 ) -> str:
     from olatbench.reports.novel_lights import novel_lights_table, split_novel
     from olatbench.reports.output import render_tables
@@ -410,6 +425,7 @@ def _report_runs(
                         seeds=seeds,
                         average=average,
                         published=published,
+                        versus=versus,
                     )
                 )
             else:

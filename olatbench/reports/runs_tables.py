@@ -14,7 +14,8 @@ computed when every scene has a value. Numbers scored with test poses/lights fit
 images (interleaved fitting during training, or post-hoc test-time refinement) carry their own
 marks, also on every average that includes one. With ``published=True`` each run row that the paper
 also reports gets a "(paper)" row and a "Δ" row (run − paper) beneath it; those rows are never
-ranked.
+ranked. With ``versus`` (a row) every other row gets a "Δ" row against it instead, each cell marked
+within or beyond seed noise.
 """
 
 from __future__ import annotations
@@ -58,12 +59,13 @@ NOTE_TEXTS = {
     "d": "average not computed: at least one scene has no value",
     "e": "the run did not compute this metric (null in results.json, e.g. LPIPS weights missing)",
     "s": (
-        f"differs from its grid's reference (the full model) by more than {SIGNIFICANCE_FACTOR:g}× "
-        "the pooled sample std over seeds: the effect exceeds seed noise"
+        "differs from its reference (an ablation grid's full model, or the --versus row) by more "
+        f"than {SIGNIFICANCE_FACTOR:g}× the pooled sample std over seeds: the effect exceeds seed "
+        "noise"
     ),
     "n": (
-        f"differs from its grid's reference (the full model) by at most {SIGNIFICANCE_FACTOR:g}× "
-        "the pooled sample std over seeds: within seed noise"
+        "differs from its reference (an ablation grid's full model, or the --versus row) by at "
+        f"most {SIGNIFICANCE_FACTOR:g}× the pooled sample std over seeds: within seed noise"
     ),
     "f": "scored with the test views' poses and lights fitted to the test images during training "
     "(test_pose_fitting=interleaved, the official code's real-data protocol); not comparable with "
@@ -432,6 +434,74 @@ def _add_published(
     return ordered
 
 
+def versus_row(run_cells: RunCells, name: str) -> str:
+    """The row that ``name`` (``--versus``) means: a row label as the table prints it, or
+    ``method`` / ``method/variant`` when exactly one row has it (`olatbench.names.match_name`:
+    ignoring case where only one matches); a `ReportError` listing the rows otherwise."""
+    rows = run_cells.rows
+    label = match_name(name, rows)
+    if label is not None:
+        return label
+    matches = [
+        row
+        for row in rows
+        if match_name(name, [run_cells.source[row][0], "/".join(run_cells.source[row])])
+    ]
+    if len(matches) == 1:
+        return matches[0]
+    listed = "; ".join(rows)
+    if matches:
+        raise ReportError(
+            f"--versus {name!r} matches {len(matches)} rows ({'; '.join(matches)}): give the "
+            "row's label as the table prints it"
+        )
+    raise ReportError(f"--versus: no row {name!r}{did_you_mean(name, rows)}; the rows: {listed}")
+
+
+def _add_versus(
+    cells: dict,
+    rows: list[str],
+    run_cells: RunCells,
+    reference: str,
+    columns: Sequence[tuple[str, Sequence[str]]],
+    splits: Sequence[str],
+    metrics: Sequence[str],
+    ranks: dict[str, str | None],
+) -> list[str]:
+    """Insert "Δ ROW − ``reference``" beneath every other row; returns the new row order.
+
+    A Δ cell is the difference of the two cells above it (means over seeds), marked "s" or "n" by
+    `significance_mark` on the per-seed values; ``columns`` maps each printed column (a scene or
+    "Average") to the scenes it averages, so an Average is tested on the per-seed averages. Δ rows
+    are never ranked.
+    """
+    ordered = []
+    for row in rows:
+        ordered.append(row)
+        if row == reference:
+            continue
+        delta = f"Δ {row} − {reference}"
+        for column, scenes in columns:
+            for split in splits:
+                for metric in metrics:
+                    ours = cells[(row, column, split, metric)].number
+                    theirs = cells[(reference, column, split, metric)].number
+                    if ours is None or theirs is None:
+                        cells[(delta, column, split, metric)] = Cell(None, signed=True)
+                        continue
+                    mark = significance_mark(
+                        list(run_cells.seed_values(row, scenes, split, metric).values()),
+                        list(run_cells.seed_values(reference, scenes, split, metric).values()),
+                    )
+                    marks = run_cells.notes.mark(mark) if mark else ()
+                    cells[(delta, column, split, metric)] = Cell(
+                        ours - theirs, signed=True, marks=marks
+                    )
+        ordered.append(delta)
+        ranks[delta] = None
+    return ordered
+
+
 def scene_table(
     frame: pd.DataFrame,
     *,
@@ -442,8 +512,17 @@ def scene_table(
     seeds: str = "mean",
     average: bool = False,
     published: bool = False,
+    versus: str | None = None,
 ) -> Table:
-    """Methods × scenes × splits with one block per metric (the paper's Table 1 layout)."""
+    """Methods × scenes × splits with one block per metric (the paper's Table 1 layout).
+
+    ``published``: a "(paper)" and a "Δ … − paper" row beneath each row the paper reports.
+    ``versus`` (a row, `versus_row`): a "Δ ROW − versus" row beneath every other row, each cell
+    marked within or beyond seed noise (`significance_mark`); not with ``published`` or
+    ``seeds="all"`` (one seed per row has no spread).
+    """
+    if versus is not None and (published or seeds == "all"):
+        raise ReportError("--versus compares means over seeds: not with --published or --seeds all")
     selected = select_runs(frame, suite, methods)
     suite = suite or single_suite(selected)
     run_cells = RunCells(selected, seeds)
@@ -464,6 +543,15 @@ def scene_table(
                     )
     columns = scenes + (["Average"] if average else [])
     ranks: dict[str, str | None] = {row: "all" for row in rows}
+    versus_note = []
+    if versus is not None:
+        reference = versus_row(run_cells, versus)
+        spans = [(scene, [scene]) for scene in scenes] + ([("Average", scenes)] if average else [])
+        rows = _add_versus(cells, rows, run_cells, reference, spans, splits, metrics, ranks)
+        versus_note = [
+            f"Δ rows: the row above − {reference} (means over seeds); not ranked. A Δ marked s "
+            "or n was tested against seed noise; unmarked: fewer than two seeds on a side."
+        ]
     if published:
         rows = _add_published(
             cells,
@@ -494,7 +582,9 @@ def scene_table(
         protocol=_protocol_line(run_cells, suite, seeds, seed_std=True),
         rank_sets=ranks,
     )
-    table.footnotes += table_notes + ([scene_note] if scene_note else []) + run_cells.notes.lines()
+    table.footnotes += (
+        table_notes + versus_note + ([scene_note] if scene_note else []) + run_cells.notes.lines()
+    )
     return table
 
 
