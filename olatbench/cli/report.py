@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 import click
@@ -468,6 +469,30 @@ def _report_runs(
     )
 
 
+@dataclass(frozen=True)
+class _RenderOptions:
+    """The options of `olatbench render`, one field per click option (same names)."""
+
+    kind: str | None
+    camera_path: Path | None
+    orbit: bool
+    elevation: float
+    radius: float | None
+    light: str | None
+    light_path: Path | None
+    lights_file: Path | None
+    envmap: str | None
+    samples: int | None
+    count: int | None
+    start_frame: str | None
+    component: str
+    fps: float | None
+    device: str | None
+    resolution: tuple[int, int] | None
+    output: Path | None
+    quiet: bool
+
+
 @click.command("render")
 @click.argument("run", type=click.Path(exists=True, file_okay=False, path_type=Path))
 @click.option(
@@ -574,27 +599,7 @@ def _report_runs(
     ),
 )
 @quiet_option
-def render(
-    run,
-    kind,
-    camera_path,
-    orbit,
-    elevation,
-    radius,
-    light,
-    light_path,
-    lights_file,
-    envmap,
-    samples,
-    count,
-    start_frame,
-    component,
-    fps,
-    device,
-    resolution,
-    output,
-    quiet,
-) -> None:
+def render(run: Path, **values) -> None:
     """Render a relighting sweep, a camera path or an orbit of a finished job to an MP4 and a frame
     folder; under a lighting (--lights, --envmap: several lights, area lights, environment maps)
     also a still.
@@ -610,75 +615,59 @@ def render(
           --samples 64
       olatbench render runs/mini/ssdgs/default/translucent/seed0 --lights two_lights.json
     """
+    options = _RenderOptions(**values)
     from olatbench.datasets.errors import DatasetError
     from olatbench.reports.jobfolder import JobFolder, JobFolderError
     from olatbench.reports.sweeps import subsample
     from olatbench.reports.video import Orbit, RenderRequestError, free_path_frames, render_sweep
 
-    free = camera_path is not None or orbit
-    if camera_path is not None and orbit:
+    free = options.camera_path is not None or options.orbit
+    if options.camera_path is not None and options.orbit:
         raise click.UsageError("give --camera-path or --orbit, not both")
-    if lights_file is not None or envmap is not None:
-        _render_lit(
-            run,
-            lights_file,
-            envmap,
-            samples,
-            kind,
-            camera_path,
-            orbit,
-            elevation,
-            radius,
-            light,
-            light_path,
-            count,
-            start_frame,
-            component,
-            fps,
-            device,
-            resolution,
-            output,
-            quiet,
-        )
+    if options.lights_file is not None or options.envmap is not None:
+        _render_lit(run, options)
         return
-    if samples is not None:
+    if options.samples is not None:
         raise click.UsageError("--samples goes with --lights or --envmap")
-    if free and (kind or start_frame):
+    if free and (options.kind or options.start_frame):
         raise click.UsageError("--sweep and --start-frame go without --camera-path and --orbit")
-    if not free and (light is not None or light_path is not None):
+    if not free and (options.light is not None or options.light_path is not None):
         raise click.UsageError("--light and --light-path go with --camera-path or --orbit")
-    if light is not None and light_path is not None:
+    if options.light is not None and options.light_path is not None:
         raise click.UsageError("give --light or --light-path, not both")
-    device = resolved_device(device)
+    device = resolved_device(options.device)
     try:
         job = JobFolder.open(run)
     except JobFolderError as error:  # RUN is not a finished job folder
         raise click.UsageError(str(error)) from None
+    fps = options.fps
     try:
         frames = None
         if free:
-            name = "camera-path" if camera_path is not None else "orbit"
+            name = "camera-path" if options.camera_path is not None else "orbit"
             frames, path_fps = free_path_frames(
                 job,
-                camera_path=camera_path,
-                light=light,
-                light_path=light_path,
-                resolution=resolution,
-                orbit=Orbit(elevation, radius, count or Orbit.frames) if orbit else None,
+                camera_path=options.camera_path,
+                light=options.light,
+                light_path=options.light_path,
+                resolution=options.resolution,
+                orbit=Orbit(options.elevation, options.radius, options.count or Orbit.frames)
+                if options.orbit
+                else None,
             )
-            frames = subsample(frames, count)
-            fps = fps or path_fps
+            frames = subsample(frames, options.count)
+            fps = options.fps or path_fps
         result = render_sweep(
             job,
-            name if free else kind or "light-orbit",
-            output or run / "videos",
-            count=count,
-            frame_id=start_frame,
-            component=component,
+            name if free else options.kind or "light-orbit",
+            options.output or run / "videos",
+            count=options.count,
+            frame_id=options.start_frame,
+            component=options.component,
             fps=fps or 30.0,
             device=device,
-            resolution=resolution,
-            progress=show_progress(quiet),
+            resolution=options.resolution,
+            progress=show_progress(options.quiet),
             frames=frames,
         )
     # something asked of the job that it does not have: says what it has
@@ -699,27 +688,7 @@ def render(
     )
 
 
-def _render_lit(
-    run,
-    lights_file,
-    envmap,
-    samples,
-    kind,
-    camera_path,
-    orbit,
-    elevation,
-    radius,
-    light,
-    light_path,
-    count,
-    start_frame,
-    component,
-    fps,
-    device,
-    resolution,
-    output,
-    quiet,
-) -> None:
+def _render_lit(run: Path, options: _RenderOptions) -> None:
     """`render` under a lighting (--lights or --envmap): a video along --camera-path/--orbit, else a
     still."""
     from olatbench.datasets.errors import DatasetError
@@ -736,30 +705,30 @@ def _render_lit(
         sample_lighting,
     )
 
-    if lights_file is not None and envmap is not None:
+    if options.lights_file is not None and options.envmap is not None:
         raise click.UsageError("give --lights or --envmap, not both")
-    if kind or light is not None or light_path is not None:
+    if options.kind or options.light is not None or options.light_path is not None:
         raise click.UsageError(
             "--sweep, --light and --light-path move one point light: they go without --lights "
             "and --envmap"
         )
-    if component != "rgb":
+    if options.component != "rgb":
         raise click.UsageError(
-            f"--component {component}: under --lights/--envmap only rgb adds up over lights"
+            f"--component {options.component}: under --lights/--envmap only rgb adds up over lights"
         )
-    still = camera_path is None and not orbit
-    if still and count is not None:
+    still = options.camera_path is None and not options.orbit
+    if still and options.count is not None:
         raise click.UsageError(
             "--frames goes with --camera-path or --orbit (without them: one still)"
         )
-    if not still and start_frame:
+    if not still and options.start_frame:
         raise click.UsageError("--start-frame goes without --camera-path and --orbit")
-    device = resolved_device(device)
+    device = resolved_device(options.device)
     try:
         lighting = (
-            read_lighting(lights_file)
-            if lights_file is not None
-            else environment_lighting(envmap, samples)
+            read_lighting(options.lights_file)
+            if options.lights_file is not None
+            else environment_lighting(options.envmap, options.samples)
         )
     except DatasetError as error:  # one line naming the file and the field
         raise click.UsageError(str(error)) from None
@@ -767,18 +736,18 @@ def _render_lit(
         job = JobFolder.open(run)
     except JobFolderError as error:
         raise click.UsageError(str(error)) from None
-    progress = show_progress(quiet)
+    progress = show_progress(options.quiet)
     try:
-        sampled = sample_lighting(job, lighting, samples)
+        sampled = sample_lighting(job, lighting, options.samples)
         relighter = load_relighter(job, device, progress)
         if still:
             written = render_still(
                 job,
                 sampled,
-                output or run / "videos",
+                options.output or run / "videos",
                 lighting.name,
-                frame_id=start_frame,
-                resolution=resolution,
+                frame_id=options.start_frame,
+                resolution=options.resolution,
                 progress=progress,
                 relighter=relighter,
             )
@@ -789,19 +758,21 @@ def _render_lit(
             return
         frames, path_fps = free_path_frames(
             job,
-            camera_path=camera_path,
-            resolution=resolution,
-            orbit=Orbit(elevation, radius, count or Orbit.frames) if orbit else None,
+            camera_path=options.camera_path,
+            resolution=options.resolution,
+            orbit=Orbit(options.elevation, options.radius, options.count or Orbit.frames)
+            if options.orbit
+            else None,
         )
-        name = f"{'camera-path' if camera_path is not None else 'orbit'}-{lighting.name}"
+        name = f"{'camera-path' if options.camera_path is not None else 'orbit'}-{lighting.name}"
         result = render_sweep(
             job,
             name,
-            output or run / "videos",
-            fps=fps or path_fps or 30.0,
+            options.output or run / "videos",
+            fps=options.fps or path_fps or 30.0,
             progress=progress,
             method=relighter,
-            frames=subsample(frames, count),
+            frames=subsample(frames, options.count),
             lighting=sampled,
         )
     except RenderRequestError as error:
