@@ -615,11 +615,12 @@ def render(run: Path, **values) -> None:
           --samples 64
       olatbench render runs/mini/ssdgs/default/translucent/seed0 --lights two_lights.json
     """
-    options = _RenderOptions(**values)
     from olatbench.datasets.errors import DatasetError
     from olatbench.reports.jobfolder import JobFolder, JobFolderError
     from olatbench.reports.sweeps import subsample
     from olatbench.reports.video import Orbit, RenderRequestError, free_path_frames, render_sweep
+
+    options = _RenderOptions(**values)
 
     free = options.camera_path is not None or options.orbit
     if options.camera_path is not None and options.orbit:

@@ -470,10 +470,9 @@ def _add_versus(
 ) -> list[str]:
     """Insert "Δ ROW − ``reference``" beneath every other row; returns the new row order.
 
-    A Δ cell is the difference of the two cells above it (means over seeds), marked "s" or "n" by
-    `significance_mark` on the per-seed values; ``columns`` maps each printed column (a scene or
-    "Average") to the scenes it averages, so an Average is tested on the per-seed averages. Δ rows
-    are never ranked.
+    A Δ cell is the difference of the two cells above it (means over seeds), marked by
+    `_noise_marks`; ``columns`` maps each printed column (a scene or "Average") to the scenes it
+    averages, so an Average is tested on the per-seed averages. Δ rows are never ranked.
     """
     ordered = []
     for row in rows:
@@ -489,11 +488,7 @@ def _add_versus(
                     if ours is None or theirs is None:
                         cells[(delta, column, split, metric)] = Cell(None, signed=True)
                         continue
-                    mark = significance_mark(
-                        list(run_cells.seed_values(row, scenes, split, metric).values()),
-                        list(run_cells.seed_values(reference, scenes, split, metric).values()),
-                    )
-                    marks = run_cells.notes.mark(mark) if mark else ()
+                    marks = _noise_marks(run_cells, row, reference, scenes, split, metric)
                     cells[(delta, column, split, metric)] = Cell(
                         ours - theirs, signed=True, marks=marks
                     )
@@ -717,6 +712,19 @@ def significance_mark(values: Sequence[float], reference: Sequence[float]) -> st
     return "s" if difference > SIGNIFICANCE_FACTOR * pooled else "n"
 
 
+def _noise_marks(
+    run_cells: RunCells, row: str, reference: str, scenes: Sequence[str], split: str, metric: str
+) -> tuple[str, ...]:
+    """The footnote mark ("s" or "n", `significance_mark`) of ``row`` against ``reference`` on the
+    per-seed values over ``scenes`` (their per-seed averages for several); none without seed
+    spread."""
+    mark = significance_mark(
+        list(run_cells.seed_values(row, scenes, split, metric).values()),
+        list(run_cells.seed_values(reference, scenes, split, metric).values()),
+    )
+    return run_cells.notes.mark(mark) if mark else ()
+
+
 def _mark_significance(
     cells: dict,
     run_cells: RunCells,
@@ -746,14 +754,11 @@ def _mark_significance(
         for column, scenes in columns:
             for split in splits:
                 for metric in metrics:
-                    mark = significance_mark(
-                        list(run_cells.seed_values(row, scenes, split, metric).values()),
-                        list(run_cells.seed_values(reference, scenes, split, metric).values()),
-                    )
                     cell = cells[(row, column, split, metric)]
-                    if mark is not None and cell.number is not None:
+                    if cell.number is not None:
+                        marks = _noise_marks(run_cells, row, reference, scenes, split, metric)
                         cells[(row, column, split, metric)] = replace(
-                            cell, marks=(*cell.marks, *run_cells.notes.mark(mark))
+                            cell, marks=(*cell.marks, *marks)
                         )
 
 
