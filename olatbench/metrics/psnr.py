@@ -35,6 +35,17 @@ def psnr_torch(
     return 10.0 * torch.log10(peak**2 / mse_torch(pred, gt, mask))
 
 
+def floored_psnr(
+    pred: torch.Tensor, gt: torch.Tensor, mask: torch.Tensor | None = None
+) -> torch.Tensor:
+    """The PSNR a protocol reports: ``10 log10(1 / MSE)`` per image of (B, C, H, W) tensors in
+    [0, 1] -> (B,), the MSE in float64 (weighted by ``mask`` (B, 1, H, W) when given) and floored at
+    `PSNR_MSE_FLOOR` (at most 100 dB)."""
+    weights = None if mask is None else mask.double()
+    mse = mse_torch(pred.double(), gt.double(), weights).clamp_min(PSNR_MSE_FLOOR)
+    return 10.0 * torch.log10(1.0 / mse)
+
+
 def psnr(
     pred: ArrayLike, gt: ArrayLike, mask: ArrayLike | None = None, peak: float = 1.0
 ) -> float | np.ndarray:
@@ -53,6 +64,4 @@ def psnr(
 def protocol_psnr(batch: MetricBatch, protocol: Protocol) -> list[float]:
     """The ``psnr`` metric: ``10 log10(1 / MSE)`` per image, the MSE in float64 (mask-weighted for
     masked protocols) and floored at `PSNR_MSE_FLOOR` (at most 100 dB)."""
-    mask = None if batch.mask is None else batch.mask.double()
-    mse = mse_torch(batch.pred.double(), batch.gt.double(), mask).clamp_min(PSNR_MSE_FLOOR)
-    return (10.0 * torch.log10(1.0 / mse)).tolist()
+    return floored_psnr(batch.pred, batch.gt, batch.mask).tolist()

@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING
 
 import torch
 
-from olatbench.metrics.protocols import PSNR_MSE_FLOOR
+from olatbench.metrics.psnr import floored_psnr
 
 if TYPE_CHECKING:
     from olatbench.metrics.protocols import Protocol
@@ -46,9 +46,7 @@ def scale_invariant_psnr(pred: torch.Tensor, gt: torch.Tensor, mask: torch.Tenso
     (B, 1, H, W) weights, in float64 -> (B,); at most 100 dB (MSE floored at `PSNR_MSE_FLOOR`)."""
     pred, gt, mask = pred.double(), gt.double(), mask.double()
     scaled = (least_squares_scale(pred, gt, mask) * pred).clamp(0.0, 1.0)
-    squared = (mask * (gt - scaled) ** 2).flatten(1).sum(1)
-    mse = (squared / (mask.flatten(1).sum(1) * pred.shape[1])).clamp_min(PSNR_MSE_FLOOR)
-    return 10.0 * torch.log10(1.0 / mse)
+    return floored_psnr(scaled, gt, mask)
 
 
 def _alpha(batch: MetricBatch, protocol: Protocol, name: str) -> torch.Tensor:
@@ -70,7 +68,4 @@ def protocol_psnr_object(batch: MetricBatch, protocol: Protocol) -> list[float]:
     """The ``psnr_object`` metric: PSNR over the ground truth's alpha without a scale, so that
     ``psnr_si`` minus it is what the scale alone buys (the plain ``psnr`` also counts the empty
     background)."""
-    alpha = _alpha(batch, protocol, "psnr_object").double()
-    squared = (alpha * (batch.gt.double() - batch.pred.double()) ** 2).flatten(1).sum(1)
-    mse = (squared / (alpha.flatten(1).sum(1) * batch.pred.shape[1])).clamp_min(PSNR_MSE_FLOOR)
-    return (10.0 * torch.log10(1.0 / mse)).tolist()
+    return floored_psnr(batch.pred, batch.gt, _alpha(batch, protocol, "psnr_object")).tolist()
