@@ -31,7 +31,7 @@ from olatbench.methods.shading.asg import ASGMixture
 from olatbench.methods.shading.encoding import frequency_encoding, frequency_encoding_dim
 from olatbench.methods.shading.mlp import mlp
 from olatbench.methods.shading.precision import run_network
-from olatbench.methods.shading.shadow_mlp import PADDING, ShadowNetwork
+from olatbench.methods.shading.shadow_mlp import ShadowNetwork, ones_padding, padded_input
 from olatbench.methods.shading.terms import (
     inverse_square_irradiance,
     lambert_cosine,
@@ -66,7 +66,7 @@ class OtherEffectsNetwork(nn.Module):
         # of the MLP (methods.shading.precision); inputs and output are float32
         self.precision = precision
         in_dim = 2 * frequency_encoding_dim(3, num_freqs) + material_dim
-        self.padding = -in_dim % PADDING if layout == "tiny_cuda_nn" else 0
+        self.padding = ones_padding(in_dim) if layout == "tiny_cuda_nn" else 0
         if layout == "torch":
             self.network = mlp(in_dim, hidden, 3, num_hidden + 1)
         else:
@@ -85,11 +85,8 @@ class OtherEffectsNetwork(nn.Module):
             frequency_encoding(positions, self.num_freqs),
             material,
         ]
-        if self.padding:
-            parts.append(positions.new_ones(positions.shape[0], self.padding))
-        return 2.0 * torch.sigmoid(
-            run_network(self.network, torch.cat(parts, dim=-1), self.precision)
-        )
+        x = padded_input(parts, self.padding)
+        return 2.0 * torch.sigmoid(run_network(self.network, x, self.precision))
 
 
 @dataclass

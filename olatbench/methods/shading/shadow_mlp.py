@@ -29,6 +29,19 @@ INPUT_BIASES = ("vector", "padded_ones")
 PADDING = 16  # tiny-cuda-nn's FullyFusedMLP pads its input width to a multiple of this
 
 
+def ones_padding(width: int) -> int:
+    """The constant-one columns tiny-cuda-nn's FullyFusedMLP appends to an input ``width`` columns
+    wide: up to the next multiple of `PADDING`."""
+    return -width % PADDING
+
+
+def padded_input(parts: list[torch.Tensor], padding: int) -> torch.Tensor:
+    """``parts`` (each (K, ·)) side by side, then ``padding`` columns of ones: (K, Σ + padding)."""
+    if padding:
+        parts = [*parts, parts[0].new_ones(parts[0].shape[0], padding)]
+    return torch.cat(parts, dim=-1)
+
+
 class ShadowNetwork(nn.Module):
     """``forward(positions (K,3), wi (K,3), coarse (K,1), material (K,M)) -> S (K, 1)``;
     ``input_bias`` as in the module docstring."""
@@ -53,7 +66,7 @@ class ShadowNetwork(nn.Module):
         self.in_dim = 2 * frequency_encoding_dim(3, num_freqs) + 1 + material_dim
         padded = input_bias == "padded_ones"
         # constant-one columns appended to the input
-        self.padding = -self.in_dim % PADDING if padded else 0
+        self.padding = ones_padding(self.in_dim) if padded else 0
         dims = [self.in_dim + self.padding] + [hidden] * num_hidden + [1]
         self.layers = nn.ModuleList(
             nn.Linear(dims[i], dims[i + 1], bias=(i == 0 and not padded))
@@ -78,9 +91,7 @@ class ShadowNetwork(nn.Module):
             material,
             coarse,
         ]
-        if self.padding:
-            parts.append(positions.new_ones(positions.shape[0], self.padding))
-        x = torch.cat(parts, dim=-1)
+        x = padded_input(parts, self.padding)
         return torch.relu(torch.sigmoid(run_network(self._body, x, self.precision)) - 1e-5)
 
     def _body(self, x: torch.Tensor) -> torch.Tensor:
