@@ -49,6 +49,11 @@ from pathlib import Path  # noqa: E402
 
 import torch  # noqa: E402
 
+from olatbench.methods.official.cpu_standins.tcnn import (  # noqa: E402
+    fully_fused_shapes,
+    layer_weights,
+)
+
 HOOK = Path(__file__).resolve().parent / "parity_hook" / "official_side.py"
 # native SSS output rows (σ_s, σ_a, r) from the authors' (r, σ_s', σ_a): scatter_mlp.py:43-49
 SSS_ROWS = (1, 2, 0)
@@ -77,22 +82,14 @@ def tcnn_weights(
     """The layer matrices [out, in] of a tiny-cuda-nn FullyFusedMLP's flat ``params`` (input padded
     to a multiple of 16, ``num_hidden`` hidden layers of ``hidden``, output padded to 16 rows:
     `cpu_standins.tcnn.Network`); a `ParityError` names ``what`` when the sizes do not fit."""
-    shapes = (
-        [(hidden, -(-in_dim // 16) * 16)]
-        + [(hidden, hidden)] * (num_hidden - 1)
-        + [(-(-out_dim // 16) * 16, hidden)]
-    )
+    shapes = fully_fused_shapes(in_dim, out_dim, hidden, num_hidden)
     if params.numel() != sum(rows * cols for rows, cols in shapes):
         raise ParityError(
             f"the authors' {what} has {params.numel()} parameters, not the "
             f"{sum(r * c for r, c in shapes)} of a {in_dim}-input {num_hidden}×{hidden} "
             "FullyFusedMLP"
         )
-    weights, start = [], 0
-    for rows, cols in shapes:
-        weights.append(params[start : start + rows * cols].view(rows, cols))
-        start += rows * cols
-    return weights
+    return layer_weights(params, shapes)
 
 
 def encoded_columns(in_dim: int, frequencies: int) -> list[int]:

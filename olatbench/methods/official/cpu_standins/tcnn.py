@@ -55,6 +55,28 @@ def _padded(width: int) -> int:
     return -(-width // ALIGNMENT) * ALIGNMENT
 
 
+def fully_fused_shapes(
+    n_input_dims: int, n_output_dims: int, width: int, hidden_layers: int
+) -> list[tuple[int, int]]:
+    """The layer matrices' shapes [out, in] of a FullyFusedMLP, in the order of its flat
+    ``params``: the input padded to a multiple of `ALIGNMENT`, ``hidden_layers`` layers of
+    ``width``, the output padded to a multiple of `ALIGNMENT` rows."""
+    return (
+        [(width, _padded(n_input_dims))]
+        + [(width, width)] * (hidden_layers - 1)
+        + [(_padded(n_output_dims), width)]
+    )
+
+
+def layer_weights(params: torch.Tensor, shapes: list[tuple[int, int]]) -> list[torch.Tensor]:
+    """The layer matrices [out, in] of ``shapes`` as views of the flat ``params``."""
+    out, start = [], 0
+    for rows, cols in shapes:
+        out.append(params[start : start + rows * cols].view(rows, cols))
+        start += rows * cols
+    return out
+
+
 def frequency_encoding(x: torch.Tensor, n_frequencies: int) -> torch.Tensor:
     """tiny-cuda-nn's Frequency encoding (module docstring): ``x`` [..., D] -> [..., D·2F]."""
     scales = (2.0 ** torch.arange(n_frequencies, dtype=x.dtype, device=x.device)) * math.pi  # [F]
@@ -132,11 +154,7 @@ class Network(nn.Module):
             int(n_output_dims),
             seed,
         )
-        self.shapes = (
-            [(width, _padded(self.n_input_dims))]
-            + [(width, width)] * (hidden - 1)
-            + [(_padded(self.n_output_dims), width)]
-        )
+        self.shapes = fully_fused_shapes(self.n_input_dims, self.n_output_dims, width, hidden)
         generator = torch.Generator().manual_seed(seed)
         chunks = [
             (torch.rand(rows * cols, generator=generator) * 2 - 1) * math.sqrt(6.0 / (rows + cols))
@@ -146,11 +164,7 @@ class Network(nn.Module):
 
     def weights(self) -> list[torch.Tensor]:
         """The layer matrices [out, in] as views of ``params``."""
-        out, start = [], 0
-        for rows, cols in self.shapes:
-            out.append(self.params[start : start + rows * cols].view(rows, cols))
-            start += rows * cols
-        return out
+        return layer_weights(self.params, self.shapes)
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         if x.shape[-1] != self.n_input_dims:
