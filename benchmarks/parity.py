@@ -101,6 +101,18 @@ def encoded_columns(in_dim: int, frequencies: int) -> list[int]:
     return [*order, *(encoded + c for c in order), *range(2 * encoded, in_dim)]
 
 
+def first_layer(
+    first: torch.Tensor, in_dim: int, frequencies: int, padded: bool, name: str
+) -> dict[str, torch.Tensor]:
+    """The authors' first layer [hidden, padded input] as the state of the native layer ``name``:
+    its encoded columns reordered (`encoded_columns`); with ``padded`` the padded columns kept as
+    they are, else their weights summed into ``name.bias`` (the same function)."""
+    columns = encoded_columns(in_dim, frequencies)
+    if padded:
+        return {f"{name}.weight": torch.cat([first[:, columns], first[:, in_dim:]], dim=1)}
+    return {f"{name}.weight": first[:, columns], f"{name}.bias": first[:, in_dim:].sum(dim=1)}
+
+
 def shadow_layers(
     params: torch.Tensor,
     in_dim: int,
@@ -117,14 +129,7 @@ def shadow_layers(
     The first layer's encoded columns are reordered (`encoded_columns`) for the two encoded
     3-vectors (light direction, position); material and coarse visibility follow in both."""
     weights = tcnn_weights(params, in_dim, 1, hidden, num_hidden, "shadow network")
-    first, columns = weights[0], encoded_columns(in_dim, frequencies)
-    if input_bias == "padded_ones":
-        state = {"layers.0.weight": torch.cat([first[:, columns], first[:, in_dim:]], dim=1)}
-    else:
-        state = {
-            "layers.0.weight": first[:, columns],
-            "layers.0.bias": first[:, in_dim:].sum(dim=1),
-        }
+    state = first_layer(weights[0], in_dim, frequencies, input_bias == "padded_ones", "layers.0")
     state.update({f"layers.{i}.weight": w for i, w in enumerate(weights[1:-1], start=1)})
     state[f"layers.{num_hidden}.weight"] = weights[-1][:1]
     return state
@@ -145,14 +150,7 @@ def other_layers(
     ReLU between its layers where tiny-cuda-nn has LeakyReLU(0.01), and its biases train where the
     authors' network has none."""
     weights = tcnn_weights(params, in_dim, 3, hidden, num_hidden, "other-effects network")
-    first, columns = weights[0], encoded_columns(in_dim, frequencies)
-    if layout == "tiny_cuda_nn":
-        state = {"network.0.weight": torch.cat([first[:, columns], first[:, in_dim:]], dim=1)}
-    else:
-        state = {
-            "network.0.weight": first[:, columns],
-            "network.0.bias": first[:, in_dim:].sum(dim=1),
-        }
+    state = first_layer(weights[0], in_dim, frequencies, layout == "tiny_cuda_nn", "network.0")
     for i, weight in enumerate(weights[1:], start=1):
         weight = weight[:3] if i == len(weights) - 1 else weight
         state[f"network.{2 * i}.weight"] = weight
